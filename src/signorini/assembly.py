@@ -1,0 +1,230 @@
+"""Vectorized finite element assembly: stiffness, mass, loads, strain and stress.
+
+Dof numbering of the vector space: node-major, ``dof = d * node + component``.
+
+All element quantities are computed for every element at once with ``einsum``; global
+matrices are assembled from the node-to-node sparsity pattern of the mesh, computed
+once per mesh (and cached on it), by ``np.bincount`` of the element values onto the
+pattern slots.  The vector matrices are built as block-sparse (BSR, d x d blocks on
+the node pattern) and returned as CSR.  There is no Python loop over elements or nodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from .elements import FACET_TYPES, reference_element
+from .material import IsotropicElastic
+from .mesh import Mesh
+
+
+# ----------------------------------------------------------------------------- geometry
+def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Quadrature weights times det J and physical shape gradients of every element.
+
+    Returns
+    -------
+    wdet : (n_cells, nq) array, w_q |det J_e(xi_q)|  [length^d].
+    grad : (n_cells, nq, nv, d) array, grad N_a at the quadrature points [1/length].
+    """
+    if "geometry" in mesh._cache:
+        return mesh._cache["geometry"]
+    ref = reference_element(mesh.cell_type)
+    X = mesh.points[mesh.cells]  # (ne, nv, d)
+    J = np.einsum("qak,eai->eqik", ref.dN, X)  # J_ik = dx_i / dxi_k
+    det = np.linalg.det(J) if mesh.dim > 1 else J[..., 0, 0]
+    Jinv = np.linalg.inv(J) if mesh.dim > 1 else 1.0 / J
+    grad = np.einsum("qak,eqki->eqai", ref.dN, Jinv)
+    wdet = np.abs(det) * ref.weights[None, :]
+    mesh._cache["geometry"] = (wdet, grad)
+    return wdet, grad
+
+
+def quadrature_points(mesh: Mesh) -> np.ndarray:
+    """Physical coordinates of the quadrature points, shape (n_cells, nq, d)."""
+    ref = reference_element(mesh.cell_type)
+    return np.einsum("qa,eai->eqi", ref.N, mesh.points[mesh.cells])
+
+
+def cell_volumes(mesh: Mesh) -> np.ndarray:
+    """Measure of every cell, shape (n_cells,)."""
+    return geometry(mesh)[0].sum(axis=1)
+
+
+# ----------------------------------------------------------------------------- pattern
+def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CSR node-to-node pattern and the slot of every element entry.
+
+    Returns ``(indptr, indices, slot)`` where ``slot`` has shape (n_cells, nv, nv) and
+    ``slot[e, a, b]`` is the position of the pair (cells[e,a], cells[e,b]) in ``indices``.
+    """
+    if "pattern" in mesh._cache:
+        return mesh._cache["pattern"]
+    nn = mesh.n_nodes
+    c = mesh.cells
+    keys = (c[:, :, None] * nn + c[:, None, :]).ravel()
+    uniq, slot = np.unique(keys, return_inverse=True)
+    rows = uniq // nn
+    indices = (uniq - rows * nn).astype(np.int32 if nn < 2**31 else np.int64)
+    indptr = np.zeros(nn + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=nn), out=indptr[1:])
+    out = (indptr, indices, slot.reshape(c.shape[0], c.shape[1], c.shape[1]))
+    mesh._cache["pattern"] = out
+    return out
+
+
+def assemble_scalar(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
+    """Assemble element matrices ``Ke`` (n_cells, nv, nv) into a (n_nodes, n_nodes) CSR."""
+    indptr, indices, slot = node_pattern(mesh)
+    data = np.bincount(slot.ravel(), weights=Ke.ravel(), minlength=indices.size)
+    return sp.csr_matrix((data, indices, indptr), shape=(mesh.n_nodes, mesh.n_nodes))
+
+
+def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
+    """Assemble ``Ke`` of shape (n_cells, nv, nv, d, d) (node a, node b, comp i, comp j)
+    into the (d n_nodes)^2 CSR matrix with node-major dof numbering."""
+    indptr, indices, slot = node_pattern(mesh)
+    d = Ke.shape[-1]
+    flat = slot.ravel()
+    blocks = np.empty((indices.size, d, d))
+    for i in range(d):
+        for j in range(d):
+            blocks[:, i, j] = np.bincount(flat, weights=Ke[..., i, j].ravel(), minlength=indices.size)
+    n = d * mesh.n_nodes
+    return sp.bsr_matrix((blocks, indices, indptr), shape=(n, n)).tocsr()
+
+
+# ----------------------------------------------------------------------------- operators
+def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
+    """Elastic stiffness S_ij = a(phi_i, phi_j) = int sigma(phi_i) : eps(phi_j) dx.
+
+    Element block for nodes a, b and components i, j::
+
+        K[a,b,i,j] = int lam dN_a/dx_i dN_b/dx_j + mu (delta_ij grad N_a . grad N_b
+                     + dN_a/dx_j dN_b/dx_i) dx
+
+    In 1D: K[a,b] = int E N_a' N_b' dx.  Units: [force / length].
+    """
+    wdet, G = geometry(mesh)
+    if mesh.dim == 1:
+        Ke = material.young * np.einsum("eq,eqa,eqb->eab", wdet, G[..., 0], G[..., 0])
+        return assemble_scalar(mesh, Ke)
+    lam, mu = material.lam, material.mu
+    Ke = lam * np.einsum("eq,eqai,eqbj->eabij", wdet, G, G)
+    Ke += mu * np.einsum("eq,eqaj,eqbi->eabij", wdet, G, G)
+    lap = mu * np.einsum("eq,eqak,eqbk->eab", wdet, G, G)
+    idx = np.arange(mesh.dim)
+    Ke[:, :, :, idx, idx] += lap[..., None]
+    return assemble_vector(mesh, Ke)
+
+
+def scalar_mass_matrix(mesh: Mesh, rho: float = 1.0, cell_weight: np.ndarray | None = None) -> sp.csr_matrix:
+    """Scalar consistent mass m_ab = int rho w_e N_a N_b dx, shape (n_nodes, n_nodes).
+
+    ``cell_weight`` (n_cells,) multiplies each element's contribution (0 drops it; this
+    is how the ``seed`` mass removes the elements touching the contact boundary).
+    """
+    ref = reference_element(mesh.cell_type)
+    wdet, _ = geometry(mesh)
+    if cell_weight is not None:
+        wdet = wdet * np.asarray(cell_weight, dtype=float)[:, None]
+    Ke = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    return assemble_scalar(mesh, Ke)
+
+
+def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
+    """Vector matrix m (x) I_d for node-major dofs."""
+    return sp.kron(m, sp.identity(dim, format="csr"), format="csr") if dim > 1 else sp.csr_matrix(m)
+
+
+def mass_matrix(mesh: Mesh, rho: float = 1.0) -> sp.csr_matrix:
+    """Consistent vector mass matrix M = rho int phi_i . phi_j dx [mass]."""
+    return vectorize(scalar_mass_matrix(mesh, rho), mesh.dim)
+
+
+def lumped_mass_matrix(M: sp.spmatrix) -> sp.dia_matrix:
+    """Row-sum lumped mass: diag(sum_j M_ij)."""
+    return sp.diags(np.asarray(M.sum(axis=1)).ravel(), format="csr")
+
+
+def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Load vector F_(a,i) = int f_i N_a dx for a body force density f [force/length^d].
+
+    ``f`` is a constant vector of length d or a function of points (..., d) -> (..., d).
+    """
+    ref = reference_element(mesh.cell_type)
+    wdet, _ = geometry(mesh)
+    xq = quadrature_points(mesh)
+    fq = f(xq) if callable(f) else np.broadcast_to(np.asarray(f, dtype=float), xq.shape)
+    fe = np.einsum("eq,qa,eqi->eai", wdet, ref.N, fq)
+    F = np.zeros((mesh.n_nodes, mesh.dim))
+    for i in range(mesh.dim):
+        F[:, i] = np.bincount(mesh.cells.ravel(), weights=fe[..., i].ravel(), minlength=mesh.n_nodes)
+    return F.ravel()
+
+
+def facet_weights(mesh: Mesh, tag: str) -> np.ndarray:
+    """Nodal boundary weights w_a = int_{Gamma_tag} N_a ds, shape (n_nodes,) [length^(d-1)].
+
+    In 1D every tagged point has weight 1 (a unit cross-section).
+    """
+    facets = mesh.facets_of(tag)
+    if mesh.dim == 1:
+        return np.bincount(facets.ravel(), minlength=mesh.n_nodes).astype(float)
+    fref = reference_element(FACET_TYPES[mesh.cell_type])
+    X = mesh.points[facets]  # (nf, nfv, d)
+    J = np.einsum("qak,fai->fqik", fref.dN, X)  # (nf, nq, d, d-1)
+    area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))
+    we = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N)
+    return np.bincount(facets.ravel(), weights=we.ravel(), minlength=mesh.n_nodes)
+
+
+def surface_load(mesh: Mesh, tag: str, traction: np.ndarray) -> np.ndarray:
+    """Load vector of a constant traction vector t on the facets of ``tag``:
+    F_(a,i) = t_i int_Gamma N_a ds (exact for P1/Q1 facets)."""
+    w = facet_weights(mesh, tag)
+    t = np.asarray(traction, dtype=float).reshape(1, -1)
+    return (w[:, None] * t).ravel()
+
+
+# ----------------------------------------------------------------------------- post-processing
+def strain(mesh: Mesh, u: np.ndarray) -> np.ndarray:
+    """Small strain eps = sym(grad u) at the quadrature points, shape (n_cells, nq, d, d)."""
+    _, G = geometry(mesh)
+    ue = np.asarray(u).reshape(mesh.n_nodes, mesh.dim)[mesh.cells]  # (ne, nv, d)
+    gu = np.einsum("eqaj,eai->eqij", G, ue)
+    return 0.5 * (gu + np.swapaxes(gu, -1, -2))
+
+
+def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
+    """Volume-weighted average at the nodes of per-cell values (n_cells, ...)."""
+    vol = cell_volumes(mesh)
+    flat = cell_values.reshape(mesh.n_cells, -1)
+    out = np.empty((mesh.n_nodes, flat.shape[1]))
+    idx = mesh.cells.ravel()
+    nv = mesh.cells.shape[1]
+    den = np.bincount(idx, weights=np.repeat(vol, nv), minlength=mesh.n_nodes)
+    for k in range(flat.shape[1]):
+        out[:, k] = np.bincount(idx, weights=np.repeat(vol * flat[:, k], nv), minlength=mesh.n_nodes)
+    out /= den[:, None]
+    return out.reshape((mesh.n_nodes,) + cell_values.shape[1:])
+
+
+def von_mises(mesh: Mesh, material: IsotropicElastic, u: np.ndarray, nodal: bool = True) -> np.ndarray:
+    """von Mises stress of the displacement ``u``: per cell (mean over quadrature
+    points) or, with ``nodal=True``, averaged at the nodes."""
+    wdet, _ = geometry(mesh)
+    vm = material.von_mises(strain(mesh, u))  # (ne, nq)
+    cell = (vm * wdet).sum(axis=1) / wdet.sum(axis=1)
+    return nodal_average(mesh, cell) if nodal else cell
+
+
+def stress(mesh: Mesh, material: IsotropicElastic, u: np.ndarray, nodal: bool = True) -> np.ndarray:
+    """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
+    wdet, _ = geometry(mesh)
+    sig = material.stress(strain(mesh, u))
+    cell = np.einsum("eq,eqij->eij", wdet, sig) / wdet.sum(axis=1)[:, None, None]
+    return nodal_average(mesh, cell) if nodal else cell

@@ -1,0 +1,145 @@
+"""Reference Lagrange elements and Gauss quadrature.
+
+Every element is described by its reference nodes, shape functions ``N_a(xi)`` and
+their gradients evaluated at a quadrature rule exact for the products needed by the
+mass matrix (degree 2 per direction for Q1, degree 2 for P1 simplices).
+
+Node orderings follow meshio / VTK:
+
+``line``        0 --- 1 on [0, 1]
+``quad``        (-1,-1), (1,-1), (1,1), (-1,1) on [-1, 1]^2
+``hexahedron``  bottom face (z=-1) counter-clockwise, then top face (z=+1)
+``triangle``    (0,0), (1,0), (0,1)
+``tetra``       (0,0,0), (1,0,0), (0,1,0), (0,0,1)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+
+_G2 = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+
+
+@dataclass(frozen=True)
+class ReferenceElement:
+    """A reference element with a quadrature rule.
+
+    Attributes
+    ----------
+    name : meshio cell-type name.
+    dim : topological dimension.
+    nodes : (nv, dim) reference coordinates of the nodes.
+    points : (nq, dim) quadrature points.
+    weights : (nq,) quadrature weights (sum = reference volume).
+    N : (nq, nv) shape functions at the quadrature points.
+    dN : (nq, nv, dim) reference gradients at the quadrature points.
+    facets : local node indices of each facet, ordered so that the facet normal
+        computed from them points outwards (used when extracting boundaries).
+    facet_type : meshio name of the facet cell type.
+    """
+
+    name: str
+    dim: int
+    nodes: np.ndarray
+    points: np.ndarray
+    weights: np.ndarray
+    N: np.ndarray
+    dN: np.ndarray
+    facets: tuple[tuple[int, ...], ...]
+    facet_type: str
+
+    @property
+    def n_nodes(self) -> int:
+        return self.nodes.shape[0]
+
+
+def _tensor_gauss(dim: int) -> tuple[np.ndarray, np.ndarray]:
+    grids = np.meshgrid(*([_G2] * dim), indexing="ij")
+    pts = np.stack([g.ravel() for g in grids], axis=1)
+    return pts, np.ones(pts.shape[0])
+
+
+def _q1(nodes: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Multilinear shape functions on [-1,1]^d: prod_k (1 + xi_k s_k)/2."""
+    d = nodes.shape[1]
+    fac = (1.0 + pts[:, None, :] * nodes[None, :, :]) / 2.0  # (nq, nv, d)
+    N = np.prod(fac, axis=2)
+    dN = np.empty(pts.shape[:1] + nodes.shape)
+    for k in range(d):
+        others = np.prod(np.delete(fac, k, axis=2), axis=2)
+        dN[:, :, k] = nodes[None, :, k] / 2.0 * others
+    return N, dN
+
+
+def _p1(dim: int, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric shape functions N_0 = 1 - sum xi, N_k = xi_k."""
+    N = np.column_stack([1.0 - pts.sum(axis=1), pts])
+    g = np.vstack([-np.ones(dim), np.eye(dim)])
+    dN = np.broadcast_to(g, (pts.shape[0], dim + 1, dim)).copy()
+    return N, dN
+
+
+@cache
+def reference_element(name: str) -> ReferenceElement:
+    """Return the reference element for a meshio cell-type name."""
+    if name == "vertex":
+        return ReferenceElement(
+            "vertex",
+            0,
+            np.zeros((1, 0)),
+            np.zeros((1, 0)),
+            np.ones(1),
+            np.ones((1, 1)),
+            np.zeros((1, 1, 0)),
+            (),
+            "",
+        )
+    if name == "line":
+        nodes = np.array([[0.0], [1.0]])
+        pts = ((_G2 + 1.0) / 2.0)[:, None]
+        w = np.full(2, 0.5)
+        N = np.column_stack([1.0 - pts[:, 0], pts[:, 0]])
+        dN = np.broadcast_to(np.array([[-1.0], [1.0]]), (2, 2, 1)).copy()
+        return ReferenceElement(name, 1, nodes, pts, w, N, dN, ((0,), (1,)), "vertex")
+    if name == "quad":
+        nodes = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+        pts, w = _tensor_gauss(2)
+        N, dN = _q1(nodes, pts)
+        facets = ((0, 1), (1, 2), (2, 3), (3, 0))
+        return ReferenceElement(name, 2, nodes, pts, w, N, dN, facets, "line")
+    if name == "hexahedron":
+        b = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+        nodes = np.vstack([np.column_stack([b, -np.ones(4)]), np.column_stack([b, np.ones(4)])])
+        pts, w = _tensor_gauss(3)
+        N, dN = _q1(nodes, pts)
+        facets = (
+            (0, 3, 2, 1),
+            (4, 5, 6, 7),
+            (0, 1, 5, 4),
+            (1, 2, 6, 5),
+            (2, 3, 7, 6),
+            (3, 0, 4, 7),
+        )
+        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets, "quad")
+    if name == "triangle":
+        nodes = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+        pts = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])
+        w = np.full(3, 1 / 6)
+        N, dN = _p1(2, pts)
+        return ReferenceElement(name, 2, nodes, pts, w, N, dN, ((0, 1), (1, 2), (2, 0)), "line")
+    if name == "tetra":
+        nodes = np.vstack([np.zeros(3), np.eye(3)])
+        a, b = 0.5854101966249685, 0.1381966011250105
+        pts = np.array([[b, b, b], [a, b, b], [b, a, b], [b, b, a]])
+        w = np.full(4, 1 / 24)
+        N, dN = _p1(3, pts)
+        facets = ((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))
+        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets, "triangle")
+    raise KeyError(name)
+
+
+SUPPORTED_CELLS = ("line", "quad", "triangle", "hexahedron", "tetra")
+FACET_TYPES = {"line": "vertex", "quad": "line", "triangle": "line", "hexahedron": "quad", "tetra": "triangle"}

@@ -1,0 +1,35 @@
+"""Exception types raised at the boundary of the package (API arguments, case files)."""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Invalid user input: the message names the field and the allowed values.
+
+    The command line maps this exception to exit code 2.
+    """
+
+
+class MeshError(InputError):
+    """A mesh that cannot be used (unsupported cells, bad tags, inverted elements)."""
+
+
+def check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    """Return ``float(value)`` or raise :class:`InputError` naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    if v < 0 or (v == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"{name} must be {bound}, got {value!r}")
+    return v
+
+
+def check_choice(name: str, value: str, allowed) -> str:
+    """Return ``value`` if it is one of ``allowed``; otherwise raise naming both."""
+    if value not in allowed:
+        raise InputError(f"unknown {name} {value!r}; allowed: {', '.join(sorted(allowed))}")
+    return value

@@ -1,0 +1,325 @@
+"""Meshes: points, one block of cells, and named boundary facets.
+
+Generators
+----------
+``interval(n, length)``            P1 segments on [x0, x0 + length]; tags ``xmin``, ``xmax``.
+``rectangle(nx, ny, lx, ly)``       Q1 quads (``cell="quad"``) or P1 triangles
+                                    (``cell="triangle"``, two per square); tags ``xmin``,
+                                    ``xmax``, ``ymin``, ``ymax``.
+``box(nx, ny, nz, lx, ly, lz)``     Q1 hexahedra or P1 tetrahedra (``cell="tetra"``, six
+                                    per cube); tags ``xmin`` ... ``zmax``.
+
+A tag names a set of boundary facets (points in 1D, segments in 2D, faces in 3D); the
+nodes of a tag are the nodes of its facets.  :func:`read_mesh` reads any format meshio
+knows and turns Gmsh physical groups of facets into tags.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .elements import FACET_TYPES, SUPPORTED_CELLS, reference_element
+from .errors import MeshError
+
+
+@dataclass
+class Mesh:
+    """An unstructured mesh with one cell type.
+
+    Attributes
+    ----------
+    points : (n_nodes, dim) float array, coordinates in length units.
+    cells : (n_cells, nv) int array, node indices (meshio ordering).
+    cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra``.
+    facets : dict tag -> (n_facets, nfv) int array of boundary facets.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    cell_type: str
+    facets: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.points = np.ascontiguousarray(self.points, dtype=float)
+        if self.points.ndim == 1:
+            self.points = self.points[:, None]
+        self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
+        if self.cell_type not in SUPPORTED_CELLS:
+            raise MeshError(
+                f"unsupported cell type {self.cell_type!r}; supported: {', '.join(SUPPORTED_CELLS)}"
+            )
+        ref = reference_element(self.cell_type)
+        if self.points.shape[1] != ref.dim:
+            raise MeshError(
+                f"cell type {self.cell_type!r} needs {ref.dim}D points, got {self.points.shape[1]}D"
+            )
+        if self.cells.ndim != 2 or self.cells.shape[1] != ref.n_nodes:
+            raise MeshError(f"cells of type {self.cell_type!r} need {ref.n_nodes} nodes each")
+        if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
+            raise MeshError("cells reference nodes that do not exist")
+        self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}
+        self._cache: dict = {}
+
+    @property
+    def dim(self) -> int:
+        return self.points.shape[1]
+
+    @property
+    def n_nodes(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def n_cells(self) -> int:
+        return self.cells.shape[0]
+
+    @property
+    def tags(self) -> list[str]:
+        return sorted(self.facets)
+
+    def facets_of(self, tag: str) -> np.ndarray:
+        """Facets of a tag; clear error for unknown or empty tags."""
+        if tag not in self.facets:
+            raise MeshError(f"unknown boundary tag {tag!r}; this mesh has: {', '.join(self.tags) or 'none'}")
+        f = self.facets[tag]
+        if f.size == 0:
+            raise MeshError(f"boundary tag {tag!r} is empty")
+        return f
+
+    def nodes_of(self, tag: str) -> np.ndarray:
+        """Sorted unique node indices of the facets of ``tag``."""
+        return np.unique(self.facets_of(tag))
+
+    def check_cells(self) -> None:
+        """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
+        ref = reference_element(self.cell_type)
+        X = self.points[self.cells]
+        J = np.einsum("qad,ead->eqd" if ref.dim == 1 else "qak,eai->eqik", ref.dN, X)
+        det = J[..., 0] if ref.dim == 1 else np.linalg.det(J)
+        scale = np.abs(X - X.mean(axis=1, keepdims=True)).max(axis=(1, 2)) ** ref.dim
+        bad = np.where((det <= 1e-12 * scale[:, None]).any(axis=1))[0]
+        if bad.size:
+            inverted = (det[bad] < -1e-12 * scale[bad, None]).all(axis=1)
+            kind = "inverted" if inverted.all() else "degenerate or inverted"
+            raise MeshError(
+                f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; "
+                "fix the node ordering or the geometry"
+            )
+
+
+# ----------------------------------------------------------------------------- boundary
+def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
+    """All facets that belong to exactly one cell, as (n, nfv) node arrays."""
+    ref = reference_element(cell_type)
+    loc = np.array(ref.facets)
+    faces = cells[:, loc].reshape(-1, loc.shape[1])
+    key_nodes = np.sort(faces, axis=1)[:, :3]
+    nn = int(cells.max()) + 1
+    key = np.zeros(len(faces), dtype=np.int64)
+    for k in range(key_nodes.shape[1]):
+        key = key * nn + key_nodes[:, k]
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return faces[counts[inv] == 1]
+
+
+def tag_sides(points: np.ndarray, facets: np.ndarray) -> dict[str, np.ndarray]:
+    """Split boundary facets of an axis-aligned box into ``xmin``, ``xmax``, ... tags."""
+    dim = points.shape[1]
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    tol = 1e-9 * max(1.0, float(np.max(hi - lo)))
+    tags = {}
+    fx = points[facets]  # (nf, nfv, dim)
+    for k, ax in enumerate("xyz"[:dim]):
+        for name, val in (("min", lo[k]), ("max", hi[k])):
+            on = np.all(np.abs(fx[:, :, k] - val) < tol, axis=1)
+            tags[f"{ax}{name}"] = facets[on]
+    return tags
+
+
+# ----------------------------------------------------------------------------- generators
+def _check_counts(**counts: int) -> None:
+    for name, v in counts.items():
+        if not isinstance(v, (int, np.integer)) or v < 1:
+            raise MeshError(f"{name} must be a positive integer, got {v!r}")
+
+
+def _check_lengths(**lengths: float) -> None:
+    for name, v in lengths.items():
+        if not np.isfinite(v) or v <= 0:
+            raise MeshError(f"{name} must be a positive length, got {v!r}")
+
+
+def interval(n: int, length: float = 1.0, x0: float = 0.0) -> Mesh:
+    """P1 mesh of [x0, x0 + length] with ``n`` equal elements; tags ``xmin``, ``xmax``."""
+    _check_counts(n=n)
+    _check_lengths(length=length)
+    x = x0 + np.linspace(0.0, length, n + 1)
+    cells = np.column_stack([np.arange(n), np.arange(1, n + 1)])
+    return Mesh(x[:, None], cells, "line", {"xmin": np.array([[0]]), "xmax": np.array([[n]])})
+
+
+def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "quad") -> Mesh:
+    """Structured mesh of [0,lx]x[0,ly]: ``nx`` x ``ny`` quads, or twice as many triangles."""
+    _check_counts(nx=nx, ny=ny)
+    _check_lengths(lx=lx, ly=ly)
+    xs, ys = np.linspace(0, lx, nx + 1), np.linspace(0, ly, ny + 1)
+    X, Y = np.meshgrid(xs, ys, indexing="xy")
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    idx = np.arange(pts.shape[0]).reshape(ny + 1, nx + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
+    if cell == "quad":
+        cells = np.stack([a, b, c, d], axis=-1).reshape(-1, 4)
+    elif cell == "triangle":
+        t1 = np.stack([a, b, c], axis=-1).reshape(-1, 3)
+        t2 = np.stack([a, c, d], axis=-1).reshape(-1, 3)
+        cells = np.vstack([t1, t2])
+    else:
+        raise MeshError(f"unknown 2D cell {cell!r}; allowed: quad, triangle")
+    return Mesh(pts, cells, cell, tag_sides(pts, boundary_facets(cells, cell)))
+
+
+# Kuhn subdivision of the unit cube (VTK hex node numbers) into 6 positively oriented tets
+_KUHN = np.array(
+    [[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]]
+)
+
+
+def box(
+    nx: int,
+    ny: int,
+    nz: int,
+    lx: float = 1.0,
+    ly: float = 1.0,
+    lz: float = 1.0,
+    cell: str = "hexahedron",
+) -> Mesh:
+    """Structured mesh of [0,lx]x[0,ly]x[0,lz]: hexahedra or six tetrahedra per cube."""
+    _check_counts(nx=nx, ny=ny, nz=nz)
+    _check_lengths(lx=lx, ly=ly, lz=lz)
+    xs, ys, zs = (np.linspace(0, L, m + 1) for L, m in ((lx, nx), (ly, ny), (lz, nz)))
+    Z, Y, X = np.meshgrid(zs, ys, xs, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    idx = np.arange(pts.shape[0]).reshape(nz + 1, ny + 1, nx + 1)
+    corners = [
+        idx[:-1, :-1, :-1],
+        idx[:-1, :-1, 1:],
+        idx[:-1, 1:, 1:],
+        idx[:-1, 1:, :-1],
+        idx[1:, :-1, :-1],
+        idx[1:, :-1, 1:],
+        idx[1:, 1:, 1:],
+        idx[1:, 1:, :-1],
+    ]
+    hexes = np.stack(corners, axis=-1).reshape(-1, 8)
+    if cell == "hexahedron":
+        cells = hexes
+        facets = _structured_box_facets(idx)
+        return Mesh(pts, cells, cell, facets)
+    if cell == "tetra":
+        cells = hexes[:, _KUHN].reshape(-1, 4)
+        return Mesh(pts, cells, cell, tag_sides(pts, boundary_facets(cells, cell)))
+    raise MeshError(f"unknown 3D cell {cell!r}; allowed: hexahedron, tetra")
+
+
+def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
+    """Boundary quads of a structured hexahedral grid ``idx[z, y, x]``, by side."""
+
+    def quads(face: np.ndarray) -> np.ndarray:
+        return np.stack([face[:-1, :-1], face[:-1, 1:], face[1:, 1:], face[1:, :-1]], axis=-1).reshape(-1, 4)
+
+    return {
+        "xmin": quads(idx[:, :, 0]),
+        "xmax": quads(idx[:, :, -1]),
+        "ymin": quads(idx[:, 0, :]),
+        "ymax": quads(idx[:, -1, :]),
+        "zmin": quads(idx[0]),
+        "zmax": quads(idx[-1]),
+    }
+
+
+# ----------------------------------------------------------------------------- files
+_DIM_OF = {"line": 1, "triangle": 2, "quad": 2, "tetra": 3, "hexahedron": 3}
+
+
+def read_mesh(path: str | Path) -> Mesh:
+    """Read a mesh with meshio; Gmsh physical groups of facets become tags.
+
+    The cells of highest dimension form the mesh (mixed cell types are refused).
+    Facets listed under a physical group named ``NAME`` (``gmsh:physical`` cell data
+    plus ``field_data``) become the tag ``NAME``; unnamed groups become ``"<id>"``.
+    Points are truncated to the mesh dimension (Gmsh always writes 3D points).
+    """
+    import meshio
+
+    p = Path(path)
+    if not p.is_file():
+        raise MeshError(f"mesh file {str(p)!r} does not exist")
+    try:
+        m = meshio.read(p)
+    except Exception as exc:  # meshio raises many types
+        raise MeshError(f"cannot read mesh file {str(p)!r}: {exc}") from None
+    kinds = {b.type for b in m.cells}
+    volume = [t for t in kinds if t in _DIM_OF]
+    unsupported = [t for t in kinds if t not in _DIM_OF and t not in ("vertex", "line", "triangle", "quad")]
+    if not volume:
+        raise MeshError(
+            f"{p.name}: no supported cells (found {sorted(kinds)}); supported: {', '.join(SUPPORTED_CELLS)}"
+        )
+    dim = max(_DIM_OF[t] for t in volume)
+    top = [t for t in volume if _DIM_OF[t] == dim]
+    if len(top) > 1:
+        raise MeshError(f"{p.name}: mixed cell types {sorted(top)} are not supported")
+    if unsupported:
+        raise MeshError(
+            f"{p.name}: unsupported cell types {sorted(unsupported)}; supported: {', '.join(SUPPORTED_CELLS)}"
+        )
+    cell_type = top[0]
+    cells = np.vstack([b.data for b in m.cells if b.type == cell_type])
+    ftype = FACET_TYPES[cell_type]
+    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
+    phys = m.cell_data.get("gmsh:physical")
+    facets: dict[str, list[np.ndarray]] = {}
+    if phys is not None:
+        for block, tags in zip(m.cells, phys):
+            if block.type != ftype:
+                continue
+            for tag_id in np.unique(tags):
+                name = names.get(int(tag_id), str(int(tag_id)))
+                facets.setdefault(name, []).append(block.data[tags == tag_id])
+    # drop unused points (gmsh keeps geometry points)
+    used = np.unique(cells)
+    renum = -np.ones(len(m.points), dtype=np.int64)
+    renum[used] = np.arange(used.size)
+    pts = m.points[used, :dim]
+    tagged = {k: renum[np.vstack(v)] for k, v in facets.items()}
+    for k, v in tagged.items():
+        if (v < 0).any():
+            raise MeshError(f"{p.name}: facets of tag {k!r} use nodes that belong to no cell")
+    mesh = Mesh(pts, renum[cells], cell_type, tagged)
+    mesh.check_cells()
+    return mesh
+
+
+def write_mesh(mesh: Mesh, path: str | Path) -> None:
+    """Write ``mesh`` as a Gmsh 2.2 file with one physical group per tag (readable by :func:`read_mesh`)."""
+    import meshio
+
+    ftype = FACET_TYPES[mesh.cell_type]
+    blocks, phys, field_data = [(mesh.cell_type, mesh.cells)], [np.zeros(mesh.n_cells, dtype=int)], {}
+    for i, (name, f) in enumerate(sorted(mesh.facets.items()), start=1):
+        blocks.append((ftype, f))
+        phys.append(np.full(len(f), i, dtype=int))
+        field_data[name] = np.array([i, mesh.dim - 1])
+    phys[0][:] = len(field_data) + 1
+    field_data["domain"] = np.array([len(field_data) + 1, mesh.dim])
+    pts = np.zeros((mesh.n_nodes, 3))
+    pts[:, : mesh.dim] = mesh.points
+    out = meshio.Mesh(
+        pts,
+        blocks,
+        cell_data={"gmsh:physical": phys, "gmsh:geometrical": phys},
+        field_data=field_data,
+    )
+    meshio.write(path, out, file_format="gmsh22", binary=False)

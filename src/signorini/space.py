@@ -1,0 +1,123 @@
+"""Vector Lagrange space (P1/Q1) and Dirichlet conditions by elimination.
+
+Dof numbering: node-major, ``dof = d * node + component`` (component 0 = x).
+
+A Dirichlet condition fixes chosen components on the nodes of a boundary tag to
+values that may be inhomogeneous (constants or functions of x).  Conditions are
+applied by elimination: with free dofs f and fixed dofs D, ``A u = b`` becomes
+``A_ff u_f = b_f - A_fD u_D``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InputError
+from .mesh import Mesh
+
+Value = float | Sequence[float] | Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Dirichlet:
+    """u_i = value_i on the nodes of ``tag`` for i in ``components``.
+
+    ``value`` is a scalar (same for every listed component), a sequence with one value
+    per listed component, or a function of the node coordinates (n, d) returning
+    (n, len(components)).  ``components=None`` means all components.
+    """
+
+    tag: str
+    value: Value = 0.0
+    components: tuple[int, ...] | None = None
+
+
+class VectorSpace:
+    """Continuous vector P1/Q1 space on ``mesh`` with ``dim`` = mesh dimension components."""
+
+    def __init__(self, mesh: Mesh):
+        self.mesh = mesh
+        self.dim = mesh.dim
+        self.n_dofs = mesh.n_nodes * mesh.dim
+
+    def dofs(self, nodes: np.ndarray, components: Sequence[int] | None = None) -> np.ndarray:
+        """Dofs of ``nodes`` (array) for ``components``, shape (len(nodes), len(components))."""
+        comps = np.arange(self.dim) if components is None else np.asarray(components, dtype=np.int64)
+        return self.dim * np.asarray(nodes, dtype=np.int64)[:, None] + comps[None, :]
+
+    def interpolate(self, value: Value) -> np.ndarray:
+        """Nodal interpolant of a constant vector or of a function (n, d) -> (n, d)."""
+        x = self.mesh.points
+        v = value(x) if callable(value) else np.broadcast_to(np.asarray(value, dtype=float), x.shape)
+        v = np.asarray(v, dtype=float)
+        if v.shape != x.shape:
+            raise InputError(f"a vector field on this mesh must have shape {x.shape}, got {v.shape}")
+        return v.ravel().copy()
+
+
+class Constraints:
+    """Fixed dofs with their values; reduction of matrices and vectors to free dofs."""
+
+    def __init__(self, space: VectorSpace, conditions: Sequence[Dirichlet] = ()):
+        self.space = space
+        fixed = np.zeros(space.n_dofs, dtype=bool)
+        values = np.zeros(space.n_dofs)
+        for bc in conditions:
+            comps = tuple(range(space.dim)) if bc.components is None else tuple(bc.components)
+            for c in comps:
+                if not 0 <= c < space.dim:
+                    raise InputError(
+                        f"Dirichlet component {c} on tag {bc.tag!r} is out of range; allowed 0..{space.dim - 1}"
+                    )
+            nodes = space.mesh.nodes_of(bc.tag)
+            dofs = space.dofs(nodes, comps)
+            if callable(bc.value):
+                vals = np.asarray(bc.value(space.mesh.points[nodes]), dtype=float).reshape(len(nodes), -1)
+                vals = np.broadcast_to(vals, dofs.shape)
+            else:
+                v = np.atleast_1d(np.asarray(bc.value, dtype=float))
+                if v.size not in (1, len(comps)):
+                    raise InputError(
+                        f"Dirichlet value on tag {bc.tag!r} needs 1 or {len(comps)} numbers, got {v.size}"
+                    )
+                vals = np.broadcast_to(v, dofs.shape)
+            fixed[dofs.ravel()] = True
+            values[dofs.ravel()] = vals.ravel()
+        self.fixed = np.flatnonzero(fixed)
+        self.free = np.flatnonzero(~fixed)
+        self.values = values[self.fixed]
+        self._full_to_free = -np.ones(space.n_dofs, dtype=np.int64)
+        self._full_to_free[self.free] = np.arange(self.free.size)
+
+    @property
+    def n_free(self) -> int:
+        return self.free.size
+
+    def free_index(self, dofs: np.ndarray) -> np.ndarray:
+        """Position among free dofs of full ``dofs`` (-1 for fixed dofs)."""
+        return self._full_to_free[np.asarray(dofs)]
+
+    def reduce(self, A: sp.spmatrix) -> sp.csr_matrix:
+        """A_ff (free rows and columns)."""
+        A = sp.csr_matrix(A)
+        return A[self.free][:, self.free].tocsr()
+
+    def lifting(self, A: sp.spmatrix) -> np.ndarray:
+        """A_fD u_D: subtract it from the free right-hand side."""
+        A = sp.csr_matrix(A)
+        if self.fixed.size == 0:
+            return np.zeros(self.free.size)
+        return A[self.free][:, self.fixed] @ self.values
+
+    def expand(self, u_free: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
+        """Full vector from free values; fixed dofs get their prescribed values
+        (or ``fixed_values``, e.g. zero for velocities)."""
+        u_free = np.asarray(u_free)
+        out = np.empty(u_free.shape[:-1] + (self.space.n_dofs,))
+        out[..., self.free] = u_free
+        out[..., self.fixed] = self.values if fixed_values is None else fixed_values
+        return out
