@@ -35,12 +35,16 @@ class Mesh:
     cells : (n_cells, nv) int array, node indices (meshio ordering).
     cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra``.
     facets : dict tag -> (n_facets, nfv) int array of boundary facets.
+    grid : for structured tensor-product meshes made by the generators, the 1D node
+        coordinates along x, y (, z); node ``i + (nx+1) (j + (ny+1) k)`` sits at
+        ``(grid[0][i], grid[1][j], grid[2][k])``.  ``None`` for general meshes.
     """
 
     points: np.ndarray
     cells: np.ndarray
     cell_type: str
     facets: dict[str, np.ndarray] = field(default_factory=dict)
+    grid: tuple[np.ndarray, ...] | None = None
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=float)
@@ -157,7 +161,7 @@ def interval(n: int, length: float = 1.0, x0: float = 0.0) -> Mesh:
     _check_lengths(length=length)
     x = x0 + np.linspace(0.0, length, n + 1)
     cells = np.column_stack([np.arange(n), np.arange(1, n + 1)])
-    return Mesh(x[:, None], cells, "line", {"xmin": np.array([[0]]), "xmax": np.array([[n]])})
+    return Mesh(x[:, None], cells, "line", {"xmin": np.array([[0]]), "xmax": np.array([[n]])}, grid=(x,))
 
 
 def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "quad") -> Mesh:
@@ -171,6 +175,7 @@ def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "q
     a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
     if cell == "quad":
         cells = np.stack([a, b, c, d], axis=-1).reshape(-1, 4)
+        return Mesh(pts, cells, cell, tag_sides(pts, boundary_facets(cells, cell)), grid=(xs, ys))
     elif cell == "triangle":
         t1 = np.stack([a, b, c], axis=-1).reshape(-1, 3)
         t2 = np.stack([a, c, d], axis=-1).reshape(-1, 3)
@@ -216,7 +221,7 @@ def box(
     if cell == "hexahedron":
         cells = hexes
         facets = _structured_box_facets(idx)
-        return Mesh(pts, cells, cell, facets)
+        return Mesh(pts, cells, cell, facets, grid=(xs, ys, zs))
     if cell == "tetra":
         cells = hexes[:, _KUHN].reshape(-1, 4)
         return Mesh(pts, cells, cell, tag_sides(pts, boundary_facets(cells, cell)))

@@ -1,0 +1,163 @@
+"""Named benchmark problems with overridable parameters.
+
+==============  ==========================================================================
+``bar1d``       spec 3.1: bar (0, L), clamped u(L) = 0, contact at x = 0 (u(0) >= 0),
+                at rest and compressed, u0 = gap (1 - x/L), v0 = 0.
+                Parameters ``L``=1, ``E``=1, ``rho``=1, ``gap``=0.5.  Exact solution.
+``bar1d-impact`` spec 3.2: clamped u(L) = gap, u0 = gap, v0 = -velocity, u(0) >= 0.
+                Parameters ``L``=1, ``E``=1, ``rho``=1, ``gap``=0.2, ``velocity``=0.5.
+                Exact solution; first impact at gap/velocity.
+``bar2d``       the seed's 2D bar (plane strain) [0, width] x [0, length], Q1,
+                clamp u = (0, gap) on top (``ymax``), contact u_y >= 0 on ``ymin``,
+                u0 = (0, gap), v0 = (0, -velocity).
+``bar3d``       the same in 3D on [0, width]^2 x [0, length], contact on ``zmin``.
+==============  ==========================================================================
+
+2D/3D parameters: ``rho``=1, ``lam``=0.25, ``mu``=0.5, ``gap``=0.2, ``velocity``=0.5,
+``width``=0.1, ``length``=1.  Mesh: ``n`` elements across the width and 10 n along
+the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contact import PlaneObstacle
+from .errors import InputError
+from .exact import ExactBar1D
+from .material import IsotropicElastic
+from .mesh import box, interval, rectangle
+from .problem import Problem
+from .space import Dirichlet
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    name: str
+    dim: int
+    defaults: dict[str, float]
+    build: Callable[[int, dict], Problem]
+    exact: Callable[[dict, float], ExactBar1D] | None = None
+    description: str = ""
+
+    def params(self, overrides: dict | None = None) -> dict[str, float]:
+        """Defaults updated with ``overrides``; unknown names and bad values are errors."""
+        p = dict(self.defaults)
+        for k, v in (overrides or {}).items():
+            if k not in p:
+                raise InputError(
+                    f"unknown parameter {k!r} for benchmark {self.name!r}; allowed: {', '.join(sorted(p))}"
+                )
+            try:
+                p[k] = float(v)
+            except (TypeError, ValueError):
+                raise InputError(f"parameter {k!r} of {self.name!r} must be a number, got {v!r}") from None
+            if not np.isfinite(p[k]):
+                raise InputError(f"parameter {k!r} of {self.name!r} must be finite, got {v!r}")
+        for k in ("L", "E", "rho", "width", "length", "mu"):
+            if k in p and p[k] <= 0:
+                raise InputError(f"parameter {k!r} of {self.name!r} must be > 0, got {p[k]}")
+        for k in ("gap", "velocity"):
+            if k in p and p[k] < 0:
+                raise InputError(f"parameter {k!r} of {self.name!r} must be >= 0, got {p[k]}")
+        return p
+
+    def problem(self, n: int, overrides: dict | None = None) -> Problem:
+        if not isinstance(n, (int, np.integer)) or n < 1:
+            raise InputError(f"n (number of elements) must be a positive integer, got {n!r}")
+        return self.build(int(n), self.params(overrides))
+
+    def h(self, n: int, overrides: dict | None = None) -> float:
+        """Mesh size of level n."""
+        p = self.params(overrides)
+        return (p["L"] if self.dim == 1 else p["width"]) / n
+
+    def wave_speed(self, overrides: dict | None = None) -> float:
+        p = self.params(overrides)
+        if self.dim == 1:
+            return float(np.sqrt(p["E"] / p["rho"]))
+        return float(np.sqrt((p["lam"] + 2 * p["mu"]) / p["rho"]))
+
+
+def _bar1d(n: int, p: dict) -> Problem:
+    L, g = p["L"], p["gap"]
+    return Problem(
+        mesh=interval(n, L),
+        material=IsotropicElastic.from_young(p["E"], 0.0, p["rho"]),
+        contact_tag="xmin",
+        obstacle=PlaneObstacle([0.0], [1.0]),
+        dirichlet=[Dirichlet("xmax", 0.0)],
+        u0=lambda x: g * (1.0 - x / L),
+        v0=0.0,
+        name="bar1d",
+    )
+
+
+def _bar1d_impact(n: int, p: dict) -> Problem:
+    g = p["gap"]
+    return Problem(
+        mesh=interval(n, p["L"]),
+        material=IsotropicElastic.from_young(p["E"], 0.0, p["rho"]),
+        contact_tag="xmin",
+        obstacle=PlaneObstacle([0.0], [1.0]),
+        dirichlet=[Dirichlet("xmax", g)],
+        u0=g,
+        v0=-p["velocity"],
+        name="bar1d-impact",
+    )
+
+
+def _bar(dim: int) -> Callable[[int, dict], Problem]:
+    def build(n: int, p: dict) -> Problem:
+        w, length, g, v = p["width"], p["length"], p["gap"], p["velocity"]
+        if dim == 2:
+            mesh = rectangle(n, 10 * n, w, length)
+        else:
+            mesh = box(n, n, 10 * n, w, w, length)
+        e = np.eye(dim)[-1]
+        top, bottom = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
+        return Problem(
+            mesh=mesh,
+            material=IsotropicElastic(p["lam"], p["mu"], p["rho"]),
+            contact_tag=bottom,
+            obstacle=PlaneObstacle(np.zeros(dim), e),
+            dirichlet=[Dirichlet(top, tuple(g * e))],
+            u0=g * e,
+            v0=-v * e,
+            name=f"bar{dim}d",
+        )
+
+    return build
+
+
+_BAR = {"rho": 1.0, "lam": 0.25, "mu": 0.5, "gap": 0.2, "velocity": 0.5, "width": 0.1, "length": 1.0}
+
+BENCHMARKS: dict[str, Benchmark] = {
+    "bar1d": Benchmark(
+        "bar1d",
+        1,
+        {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.5},
+        _bar1d,
+        lambda p, T: ExactBar1D.bar1d(p["L"], p["E"], p["rho"], p["gap"], T),
+        "1D clamped bar released from a compressed state (exact solution, period 3L/c)",
+    ),
+    "bar1d-impact": Benchmark(
+        "bar1d-impact",
+        1,
+        {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.2, "velocity": 0.5},
+        _bar1d_impact,
+        lambda p, T: ExactBar1D.bar1d_impact(p["L"], p["E"], p["rho"], p["gap"], p["velocity"], T),
+        "1D clamped bar moving towards the obstacle (exact solution)",
+    ),
+    "bar2d": Benchmark("bar2d", 2, dict(_BAR), _bar(2), None, "the seed's 2D bar (plane strain, Q1)"),
+    "bar3d": Benchmark("bar3d", 3, dict(_BAR), _bar(3), None, "the seed's 3D bar (Q1 hexahedra)"),
+}
+
+
+def get_benchmark(name: str) -> Benchmark:
+    if name not in BENCHMARKS:
+        raise InputError(f"unknown benchmark {name!r}; allowed: {', '.join(BENCHMARKS)}")
+    return BENCHMARKS[name]

@@ -1,0 +1,152 @@
+"""The result of a simulation: per-step scalars, per-contact-node series, snapshots."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+HISTORY_COLUMNS = (
+    "t",
+    "energy",
+    "kinetic_energy",
+    "elastic_energy",
+    "energy_increment",
+    "predicted_increment",
+    "lambda_sum",
+    "gap_mean",
+    "gap_min",
+    "active_contacts",
+    "newton_iterations",
+    "complementarity_residual",
+)
+
+
+@dataclass
+class History:
+    """Time series of a run, one entry per time level t_0 .. t_N.
+
+    Attributes
+    ----------
+    t : (N+1,) times [s].
+    gap : (N+1, nc) g_i - nu_i.u_i (>= 0) [length].
+    lam : (N+1, nc) nodal multipliers lambda_i (<= 0, force).
+    kinetic_energy, elastic_energy, energy : (N+1,) with
+        E = 1/2 V.MV + 1/2 U.SU - U.F (spec eq. 6) [energy].
+    predicted_increment : (N+1,) right-hand side of the scheme's energy identity for the
+        step ending at t_n (nan at n = 0 or when the scheme has none).
+    active, iterations, fallbacks, residual : per step active-set size, active-set
+        (semismooth Newton) iterations, whether the robust fallback ran, and the
+        relative complementarity residual.
+    coordinates : (nc, d) contact node coordinates; weights : (nc,) contact area weights.
+    snapshots : optional dict with ``t`` (k,), ``u`` and ``v`` (k, n_dofs) full fields.
+    meta : inputs and counters (dofs, timings, ...).
+    """
+
+    t: np.ndarray
+    gap: np.ndarray
+    lam: np.ndarray
+    kinetic_energy: np.ndarray
+    elastic_energy: np.ndarray
+    predicted_increment: np.ndarray
+    active: np.ndarray
+    iterations: np.ndarray
+    fallbacks: np.ndarray
+    residual: np.ndarray
+    coordinates: np.ndarray
+    weights: np.ndarray
+    snapshots: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def energy(self) -> np.ndarray:
+        return self.kinetic_energy + self.elastic_energy
+
+    @property
+    def steps(self) -> int:
+        return self.t.size - 1
+
+    @property
+    def lambda_sum(self) -> np.ndarray:
+        """Total contact force sum_i lambda_i (<= 0)."""
+        return self.lam.sum(axis=1)
+
+    @property
+    def pressure(self) -> np.ndarray:
+        """Contact pressure -lambda_i / w_i (>= 0 in compression) [force/length^(d-1)]."""
+        return -self.lam / self.weights[None, :]
+
+    @property
+    def energy_increment(self) -> np.ndarray:
+        return np.concatenate([[np.nan], np.diff(self.energy)])
+
+    @property
+    def impacts(self) -> int:
+        """Number of steps where contact starts (no active node before, some after)."""
+        on = self.active > 0
+        return int(np.sum(on[1:] & ~on[:-1]))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The per-step table written to ``history.csv``."""
+        return {
+            "t": self.t,
+            "energy": self.energy,
+            "kinetic_energy": self.kinetic_energy,
+            "elastic_energy": self.elastic_energy,
+            "energy_increment": self.energy_increment,
+            "predicted_increment": self.predicted_increment,
+            "lambda_sum": self.lambda_sum,
+            "gap_mean": self.gap.mean(axis=1),
+            "gap_min": self.gap.min(axis=1),
+            "active_contacts": self.active,
+            "newton_iterations": self.iterations,
+            "complementarity_residual": self.residual,
+        }
+
+    def write_csv(self, path: str | Path) -> None:
+        cols = self.columns()
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(HISTORY_COLUMNS)
+            for row in zip(*(cols[c] for c in HISTORY_COLUMNS)):
+                w.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else int(v) for v in row])
+
+    def write_contact_npz(self, path: str | Path) -> None:
+        np.savez_compressed(
+            path, t=self.t, gap=self.gap, lam=self.lam, coordinates=self.coordinates, weights=self.weights
+        )
+
+    def save(self, out: str | Path) -> None:
+        """Write ``history.csv``, ``contact.npz`` and ``summary.json`` into ``out``."""
+        out = Path(out)
+        self.write_csv(out / "history.csv")
+        self.write_contact_npz(out / "contact.npz")
+        (out / "summary.json").write_text(json.dumps(self.summary(), indent=2, default=_json_default))
+
+    def summary(self) -> dict:
+        E = self.energy
+        return {
+            **self.meta,
+            "steps": self.steps,
+            "impacts": self.impacts,
+            "energy_initial": float(E[0]),
+            "energy_final": float(E[-1]),
+            "energy_max_relative_drift": float(np.max(np.abs(E - E[0])) / abs(E[0])) if E[0] else None,
+            "max_complementarity_residual": float(np.max(self.residual)),
+            "fallbacks": int(np.sum(self.fallbacks)),
+            "min_gap": float(self.gap.min()) if self.gap.size else None,
+            "max_lambda": float(self.lam.max()) if self.lam.size else None,
+        }
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(type(o))

@@ -1,0 +1,249 @@
+"""Mass matrices for dynamic contact, chosen by name from one registry.
+
+=====================  =========================================================  ==============
+name                   definition                                                 kernel
+=====================  =========================================================  ==============
+``standard``           M_ij = rho int_Omega phi_i . phi_j                         {0}
+``lumped``             diag(sum_j M_ij)                                           {0}
+``seed``               rho int over the elements that do not touch Gamma_C        all components
+                       (the seed paper's M_mod, GetFEM ``singular_mass=1``)        of contact nodes
+``seed-normal``        ``seed`` for the normal component, ``standard`` for the    normal comps
+                       tangential ones (flat, axis-aligned Gamma_C)                of contact nodes
+``moment-preserving``  contact rows/columns removed, the mass put back so that    all components
+                       total mass, first and second moments are preserved          of contact nodes
+=====================  =========================================================  ==============
+
+The moment-preserving matrix uses, per component, the scalar redistribution
+``M_red = M_0 + Delta`` where ``M_0`` is ``M`` with the contact rows and columns zeroed
+and ``Delta`` changes only entries between non-contact nodes near Gamma_C, chosen so
+that ``p^T M_red q = p^T M q`` for all p, q in {1, x_1, ..., x_d}:
+
+* 1D P1 (and the normal factor of structured Q1 meshes, where ``M = M_x (x) M_y (x) M_z``):
+  only the entries (1,1), (1,2), (2,2) next to the contact node change; three
+  constraints, three unknowns.  For a uniform grid this gives M_11 = 8h/3,
+  M_12 = -2h/3, M_22 = h (rho = 1).
+* general meshes: the Frobenius-smallest ``Delta`` supported on the pattern entries of
+  the two node layers next to Gamma_C (a small least-squares problem); positive
+  semi-definiteness is then checked and a failure is reported, never ignored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .assembly import scalar_mass_matrix, vectorize
+from .errors import InputError
+from .mesh import Mesh
+
+MASS_VARIANTS = ("standard", "lumped", "seed", "seed-normal", "moment-preserving")
+
+
+def mass_matrix(
+    name: str,
+    mesh: Mesh,
+    rho: float,
+    contact_nodes: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
+) -> sp.csr_matrix:
+    """Vector mass matrix of variant ``name`` (node-major dofs, full space).
+
+    Parameters
+    ----------
+    name : one of :data:`MASS_VARIANTS`.
+    mesh : the mesh.
+    rho : density [mass / length^d].
+    contact_nodes : node indices on Gamma_C (needed by the redistributed variants).
+    normals : (n_contact, d) outward unit normals at the contact nodes (``seed-normal``).
+    """
+    if name not in MASS_VARIANTS:
+        raise InputError(f"unknown mass {name!r}; allowed: {', '.join(MASS_VARIANTS)}")
+    d = mesh.dim
+    if name == "standard":
+        return vectorize(scalar_mass_matrix(mesh, rho), d)
+    if name == "lumped":
+        m = np.asarray(scalar_mass_matrix(mesh, rho).sum(axis=1)).ravel()
+        return sp.diags(np.repeat(m, d), format="csr")
+    if contact_nodes is None or len(contact_nodes) == 0:
+        raise InputError(f"mass {name!r} needs contact nodes (a non-empty contact boundary)")
+    contact_nodes = np.asarray(contact_nodes)
+    if name == "seed":
+        return vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
+    if name == "seed-normal":
+        return seed_normal_mass(mesh, rho, contact_nodes, normals)
+    return vectorize(moment_preserving_scalar_mass(mesh, rho, contact_nodes), d)
+
+
+def massless_dofs(M: sp.spmatrix) -> np.ndarray:
+    """Dofs whose row of ``M`` is identically zero."""
+    M = sp.csr_matrix(M)
+    return np.flatnonzero(np.asarray(abs(M).sum(axis=1)).ravel() == 0.0)
+
+
+# ----------------------------------------------------------------------------- seed
+def touching_cells(mesh: Mesh, nodes: np.ndarray) -> np.ndarray:
+    """Boolean mask of the cells that have at least one node in ``nodes``."""
+    mark = np.zeros(mesh.n_nodes, dtype=bool)
+    mark[nodes] = True
+    return mark[mesh.cells].any(axis=1)
+
+
+def seed_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """M_mod: rho int over Omega_mod = union of cells K with K cap Gamma_C empty."""
+    keep = ~touching_cells(mesh, contact_nodes)
+    return scalar_mass_matrix(mesh, rho, cell_weight=keep.astype(float))
+
+
+def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals: np.ndarray | None) -> sp.csr_matrix:
+    """Normal-only seed mass: sum_k M^(k) (x) e_k e_k^T with M^(k) = M_mod for the
+    normal axis k and the standard mass for the others.  Needs all contact normals
+    equal to +-e_k (flat, axis-aligned Gamma_C)."""
+    d = mesh.dim
+    if normals is None:
+        raise InputError("mass 'seed-normal' needs the contact normals")
+    n = np.asarray(normals)
+    k = int(np.argmax(np.abs(n[0])))
+    if not np.allclose(np.abs(n[:, k]), 1.0, atol=1e-10):
+        raise InputError(
+            "mass 'seed-normal' needs a flat contact boundary with normals along a coordinate axis; "
+            "use 'seed' or 'moment-preserving' for this geometry"
+        )
+    std = scalar_mass_matrix(mesh, rho)
+    mod = seed_scalar_mass(mesh, rho, contact_nodes)
+    out = sp.csr_matrix((d * mesh.n_nodes, d * mesh.n_nodes))
+    for j in range(d):
+        e = sp.csr_matrix(([1.0], ([j], [j])), shape=(d, d))
+        out = out + sp.kron(mod if j == k else std, e, format="csr")
+    return out.tocsr()
+
+
+# ----------------------------------------------------------------------------- moment preserving
+def _mass_1d(x: np.ndarray, rho: float) -> sp.csr_matrix:
+    """1D P1 consistent mass on the grid x (rho h/6 [[2,1],[1,2]] per element)."""
+    h = np.diff(x)
+    n = x.size
+    main = np.zeros(n)
+    main[:-1] += h / 3
+    main[1:] += h / 3
+    off = h / 6
+    return sp.diags([off, main, off], [-1, 0, 1], format="csr") * rho
+
+
+def moment_preserving_1d(x: np.ndarray, rho: float, end: str = "min") -> sp.csr_matrix:
+    """1D P1 mass with the node at ``end`` ('min' or 'max') massless and its mass
+    redistributed on the next two nodes so that int 1, int x, int x^2 are preserved.
+
+    Unknowns: increments a, b, c of M_11, M_12 = M_21, M_22 (node 1, 2 = first and
+    second neighbours).  Constraints, for (p, q) in {(1,1), (1,x), (x,x)}:
+    ``a p1 q1 + b (p1 q2 + p2 q1) + c p2 q2 = p^T (M - M_0) q``.
+    """
+    n = x.size
+    if n < 3:
+        raise InputError("mass 'moment-preserving' needs at least 2 elements across the contact layer")
+    M = _mass_1d(x, rho).tolil()
+    i0, i1, i2 = (0, 1, 2) if end == "min" else (n - 1, n - 2, n - 3)
+    Mf = M.tocsr()
+    xc = x - x[i0]  # moments about the contact node (better conditioned)
+    P = np.vstack([np.ones(n), xc])
+    pairs = [(0, 0), (0, 1), (1, 1)]
+    M0 = Mf.tolil()
+    M0[i0, :] = 0
+    M0[:, i0] = 0
+    M0 = M0.tocsr()
+    A = np.empty((3, 3))
+    r = np.empty(3)
+    for k, (p, q) in enumerate(pairs):
+        pp, qq = P[p], P[q]
+        A[k] = [pp[i1] * qq[i1], pp[i1] * qq[i2] + pp[i2] * qq[i1], pp[i2] * qq[i2]]
+        r[k] = pp @ (Mf @ qq) - pp @ (M0 @ qq)
+    a, b, c = np.linalg.solve(A, r)
+    M0 = M0.tolil()
+    M0[i1, i1] += a
+    M0[i1, i2] += b
+    M0[i2, i1] += b
+    M0[i2, i2] += c
+    return M0.tocsr()
+
+
+def _structured_side(mesh: Mesh, contact_nodes: np.ndarray) -> tuple[int, str] | None:
+    """(axis, 'min'|'max') if ``contact_nodes`` is exactly one full side of a structured grid."""
+    if mesh.grid is None:
+        return None
+    shape = [g.size for g in mesh.grid]
+    idx = np.arange(mesh.n_nodes).reshape(shape[::-1])  # [z, y, x]
+    cset = np.sort(contact_nodes)
+    for axis in range(mesh.dim):
+        ax = mesh.dim - 1 - axis
+        for end, sl in (("min", 0), ("max", -1)):
+            side = np.sort(np.take(idx, sl, axis=ax).ravel())
+            if side.size == cset.size and np.array_equal(side, cset):
+                return axis, end
+    return None
+
+
+def moment_preserving_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """Scalar moment-preserving redistributed mass (see the module docstring)."""
+    side = _structured_side(mesh, contact_nodes)
+    if side is not None and mesh.cell_type in ("line", "quad", "hexahedron"):
+        axis, end = side
+        factors = [
+            moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0) for k, g in enumerate(mesh.grid)
+        ]
+        out = factors[0]
+        for f in factors[1:]:
+            out = sp.kron(f, out, format="csr")  # node = i + nx (j + ny k)
+        return (rho * out).tocsr()
+    return _moment_preserving_general(mesh, rho, contact_nodes)
+
+
+def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """Least-squares redistribution on general meshes (see module docstring)."""
+    M = scalar_mass_matrix(mesh, rho).tocsr()
+    n = mesh.n_nodes
+    is_c = np.zeros(n, dtype=bool)
+    is_c[contact_nodes] = True
+    adj = (M != 0).astype(np.int8)
+    ring1 = (adj @ is_c.astype(np.int8)) > 0
+    ring1 &= ~is_c
+    ring2 = ((adj @ ring1.astype(np.int8)) > 0) & ~is_c
+    patch = ring1 | ring2
+    keep = sp.diags((~is_c).astype(float))
+    M0 = (keep @ M @ keep).tocsr()
+    coo = sp.triu(M).tocoo()
+    sel = patch[coo.row] & patch[coo.col]
+    ra, cb = coo.row[sel], coo.col[sel]
+    x = mesh.points - mesh.points[contact_nodes].mean(axis=0)
+    P = np.column_stack([np.ones(n), x])
+    npoly = P.shape[1]
+    rows, rhs = [], []
+    for p in range(npoly):
+        for q in range(p, npoly):
+            pp, qq = P[:, p], P[:, q]
+            coef = np.where(ra == cb, pp[ra] * qq[cb], pp[ra] * qq[cb] + pp[cb] * qq[ra])
+            rows.append(coef)
+            rhs.append(pp @ (M @ qq) - pp @ (M0 @ qq))
+    A = np.array(rows)
+    delta = A.T @ np.linalg.lstsq(A @ A.T, np.array(rhs), rcond=None)[0]
+    D = sp.coo_matrix((delta, (ra, cb)), shape=(n, n))
+    D = D + sp.triu(D, k=1).T
+    Mred = (M0 + D).tocsr()
+    # positive semi-definiteness: M_red restricted to the non-contact nodes must be
+    # positive definite; an LU without pivoting then has a positive diagonal.
+    inner = np.flatnonzero(~is_c)
+    try:
+        lu = spla.splu(
+            Mred[inner][:, inner].tocsc(),
+            permc_spec="MMD_AT_PLUS_A",
+            diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )
+        ok = bool(np.all(lu.U.diagonal() > 0))
+    except RuntimeError:
+        ok = False
+    if not ok:
+        raise InputError(
+            "mass 'moment-preserving': the least-squares redistribution is not positive semi-definite on "
+            "this mesh; use 'seed' or a structured mesh"
+        )
+    return Mred
