@@ -142,4 +142,10 @@ def reference_element(name: str) -> ReferenceElement:
 
 
 SUPPORTED_CELLS = ("line", "quad", "triangle", "hexahedron", "tetra")
-FACET_TYPES = {"line": "vertex", "quad": "line", "triangle": "line", "hexahedron": "quad", "tetra": "triangle"}
+FACET_TYPES = {
+    "line": "vertex",
+    "quad": "line",
+    "triangle": "line",
+    "hexahedron": "quad",
+    "tetra": "triangle",
+}

@@ -186,9 +186,7 @@ def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "q
 
 
 # Kuhn subdivision of the unit cube (VTK hex node numbers) into 6 positively oriented tets
-_KUHN = np.array(
-    [[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]]
-)
+_KUHN = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
 
 
 def box(

@@ -1,0 +1,198 @@
+"""The ``signorini`` command line.
+
+Exit codes: 0 success, 1 unexpected failure, 2 invalid input (nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from . import __version__
+from .errors import InputError
+
+EXAMPLES_RUN = """examples:
+  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
+  signorini run bar2d --scheme be --mass standard --n 4 --T 1 --out out/bar2d-be
+  signorini run bar1d-impact --set gap=0.3 --set velocity=1 --n 80 --out out/impact
+"""
+
+
+class Progress:
+    """A one-line progress bar on stderr, only when it is a terminal and not quiet."""
+
+    def __init__(self, quiet: bool, label: str):
+        self.enabled = (not quiet) and sys.stderr.isatty()
+        self.label = label
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+
+    def __call__(self, i: int, n: int) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self.t0 < 2.0 or (now - self.last < 0.2 and i < n):
+            return
+        self.last = now
+        frac = i / n
+        bar = "#" * int(30 * frac)
+        eta = (now - self.t0) / max(frac, 1e-9) * (1 - frac)
+        sys.stderr.write(f"\r{self.label} [{bar:<30}] {i}/{n} steps, {eta:5.1f}s left")
+        if i == n:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def parse_sets(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items or []:
+        if "=" not in item:
+            raise InputError(f"--set expects NAME=VALUE, got {item!r}")
+        k, v = item.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def prepare_output(out: Path, overwrite: bool) -> Path:
+    """Check ``out`` and return a fresh temporary directory next to it."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {str(out)!r} exists and is not a directory")
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise InputError(f"output directory {str(out)!r} is not empty; pass --overwrite to replace it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp.chmod(0o755)
+    return tmp
+
+
+def commit_output(tmp: Path, out: Path) -> None:
+    """Move the finished results into place (the old directory is replaced only now)."""
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+
+
+def run_into(out: Path, overwrite: bool, work: Callable[[Path], None]) -> None:
+    """Run ``work(tmpdir)`` and publish the directory only if it succeeds."""
+    tmp = prepare_output(out, overwrite)
+    try:
+        work(tmp)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    commit_output(tmp, out)
+
+
+def one_screen_summary(H) -> str:
+    s = H.summary()
+    drift = s["energy_max_relative_drift"]
+    return (
+        f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs, {s['contact_nodes']} contact nodes\n"
+        f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
+        f"fallbacks {s['fallbacks']}\n"
+        f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} "
+        f"(max drift {100 * drift:.3g}% of E0)\n"
+        f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
+        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step"
+    )
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_run(args: argparse.Namespace) -> int:
+    from .benchmarks import get_benchmark
+    from .simulate import simulate
+
+    target = args.target
+    bench = get_benchmark(target)
+    overrides = parse_sets(args.set)
+    n = args.n if args.n is not None else (40 if bench.dim == 1 else 4)
+    problem = bench.problem(n, overrides)
+    dt = args.dt if args.dt is not None else bench.h(n, overrides) / 2
+    T = args.T if args.T is not None else (6.0 if bench.dim == 1 else 1.0)
+    out = Path(args.out)
+    holder = {}
+
+    def work(tmp: Path) -> None:
+        H = simulate(
+            problem,
+            args.scheme,
+            dt,
+            T,
+            mass=args.mass,
+            snapshot_every=args.snapshot_every,
+            progress=Progress(args.quiet, target),
+        )
+        H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
+        H.save(tmp)
+        if args.snapshot_every:
+            from .output import write_fields
+
+            write_fields(tmp / "fields.xdmf", problem, H)
+        holder["H"] = H
+
+    run_into(out, args.overwrite, work)
+    if not args.quiet:
+        print(one_screen_summary(holder["H"]))
+        print(f"  results in {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="signorini",
+        description="Dynamic Signorini contact of elastic bodies with the mass redistribution method.",
+    )
+    p.add_argument("--version", action="version", version=f"signorini {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser(
+        "run",
+        help="run a named benchmark (bar1d, bar1d-impact, bar2d, bar3d)",
+        description="Run one simulation and write history.csv, contact.npz and summary.json into --out.",
+        epilog=EXAMPLES_RUN,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    r.add_argument("target", help="benchmark name: bar1d, bar1d-impact, bar2d, bar3d")
+    r.add_argument("--scheme", default="cn", help="cn|crank-nicolson or be|backward-euler (default cn)")
+    r.add_argument(
+        "--mass",
+        default="seed",
+        help="standard|lumped|seed|seed-normal|moment-preserving (default seed)",
+    )
+    r.add_argument(
+        "--n",
+        type=int,
+        default=None,
+        help="elements across the width (2D/3D, 10n along) or along the bar (1D)",
+    )
+    r.add_argument("--dt", type=float, default=None, help="time step (default h/2)")
+    r.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
+    r.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
+    r.add_argument("--snapshot-every", type=int, default=0, help="write XDMF fields every k steps (0: none)")
+    r.add_argument("--out", default="out/run", help="output directory (default out/run)")
+    r.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
+    r.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    r.set_defaults(func=cmd_run)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"signorini: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,164 @@
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from signorini import assembly
+from signorini.material import IsotropicElastic
+from signorini.mesh import box, interval, rectangle
+from signorini.space import Constraints, Dirichlet, VectorSpace
+
+MAT = IsotropicElastic(0.25, 0.5, 1.0)
+MESHES = {
+    "line": lambda: interval(5, 2.0),
+    "quad": lambda: rectangle(3, 4, 0.5, 2.0),
+    "triangle": lambda: rectangle(3, 4, 0.5, 2.0, "triangle"),
+    "hexahedron": lambda: box(2, 3, 2, 1.0, 2.0, 0.5),
+    "tetra": lambda: box(2, 2, 3, 1.0, 1.0, 1.5, "tetra"),
+}
+
+
+@pytest.mark.parametrize("kind", MESHES)
+def test_mass_totals_and_lumping(kind):
+    mesh = MESHES[kind]()
+    rho = 2.5
+    M = assembly.mass_matrix(mesh, rho)
+    vol = assembly.cell_volumes(mesh).sum()
+    d = mesh.dim
+    for k in range(d):
+        one = np.zeros(M.shape[0])
+        one[k::d] = 1.0
+        assert np.isclose(one @ M @ one, rho * vol)
+    L = assembly.lumped_mass_matrix(M)
+    assert np.allclose(L.diagonal(), np.asarray(M.sum(axis=1)).ravel())
+
+
+@pytest.mark.parametrize("kind", MESHES)
+def test_stiffness_symmetric_psd_rigid_kernel(kind):
+    mesh = MESHES[kind]()
+    S = assembly.stiffness_matrix(mesh, MAT).toarray()
+    assert np.allclose(S, S.T, atol=1e-13)
+    ev = np.linalg.eigvalsh(S)
+    assert ev.min() > -1e-12 * ev.max()
+    n_zero = int(np.sum(ev < 1e-9 * ev.max()))
+    assert n_zero == {1: 1, 2: 3, 3: 6}[mesh.dim]
+
+
+def _distorted(mesh, rng, amount=0.2):
+    interior = np.ones(mesh.n_nodes, bool)
+    for t in mesh.tags:
+        interior[mesh.nodes_of(t)] = False
+    h = np.min(np.ptp(mesh.points, axis=0)) / 4
+    mesh.points[interior] += amount * h * rng.uniform(-1, 1, (interior.sum(), mesh.dim))
+    mesh._cache.clear()
+    return mesh
+
+
+@pytest.mark.parametrize("kind", ["quad", "triangle", "hexahedron", "tetra"])
+def test_patch_test_linear_field_exact(kind, rng):
+    mesh = _distorted(MESHES[kind](), rng)
+    mesh.check_cells()
+    d = mesh.dim
+    G = rng.normal(size=(d, d))
+    c = rng.normal(size=d)
+
+    def exact(x):
+        return x @ G.T + c
+
+    space = VectorSpace(mesh)
+    cons = Constraints(space, [Dirichlet(t, exact) for t in mesh.tags])
+    S = assembly.stiffness_matrix(mesh, MAT)
+    u = cons.expand(spla.spsolve(cons.reduce(S).tocsc(), -cons.lifting(S)))
+    assert np.allclose(u, space.interpolate(exact), atol=1e-11)
+    sig = assembly.stress(mesh, MAT, u, nodal=False)
+    eps = 0.5 * (G + G.T)
+    assert np.allclose(sig, MAT.stress(eps)[None], atol=1e-10)
+
+
+def _manufactured(dim):
+    lam, mu, pi = MAT.lam, MAT.mu, np.pi
+
+    def u(x):
+        out = np.zeros_like(x)
+        out[..., 0] = np.prod(np.sin(pi * x), axis=-1)
+        return out
+
+    def f(x):
+        s, c = np.sin(pi * x), np.cos(pi * x)
+        out = np.zeros_like(x)
+        out[..., 0] = (lam + mu + dim * mu) * pi**2 * np.prod(s, axis=-1) if dim == 3 else 0
+        if dim == 2:
+            out[..., 0] = (lam + 3 * mu) * pi**2 * s[..., 0] * s[..., 1]
+            out[..., 1] = -(lam + mu) * pi**2 * c[..., 0] * c[..., 1]
+        else:
+            out[..., 1] = -(lam + mu) * pi**2 * c[..., 0] * c[..., 1] * s[..., 2]
+            out[..., 2] = -(lam + mu) * pi**2 * c[..., 0] * s[..., 1] * c[..., 2]
+        return out
+
+    def grad(x):
+        s, c = np.sin(pi * x), np.cos(pi * x)
+        g = np.zeros(x.shape + (x.shape[-1],))
+        for j in range(x.shape[-1]):
+            g[..., 0, j] = pi * c[..., j] * np.prod(np.delete(s, j, axis=-1), axis=-1)
+        return g
+
+    return u, f, grad
+
+
+def _static_errors(mesh):
+    from signorini.elements import reference_element
+
+    u_ex, f, grad = _manufactured(mesh.dim)
+    space = VectorSpace(mesh)
+    cons = Constraints(space, [Dirichlet(t, 0.0) for t in mesh.tags])
+    S = assembly.stiffness_matrix(mesh, MAT)
+    F = assembly.body_load(mesh, f)
+    u = cons.expand(spla.spsolve(cons.reduce(S).tocsc(), F[cons.free]))
+    ref = reference_element(mesh.cell_type)
+    wdet, G = assembly.geometry(mesh)
+    xq = assembly.quadrature_points(mesh)
+    ue = u.reshape(-1, mesh.dim)[mesh.cells]
+    uh = np.einsum("qa,eai->eqi", ref.N, ue)
+    guh = np.einsum("eqaj,eai->eqij", G, ue)
+    l2 = np.sqrt(np.sum(wdet * np.sum((uh - u_ex(xq)) ** 2, -1)))
+    h1 = np.sqrt(np.sum(wdet * np.sum((guh - grad(xq)) ** 2, axis=(-1, -2))))
+    return l2, h1
+
+
+@pytest.mark.parametrize(
+    "make, levels",
+    [
+        (lambda n: rectangle(n, n), (4, 8, 16)),
+        (lambda n: rectangle(n, n, cell="triangle"), (4, 8, 16)),
+        (lambda n: box(n, n, n), (2, 4, 8)),
+        (lambda n: box(n, n, n, cell="tetra"), (2, 4, 8)),
+    ],
+    ids=["quad", "triangle", "hexahedron", "tetra"],
+)
+def test_manufactured_static_convergence_rates(make, levels):
+    errs = np.array([_static_errors(make(n)) for n in levels])
+    rates = np.log2(errs[:-1] / errs[1:])
+    assert np.all(rates[-1, 0] > 1.7), rates  # L2 ~ 2
+    assert np.all(rates[-1, 1] > 0.85), rates  # H1 ~ 1
+    assert rates[-1, 1] < 1.3
+
+
+def test_bar_1d_static_exact():
+    # -E u'' = f on (0, L), u(0) = u(L) = 0: P1 is nodally exact, u = f x (L - x) / (2E)
+    E, f, L = 3.0, 2.0, 2.0
+    mesh = interval(8, L)
+    mat = IsotropicElastic.from_young(E, 0.0)
+    space = VectorSpace(mesh)
+    cons = Constraints(space, [Dirichlet("xmin", 0.0), Dirichlet("xmax", 0.0)])
+    S = assembly.stiffness_matrix(mesh, mat)
+    F = assembly.body_load(mesh, [f])
+    u = cons.expand(spla.spsolve(cons.reduce(S).tocsc(), F[cons.free]))
+    x = mesh.points[:, 0]
+    assert np.allclose(u, f * x * (L - x) / (2 * E), atol=1e-13)
+
+
+def test_surface_load_and_weights():
+    mesh = box(2, 3, 4, 1.0, 2.0, 3.0)
+    w = assembly.facet_weights(mesh, "zmin")
+    assert np.isclose(w.sum(), 2.0)
+    F = assembly.surface_load(mesh, "xmax", [0.0, 0.0, -1.5])
+    assert np.isclose(F[2::3].sum(), -1.5 * 6.0)

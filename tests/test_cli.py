@@ -1,0 +1,98 @@
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from signorini.cli import main
+
+
+def test_version_and_help(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert "signorini" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    assert "--mass" in capsys.readouterr().out
+
+
+def test_run_writes_results(tmp_path):
+    out = tmp_path / "r"
+    rc = main(
+        [
+            "run",
+            "bar2d",
+            "--scheme",
+            "backward-euler",
+            "--mass",
+            "standard",
+            "--n",
+            "2",
+            "--T",
+            "0.6",
+            "--set",
+            "velocity=1",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    assert rc == 0
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    for col in (
+        "t",
+        "energy",
+        "kinetic_energy",
+        "elastic_energy",
+        "lambda_sum",
+        "gap_mean",
+        "gap_min",
+        "active_contacts",
+        "newton_iterations",
+    ):
+        assert col in rows[0]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["steps"] == len(rows) - 1 == 24
+    assert s["dofs"] == 2 * 3 * 21 and s["contact_nodes"] == 3
+    assert s["parameters"]["velocity"] == 1.0
+    assert {"setup_seconds", "loop_seconds"} <= set(s)
+    npz = np.load(out / "contact.npz")
+    assert npz["gap"].shape == (25, 3) and npz["coordinates"].shape == (3, 2)
+    assert float(rows[-1]["t"]) == pytest.approx(0.6)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--dt", "-0.1"], "dt must be > 0"),
+        (["--dt", "0"], "dt must be > 0"),
+        (["--T", "0.001"], "T must be >= dt"),
+        (["--scheme", "rk4"], "unknown scheme"),
+        (["--mass", "heavy"], "unknown mass"),
+        (["--set", "gapp=1"], "unknown parameter 'gapp'"),
+        (["--set", "gap"], "NAME=VALUE"),
+        (["--set", "rho=-1"], "rho"),
+        (["--n", "0"], "positive integer"),
+    ],
+)
+def test_bad_inputs_exit_2_without_output(tmp_path, capsys, args, message):
+    out = tmp_path / "bad"
+    base = ["run", "bar2d", "--out", str(out), "--quiet"] + ([] if "--n" in args else ["--n", "2"])
+    rc = main(base + args)
+    assert rc == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_benchmark_and_no_overwrite(tmp_path, capsys):
+    assert main(["run", "bar4d", "--out", str(tmp_path / "x")]) == 2
+    assert "allowed: bar1d" in capsys.readouterr().err
+    out = tmp_path / "keep"
+    out.mkdir()
+    (out / "precious.txt").write_text("x")
+    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet"]) == 2
+    assert (out / "precious.txt").read_text() == "x"
+    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--overwrite"]) == 0
+    assert not (out / "precious.txt").exists() and (out / "history.csv").exists()

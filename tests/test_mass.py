@@ -1,0 +1,93 @@
+import numpy as np
+import pytest
+
+from signorini.errors import InputError
+from signorini.mass import MASS_VARIANTS, mass_matrix, moment_preserving_1d
+from signorini.mesh import box, interval, rectangle
+
+CASES = {
+    "line": (lambda: interval(6, 1.5), "xmin"),
+    "quad": (lambda: rectangle(3, 6, 0.3, 1.0), "ymin"),
+    "hexahedron": (lambda: box(2, 2, 5, 0.2, 0.2, 1.0), "zmin"),
+    "triangle": (lambda: rectangle(3, 6, 0.3, 1.0, "triangle"), "ymin"),
+}
+EXPECTED_KERNEL = {"standard": 0, "lumped": 0, "seed": "d", "seed-normal": 1, "moment-preserving": "d"}
+
+
+def _moments(M, x, d, k):
+    """int 1, int x_j, int x_i x_j for component k, from the matrix."""
+    n = x.shape[0]
+    basis = [np.ones(n)] + [x[:, j] for j in range(x.shape[1])]
+    out = []
+    for a in range(len(basis)):
+        for b in range(a, len(basis)):
+            pa = np.zeros(M.shape[0])
+            pb = np.zeros(M.shape[0])
+            pa[k::d] = basis[a]
+            pb[k::d] = basis[b]
+            out.append(pa @ M @ pb)
+    return np.array(out)
+
+
+# moment-preserving on triangles: see test_moment_preserving_general_mesh_is_refused_or_psd
+PAIRS = [(k, n) for k in CASES for n in MASS_VARIANTS if (k, n) != ("triangle", "moment-preserving")]
+
+
+@pytest.mark.parametrize("kind, name", PAIRS)
+def test_kernel_psd_and_moments(kind, name):
+    make, tag = CASES[kind]
+    mesh = make()
+    nodes = mesh.nodes_of(tag)
+    normals = np.tile(-np.eye(mesh.dim)[-1], (nodes.size, 1))
+    M = mass_matrix(name, mesh, 2.0, nodes, normals).toarray()
+    d = mesh.dim
+    assert np.allclose(M, M.T)
+    ev = np.linalg.eigvalsh(M)
+    assert ev.min() > -1e-12 * ev.max()
+    kern = int(np.sum(np.abs(ev) < 1e-12 * ev.max()))
+    expected = EXPECTED_KERNEL[name]
+    expected = nodes.size * (d if expected == "d" else expected)
+    assert kern == expected
+    std = mass_matrix("standard", mesh, 2.0).toarray()
+    for k in range(d):
+        ref = _moments(std, mesh.points, d, k)
+        got = _moments(M, mesh.points, d, k)
+        if name in ("standard", "moment-preserving"):
+            assert np.allclose(got, ref, rtol=1e-12, atol=1e-14)
+        elif name == "lumped":
+            assert np.allclose(got[: 1 + mesh.dim], ref[: 1 + mesh.dim])  # mass and first moments
+        elif name == "seed":
+            assert got[0] < ref[0]  # the seed mass loses the contact layer's mass
+
+
+def test_moment_preserving_1d_closed_form():
+    h = 0.25
+    M = moment_preserving_1d(np.linspace(0, 1, 5), 1.0).toarray()
+    assert np.allclose(M[0], 0) and np.allclose(M[:, 0], 0)
+    assert np.isclose(M[1, 1], 8 * h / 3) and np.isclose(M[1, 2], -2 * h / 3) and np.isclose(M[2, 2], h)
+    Mmax = moment_preserving_1d(np.linspace(0, 1, 5), 1.0, end="max").toarray()
+    assert np.allclose(Mmax, M[::-1, ::-1])
+
+
+def test_moment_preserving_general_mesh_is_refused_or_psd():
+    mesh = rectangle(3, 6, 0.3, 1.0, "triangle")
+    nodes = mesh.nodes_of("ymin")
+    try:
+        M = mass_matrix("moment-preserving", mesh, 1.0, nodes).toarray()
+    except InputError as exc:
+        assert "positive semi-definite" in str(exc)
+    else:
+        assert np.linalg.eigvalsh(M).min() > -1e-12
+
+
+def test_errors():
+    mesh = interval(3)
+    with pytest.raises(InputError, match="unknown mass 'heavy'; allowed"):
+        mass_matrix("heavy", mesh, 1.0)
+    with pytest.raises(InputError, match="contact nodes"):
+        mass_matrix("seed", mesh, 1.0, np.array([], dtype=int))
+    m2 = rectangle(2, 2)
+    nodes = m2.nodes_of("ymin")
+    tilted = np.tile([0.6, -0.8], (nodes.size, 1))
+    with pytest.raises(InputError, match="axis"):
+        mass_matrix("seed-normal", m2, 1.0, nodes, tilted)

@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+
+from signorini.errors import MeshError
+from signorini.mesh import Mesh, box, interval, read_mesh, rectangle, write_mesh
+
+
+@pytest.mark.parametrize(
+    "mesh, tags",
+    [
+        (interval(4, 2.0), {"xmin": 1, "xmax": 1}),
+        (rectangle(3, 5, 1, 2), {"xmin": 5, "xmax": 5, "ymin": 3, "ymax": 3}),
+        (rectangle(3, 5, 1, 2, "triangle"), {"xmin": 5, "xmax": 5, "ymin": 3, "ymax": 3}),
+        (box(2, 3, 4), {"xmin": 12, "xmax": 12, "ymin": 8, "ymax": 8, "zmin": 6, "zmax": 6}),
+        (
+            box(2, 3, 4, cell="tetra"),
+            {"xmin": 24, "xmax": 24, "ymin": 16, "ymax": 16, "zmin": 12, "zmax": 12},
+        ),
+    ],
+)
+def test_generators_tag_every_side(mesh, tags):
+    mesh.check_cells()
+    assert {k: len(v) for k, v in mesh.facets.items()} == tags
+    lo, hi = mesh.points.min(0), mesh.points.max(0)
+    for k, ax in enumerate("xyz"[: mesh.dim]):
+        assert np.allclose(mesh.points[mesh.nodes_of(f"{ax}min"), k], lo[k])
+        assert np.allclose(mesh.points[mesh.nodes_of(f"{ax}max"), k], hi[k])
+
+
+@pytest.mark.parametrize("mesh", [rectangle(2, 3, 1, 1), box(2, 2, 3, cell="tetra"), interval(3)])
+def test_gmsh_roundtrip_keeps_physical_groups(tmp_path, mesh):
+    path = tmp_path / "m.msh"
+    write_mesh(mesh, path)
+    m2 = read_mesh(path)
+    assert m2.cell_type == mesh.cell_type
+    assert np.allclose(m2.points, mesh.points)
+    assert set(m2.tags) == set(mesh.tags)
+    for t in mesh.tags:
+        assert np.array_equal(m2.nodes_of(t), mesh.nodes_of(t))
+
+
+def test_clear_errors(tmp_path):
+    m = rectangle(2, 2)
+    with pytest.raises(MeshError, match="unknown boundary tag 'bottom'.*xmin"):
+        m.nodes_of("bottom")
+    m.facets["empty"] = np.zeros((0, 2), dtype=int)
+    with pytest.raises(MeshError, match="empty"):
+        m.nodes_of("empty")
+    with pytest.raises(MeshError, match="unsupported cell type 'pyramid'"):
+        Mesh(np.zeros((5, 3)), np.zeros((1, 5), dtype=int), "pyramid")
+    inv = Mesh(np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]]), np.array([[0, 3, 2, 1]]), "quad")
+    with pytest.raises(MeshError, match="inverted"):
+        inv.check_cells()
+    flat = Mesh(np.array([[0, 0], [1, 0], [2, 0.0]]), np.array([[0, 1, 2]]), "triangle")
+    with pytest.raises(MeshError, match="degenerate"):
+        flat.check_cells()
+    with pytest.raises(MeshError, match="does not exist"):
+        read_mesh(tmp_path / "nope.msh")
+    with pytest.raises(MeshError, match="positive integer"):
+        rectangle(0, 2)

@@ -1,0 +1,26 @@
+import meshio
+import numpy as np
+
+from signorini.benchmarks import get_benchmark
+from signorini.output import write_fields
+from signorini.simulate import simulate
+
+
+def test_xdmf_time_series_roundtrip(tmp_path):
+    b = get_benchmark("bar3d")
+    p = b.problem(2)
+    H = simulate(p, "cn", b.h(2) / 2, 0.6, mass="seed", snapshot_every=4)
+    write_fields(tmp_path / "f.xdmf", p, H)
+    assert (tmp_path / "f.h5").exists()
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "f.xdmf")) as r:
+        points, cells = r.read_points_cells()
+        assert np.allclose(points, p.mesh.points)
+        assert r.num_steps == H.snapshots["t"].size
+        for k in range(r.num_steps):
+            t, pd, _ = r.read_data(k)
+            assert np.isclose(t, H.snapshots["t"][k])
+            assert np.allclose(pd["displacement"], H.snapshots["u"][k].reshape(-1, 3))
+            assert np.allclose(pd["velocity"], H.snapshots["v"][k].reshape(-1, 3))
+            assert pd["von_mises"].shape == (p.mesh.n_nodes,) and pd["von_mises"].min() >= 0
+        # after the impact the bottom carries a compressive pressure
+        assert pd["contact_pressure"].max() > 0
