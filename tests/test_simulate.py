@@ -161,9 +161,7 @@ def test_bad_inputs():
     with pytest.raises(InputError, match="unknown mass"):
         simulate(p, "cn", 0.1, 1.0, mass="nope")
     with pytest.raises(InputError, match="penetrates"):
-        simulate(
-            b.problem(4, {"gap": 0.0}).__class__(**{**b.problem(4).__dict__, "u0": -0.1}), "cn", 0.1, 1.0
-        )
+        simulate(b.problem(4, {"gap": 0.0}).__class__(**{**b.problem(4).__dict__, "u0": -0.1}), "cn", 0.1, 1.0)
 
 
 def test_contact_node_fixed_by_dirichlet_is_an_error():

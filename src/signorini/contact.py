@@ -58,16 +58,12 @@ class PlaneObstacle(RigidObstacle):
         p = np.asarray(point, dtype=float).ravel()
         n = np.asarray(normal, dtype=float).ravel()
         if p.shape != n.shape:
-            raise InputError(
-                f"obstacle point and normal must have the same length, got {p.size} and {n.size}"
-            )
+            raise InputError(f"obstacle point and normal must have the same length, got {p.size} and {n.size}")
         nn = np.linalg.norm(n)
         if nn == 0:
             raise InputError("obstacle normal must be a non-zero vector")
         self.point, self.normal = p, n / nn
-        super().__init__(
-            lambda x: (x - self.point) @ self.normal, lambda x: np.broadcast_to(self.normal, x.shape)
-        )
+        super().__init__(lambda x: (x - self.point) @ self.normal, lambda x: np.broadcast_to(self.normal, x.shape))
 
 
 @dataclass

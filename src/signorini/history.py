@@ -111,7 +111,7 @@ class History:
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(HISTORY_COLUMNS)
-            for row in zip(*(cols[c] for c in HISTORY_COLUMNS)):
+            for row in zip(*(cols[c] for c in HISTORY_COLUMNS), strict=True):
                 w.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else int(v) for v in row])
 
     def write_contact_npz(self, path: str | Path) -> None:

@@ -95,9 +95,7 @@ def seed_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.cs
     return scalar_mass_matrix(mesh, rho, cell_weight=keep.astype(float))
 
 
-def seed_normal_mass(
-    mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals: np.ndarray | None
-) -> sp.csr_matrix:
+def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals: np.ndarray | None) -> sp.csr_matrix:
     """Normal-only seed mass: sum_k M^(k) (x) e_k e_k^T with M^(k) = M_mod for the
     normal axis k and the standard mass for the others.  Needs all contact normals
     equal to +-e_k (flat, axis-aligned Gamma_C)."""
@@ -190,8 +188,7 @@ def moment_preserving_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     if side is not None and mesh.cell_type in ("line", "quad", "hexahedron"):
         axis, end = side
         factors = [
-            moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0)
-            for k, g in enumerate(mesh.grid)
+            moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0) for k, g in enumerate(mesh.grid)
         ]
         out = factors[0]
         for f in factors[1:]:

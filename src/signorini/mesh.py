@@ -52,14 +52,10 @@ class Mesh:
             self.points = self.points[:, None]
         self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
         if self.cell_type not in SUPPORTED_CELLS:
-            raise MeshError(
-                f"unsupported cell type {self.cell_type!r}; supported: {', '.join(SUPPORTED_CELLS)}"
-            )
+            raise MeshError(f"unsupported cell type {self.cell_type!r}; supported: {', '.join(SUPPORTED_CELLS)}")
         ref = reference_element(self.cell_type)
         if self.points.shape[1] != ref.dim:
-            raise MeshError(
-                f"cell type {self.cell_type!r} needs {ref.dim}D points, got {self.points.shape[1]}D"
-            )
+            raise MeshError(f"cell type {self.cell_type!r} needs {ref.dim}D points, got {self.points.shape[1]}D")
         if self.cells.ndim != 2 or self.cells.shape[1] != ref.n_nodes:
             raise MeshError(f"cells of type {self.cell_type!r} need {ref.n_nodes} nodes each")
         if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
@@ -285,7 +281,7 @@ def read_mesh(path: str | Path) -> Mesh:
     phys = m.cell_data.get("gmsh:physical")
     facets: dict[str, list[np.ndarray]] = {}
     if phys is not None:
-        for block, tags in zip(m.cells, phys):
+        for block, tags in zip(m.cells, phys, strict=True):
             if block.type != ftype:
                 continue
             for tag_id in np.unique(tags):

@@ -120,9 +120,7 @@ def simulate(
         MV_new, SU_new = M @ V_new, S @ U_new
         dU = U_new - U
         R_old = R0 if n == 1 else None
-        pred[n] = sch.energy_increment(
-            dU, V_new - V, lam[n - 1], lam_new, B @ dU, MV_new - MV, SU_new - SU, R_old
-        )
+        pred[n] = sch.energy_increment(dU, V_new - V, lam[n - 1], lam_new, B @ dU, MV_new - MV, SU_new - SU, R_old)
         U, V, A, MV, SU = U_new, V_new, A_new, MV_new, SU_new
         gap[n] = disc.contact.gaps - B @ U
         lam[n] = lam_new

@@ -81,9 +81,7 @@ class Constraints:
             else:
                 v = np.atleast_1d(np.asarray(bc.value, dtype=float))
                 if v.size not in (1, len(comps)):
-                    raise InputError(
-                        f"Dirichlet value on tag {bc.tag!r} needs 1 or {len(comps)} numbers, got {v.size}"
-                    )
+                    raise InputError(f"Dirichlet value on tag {bc.tag!r} needs 1 or {len(comps)} numbers, got {v.size}")
                 vals = np.broadcast_to(v, dofs.shape)
             fixed[dofs.ravel()] = True
             values[dofs.ravel()] = vals.ravel()
