@@ -54,6 +54,27 @@ def cell_volumes(mesh: Mesh) -> np.ndarray:
     return geometry(mesh)[0].sum(axis=1)
 
 
+def uniform_cells(mesh: Mesh) -> bool:
+    """True when every element is a translate of the first one (same Jacobians), as on
+    the structured generators' meshes; assembly then computes one element matrix."""
+    if "uniform" in mesh._cache:
+        return mesh._cache["uniform"]
+    X = mesh.points[mesh.cells]
+    rel = X - X[:, :1, :]
+    scale = max(float(np.abs(rel[0]).max()), 1e-300)
+    out = bool(np.abs(rel - rel[:1]).max() <= 1e-12 * scale)
+    mesh._cache["uniform"] = out
+    return out
+
+
+def _element_data(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(wdet, grad) for all cells, or for the first cell only when cells are uniform."""
+    if uniform_cells(mesh):
+        sub = Mesh(mesh.points, mesh.cells[:1], mesh.cell_type)
+        return geometry(sub)
+    return geometry(mesh)
+
+
 # ----------------------------------------------------------------------------- pattern
 def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSR node-to-node pattern and the slot of every element entry.
@@ -66,7 +87,16 @@ def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     nn = mesh.n_nodes
     c = mesh.cells
     keys = (c[:, :, None] * nn + c[:, None, :]).ravel()
-    uniq, slot = np.unique(keys, return_inverse=True)
+    # stable argsort (timsort/radix) is fast on the nearly sorted keys of ordered meshes
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    new = np.empty(sk.size, dtype=bool)
+    new[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    uniq = sk[new]
+    slot = np.empty(keys.size, dtype=np.int64)
+    slot[order] = np.cumsum(new) - 1
+    del sk, order, new, keys
     rows = uniq // nn
     indices = (uniq - rows * nn).astype(np.int32 if nn < 2**31 else np.int64)
     indptr = np.zeros(nn + 1, dtype=np.int64)
@@ -108,16 +138,21 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
 
     In 1D: K[a,b] = int E N_a' N_b' dx.  Units: [force / length].
     """
-    wdet, G = geometry(mesh)
+    wdet, G = _element_data(mesh)
     if mesh.dim == 1:
         Ke = material.young * np.einsum("eq,eqa,eqb->eab", wdet, G[..., 0], G[..., 0])
-        return assemble_scalar(mesh, Ke)
+        return assemble_scalar(mesh, np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:]))
+    e, q, nv, d = G.shape
+    # K2[e, a, i, b, j] = sum_q w_q det J G[q, a, i] G[q, b, j], one batched matmul
+    Gw = (G * wdet[:, :, None, None]).reshape(e, q, nv * d)
+    K2 = np.matmul(Gw.transpose(0, 2, 1), G.reshape(e, q, nv * d)).reshape(e, nv, d, nv, d)
     lam, mu = material.lam, material.mu
-    Ke = lam * np.einsum("eq,eqai,eqbj->eabij", wdet, G, G)
-    Ke += mu * np.einsum("eq,eqaj,eqbi->eabij", wdet, G, G)
-    lap = mu * np.einsum("eq,eqak,eqbk->eab", wdet, G, G)
-    idx = np.arange(mesh.dim)
-    Ke[:, :, :, idx, idx] += lap[..., None]
+    Ke = lam * K2.transpose(0, 1, 3, 2, 4) + mu * K2.transpose(0, 1, 3, 4, 2)
+    lap = np.einsum("eakbk->eab", K2)
+    idx = np.arange(d)
+    Ke[:, :, :, idx, idx] += mu * lap[..., None]
+    if Ke.shape[0] != mesh.n_cells:  # identical elements: one matrix for all
+        Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
     return assemble_vector(mesh, Ke)
 
 
@@ -128,16 +163,34 @@ def scalar_mass_matrix(mesh: Mesh, rho: float = 1.0, cell_weight: np.ndarray | N
     is how the ``seed`` mass removes the elements touching the contact boundary).
     """
     ref = reference_element(mesh.cell_type)
-    wdet, _ = geometry(mesh)
-    if cell_weight is not None:
-        wdet = wdet * np.asarray(cell_weight, dtype=float)[:, None]
+    wdet, _ = _element_data(mesh)
     Ke = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    if Ke.shape[0] != mesh.n_cells:
+        Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
+    if cell_weight is not None:
+        Ke = Ke * np.asarray(cell_weight, dtype=float)[:, None, None]
     return assemble_scalar(mesh, Ke)
 
 
 def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
-    """Vector matrix m (x) I_d for node-major dofs."""
-    return sp.kron(m, sp.identity(dim, format="csr"), format="csr") if dim > 1 else sp.csr_matrix(m)
+    """Vector matrix m (x) I_d for node-major dofs (entries only on the diagonal of blocks)."""
+    m = sp.csr_matrix(m)
+    if dim == 1:
+        return m
+    m.sort_indices()
+    nn = m.shape[0]
+    length = np.diff(m.indptr)
+    row_of = np.repeat(np.arange(nn), length)
+    local = np.arange(m.nnz) - m.indptr[row_of]
+    ptr = np.zeros(nn * dim + 1, dtype=np.int64)
+    np.cumsum(np.repeat(length, dim), out=ptr[1:])
+    ii = np.arange(dim)
+    dest = ptr[:-1].reshape(nn, dim)[row_of] + local[:, None]  # (nnz, dim)
+    data = np.empty(ptr[-1])
+    data[dest] = m.data[:, None]
+    cols = np.empty(ptr[-1], dtype=np.int64 if dim * nn >= 2**31 else np.int32)
+    cols[dest] = dim * m.indices.astype(np.int64)[:, None] + ii[None, :]
+    return sp.csr_matrix((data, cols, ptr), shape=(dim * nn, dim * nn))
 
 
 def mass_matrix(mesh: Mesh, rho: float = 1.0) -> sp.csr_matrix:
