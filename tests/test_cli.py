@@ -96,3 +96,22 @@ def test_unknown_benchmark_and_no_overwrite(tmp_path, capsys):
     assert (out / "precious.txt").read_text() == "x"
     assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--overwrite"]) == 0
     assert not (out / "precious.txt").exists() and (out / "history.csv").exists()
+
+
+def test_study_command_1d_and_2d(tmp_path, capsys):
+    out = tmp_path / "s1"
+    assert main(["study", "bar1d", "--n0", "20", "--levels", "3", "--T", "3", "--out", str(out), "--quiet"]) == 0
+    import csv
+
+    rows = list(csv.DictReader(open(out / "study.csv")))
+    assert [int(r["n"]) for r in rows] == [20, 40, 80]
+    e = [float(r["u_L2"]) for r in rows]
+    assert 1.7 < e[0] / e[1] < 2.3 and 1.7 < e[1] / e[2] < 2.3  # L2 rate ~ 1
+    assert "rate 20->40" in (out / "study.md").read_text()
+    out2 = tmp_path / "s2"
+    assert main(["study", "bar2d", "--scheme", "be", "--levels", "2", "--out", str(out2), "--quiet"]) == 0
+    rows = list(csv.DictReader(open(out2 / "study.csv")))
+    assert float(rows[1]["u_H1"]) < float(rows[0]["u_H1"])
+    assert main(["study", "bar2d", "--levels", "1", "--out", str(tmp_path / "s3")]) == 2
+    assert main(["study", "bar2d", "--ref-level", "3", "--out", str(tmp_path / "s3")]) == 2
+    assert not (tmp_path / "s3").exists()

@@ -20,6 +20,7 @@ EXAMPLES_RUN = """examples:
   signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
   signorini run bar2d --scheme be --mass standard --n 4 --T 1 --out out/bar2d-be
   signorini run bar1d-impact --set gap=0.3 --set velocity=1 --n 80 --out out/impact
+  signorini run examples/bar2d.toml --out out/case
 """
 
 
@@ -108,22 +109,24 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .simulate import simulate
 
     target = args.target
+    if target.endswith(".toml"):
+        return run_case_file(args)
     bench = get_benchmark(target)
     overrides = parse_sets(args.set)
     n = args.n if args.n is not None else (40 if bench.dim == 1 else 4)
     problem = bench.problem(n, overrides)
     dt = args.dt if args.dt is not None else bench.h(n, overrides) / 2
     T = args.T if args.T is not None else (6.0 if bench.dim == 1 else 1.0)
-    out = Path(args.out)
+    out = Path(args.out or "out/run")
     holder = {}
 
     def work(tmp: Path) -> None:
         H = simulate(
             problem,
-            args.scheme,
+            args.scheme or "cn",
             dt,
             T,
-            mass=args.mass,
+            mass=args.mass or "seed",
             snapshot_every=args.snapshot_every,
             progress=Progress(args.quiet, target),
         )
@@ -139,6 +142,88 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(one_screen_summary(holder["H"]))
         print(f"  results in {out}")
+    return 0
+
+
+def run_case_file(args: argparse.Namespace) -> int:
+    from .config import load_case
+    from .simulate import simulate
+
+    for flag in ("n", "dt", "T"):
+        if getattr(args, flag) is not None:
+            raise InputError(f"--{flag} does not apply to a case file; set it in the file")
+    if args.set:
+        raise InputError("--set does not apply to a case file; edit the file")
+    case = load_case(args.target)
+    out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
+    every = args.snapshot_every or case.snapshot_every
+    holder = {}
+
+    def work(tmp: Path) -> None:
+        H = simulate(
+            case.problem,
+            args.scheme or case.scheme,
+            case.dt,
+            case.T,
+            mass=args.mass or case.mass,
+            snapshot_every=every,
+            progress=Progress(args.quiet, Path(args.target).name),
+        )
+        H.meta.update({"case_file": str(args.target)})
+        H.save(tmp)
+        shutil.copy(args.target, tmp / "case.toml")
+        if every:
+            from .output import write_fields
+
+            write_fields(tmp / "fields.xdmf", case.problem, H)
+        holder["H"] = H
+
+    run_into(out, args.overwrite, work)
+    if not args.quiet:
+        print(one_screen_summary(holder["H"]))
+        print(f"  results in {out}")
+    return 0
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    import json
+
+    from .benchmarks import get_benchmark
+    from .errors import check_positive
+    from .history import _json_default
+    from .reference_study import study, table_csv, table_markdown
+
+    bench = get_benchmark(args.benchmark)
+    overrides = parse_sets(args.set)
+    bench.params(overrides)
+    if args.levels < 2:
+        raise InputError(f"--levels must be >= 2 to measure a rate, got {args.levels}")
+    if args.n0 < 1:
+        raise InputError(f"--n0 must be a positive integer, got {args.n0}")
+    check_positive("--ratio", args.ratio)
+    check_positive("--T", args.T)
+    finest = args.n0 * 2 ** (args.levels - 1)
+    if args.ref_level is not None and (args.ref_level <= finest or args.ref_level % finest):
+        raise InputError(
+            f"--ref-level must be a multiple of the finest level {finest} and larger, got {args.ref_level}"
+        )
+    out = Path(args.out)
+    holder = {}
+
+    def work(tmp: Path) -> None:
+        res = study(
+            args.benchmark, args.scheme, args.mass, args.n0, args.levels, args.T, args.ratio, args.ref_level, overrides
+        )
+        md = table_markdown(res)
+        (tmp / "study.md").write_text(md)
+        table_csv(res, tmp / "study.csv")
+        (tmp / "study.json").write_text(json.dumps(res, indent=1, default=_json_default))
+        holder["md"] = md
+
+    run_into(out, args.overwrite, work)
+    if not args.quiet:
+        print(holder["md"])
+        print(f"saved {out / 'study.md'} and {out / 'study.csv'}")
     return 0
 
 
@@ -168,17 +253,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser(
         "run",
-        help="run a named benchmark (bar1d, bar1d-impact, bar2d, bar3d)",
+        help="run a named benchmark (bar1d, bar1d-impact, bar2d, bar3d) or a case file",
         description="Run one simulation and write history.csv, contact.npz and summary.json into --out.",
         epilog=EXAMPLES_RUN,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    r.add_argument("target", help="benchmark name: bar1d, bar1d-impact, bar2d, bar3d")
-    r.add_argument("--scheme", default="cn", help="cn|crank-nicolson or be|backward-euler (default cn)")
+    r.add_argument("target", help="benchmark name (bar1d, bar1d-impact, bar2d, bar3d) or a CASE.toml file")
+    r.add_argument(
+        "--scheme", default=None, help="cn|crank-nicolson or be|backward-euler (default cn, or the case file's)"
+    )
     r.add_argument(
         "--mass",
-        default="seed",
-        help="standard|lumped|seed|seed-normal|moment-preserving (default seed)",
+        default=None,
+        help="standard|lumped|seed|seed-normal|moment-preserving (default seed, or the case file's)",
     )
     r.add_argument(
         "--n",
@@ -190,10 +277,33 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
     r.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     r.add_argument("--snapshot-every", type=int, default=0, help="write XDMF fields every k steps (0: none)")
-    r.add_argument("--out", default="out/run", help="output directory (default out/run)")
+    r.add_argument("--out", default=None, help="output directory (default out/run, or the case file's)")
     r.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
     r.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     r.set_defaults(func=cmd_run)
+
+    st = sub.add_parser(
+        "study",
+        help="convergence study on nested meshes against the exact (1D) or a reference (2D/3D) solution",
+        description="Errors and observed rates on levels n0 2^k (k < levels) with dt = ratio h; "
+        "writes study.md, study.csv and study.json into --out.",
+        epilog="examples:\n  signorini study bar1d --scheme cn --mass seed --n0 20 --levels 4 --T 3 --out out/s1\n"
+        "  signorini study bar2d --scheme be --mass standard --n0 1 --levels 3 --T 1 --out out/s2",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    st.add_argument("benchmark", help="bar1d, bar1d-impact, bar2d or bar3d")
+    st.add_argument("--scheme", default="cn", help="cn|crank-nicolson or be|backward-euler (default cn)")
+    st.add_argument("--mass", default="seed", help="mass variant (default seed)")
+    st.add_argument("--n0", type=int, default=1, help="coarsest level (default 1)")
+    st.add_argument("--levels", type=int, default=3, help="number of levels (default 3)")
+    st.add_argument("--ref-level", type=int, default=None, help="reference level for 2D/3D (default n0 2^levels)")
+    st.add_argument("--ratio", type=float, default=0.5, help="time step over mesh size, dt = ratio h (default 0.5)")
+    st.add_argument("--T", type=float, default=1.0, help="final time (default 1)")
+    st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
+    st.add_argument("--out", default="out/study", help="output directory (default out/study)")
+    st.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
+    st.add_argument("--quiet", action="store_true", help="no table on stdout")
+    st.set_defaults(func=cmd_study)
 
     q = sub.add_parser(
         "reproduce",

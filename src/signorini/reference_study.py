@@ -118,3 +118,81 @@ def convergence_study(
 def _rates(e, h):
     e, h = np.asarray(e), np.asarray(h)
     return np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:])
+
+
+def study(
+    bench: str,
+    scheme: str,
+    mass: str,
+    n0: int,
+    levels: int,
+    T: float,
+    ratio: float = 0.5,
+    ref_level: int | None = None,
+    params: dict | None = None,
+) -> dict:
+    """Convergence study on nested levels n0 2^k, k = 0..levels-1, with dt = ratio h.
+
+    1D benchmarks are compared with their exact solution (:func:`signorini.study.errors_1d`);
+    2D/3D ones with a reference run at ``ref_level`` (default n0 2^levels), same scheme
+    and mass.
+    """
+    from .study import errors_1d
+
+    b = get_benchmark(bench)
+    ns = [n0 * 2**k for k in range(levels)]
+    if b.dim == 1:
+        rows = []
+        for n in ns:
+            p = b.problem(n, params)
+            H = simulate(p, scheme, ratio * b.h(n, params), T, mass=mass, snapshot_every=1)
+            rows.append({"n": n, "h": b.h(n, params), **errors_1d(H, p, b.exact(b.params(params), T))})
+        keys = [k for k in rows[0] if k not in ("n", "h")]
+        rates = {k: [float(r) for r in _rates([r[k] for r in rows], [r["h"] for r in rows])] for k in keys}
+        return {
+            "benchmark": bench,
+            "scheme": scheme,
+            "mass": mass,
+            "reference": "exact",
+            "T": T,
+            "rows": rows,
+            "rates": rates,
+        }
+    ref_level = ref_level or n0 * 2**levels
+    out = convergence_study(bench, scheme, mass, ns, ref_level, T=T, ratio=ratio, params=params)
+    out["reference"] = f"n={ref_level}"
+    return out
+
+
+def table_markdown(result: dict) -> str:
+    """Markdown table of a study: errors per level and rates between levels."""
+    rows = result["rows"]
+    keys = [k for k in rows[0] if k not in ("n", "h")]
+    lines = [
+        f"{result['benchmark']}: {result['scheme']} / {result['mass']} mass, T = {result['T']}, "
+        f"reference {result['reference']}",
+        "",
+        "| n | h | " + " | ".join(keys) + " |",
+        "|---" * (len(keys) + 2) + "|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['n']} | {r['h']:.4g} | " + " | ".join(f"{r[k]:.4e}" for k in keys) + " |")
+    for i in range(len(rows) - 1):
+        lines.append(
+            f"| rate {rows[i]['n']}->{rows[i + 1]['n']} | | "
+            + " | ".join(f"{result['rates'][k][i]:.2f}" for k in keys)
+            + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def table_csv(result: dict, path) -> None:
+    import csv
+
+    rows = result["rows"]
+    keys = list(rows[0])
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for r in rows:
+            w.writerow([r[k] for k in keys])
