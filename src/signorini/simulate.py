@@ -14,7 +14,7 @@ from .history import History
 from .mass import massless_dofs
 from .problem import Discretization, Problem, discretize
 from .schemes import TimeScheme, get_scheme
-from .stepper import ContactStepper
+from .stepper import make_stepper
 
 
 def number_of_steps(dt: float, T: float) -> int:
@@ -50,7 +50,8 @@ def simulate(
     T: float = 1.0,
     mass: str = "seed",
     snapshot_every: int = 0,
-    backend: str = "superlu",
+    backend: str = "auto",
+    memory_budget: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
@@ -62,7 +63,9 @@ def simulate(
     dt, T : time step and final time [s]; N = T/dt steps (T must be >= dt).
     mass : mass variant (ignored when a Discretization is given).
     snapshot_every : store full displacement/velocity fields every k steps (0 = never).
-    backend : linear solver backend (see :mod:`signorini.linalg`).
+    backend : ``auto`` (default: a direct factor if its estimated size fits in
+        ``memory_budget`` bytes, else CG), ``superlu``, ``pardiso`` or ``cg``.
+    memory_budget : bytes allowed for a factor (default 40% of the RAM).
     progress : callback(step, n_steps) called after every step.
     """
     sch = get_scheme(scheme)
@@ -73,7 +76,7 @@ def simulate(
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
     M, S, F, B = disc.M, disc.S, disc.F, disc.B
     a = sch.a(dt)
-    stepper = ContactStepper((a * M + S).tocsr(), B, disc.contact.gaps, backend=backend)
+    stepper = make_stepper((a * M + S).tocsr(), B, disc.contact.gaps, backend, disc.space.dim, memory_budget)
     massless = massless_dofs(M)
     U = disc.U0.copy()
     V = disc.V0.copy()
@@ -145,7 +148,7 @@ def simulate(
         "free_dofs": int(M.shape[0]),
         "contact_nodes": int(nc),
         "massless_dofs": int(massless.size),
-        "backend": stepper.factor.name,
+        "backend": stepper.name,
         "setup_seconds": setup_seconds,
         "loop_seconds": loop_seconds,
         "step_seconds": loop_seconds / max(N, 1),

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .complementarity import solve_lcp
-from .linalg import factorize
+from .complementarity import complementarity_residual, solve_lcp
+from .linalg import Preconditioner, choose_backend, factorize, has_pyamg, projected_cg
 
 
 @dataclass
@@ -51,6 +51,7 @@ class ContactStepper:
         t0 = time.perf_counter()
         self.factor = factorize(K, backend)
         t1 = time.perf_counter()
+        self.name = self.factor.name
         self.B = sp.csr_matrix(B)
         self.gaps = np.asarray(gaps, dtype=float)
         nc, n = self.B.shape
@@ -85,3 +86,97 @@ class ContactStepper:
                 U = U + self.factor.solve(self.B.T @ lam)
         self.active = res.active
         return U, lam, StepInfo(res.iterations, res.fallback, res.residual, res.active)
+
+
+class IterativeContactStepper:
+    """Active-set (semismooth Newton) contact solve on top of projected PCG, no factor.
+
+    For an active set A the constraint nu_i . u_i = g_i (i in A) is imposed exactly by
+    writing U = u_p + P w with u_p = B_A^T g_A and the orthogonal projector
+    P = I - B_A^T B_A (rows of B are orthonormal); ``P K P w = P (b - K u_p)`` is solved
+    by CG warm-started from the previous step.  Then lambda_A = B_A (K U - b), the gaps
+    are checked and A is updated by the rule A = {i : -lambda_i - c gap_i > 0} until it
+    no longer changes.
+    """
+
+    def __init__(
+        self,
+        K: sp.spmatrix,
+        B: sp.csr_matrix,
+        gaps: np.ndarray,
+        preconditioner: str | None = None,
+        rtol: float = 1e-12,
+        max_newton: int = 30,
+    ):
+        import time
+
+        t0 = time.perf_counter()
+        self.K = sp.csr_matrix(K)
+        self.B = sp.csr_matrix(B)
+        self.gaps = np.asarray(gaps, dtype=float)
+        kind = preconditioner or ("amg" if has_pyamg() and K.shape[0] > 200_000 else "jacobi")
+        self.precond = Preconditioner(self.K, kind)
+        self.name = f"cg+{kind}"
+        self.rtol = rtol
+        self.max_newton = max_newton
+        self.c = float(np.mean(self.K.diagonal()))
+        self.active = np.zeros(self.B.shape[0], dtype=bool)
+        self.U_prev = np.zeros(self.K.shape[0])
+        self.gap_scale = max(float(np.max(np.abs(self.gaps))) if self.gaps.size else 0.0, 1e-300)
+        self.cg_iterations = 0
+        self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
+
+    def solve(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        A = self.active.copy()
+        B, g = self.B, self.gaps
+        seen = set()
+        for it in range(1, self.max_newton + 1):
+            BA = B[A]
+
+            def project(x, BA=BA):
+                return x - BA.T @ (BA @ x) if BA.shape[0] else x
+
+            up = BA.T @ g[A] if BA.shape[0] else np.zeros_like(b)
+            w, n_cg = projected_cg(self.K, b - self.K @ up, self.U_prev - up, project, self.precond, self.rtol)
+            self.cg_iterations += n_cg
+            U = up + w
+            lam = np.zeros(g.size)
+            if A.any():
+                lam[A] = BA @ (self.K @ U - b)
+            gap = g - B @ U
+            A_new = (-lam - self.c * gap) > 0
+            if np.array_equal(A_new, A):
+                break
+            key = A_new.tobytes()
+            if key in seen:
+                raise RuntimeError("active-set iteration cycles; reduce the time step or use a direct backend")
+            seen.add(key)
+            A = A_new
+        else:
+            raise RuntimeError(f"active-set iteration did not converge in {self.max_newton} iterations")
+        self.active = A
+        self.U_prev = U
+        gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0)
+        res = complementarity_residual(-lam, gap, 1.0 / self.c, gap_scale) if g.size else 0.0
+        return U, lam, StepInfo(it, False, res, A)
+
+
+def make_stepper(
+    K: sp.spmatrix,
+    B: sp.csr_matrix,
+    gaps: np.ndarray,
+    backend: str = "auto",
+    dim: int = 3,
+    memory_budget: float | None = None,
+):
+    """The contact stepper for ``backend`` (``auto`` chooses by estimated factor size)."""
+    from .errors import InputError
+    from .linalg import BACKENDS
+
+    if backend not in BACKENDS:
+        raise InputError(f"unknown linear solver backend {backend!r}; allowed: {', '.join(BACKENDS)}")
+    if backend == "auto":
+        backend = choose_backend(K.shape[0], dim, memory_budget)
+    if backend == "cg":
+        return IterativeContactStepper(K, B, gaps)
+    return ContactStepper(K, B, gaps, backend=backend)
