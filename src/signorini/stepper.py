@@ -130,7 +130,7 @@ class IterativeContactStepper:
         A = self.active.copy()
         B, g = self.B, self.gaps
         seen = set()
-        for it in range(1, self.max_newton + 1):
+        for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
 
             def project(x, BA=BA):
