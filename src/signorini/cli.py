@@ -99,7 +99,7 @@ def one_screen_summary(H) -> str:
         f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} "
         f"(max drift {100 * drift:.3g}% of E0)\n"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
-        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step"
+        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']})"
     )
 
 
@@ -128,6 +128,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             T,
             mass=args.mass or "seed",
             snapshot_every=args.snapshot_every,
+            backend=args.backend,
             progress=Progress(args.quiet, target),
         )
         H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
@@ -276,6 +277,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--dt", type=float, default=None, help="time step (default h/2)")
     r.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
     r.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
+    r.add_argument(
+        "--backend",
+        default="auto",
+        help="linear solver: auto (default: direct factor if it fits in 40%% of RAM, else CG), superlu, pardiso, cg",
+    )
     r.add_argument("--snapshot-every", type=int, default=0, help="write XDMF fields every k steps (0: none)")
     r.add_argument("--out", default=None, help="output directory (default out/run, or the case file's)")
     r.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")

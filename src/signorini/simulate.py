@@ -163,6 +163,7 @@ def simulate(
         "contact_nodes": int(nc),
         "massless_dofs": int(massless.size),
         "backend": stepper.name,
+        "factor_bytes": int(stepper.factor_bytes),
         "setup_seconds": setup_seconds,
         "loop_seconds": loop_seconds,
         "step_seconds": loop_seconds / max(N, 1),

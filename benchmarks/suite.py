@@ -1,0 +1,173 @@
+"""Benchmark suite: bar3d (n = 4, 8, 16, 32) and bar2d series, CN with the seed mass.
+
+Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
+
+For every size (each in a fresh process, so that peak memory is per size): dofs,
+contact dofs, the set-up split (mesh, assembly, factorization, condensation), the time
+per step, the ratio of a step to one bare forward+backward solve with the same factor
+(or to one sparse matrix-vector product for the CG backend), the factor size and the
+peak resident memory.  Writes ``bench.json``, ``bench.md`` and ``bench.png`` (log-log
+time against dofs with fitted exponents).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SERIES = {
+    "full": [
+        ("bar3d", 4),
+        ("bar3d", 8),
+        ("bar3d", 16),
+        ("bar3d", 32),
+        ("bar2d", 8),
+        ("bar2d", 16),
+        ("bar2d", 32),
+        ("bar2d", 64),
+    ],
+    "quick": [("bar3d", 4), ("bar3d", 8), ("bar2d", 8), ("bar2d", 16), ("bar2d", 32)],
+}
+
+
+def measure(bench: str, n: int, steps: int, backend: str) -> dict:
+    from signorini.benchmarks import get_benchmark
+    from signorini.problem import discretize
+    from signorini.simulate import simulate
+
+    b = get_benchmark(bench)
+    t0 = time.perf_counter()
+    problem = b.problem(n)
+    problem.mesh.check_cells()
+    t_mesh = time.perf_counter() - t0
+    disc = discretize(problem, "seed")
+    dt = b.h(n) / 2
+    H = simulate(disc, "cn", dt, steps * dt, backend=backend)
+    m = H.meta
+    ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
+    return {
+        "benchmark": bench,
+        "n": n,
+        "dofs": m["dofs"],
+        "contact_dofs": m["contact_nodes"],
+        "backend": m["backend"],
+        "steps": H.steps,
+        "mesh_s": t_mesh,
+        "assembly_s": m["assembly_seconds"] + m["reduction_seconds"],
+        "factorization_s": m["factorization_seconds"],
+        "condensation_s": m["condensation_seconds"],
+        "setup_s": t_mesh + m["assembly_seconds"] + m["reduction_seconds"] + m["setup_seconds"],
+        "step_s": m["step_seconds"],
+        "reference_op": "solve" if "bare_solve_seconds" in m else "spmv",
+        "reference_s": ref,
+        "step_over_reference": m["step_seconds"] / ref,
+        "factor_MB": m["factor_bytes"] / 1e6,
+        "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
+        "impacts": H.impacts,
+        "max_residual": float(H.residual.max()),
+    }
+
+
+def fit(x, y) -> float:
+    x, y = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    return float(np.polyfit(x, y, 1)[0]) if x.size > 1 else float("nan")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="skip bar3d n = 16, 32 and bar2d n = 64")
+    ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
+    ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cg (default auto)")
+    ap.add_argument("--out", default="out/bench", help="output directory")
+    ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.one:
+        print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend)))
+        return 0
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for bench, n in SERIES["quick" if a.quick else "full"]:
+        cmd = [
+            sys.executable,
+            "-m",
+            "benchmarks",
+            "--one",
+            bench,
+            str(n),
+            "--steps",
+            str(a.steps),
+            "--backend",
+            a.backend,
+        ]
+        r = json.loads(subprocess.check_output(cmd).decode().strip().splitlines()[-1])
+        rows.append(r)
+        print(
+            f"{bench} n={n}: {r['dofs']} dofs, {r['backend']}, setup {r['setup_s']:.2f}s, "
+            f"step {1e3 * r['step_s']:.2f} ms = {r['step_over_reference']:.2f} x {r['reference_op']}, "
+            f"peak {r['peak_MB']:.0f} MB",
+            flush=True,
+        )
+    md = [
+        "| case | n | dofs | contact | backend | mesh s | assembly s | factor s | condense s | step ms "
+        "| step/ref | ref | factor MB | peak MB |",
+        "|" + "---|" * 14,
+    ]
+    for r in rows:
+        md.append(
+            f"| {r['benchmark']} | {r['n']} | {r['dofs']} | {r['contact_dofs']} | {r['backend']} | "
+            f"{r['mesh_s']:.2f} | {r['assembly_s']:.2f} | {r['factorization_s']:.2f} | "
+            f"{r['condensation_s']:.2f} | {1e3 * r['step_s']:.2f} | {r['step_over_reference']:.2f} | "
+            f"{r['reference_op']} | {r['factor_MB']:.0f} | {r['peak_MB']:.0f} |"
+        )
+    exps = {}
+    for bench in ("bar2d", "bar3d"):
+        sel = [r for r in rows if r["benchmark"] == bench]
+        if len(sel) > 1:
+            exps[bench] = {
+                "setup": fit([r["dofs"] for r in sel], [r["setup_s"] for r in sel]),
+                "step": fit([r["dofs"] for r in sel], [r["step_s"] for r in sel]),
+            }
+    md += [
+        "",
+        "Fitted exponents (time ~ dofs^p): "
+        + ", ".join(f"{k}: setup {v['setup']:.2f}, step {v['step']:.2f}" for k, v in exps.items()),
+    ]
+    (out / "bench.md").write_text("\n".join(md) + "\n")
+    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps}, indent=1))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for bench, mk in (("bar2d", "o"), ("bar3d", "s")):
+        sel = [r for r in rows if r["benchmark"] == bench]
+        if sel:
+            d = [r["dofs"] for r in sel]
+            ax.loglog(
+                d,
+                [r["setup_s"] for r in sel],
+                mk + "-",
+                label=f"{bench} setup (p={exps.get(bench, {}).get('setup', float('nan')):.2f})",
+            )
+            ax.loglog(
+                d,
+                [r["step_s"] for r in sel],
+                mk + "--",
+                label=f"{bench} step (p={exps.get(bench, {}).get('step', float('nan')):.2f})",
+            )
+    ax.set_xlabel("dofs")
+    ax.set_ylabel("seconds")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "bench.png", dpi=110)
+    print("\n".join(md))
+    return 0
