@@ -168,6 +168,7 @@ def run_case_file(args: argparse.Namespace) -> int:
             case.T,
             mass=args.mass or case.mass,
             snapshot_every=every,
+            backend=args.backend,
             progress=Progress(args.quiet, Path(args.target).name),
         )
         H.meta.update({"case_file": str(args.target)})

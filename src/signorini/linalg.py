@@ -117,12 +117,13 @@ class PardisoFactor:
         self._A.sort_indices()
         self._solver = pypardiso.PyPardisoSolver(mtype=2)
         self._solver.set_statistical_info_off()
+        self._solver.set_iparm(18, -1)  # (1-based) ask Pardiso to report the factor's non-zeros
         self._solver.factorize(self._A)
 
     @property
     def nbytes(self) -> int:
-        # iparm(17) (0-based 17): number of non-zeros in the factor
-        return int(12 * max(self._solver.get_iparm(17), 0))
+        """Factor size from Pardiso's report (non-zeros of L, values + indices) [bytes]."""
+        return int(12 * max(self._solver.get_iparm(18), 0))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.asfortranarray(np.asarray(b, dtype=float))

@@ -70,8 +70,11 @@ class ContactStepper:
         nc, n = self.B.shape
         self.store_Z = n * nc * 8 <= memory_budget
         if nc:
-            Z = self.factor.solve(self.B.T.toarray())
-            Z = Z.reshape(n, nc)
+            # Z = K^-1 B^T in column blocks, to bound the dense temporaries
+            Z = np.empty((n, nc))
+            Bt = self.B.T.tocsc()
+            for j in range(0, nc, 64):
+                Z[:, j : j + 64] = self.factor.solve(Bt[:, j : j + 64].toarray()).reshape(n, -1)
             W = self.B @ Z
             self.W = 0.5 * (W + W.T)
             self.Z = Z if self.store_Z else None
