@@ -121,6 +121,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     holder = {}
 
     def work(tmp: Path) -> None:
+        if (args.scheme or "").lower() in ("ps", "paoli-schatzman"):
+            from .competitors import paoli_schatzman
+
+            if args.snapshot_every:
+                raise InputError("--snapshot-every is not available with the paoli-schatzman scheme")
+            H = paoli_schatzman(problem, dt, T, mass=args.mass or "standard", backend=args.backend)
+            H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
+            H.save(tmp)
+            holder["H"] = H
+            return
         H = simulate(
             problem,
             args.scheme or "cn",
@@ -262,7 +272,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("target", help="benchmark name (bar1d, bar1d-impact, bar2d, bar3d) or a CASE.toml file")
     r.add_argument(
-        "--scheme", default=None, help="cn|crank-nicolson or be|backward-euler (default cn, or the case file's)"
+        "--scheme",
+        default=None,
+        help="cn|crank-nicolson, be|backward-euler, or ps|paoli-schatzman (benchmarks only) "
+        "(default cn, or the case file's)",
     )
     r.add_argument(
         "--mass",

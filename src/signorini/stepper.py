@@ -87,12 +87,13 @@ class ContactStepper:
         self.timings["bare_solve"] = _best_time(lambda x: self.factor.solve(x), n)
         self.factor_bytes = self.factor.nbytes
 
-    def solve(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        """Return (U, lambda, info) for the right-hand side ``b``."""
+    def solve(self, b: np.ndarray, gaps: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """Return (U, lambda, info) for the right-hand side ``b``; ``gaps`` replaces the
+        constraint's right-hand side g for this step (two-step schemes)."""
         U = self.factor.solve(b)
         if self.gaps.size == 0:
             return U, np.zeros(0), StepInfo(0, False, 0.0, self.active)
-        q = self.gaps - self.B @ U
+        q = (self.gaps if gaps is None else gaps) - self.B @ U
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
         res = solve_lcp(self.W, q, self.active, scale=scale)
         lam = -res.mu
@@ -148,9 +149,9 @@ class IterativeContactStepper:
         self.timings["bare_spmv"] = _best_time(lambda x: self.K @ x, self.K.shape[0])
         self.factor_bytes = 0
 
-    def solve(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+    def solve(self, b: np.ndarray, gaps: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         A = self.active.copy()
-        B, g = self.B, self.gaps
+        B, g = self.B, (self.gaps if gaps is None else gaps)
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
