@@ -11,6 +11,14 @@ name                   definition                                               
                        tangential ones (flat, axis-aligned Gamma_C)                of contact nodes
 ``moment-preserving``  contact rows/columns removed, the mass put back so that    all components
                        total mass, first and second moments are preserved          of contact nodes
+``neighbour``          contact rows/columns removed; the mass of each contact      all components
+                       node put on the diagonal of its non-contact neighbours      of contact nodes
+                       in proportion to their coupling M_ij (a "weighted
+                       redistribution" in the sense of Dabaghi et al.);
+                       total mass preserved, PSD by construction
+``mass-free-surface``  cells touching Gamma_C integrate their mass with a nodal   all components
+                       rule on their non-contact nodes (equal weights; Hager-      of contact nodes
+                       Wohlmuth's mass-free surface elements); total mass kept
 =====================  =========================================================  ==============
 
 The moment-preserving matrix uses, per component, the scalar redistribution
@@ -37,7 +45,7 @@ from .assembly import scalar_mass_matrix, vectorize
 from .errors import InputError
 from .mesh import Mesh
 
-MASS_VARIANTS = ("standard", "lumped", "seed", "seed-normal", "moment-preserving")
+MASS_VARIANTS = ("standard", "lumped", "seed", "seed-normal", "moment-preserving", "neighbour", "mass-free-surface")
 
 
 def mass_matrix(
@@ -72,6 +80,10 @@ def mass_matrix(
         return vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
     if name == "seed-normal":
         return seed_normal_mass(mesh, rho, contact_nodes, normals)
+    if name == "neighbour":
+        return vectorize(neighbour_scalar_mass(mesh, rho, contact_nodes), d)
+    if name == "mass-free-surface":
+        return vectorize(mass_free_surface_scalar_mass(mesh, rho, contact_nodes), d)
     return vectorize(moment_preserving_scalar_mass(mesh, rho, contact_nodes), d)
 
 
@@ -116,6 +128,50 @@ def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals:
         e = sp.csr_matrix(([1.0], ([j], [j])), shape=(d, d))
         out = out + sp.kron(mod if j == k else std, e, format="csr")
     return out.tocsr()
+
+
+# ----------------------------------------------------------------------------- other redistributions
+def neighbour_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """Zero the contact rows/columns and put the removed mass back on the diagonal.
+
+    Contact node i loses its row sum m_i and its couplings c_i = sum_{k not in C} M_ik
+    to non-contact nodes (their columns); R_i = m_i + c_i goes to each non-contact
+    neighbour j in proportion M_ij / c_i.  In 1D P1: M_11 += M_00 + 2 M_01 = 2h/3.
+    """
+    M = scalar_mass_matrix(mesh, rho).tocsr()
+    n = mesh.n_nodes
+    is_c = np.zeros(n, dtype=bool)
+    is_c[contact_nodes] = True
+    keep = sp.diags((~is_c).astype(float))
+    Mc = M[contact_nodes]  # rows of the contact nodes
+    m = np.asarray(Mc.sum(axis=1)).ravel()
+    toward = (Mc @ keep).tocsr()  # couplings to non-contact nodes only
+    denom = np.asarray(toward.sum(axis=1)).ravel()
+    if np.any(denom <= 0):
+        raise InputError("mass 'neighbour': a contact node has no non-contact neighbour")
+    # removed mass of node i: its row (m_i) and its column towards non-contact nodes
+    share = sp.diags((m + denom) / denom) @ toward
+    add = np.asarray(share.sum(axis=0)).ravel()
+    return (keep @ M @ keep + sp.diags(add)).tocsr()
+
+
+def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """Consistent mass on cells away from Gamma_C; on cells touching it, the cell mass
+    rho |K| split equally on the cell's non-contact nodes (diagonal)."""
+    from .assembly import cell_volumes
+
+    touch = touching_cells(mesh, contact_nodes)
+    M = scalar_mass_matrix(mesh, rho, cell_weight=(~touch).astype(float))
+    is_c = np.zeros(mesh.n_nodes, dtype=bool)
+    is_c[contact_nodes] = True
+    cells = mesh.cells[touch]
+    free = ~is_c[cells]
+    count = free.sum(axis=1)
+    if np.any(count == 0):
+        raise InputError("mass 'mass-free-surface': a cell has all its nodes on the contact boundary")
+    w = rho * cell_volumes(mesh)[touch] / count
+    diag = np.bincount(cells[free], weights=np.repeat(w, count), minlength=mesh.n_nodes)
+    return (M + sp.diags(diag)).tocsr()
 
 
 # ----------------------------------------------------------------------------- moment preserving
