@@ -128,8 +128,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 raise InputError("--snapshot-every is not available with the paoli-schatzman scheme")
             H = paoli_schatzman(problem, dt, T, mass=args.mass or "standard", backend=args.backend)
             H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
-            H.save(tmp)
-            holder["H"] = H
+            save_run(tmp, H, problem, 0, holder)
             return
         H = simulate(
             problem,
@@ -142,14 +141,23 @@ def cmd_run(args: argparse.Namespace) -> int:
             progress=Progress(args.quiet, target),
         )
         H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
-        H.save(tmp)
-        if args.snapshot_every:
-            from .output import write_fields
-
-            write_fields(tmp / "fields.xdmf", problem, H)
-        holder["H"] = H
+        save_run(tmp, H, problem, args.snapshot_every, holder)
 
     run_into(out, args.overwrite, work)
+    return report_run(args, holder, out)
+
+
+def save_run(tmp: Path, H, problem, snapshot_every: int, holder: dict) -> None:
+    """Write a run's files (and its XDMF fields when snapshots were taken)."""
+    H.save(tmp)
+    if snapshot_every:
+        from .output import write_fields
+
+        write_fields(tmp / "fields.xdmf", problem, H)
+    holder["H"] = H
+
+
+def report_run(args: argparse.Namespace, holder: dict, out: Path) -> int:
     if not args.quiet:
         print(one_screen_summary(holder["H"]))
         print(f"  results in {out}")
@@ -182,19 +190,11 @@ def run_case_file(args: argparse.Namespace) -> int:
             progress=Progress(args.quiet, Path(args.target).name),
         )
         H.meta.update({"case_file": str(args.target)})
-        H.save(tmp)
         shutil.copy(args.target, tmp / "case.toml")
-        if every:
-            from .output import write_fields
-
-            write_fields(tmp / "fields.xdmf", case.problem, H)
-        holder["H"] = H
+        save_run(tmp, H, case.problem, every, holder)
 
     run_into(out, args.overwrite, work)
-    if not args.quiet:
-        print(one_screen_summary(holder["H"]))
-        print(f"  results in {out}")
-    return 0
+    return report_run(args, holder, out)
 
 
 def cmd_study(args: argparse.Namespace) -> int:

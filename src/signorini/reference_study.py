@@ -102,8 +102,6 @@ def convergence_study(
         pc = b.problem(n, params)
         H = simulate(pc, scheme, ratio * b.h(n, params), T, mass=mass, snapshot_every=1)
         rows.append({"n": n, "h": b.h(n, params), **relative_errors(H, ref, pc.mesh, pf.mesh, S, M)})
-    keys = [k for k in rows[0] if k not in ("n", "h")]
-    rates = {k: [float(r) for r in _rates([r[k] for r in rows], [r["h"] for r in rows])] for k in keys}
     return {
         "benchmark": bench,
         "scheme": scheme,
@@ -111,13 +109,16 @@ def convergence_study(
         "ref_level": ref_level,
         "T": T,
         "rows": rows,
-        "rates": rates,
+        "rates": level_rates(rows),
     }
 
 
-def _rates(e, h):
-    e, h = np.asarray(e), np.asarray(h)
-    return np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:])
+def level_rates(rows: list[dict]) -> dict[str, list[float]]:
+    """Observed rates between successive rows for every error column."""
+    from .study import observed_rates
+
+    keys = [k for k in rows[0] if k not in ("n", "h")]
+    return {k: [float(r) for r in observed_rates([r[k] for r in rows], [r["h"] for r in rows])] for k in keys}
 
 
 def study(
@@ -147,8 +148,6 @@ def study(
             p = b.problem(n, params)
             H = simulate(p, scheme, ratio * b.h(n, params), T, mass=mass, snapshot_every=1)
             rows.append({"n": n, "h": b.h(n, params), **errors_1d(H, p, b.exact(b.params(params), T))})
-        keys = [k for k in rows[0] if k not in ("n", "h")]
-        rates = {k: [float(r) for r in _rates([r[k] for r in rows], [r["h"] for r in rows])] for k in keys}
         return {
             "benchmark": bench,
             "scheme": scheme,
@@ -156,7 +155,7 @@ def study(
             "reference": "exact",
             "T": T,
             "rows": rows,
-            "rates": rates,
+            "rates": level_rates(rows),
         }
     ref_level = ref_level or n0 * 2**levels
     out = convergence_study(bench, scheme, mass, ns, ref_level, T=T, ratio=ratio, params=params)

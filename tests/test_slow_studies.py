@@ -1,0 +1,33 @@
+"""Longer convergence studies (opt-in: python -m pytest -m slow)."""
+
+import numpy as np
+import pytest
+
+from signorini.reference_study import study
+
+pytestmark = pytest.mark.slow
+
+
+def test_bar2d_cn_seed_converges_against_reference():
+    r = study("bar2d", "cn", "seed", n0=1, levels=4, T=1.0, ref_level=16)
+    e = [row["u_H1"] for row in r["rows"]]
+    assert all(a > b for a, b in zip(e, e[1:], strict=False))
+    assert np.mean(r["rates"]["u_H1"]) > 0.3
+    assert np.mean(r["rates"]["energy_L2"]) > 0.8
+
+
+def test_bar2d_cn_standard_does_not_converge():
+    r = study("bar2d", "cn", "standard", n0=1, levels=3, T=1.0, ref_level=16)
+    assert r["rows"][-1]["force"] > 0.5
+
+
+def test_bar3d_be_converges():
+    r = study("bar3d", "be", "seed", n0=1, levels=2, T=1.0, ref_level=4)
+    assert r["rows"][1]["u_H1"] < r["rows"][0]["u_H1"]
+
+
+def test_bar1d_long_time_moment_preserving_phase():
+    # spec 3.3: over T = 12 the H1 error of CN + seed grows while moment-preserving stays small
+    s = study("bar1d", "cn", "seed", n0=80, levels=2, T=12.0)
+    m = study("bar1d", "cn", "moment-preserving", n0=80, levels=2, T=12.0)
+    assert m["rows"][0]["u_H1"] < s["rows"][0]["u_H1"]
