@@ -104,9 +104,11 @@ def von_mises_3d(runs: dict, png: Path, csv_path: Path) -> dict:
         if fig is None:
             fig, ax = _fig(len(runs), len(times), (1.3 * len(times) + 2, 8))
         vmax_near, rough = 0.0, []
+        fields = [von_mises(mesh, p.material, u)[on_face] for u in H.snapshots["u"]]
+        levels = np.linspace(0.0, max(max(float(f.max()) for f in fields), 1e-12), 21)  # one scale per row
         for j, t in enumerate(times):
-            vm = von_mises(mesh, p.material, H.snapshots["u"][j])[on_face]
-            tc = ax[i, j].tricontourf(y, z, vm, levels=20, cmap="viridis")
+            vm = fields[j]
+            tc = ax[i, j].tricontourf(y, z, vm, levels=levels, cmap="viridis")
             ax[i, j].set_title(f"{mass}\nt={t:.2f}", fontsize=7)
             ax[i, j].set_xticks([])
             if j == len(times) - 1:
