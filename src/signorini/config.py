@@ -27,6 +27,7 @@ errors that name the key and the allowed values)::
     [contact]
     tag = "ymin"
     obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
+    # or { type = "sphere", center = [...], radius = R }: a rigid ball the body stays out of
 
     [initial]                   # numbers or expressions of x, y, z (numpy functions)
     displacement = [0.0, 0.2]
@@ -58,7 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from .contact import PlaneObstacle
+from .contact import PlaneObstacle, SphereObstacle
 from .errors import InputError, check_choice, check_positive
 from .mass import MASS_VARIANTS
 from .material import IsotropicElastic
@@ -237,12 +238,17 @@ def load_case(path: str | Path) -> Case:
     ob = c.get("obstacle")
     if not isinstance(ob, dict):
         raise InputError("missing table 'contact.obstacle' = { type = \"plane\", point = [...], normal = [...] }")
-    _keys("contact.obstacle", ob, {"type", "point", "normal"})
-    check_choice("contact.obstacle.type", ob.get("type", "plane"), {"plane"})
-    obstacle = PlaneObstacle(
-        _vector("contact.obstacle.point", ob.get("point"), dim),
-        _vector("contact.obstacle.normal", ob.get("normal"), dim),
-    )
+    kind = check_choice("contact.obstacle.type", ob.get("type", "plane"), {"plane", "sphere"})
+    if kind == "plane":
+        _keys("contact.obstacle", ob, {"type", "point", "normal"})
+        obstacle = PlaneObstacle(
+            _vector("contact.obstacle.point", ob.get("point"), dim),
+            _vector("contact.obstacle.normal", ob.get("normal"), dim),
+        )
+    else:
+        _keys("contact.obstacle", ob, {"type", "center", "radius"})
+        radius = check_positive("contact.obstacle.radius", _number("contact.obstacle.radius", ob.get("radius")))
+        obstacle = SphereObstacle(_vector("contact.obstacle.center", ob.get("center"), dim), radius)
 
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])

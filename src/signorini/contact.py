@@ -66,6 +66,23 @@ class PlaneObstacle(RigidObstacle):
         super().__init__(lambda x: (x - self.point) @ self.normal, lambda x: np.broadcast_to(self.normal, x.shape))
 
 
+class SphereObstacle(RigidObstacle):
+    """A rigid ball (disc in 2D) of centre c and radius R; the body stays outside:
+    phi(x) = |x - c| - R, grad phi = (x - c)/|x - c|."""
+
+    def __init__(self, center, radius: float):
+        c = np.asarray(center, dtype=float).ravel()
+        if not np.isfinite(radius) or radius <= 0:
+            raise InputError(f"obstacle radius must be > 0, got {radius}")
+        self.center, self.radius = c, float(radius)
+
+        def grad(x):
+            r = x - self.center
+            return r / np.linalg.norm(r, axis=1, keepdims=True)
+
+        super().__init__(lambda x: np.linalg.norm(x - self.center, axis=1) - self.radius, grad)
+
+
 @dataclass
 class ContactSet:
     """Contact nodes of a boundary tag facing a rigid obstacle.
