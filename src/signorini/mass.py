@@ -30,16 +30,17 @@ that ``p^T M_red q = p^T M q`` for all p, q in {1, x_1, ..., x_d}:
   only the entries (1,1), (1,2), (2,2) next to the contact node change; three
   constraints, three unknowns.  For a uniform grid this gives M_11 = 8h/3,
   M_12 = -2h/3, M_22 = h (rho = 1).
-* general meshes: the Frobenius-smallest ``Delta`` supported on the pattern entries of
-  the two node layers next to Gamma_C (a small least-squares problem); positive
-  semi-definiteness is then checked and a failure is reported, never ignored.
+* general meshes: ``M_red = T^T M T`` where T extrapolates the contact nodes' values
+  from the non-contact nodes within two layers, exactly for affine functions
+  (minimum-norm weights).  Moments are then preserved exactly and M_red is symmetric
+  positive semi-definite by construction (the 1D closed form is the special case
+  u_0 = 2 u_1 - u_2).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .assembly import scalar_mass_matrix, vectorize
 from .errors import InputError
@@ -253,53 +254,63 @@ def moment_preserving_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     return _moment_preserving_general(mesh, rho, contact_nodes)
 
 
-def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
-    """Least-squares redistribution on general meshes (see module docstring)."""
-    M = scalar_mass_matrix(mesh, rho).tocsr()
-    n = mesh.n_nodes
+def extrapolation_operator(mesh: Mesh, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """T with (T u)_j = u_j off Gamma_C and (T u)_c = sum_j w_cj u_j on contact nodes.
+
+    The weights w_c (over the non-contact nodes within two layers of c) are the
+    minimum-norm solution of  sum_j w_cj = 1,  sum_j w_cj (x_j - x_c) = 0, i.e. the
+    extrapolation reproduces every affine function exactly.  Batched over contact
+    nodes (candidate lists padded to the longest one).
+    """
+    n, d = mesh.n_nodes, mesh.dim
     is_c = np.zeros(n, dtype=bool)
     is_c[contact_nodes] = True
-    adj = (M != 0).astype(np.int8)
-    ring1 = (adj @ is_c.astype(np.int8)) > 0
-    ring1 &= ~is_c
-    ring2 = ((adj @ ring1.astype(np.int8)) > 0) & ~is_c
-    patch = ring1 | ring2
-    keep = sp.diags((~is_c).astype(float))
-    M0 = (keep @ M @ keep).tocsr()
-    coo = sp.triu(M).tocoo()
-    sel = patch[coo.row] & patch[coo.col]
-    ra, cb = coo.row[sel], coo.col[sel]
-    x = mesh.points - mesh.points[contact_nodes].mean(axis=0)
-    P = np.column_stack([np.ones(n), x])
-    npoly = P.shape[1]
-    rows, rhs = [], []
-    for p in range(npoly):
-        for q in range(p, npoly):
-            pp, qq = P[:, p], P[:, q]
-            coef = np.where(ra == cb, pp[ra] * qq[cb], pp[ra] * qq[cb] + pp[cb] * qq[ra])
-            rows.append(coef)
-            rhs.append(pp @ (M @ qq) - pp @ (M0 @ qq))
-    A = np.array(rows)
-    delta = A.T @ np.linalg.lstsq(A @ A.T, np.array(rhs), rcond=None)[0]
-    D = sp.coo_matrix((delta, (ra, cb)), shape=(n, n))
-    D = D + sp.triu(D, k=1).T
-    Mred = (M0 + D).tocsr()
-    # positive semi-definiteness: M_red restricted to the non-contact nodes must be
-    # positive definite; an LU without pivoting then has a positive diagonal.
-    inner = np.flatnonzero(~is_c)
+    adj = scalar_mass_matrix(mesh, 1.0).tocsr()
+    adj.data[:] = 1.0
+    ring = (adj @ adj)[contact_nodes].tocsr()  # nodes within two layers of each contact node
+    ring = (ring @ sp.diags((~is_c).astype(float))).tocsr()
+    ring.eliminate_zeros()
+    ring.sort_indices()
+    counts = np.diff(ring.indptr)
+    if np.any(counts < d + 1):
+        raise InputError("mass 'moment-preserving': a contact node has too few interior neighbours")
+    kmax = int(counts.max())
+    nc = len(contact_nodes)
+    pos = np.arange(kmax)[None, :]
+    valid = pos < counts[:, None]
+    idx = np.where(valid, ring.indptr[:-1, None] + np.minimum(pos, counts[:, None] - 1), 0)
+    cand = ring.indices[idx]  # (nc, kmax)
+    A = np.ones((nc, d + 1, kmax))
+    A[:, 1:, :] = np.moveaxis(mesh.points[cand] - mesh.points[contact_nodes][:, None, :], 2, 1)
+    A *= valid[:, None, :]
+    G = A @ np.swapaxes(A, 1, 2)  # (nc, d+1, d+1)
+    e1 = np.zeros((nc, d + 1))
+    e1[:, 0] = 1.0
     try:
-        lu = spla.splu(
-            Mred[inner][:, inner].tocsc(),
-            permc_spec="MMD_AT_PLUS_A",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
-        ok = bool(np.all(lu.U.diagonal() > 0))
-    except RuntimeError:
-        ok = False
-    if not ok:
+        y = np.linalg.solve(G, e1[..., None])[..., 0]
+    except np.linalg.LinAlgError:
         raise InputError(
-            "mass 'moment-preserving': the least-squares redistribution is not positive semi-definite on "
-            "this mesh; use 'seed' or a structured mesh"
-        )
-    return Mred
+            "mass 'moment-preserving': the interior neighbours of a contact node are affinely degenerate"
+        ) from None
+    w = np.einsum("cik,ci->ck", A, y)
+    keep = np.flatnonzero(~is_c)
+    rows = np.concatenate([keep, np.repeat(contact_nodes, kmax)])
+    cols = np.concatenate([keep, cand.ravel()])
+    vals = np.concatenate([np.ones(keep.size), (w * valid).ravel()])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """M_red = T^T M T with the affine extrapolation T of :func:`extrapolation_operator`.
+
+    For affine p, q (zero on nothing in particular) T p = p, hence
+    p^T M_red q = p^T M q: mass, first and second moments are preserved exactly;
+    M_red is symmetric positive semi-definite by construction and its kernel is exactly
+    the contact nodes (T has zero columns there and M is definite).  In 1D P1 with the
+    two nearest nodes this is u_0 = 2 u_1 - u_2 and gives the closed form 8h/3, -2h/3, h.
+    """
+    M = scalar_mass_matrix(mesh, rho).tocsr()
+    T = extrapolation_operator(mesh, np.asarray(contact_nodes))
+    out = (T.T @ M @ T).tocsr()
+    out.eliminate_zeros()
+    return out
