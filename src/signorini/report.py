@@ -34,7 +34,17 @@ PAIRS = [
     ("backward-euler", "seed"),
 ]
 SIZES = {
-    "tiny": {"levels1d": [10, 20, 40], "n2d": 2, "T2d": 4.0, "levels2d": [1, 2], "ref2d": 4, "n3d": 1, "T3d": 1.2},
+    "tiny": {
+        "levels1d": [10, 20, 40],
+        "n2d": 2,
+        "T2d": 4.0,
+        "levels2d": [1, 2],
+        "ref2d": 4,
+        "n3d": 1,
+        "T3d": 1.2,
+        "levels3d": [1],
+        "ref3d": 2,
+    },
     "quick": {
         "levels1d": [20, 40, 80, 160],
         "n2d": 8,
@@ -43,6 +53,8 @@ SIZES = {
         "ref2d": 16,
         "n3d": 4,
         "T3d": 1.2,
+        "levels3d": [1, 2],
+        "ref3d": 4,
     },
     "full": {
         "levels1d": [20, 40, 80, 160, 320, 640],
@@ -52,6 +64,8 @@ SIZES = {
         "ref2d": 32,
         "n3d": 8,
         "T3d": 1.2,
+        "levels3d": [1, 2, 4],
+        "ref3d": 8,
     },
 }
 
@@ -242,8 +256,31 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         md.append(f"- {k}: " + ", ".join(f"{m} " + "/".join(f"{v:.2f}" for v in r) for m, r in c["rates"].items()))
     md += ["", "![convergence](fig_convergence_2d.png)", ""]
 
-    # 4. 3D von Mises
+    # 3b. 3D convergence (CN, both masses) against a shared CN + seed reference
     b3 = get_benchmark("bar3d")
+    r3 = cfg["ref3d"]
+    ref3 = simulate(b3.problem(r3), "crank-nicolson", b3.h(r3) / 2, 1.0, mass="seed", snapshot_every=1)
+    conv3 = {
+        f"crank-nicolson/{m}": convergence_study(
+            "bar3d", "crank-nicolson", m, cfg["levels3d"], r3, T=1.0, reference=ref3
+        )
+        for m in ("standard", "seed")
+    }
+    summary["bar3d_convergence"] = conv3
+    md += [
+        f"## 3b. 3D convergence, T = 1, reference: CN + seed at n = {r3}",
+        "",
+        "| scheme / mass | n | u L2(H1) | v L2(L2) | force L2 | energy Linf |",
+        "|---|---|---|---|---|---|",
+    ]
+    for k, c in conv3.items():
+        for r in c["rows"]:
+            md.append(
+                f"| {k} | {r['n']} | {r['u_H1']:.4f} | {r['v_L2']:.4f} | {r['force']:.4f} | {r['energy_Linf']:.4f} |"
+            )
+    md.append("")
+
+    # 4. 3D von Mises
     n3 = cfg["n3d"]
     runs3 = {}
     for mass in ("standard", "seed"):
