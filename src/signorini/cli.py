@@ -280,7 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--mass",
         default=None,
-        help="standard|lumped|seed|seed-normal|moment-preserving (default seed, or the case file's)",
+        help="standard|lumped|seed|seed-normal|moment-preserving|neighbour|mass-free-surface "
+        "(default seed, or the case file's)",
     )
     r.add_argument(
         "--n",
@@ -313,7 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     st.add_argument("benchmark", help="bar1d, bar1d-impact, bar2d or bar3d")
     st.add_argument("--scheme", default="cn", help="cn|crank-nicolson or be|backward-euler (default cn)")
-    st.add_argument("--mass", default="seed", help="mass variant (default seed)")
+    st.add_argument("--mass", default="seed", help="mass variant, as for run (default seed)")
     st.add_argument("--n0", type=int, default=1, help="coarsest level (default 1)")
     st.add_argument("--levels", type=int, default=3, help="number of levels (default 3)")
     st.add_argument("--ref-level", type=int, default=None, help="reference level for 2D/3D (default n0 2^levels)")
@@ -335,7 +336,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     g = q.add_mutually_exclusive_group()
     g.add_argument("--quick", action="store_true", help="small sizes (default)")
-    g.add_argument("--full", action="store_true", help="the paper's resolutions (long)")
+    g.add_argument("--full", action="store_true", help="finer levels: 2D up to n=16 (reference 32), 3D n=8; ~2 min")
     g.add_argument("--tiny", action="store_true", help="smallest sizes (used by the tests)")
     q.add_argument("--out", default="results", help="output directory (default results)")
     q.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")

@@ -42,7 +42,8 @@ errors that name the key and the allowed values)::
     T = 1.0
 
     [solver]
-    mass = "seed"               # standard | lumped | seed | seed-normal | moment-preserving
+    mass = "seed"               # standard | lumped | seed | seed-normal | moment-preserving |
+                                # neighbour | mass-free-surface
 
     [output]
     directory = "out/case"
