@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from .errors import InputError
-from .history import History
+from .history import History, empty_series
 from .mass import massless_dofs
 from .problem import Discretization, Problem, discretize
 from .simulate import number_of_steps, simulate
@@ -54,13 +54,9 @@ def paoli_schatzman(
     U_prev, U = disc.U0.copy(), first.snapshots["u"][1][disc.constraints.free]
     setup = time.perf_counter() - t0
     nc = disc.contact.size
-    gap = np.empty((N + 1, nc))
-    lam = np.zeros((N + 1, nc))
-    kin = np.empty(N + 1)
-    ela = np.empty(N + 1)
-    active = np.zeros(N + 1, dtype=np.int64)
-    iters = np.zeros(N + 1, dtype=np.int64)
-    residual = np.zeros(N + 1)
+    series = empty_series(N + 1, nc)
+    gap, lam, kin, ela = series["gap"], series["lam"], series["kinetic_energy"], series["elastic_energy"]
+    active, iters, residual = series["active"], series["iterations"], series["residual"]
     gap[:2], lam[:2] = first.gap, first.lam
     kin[:2], ela[:2] = first.kinetic_energy, first.elastic_energy
     active[:2], iters[:2], residual[:2] = first.active, first.iterations, first.residual
@@ -100,15 +96,7 @@ def paoli_schatzman(
     }
     return History(
         t=np.arange(N + 1) * dt,
-        gap=gap,
-        lam=lam,
-        kinetic_energy=kin,
-        elastic_energy=ela,
-        predicted_increment=np.full(N + 1, np.nan),
-        active=active,
-        iterations=iters,
-        fallbacks=np.zeros(N + 1, dtype=bool),
-        residual=residual,
+        **series,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
         meta=meta,

@@ -142,6 +142,21 @@ class History:
         }
 
 
+def empty_series(levels: int, n_contact: int) -> dict[str, np.ndarray]:
+    """Pre-allocated per-level arrays of a run, keyed like the :class:`History` fields."""
+    return {
+        "gap": np.empty((levels, n_contact)),
+        "lam": np.zeros((levels, n_contact)),
+        "kinetic_energy": np.empty(levels),
+        "elastic_energy": np.empty(levels),
+        "predicted_increment": np.full(levels, np.nan),
+        "active": np.zeros(levels, dtype=np.int64),
+        "iterations": np.zeros(levels, dtype=np.int64),
+        "fallbacks": np.zeros(levels, dtype=bool),
+        "residual": np.zeros(levels),
+    }
+
+
 def _json_default(o):
     if isinstance(o, np.generic):
         return o.item()

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from .errors import InputError, check_positive
-from .history import History
+from .history import History, empty_series
 from .mass import massless_dofs
 from .problem import Discretization, Problem, discretize
 from .schemes import TimeScheme, get_scheme
@@ -98,15 +98,10 @@ def simulate(
     setup_seconds = time.perf_counter() - t_setup
 
     nc = disc.contact.size
-    gap = np.empty((N + 1, nc))
-    lam = np.zeros((N + 1, nc))
-    kin = np.empty(N + 1)
-    ela = np.empty(N + 1)
-    pred = np.full(N + 1, np.nan)
-    active = np.zeros(N + 1, dtype=np.int64)
-    iters = np.zeros(N + 1, dtype=np.int64)
-    fallbacks = np.zeros(N + 1, dtype=bool)
-    residual = np.zeros(N + 1)
+    series = empty_series(N + 1, nc)
+    gap, lam, kin, ela = series["gap"], series["lam"], series["kinetic_energy"], series["elastic_energy"]
+    pred, active, iters = series["predicted_increment"], series["active"], series["iterations"]
+    fallbacks, residual = series["fallbacks"], series["residual"]
     offset = disc.energy_offset
 
     MV, SU = M @ V, S @ U
@@ -174,15 +169,7 @@ def simulate(
         snaps = {"t": np.array(snaps_t), "u": np.array(snaps_u), "v": np.array(snaps_v)}
     return History(
         t=np.arange(N + 1) * dt,
-        gap=gap,
-        lam=lam,
-        kinetic_energy=kin,
-        elastic_energy=ela,
-        predicted_increment=pred,
-        active=active,
-        iterations=iters,
-        fallbacks=fallbacks,
-        residual=residual,
+        **series,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
         snapshots=snaps,
