@@ -255,6 +255,13 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_output_arguments(p: argparse.ArgumentParser, default: str | None, out_help: str, quiet_help: str) -> None:
+    """--out, --overwrite and --quiet, shared by every command that writes a directory."""
+    p.add_argument("--out", default=default, help=out_help)
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
+    p.add_argument("--quiet", action="store_true", help=quiet_help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="signorini",
@@ -298,9 +305,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="linear solver: auto (default: direct factor if it fits in 40%% of RAM, else CG), superlu, pardiso, cg",
     )
     r.add_argument("--snapshot-every", type=int, default=0, help="write XDMF fields every k steps (0: none)")
-    r.add_argument("--out", default=None, help="output directory (default out/run, or the case file's)")
-    r.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
-    r.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    add_output_arguments(
+        r, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
+    )
     r.set_defaults(func=cmd_run)
 
     st = sub.add_parser(
@@ -321,9 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--ratio", type=float, default=0.5, help="time step over mesh size, dt = ratio h (default 0.5)")
     st.add_argument("--T", type=float, default=1.0, help="final time (default 1)")
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
-    st.add_argument("--out", default="out/study", help="output directory (default out/study)")
-    st.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
-    st.add_argument("--quiet", action="store_true", help="no table on stdout")
+    add_output_arguments(st, "out/study", "output directory (default out/study)", "no table on stdout")
     st.set_defaults(func=cmd_study)
 
     q = sub.add_parser(
@@ -338,9 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--quick", action="store_true", help="small sizes (default)")
     g.add_argument("--full", action="store_true", help="finer levels: 2D up to n=16 (reference 32), 3D n=8; ~2 min")
     g.add_argument("--tiny", action="store_true", help="smallest sizes (used by the tests)")
-    q.add_argument("--out", default="results", help="output directory (default results)")
-    q.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
-    q.add_argument("--quiet", action="store_true", help="no summary on stdout")
+    add_output_arguments(q, "results", "output directory (default results)", "no summary on stdout")
     q.set_defaults(func=cmd_reproduce)
     return p
 

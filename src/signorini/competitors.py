@@ -27,7 +27,7 @@ from .errors import InputError
 from .history import History, empty_series
 from .mass import massless_dofs
 from .problem import Discretization, Problem, discretize
-from .simulate import number_of_steps, simulate
+from .simulate import number_of_steps, run_meta, simulate
 from .stepper import make_stepper
 
 
@@ -79,21 +79,7 @@ def paoli_schatzman(
         iters[n + 1] = info.iterations
         residual[n + 1] = info.residual
     loop = time.perf_counter() - t_loop
-    meta = {
-        "problem": disc.problem.name,
-        "scheme": f"paoli-schatzman(e={e})",
-        "mass": disc.mass_name,
-        "dt": dt,
-        "T": N * dt,
-        "dofs": int(disc.space.n_dofs),
-        "free_dofs": int(M.shape[0]),
-        "contact_nodes": int(nc),
-        "massless_dofs": int(massless_dofs(M).size),
-        "backend": stepper.name,
-        "setup_seconds": setup,
-        "loop_seconds": loop,
-        "step_seconds": loop / max(N - 1, 1),
-    }
+    meta = run_meta(disc, stepper, f"paoli-schatzman(e={e})", dt, N, massless_dofs(M).size, setup, loop, N - 1)
     return History(
         t=np.arange(N + 1) * dt,
         **series,

@@ -70,6 +70,26 @@ SIZES = {
 }
 
 
+CONV_COLUMNS_2D = [
+    ("u_H1", "u L2(H1)"),
+    ("v_L2", "v L2(L2)"),
+    ("v_Linf", "v Linf(L2)"),
+    ("force", "force L2"),
+    ("energy_L2", "energy L2"),
+    ("energy_Linf", "energy Linf"),
+]
+CONV_COLUMNS_3D = [("u_H1", "u L2(H1)"), ("v_L2", "v L2(L2)"), ("force", "force L2"), ("energy_Linf", "energy Linf")]
+
+
+def convergence_table(conv: dict, columns: list[tuple[str, str]]) -> list[str]:
+    """Markdown rows: one line per (scheme/mass, level) with the chosen error columns."""
+    lines = ["| scheme / mass | n | " + " | ".join(h for _, h in columns) + " |", "|---" * (len(columns) + 2) + "|"]
+    for name, c in conv.items():
+        for r in c["rows"]:
+            lines.append(f"| {name} | {r['n']} | " + " | ".join(f"{r[k]:.4f}" for k, _ in columns) + " |")
+    return lines
+
+
 def oscillation_index(t: np.ndarray, force: np.ndarray, separation: int = 20) -> float:
     """TV of the total contact force over the first impact / (2 max |force|).
 
@@ -239,18 +259,8 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         conv[f"{scheme}/{mass}"] = convergence_study("bar2d", scheme, mass, levels, ref_level, T=1.0, reference=ref)
     summary["bar2d_convergence"] = conv
     plots.convergence(conv, out / "fig_convergence_2d.png", out / "fig_convergence_2d.csv")
-    md += [
-        f"## 3. 2D convergence, T = 1, reference: CN + seed at n = {ref_level}",
-        "",
-        "| scheme / mass | n | u L2(H1) | v L2(L2) | v Linf(L2) | force L2 | energy L2 | energy Linf |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for k, c in conv.items():
-        for r in c["rows"]:
-            md.append(
-                f"| {k} | {r['n']} | {r['u_H1']:.4f} | {r['v_L2']:.4f} | {r['v_Linf']:.4f} | "
-                f"{r['force']:.4f} | {r['energy_L2']:.4f} | {r['energy_Linf']:.4f} |"
-            )
+    md += [f"## 3. 2D convergence, T = 1, reference: CN + seed at n = {ref_level}", ""]
+    md += convergence_table(conv, CONV_COLUMNS_2D)
     md += ["", "Observed rates:", ""]
     for k, c in conv.items():
         md.append(f"- {k}: " + ", ".join(f"{m} " + "/".join(f"{v:.2f}" for v in r) for m, r in c["rates"].items()))
@@ -267,17 +277,8 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         for m in ("standard", "seed")
     }
     summary["bar3d_convergence"] = conv3
-    md += [
-        f"## 3b. 3D convergence, T = 1, reference: CN + seed at n = {r3}",
-        "",
-        "| scheme / mass | n | u L2(H1) | v L2(L2) | force L2 | energy Linf |",
-        "|---|---|---|---|---|---|",
-    ]
-    for k, c in conv3.items():
-        for r in c["rows"]:
-            md.append(
-                f"| {k} | {r['n']} | {r['u_H1']:.4f} | {r['v_L2']:.4f} | {r['force']:.4f} | {r['energy_Linf']:.4f} |"
-            )
+    md += [f"## 3b. 3D convergence, T = 1, reference: CN + seed at n = {r3}", ""]
+    md += convergence_table(conv3, CONV_COLUMNS_3D)
     md.append("")
 
     # 4. 3D von Mises

@@ -57,6 +57,37 @@ def initial_acceleration(disc: Discretization, massless: np.ndarray) -> np.ndarr
     return A0
 
 
+def run_meta(
+    disc: Discretization,
+    stepper,
+    scheme: str,
+    dt: float,
+    N: int,
+    n_massless: int,
+    setup: float,
+    loop: float,
+    timed_steps: int,
+) -> dict:
+    """The inputs, sizes and timings of a run, as stored in ``History.meta`` / summary.json."""
+    return {
+        "problem": disc.problem.name,
+        "scheme": scheme,
+        "mass": disc.mass_name,
+        "dt": dt,
+        "T": N * dt,
+        "dofs": int(disc.space.n_dofs),
+        "free_dofs": int(disc.M.shape[0]),
+        "contact_nodes": int(disc.contact.size),
+        "massless_dofs": int(n_massless),
+        "backend": stepper.name,
+        "factor_bytes": int(stepper.factor_bytes),
+        "setup_seconds": setup,
+        "loop_seconds": loop,
+        "step_seconds": loop / max(timed_steps, 1),
+        **{f"{k}_seconds": v for k, v in {**disc.timings, **stepper.timings}.items()},
+    }
+
+
 def simulate(
     problem: Problem | Discretization,
     scheme: str | TimeScheme = "crank-nicolson",
@@ -147,23 +178,7 @@ def simulate(
             progress(n, N)
     loop_seconds = time.perf_counter() - t_loop
 
-    meta = {
-        "problem": disc.problem.name,
-        "scheme": sch.name,
-        "mass": disc.mass_name,
-        "dt": dt,
-        "T": N * dt,
-        "dofs": int(disc.space.n_dofs),
-        "free_dofs": int(M.shape[0]),
-        "contact_nodes": int(nc),
-        "massless_dofs": int(massless.size),
-        "backend": stepper.name,
-        "factor_bytes": int(stepper.factor_bytes),
-        "setup_seconds": setup_seconds,
-        "loop_seconds": loop_seconds,
-        "step_seconds": loop_seconds / max(N, 1),
-        **{f"{k}_seconds": v for k, v in {**disc.timings, **stepper.timings}.items()},
-    }
+    meta = run_meta(disc, stepper, sch.name, dt, N, massless.size, setup_seconds, loop_seconds, N)
     snaps = {}
     if snapshot_every:
         snaps = {"t": np.array(snaps_t), "u": np.array(snaps_u), "v": np.array(snaps_v)}
