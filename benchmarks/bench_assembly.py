@@ -12,9 +12,9 @@ import time
 
 
 def one(n: int) -> dict:
-    from signorini.assembly import mass_matrix, node_pattern, stiffness_matrix
-    from signorini.material import IsotropicElastic
-    from signorini.mesh import box
+    from signorini.fem.assembly import mass_matrix, node_pattern, stiffness_matrix
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import box
 
     mesh = box(n, n, 10 * n, 0.1, 0.1, 1.0)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

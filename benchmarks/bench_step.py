@@ -8,9 +8,9 @@ import time
 
 import numpy as np
 
-from signorini.benchmarks import get_benchmark
-from signorini.simulate import simulate
-from signorini.stepper import ContactStepper
+from signorini.contact.solver import ContactStepper
+from signorini.dynamics.simulate import simulate
+from signorini.studies.benchmarks import get_benchmark
 
 
 def main(sizes):
@@ -21,7 +21,7 @@ def main(sizes):
         dt = b.h(n) / 2
         H = simulate(p, "cn", dt, 200 * dt, mass="seed")
         # bare forward+backward solve with an identical factor, measured in the same run
-        from signorini.problem import discretize
+        from signorini.dynamics.problem import discretize
 
         d = discretize(p, "seed")
         st = ContactStepper((4 / dt**2 * d.M + d.S).tocsr(), d.B, d.contact.gaps)

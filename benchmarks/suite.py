@@ -38,9 +38,9 @@ SERIES = {
 
 
 def measure(bench: str, n: int, steps: int, backend: str) -> dict:
-    from signorini.benchmarks import get_benchmark
-    from signorini.problem import discretize
-    from signorini.simulate import simulate
+    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark(bench)
     t0 = time.perf_counter()

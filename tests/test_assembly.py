@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from signorini import assembly
-from signorini.material import IsotropicElastic
-from signorini.mesh import box, interval, rectangle
-from signorini.space import Constraints, Dirichlet, VectorSpace
+from signorini.fem import assembly
+from signorini.fem.material import IsotropicElastic
+from signorini.fem.mesh import box, interval, rectangle
+from signorini.fem.space import Constraints, Dirichlet, VectorSpace
 
 MAT = IsotropicElastic(0.25, 0.5, 1.0)
 MESHES = {
@@ -105,7 +105,7 @@ def _manufactured(dim):
 
 
 def _static_errors(mesh):
-    from signorini.elements import reference_element
+    from signorini.fem.elements import reference_element
 
     u_ex, f, grad = _manufactured(mesh.dim)
     space = VectorSpace(mesh)

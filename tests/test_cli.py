@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from signorini.cli import main
+from signorini.io.cli import main
 
 
 def test_version_and_help(capsys):

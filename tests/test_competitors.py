@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from signorini.benchmarks import get_benchmark
 from signorini.competitors import paoli_schatzman
 from signorini.errors import InputError
-from signorini.study import observed_rates
+from signorini.studies.benchmarks import get_benchmark
+from signorini.studies.study import observed_rates
 
 
 def _stress_errors(mass):
@@ -29,7 +29,7 @@ def test_paoli_schatzman_converges_with_standard_mass():
 
 def test_paoli_schatzman_conserves_energy_without_contact():
     b = get_benchmark("bar2d")
-    from signorini.contact import PlaneObstacle
+    from signorini.contact.obstacles import PlaneObstacle
 
     p = b.problem(2)
     p.obstacle = PlaneObstacle([0.0, -50.0], [0.0, 1.0])

@@ -2,7 +2,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from signorini.complementarity import solve_lcp
+from signorini.contact.complementarity import solve_lcp
 
 
 def _check(W, q, res):

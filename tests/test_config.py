@@ -3,8 +3,8 @@ from pathlib import Path
 
 import pytest
 
-from signorini.cli import main
-from signorini.config import load_case
+from signorini.io.cli import main
+from signorini.io.config import load_case
 
 EXAMPLES = sorted((Path(__file__).parents[1] / "examples").glob("*.toml"))
 
@@ -19,8 +19,8 @@ def test_every_example_runs(tmp_path, path):
 
 
 def test_case_matches_benchmark(tmp_path):
-    from signorini.benchmarks import get_benchmark
-    from signorini.simulate import simulate
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies.benchmarks import get_benchmark
 
     case = load_case(EXAMPLES[[p.stem for p in EXAMPLES].index("bar2d")])
     H1 = simulate(case.problem, case.scheme, case.dt, case.T, mass=case.mass)

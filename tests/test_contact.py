@@ -1,10 +1,11 @@
 import numpy as np
 import pytest
 
-from signorini.contact import ContactSet, PlaneObstacle, SphereObstacle
+from signorini.contact.contact_set import ContactSet
+from signorini.contact.obstacles import PlaneObstacle, SphereObstacle
 from signorini.errors import InputError, MeshError
-from signorini.mesh import box, rectangle
-from signorini.space import Constraints, Dirichlet, VectorSpace
+from signorini.fem.mesh import box, rectangle
+from signorini.fem.space import Constraints, Dirichlet, VectorSpace
 
 
 def test_plane_gaps_and_normals():

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from signorini.exact import ExactBar1D
+from signorini.studies.exact import ExactBar1D
 
 
 def test_bar1d_matches_zone_table():

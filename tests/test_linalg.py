@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from signorini.benchmarks import get_benchmark
-from signorini.linalg import choose_backend, estimate_factor_bytes, has_pardiso, has_pyamg
-from signorini.simulate import simulate
+from signorini.dynamics.simulate import simulate
+from signorini.linalg.backends import choose_backend, estimate_factor_bytes, has_pardiso, has_pyamg
+from signorini.studies.benchmarks import get_benchmark
 
 BACKENDS = [
     "superlu",
@@ -36,8 +36,8 @@ def test_backends_agree_with_default(reference, backend):
 
 @pytest.mark.skipif(not has_pyamg(), reason="pyamg not installed (extra 'amg')")
 def test_amg_preconditioned_active_set_agrees(reference):
-    from signorini.problem import discretize
-    from signorini.stepper import IterativeContactStepper
+    from signorini.contact.solver import IterativeContactStepper
+    from signorini.dynamics.problem import discretize
 
     b = get_benchmark("bar3d")
     d = discretize(b.problem(3), "seed")
@@ -46,7 +46,7 @@ def test_amg_preconditioned_active_set_agrees(reference):
     # one contact step from a state pressed into the obstacle
     rhs = 4 / dt**2 * (d.M @ (d.U0 - 0.25 * np.tile([0, 0, 1.0], d.M.shape[0] // 3)))
     U, lam, info = st.solve(rhs)
-    from signorini.stepper import ContactStepper
+    from signorini.contact.solver import ContactStepper
 
     U2, lam2, _ = ContactStepper((4 / dt**2 * d.M + d.S).tocsr(), d.B, d.contact.gaps).solve(rhs)
     assert lam.min() < 0

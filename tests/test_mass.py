@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
+from signorini.dynamics.mass import MASS_VARIANTS, mass_matrix, moment_preserving_1d
 from signorini.errors import InputError
-from signorini.mass import MASS_VARIANTS, mass_matrix, moment_preserving_1d
-from signorini.mesh import box, interval, rectangle
+from signorini.fem.mesh import box, interval, rectangle
 
 CASES = {
     "line": (lambda: interval(6, 1.5), "xmin"),
@@ -79,7 +79,7 @@ def test_moment_preserving_1d_closed_form():
 
 
 def test_moment_preserving_on_a_distorted_unstructured_mesh(rng):
-    from signorini.mass import extrapolation_operator
+    from signorini.dynamics.mass import extrapolation_operator
 
     mesh = rectangle(6, 8, 1.0, 1.0, "triangle")
     interior = np.ones(mesh.n_nodes, bool)

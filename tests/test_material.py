@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from signorini.errors import InputError
-from signorini.material import IsotropicElastic
+from signorini.fem.material import IsotropicElastic
 
 
 def test_conversions_roundtrip():

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from signorini.errors import MeshError
-from signorini.mesh import Mesh, box, interval, read_mesh, rectangle, write_mesh
+from signorini.fem.mesh import Mesh, box, interval, read_mesh, rectangle, write_mesh
 
 
 @pytest.mark.parametrize(

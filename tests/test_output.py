@@ -1,9 +1,9 @@
 import meshio
 import numpy as np
 
-from signorini.benchmarks import get_benchmark
-from signorini.output import write_fields
-from signorini.simulate import simulate
+from signorini.dynamics.simulate import simulate
+from signorini.io.output import write_fields
+from signorini.studies.benchmarks import get_benchmark
 
 
 def test_xdmf_time_series_roundtrip(tmp_path):

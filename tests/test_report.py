@@ -1,6 +1,6 @@
 import json
 
-from signorini.cli import main
+from signorini.io.cli import main
 
 
 def test_reproduce_tiny_writes_report(tmp_path):

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from signorini.benchmarks import get_benchmark
+from signorini.dynamics.simulate import simulate
 from signorini.errors import InputError
-from signorini.simulate import simulate
-from signorini.study import errors_1d, observed_rates
+from signorini.studies.benchmarks import get_benchmark
+from signorini.studies.study import errors_1d, observed_rates
 
 
 def assert_complementarity(H, tol=1e-10):
@@ -117,7 +117,7 @@ def test_bar3d_contact_and_identity():
 
 @pytest.mark.parametrize("bench", ["bar2d", "bar3d"])
 def test_far_obstacle_cn_conserves_energy(bench):
-    from signorini.contact import PlaneObstacle
+    from signorini.contact.obstacles import PlaneObstacle
 
     b = get_benchmark(bench)
     p = b.problem(2)
@@ -168,7 +168,7 @@ def test_bad_inputs():
 
 
 def test_contact_node_fixed_by_dirichlet_is_an_error():
-    from signorini.space import Dirichlet
+    from signorini.fem.space import Dirichlet
 
     b = get_benchmark("bar2d")
     p = b.problem(2)

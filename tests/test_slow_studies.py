@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from signorini.reference_study import study
+from signorini.studies.reference_study import study
 
 pytestmark = pytest.mark.slow
 

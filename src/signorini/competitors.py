@@ -23,12 +23,12 @@ import time
 
 import numpy as np
 
+from .contact.solver import make_stepper
+from .dynamics.history import History, empty_series
+from .dynamics.mass import massless_dofs
+from .dynamics.problem import Discretization, Problem, discretize
+from .dynamics.simulate import number_of_steps, run_meta, simulate
 from .errors import InputError
-from .history import History, empty_series
-from .mass import massless_dofs
-from .problem import Discretization, Problem, discretize
-from .simulate import number_of_steps, run_meta, simulate
-from .stepper import make_stepper
 
 
 def paoli_schatzman(

@@ -60,14 +60,14 @@ from typing import Any
 
 import numpy as np
 
-from .contact import PlaneObstacle, SphereObstacle
-from .errors import InputError, check_choice, check_positive
-from .mass import MASS_VARIANTS
-from .material import IsotropicElastic
-from .mesh import Mesh, box, interval, read_mesh, rectangle
-from .problem import Problem
-from .schemes import ALIASES, SCHEMES
-from .space import Dirichlet
+from ..contact.obstacles import PlaneObstacle, SphereObstacle
+from ..dynamics.mass import MASS_VARIANTS
+from ..dynamics.problem import Problem
+from ..dynamics.schemes import ALIASES, SCHEMES
+from ..errors import InputError, check_choice, check_positive
+from ..fem.material import IsotropicElastic
+from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
+from ..fem.space import Dirichlet
 
 SECTIONS = {
     "mesh": {"generator", "cells", "size", "cell", "file"},

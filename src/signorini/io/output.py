@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .assembly import von_mises
-from .history import History
-from .problem import Problem
+from ..dynamics.history import History
+from ..dynamics.problem import Problem
+from ..fem.assembly import von_mises
 
 
 def write_fields(path: str | Path, problem: Problem, history: History) -> None:

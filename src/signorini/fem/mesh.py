@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .elements import FACET_TYPES, SUPPORTED_CELLS, reference_element
-from .errors import MeshError
+from ..errors import MeshError
+from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, reference_element
 
 
 @dataclass

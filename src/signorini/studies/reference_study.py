@@ -17,10 +17,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from .assembly import mass_matrix, stiffness_matrix
-from .benchmarks import get_benchmark
-from .history import History
-from .simulate import simulate
+from ..dynamics.history import History
+from ..dynamics.simulate import simulate
+from ..fem.assembly import mass_matrix, stiffness_matrix
+from ..studies.benchmarks import get_benchmark
 
 
 def prolong(coarse_grid, fine_grid, field: np.ndarray, dim: int) -> np.ndarray:
@@ -115,7 +115,7 @@ def convergence_study(
 
 def level_rates(rows: list[dict]) -> dict[str, list[float]]:
     """Observed rates between successive rows for every error column."""
-    from .study import observed_rates
+    from ..studies.study import observed_rates
 
     keys = [k for k in rows[0] if k not in ("n", "h")]
     return {k: [float(r) for r in observed_rates([r[k] for r in rows], [r["h"] for r in rows])] for k in keys}
@@ -138,7 +138,7 @@ def study(
     2D/3D ones with a reference run at ``ref_level`` (default n0 2^levels), same scheme
     and mass.
     """
-    from .study import errors_1d
+    from ..studies.study import errors_1d
 
     b = get_benchmark(bench)
     ns = [n0 * 2**k for k in range(levels)]

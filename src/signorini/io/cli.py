@@ -13,8 +13,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from . import __version__
-from .errors import InputError
+from .. import __version__
+from ..errors import InputError
 
 EXAMPLES_RUN = """examples:
   signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
@@ -105,8 +105,8 @@ def one_screen_summary(H) -> str:
 
 # ----------------------------------------------------------------------------- commands
 def cmd_run(args: argparse.Namespace) -> int:
-    from .benchmarks import get_benchmark
-    from .simulate import simulate
+    from ..dynamics.simulate import simulate
+    from ..studies.benchmarks import get_benchmark
 
     target = args.target
     if target.endswith(".toml"):
@@ -122,7 +122,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     def work(tmp: Path) -> None:
         if (args.scheme or "").lower() in ("ps", "paoli-schatzman"):
-            from .competitors import paoli_schatzman
+            from ..competitors import paoli_schatzman
 
             if args.snapshot_every:
                 raise InputError("--snapshot-every is not available with the paoli-schatzman scheme")
@@ -151,7 +151,7 @@ def save_run(tmp: Path, H, problem, snapshot_every: int, holder: dict) -> None:
     """Write a run's files (and its XDMF fields when snapshots were taken)."""
     H.save(tmp)
     if snapshot_every:
-        from .output import write_fields
+        from ..io.output import write_fields
 
         write_fields(tmp / "fields.xdmf", problem, H)
     holder["H"] = H
@@ -165,8 +165,8 @@ def report_run(args: argparse.Namespace, holder: dict, out: Path) -> int:
 
 
 def run_case_file(args: argparse.Namespace) -> int:
-    from .config import load_case
-    from .simulate import simulate
+    from ..dynamics.simulate import simulate
+    from ..io.config import load_case
 
     for flag in ("n", "dt", "T"):
         if getattr(args, flag) is not None:
@@ -200,10 +200,10 @@ def run_case_file(args: argparse.Namespace) -> int:
 def cmd_study(args: argparse.Namespace) -> int:
     import json
 
-    from .benchmarks import get_benchmark
-    from .errors import check_positive
-    from .history import _json_default
-    from .reference_study import study, table_csv, table_markdown
+    from ..dynamics.history import _json_default
+    from ..errors import check_positive
+    from ..studies.benchmarks import get_benchmark
+    from ..studies.reference_study import study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
     overrides = parse_sets(args.set)
@@ -240,7 +240,7 @@ def cmd_study(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from .report import reproduce
+    from ..studies.report import reproduce
 
     size = "full" if args.full else ("tiny" if args.tiny else "quick")
     out = Path(args.out)

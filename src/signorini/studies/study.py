@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .exact import ExactBar1D
-from .history import History
-from .problem import Problem
+from ..dynamics.history import History
+from ..dynamics.problem import Problem
+from ..studies.exact import ExactBar1D
 
 
 def errors_1d(history: History, problem: Problem, exact: ExactBar1D, samples: int = 8) -> dict[str, float]:

@@ -9,12 +9,12 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .errors import InputError, check_positive
-from .history import History, empty_series
-from .mass import massless_dofs
-from .problem import Discretization, Problem, discretize
-from .schemes import TimeScheme, get_scheme
-from .stepper import make_stepper
+from ..contact.solver import make_stepper
+from ..dynamics.history import History, empty_series
+from ..dynamics.mass import massless_dofs
+from ..dynamics.problem import Discretization, Problem, discretize
+from ..dynamics.schemes import TimeScheme, get_scheme
+from ..errors import InputError, check_positive
 
 
 def number_of_steps(dt: float, T: float) -> int:

@@ -25,13 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact import PlaneObstacle
-from .errors import InputError
-from .exact import ExactBar1D
-from .material import IsotropicElastic
-from .mesh import box, interval, rectangle
-from .problem import Problem
-from .space import Dirichlet
+from ..contact.obstacles import PlaneObstacle
+from ..dynamics.problem import Problem
+from ..errors import InputError
+from ..fem.material import IsotropicElastic
+from ..fem.mesh import box, interval, rectangle
+from ..fem.space import Dirichlet
+from ..studies.exact import ExactBar1D
 
 
 @dataclass(frozen=True)

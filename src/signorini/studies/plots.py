@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .assembly import von_mises
+from ..fem.assembly import von_mises
 
 
 def _fig(rows: int, cols: int, size=(10, 6)):

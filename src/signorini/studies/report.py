@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .benchmarks import get_benchmark
-from .history import _json_default
-from .reference_study import convergence_study
-from .simulate import simulate
-from .study import errors_1d, observed_rates
+from ..dynamics.history import _json_default
+from ..dynamics.simulate import simulate
+from ..studies.benchmarks import get_benchmark
+from ..studies.reference_study import convergence_study
+from ..studies.study import errors_1d, observed_rates
 
 PAIRS = [
     ("crank-nicolson", "standard"),
@@ -129,7 +129,7 @@ def study_1d(levels: list[int], T: float = 3.0) -> list[dict]:
 def study_beyond(levels: list[int], T: float = 3.0) -> list[dict]:
     """CN with every redistributed mass, and Paoli-Schatzman (e = 0) with the standard
     mass, on ``bar1d``: H1 and stress errors per level, rates, energy drift."""
-    from .competitors import paoli_schatzman
+    from ..competitors import paoli_schatzman
 
     b = get_benchmark("bar1d")
     ex = b.exact(b.params(), T)

@@ -42,9 +42,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import scalar_mass_matrix, vectorize
-from .errors import InputError
-from .mesh import Mesh
+from ..errors import InputError
+from ..fem.assembly import scalar_mass_matrix, vectorize
+from ..fem.mesh import Mesh
 
 MASS_VARIANTS = ("standard", "lumped", "seed", "seed-normal", "moment-preserving", "neighbour", "mass-free-surface")
 
@@ -159,7 +159,7 @@ def neighbour_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> 
 def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
     """Consistent mass on cells away from Gamma_C; on cells touching it, the cell mass
     rho |K| split equally on the cell's non-contact nodes (diagonal)."""
-    from .assembly import cell_volumes
+    from ..fem.assembly import cell_volumes
 
     touch = touching_cells(mesh, contact_nodes)
     M = scalar_mass_matrix(mesh, rho, cell_weight=(~touch).astype(float))

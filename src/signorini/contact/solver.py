@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .complementarity import complementarity_residual, solve_lcp
-from .linalg import Preconditioner, choose_backend, factorize, projected_cg
+from ..contact.complementarity import complementarity_residual, solve_lcp
+from ..linalg.backends import Preconditioner, choose_backend, factorize, projected_cg
 
 
 def _best_time(op, n: int, repeats: int = 3) -> float:
@@ -193,8 +193,8 @@ def make_stepper(
     memory_budget: float | None = None,
 ):
     """The contact stepper for ``backend`` (``auto`` chooses by estimated factor size)."""
-    from .errors import InputError
-    from .linalg import BACKENDS
+    from ..errors import InputError
+    from ..linalg.backends import BACKENDS
 
     if backend not in BACKENDS:
         raise InputError(f"unknown linear solver backend {backend!r}; allowed: {', '.join(BACKENDS)}")

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError
-from .mesh import Mesh
+from ..errors import InputError
+from ..fem.mesh import Mesh
 
 Value = float | Sequence[float] | Callable[[np.ndarray], np.ndarray]
 

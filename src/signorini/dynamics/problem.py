@@ -8,13 +8,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import body_load, stiffness_matrix, surface_load
-from .contact import ContactSet, RigidObstacle
-from .errors import InputError
-from .mass import MASS_VARIANTS, mass_matrix
-from .material import IsotropicElastic
-from .mesh import Mesh
-from .space import Constraints, Dirichlet, Value, VectorSpace
+from ..contact.contact_set import ContactSet
+from ..contact.obstacles import RigidObstacle
+from ..dynamics.mass import MASS_VARIANTS, mass_matrix
+from ..errors import InputError
+from ..fem.assembly import body_load, stiffness_matrix, surface_load
+from ..fem.material import IsotropicElastic
+from ..fem.mesh import Mesh
+from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
 
 
 @dataclass

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import InputError
+from ..errors import InputError
 
 BACKENDS = ("auto", "superlu", "pardiso", "cg")
 

@@ -16,9 +16,9 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from .elements import FACET_TYPES, reference_element
-from .material import IsotropicElastic
-from .mesh import Mesh
+from ..fem.elements import FACET_TYPES, reference_element
+from ..fem.material import IsotropicElastic
+from ..fem.mesh import Mesh
 
 
 # ----------------------------------------------------------------------------- geometry

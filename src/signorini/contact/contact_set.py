@@ -1,0 +1,67 @@
+"""The nodal Signorini contact set: contact nodes, normals, gaps, weights and B.
+
+Sign conventions: see :mod:`signorini.contact.obstacles`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+from ..fem.assembly import facet_weights
+from ..fem.space import Constraints, VectorSpace
+from .obstacles import RigidObstacle
+
+
+@dataclass
+class ContactSet:
+    """Contact nodes of a boundary tag facing a rigid obstacle.
+
+    Attributes
+    ----------
+    nodes : (nc,) node indices on Gamma_C.
+    normals : (nc, d) outward unit normals nu_i.
+    gaps : (nc,) initial gaps g_i [length].
+    weights : (nc,) w_i = int_{Gamma_C} N_i ds (1 per node in 1D).
+    B : (nc, n_dofs) sparse, row i = nu_i^T on the dofs of node i.
+    """
+
+    nodes: np.ndarray
+    normals: np.ndarray
+    gaps: np.ndarray
+    weights: np.ndarray
+    B: sp.csr_matrix
+
+    @classmethod
+    def from_tag(
+        cls, space: VectorSpace, tag: str, obstacle: RigidObstacle, constraints: Constraints | None = None
+    ) -> ContactSet:
+        mesh = space.mesh
+        nodes = mesh.nodes_of(tag)
+        gaps, normals = obstacle.gaps_and_normals(mesh.points[nodes])
+        weights = facet_weights(mesh, tag)[nodes]
+        dofs = space.dofs(nodes)
+        rows = np.repeat(np.arange(nodes.size), space.dim)
+        B = sp.csr_matrix((normals.ravel(), (rows, dofs.ravel())), shape=(nodes.size, space.n_dofs))
+        if constraints is not None and constraints.fixed.size:
+            fixed = np.zeros(space.n_dofs, dtype=bool)
+            fixed[constraints.fixed] = True
+            clash = (fixed[dofs] & (np.abs(normals) > 1e-12)).any(axis=1)
+            if clash.any():
+                raise InputError(
+                    f"contact tag {tag!r}: {int(clash.sum())} contact node(s) are fixed by a Dirichlet "
+                    f"condition in the normal direction (e.g. node {int(nodes[clash][0])}); "
+                    "remove them from the Dirichlet or the contact tag"
+                )
+        return cls(nodes, normals, gaps, weights, B)
+
+    @property
+    def size(self) -> int:
+        return self.nodes.size
+
+    def gap(self, u: np.ndarray) -> np.ndarray:
+        """Current gaps g_i - nu_i . u_i (>= 0 when admissible)."""
+        return self.gaps - self.B @ u
