@@ -33,3 +33,11 @@ def check_choice(name: str, value: str, allowed) -> str:
     if value not in allowed:
         raise InputError(f"unknown {name} {value!r}; allowed: {', '.join(sorted(allowed))}")
     return value
+
+
+class ConvergenceError(RuntimeError):
+    """A numerical method did not converge (iterative solver, active-set cycle, ...).
+
+    :func:`signorini.dynamics.simulate.simulate` turns it into a result with
+    ``status = "failed"``; the command line exits with code 3.
+    """

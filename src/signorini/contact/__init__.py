@@ -1,0 +1,1 @@
+"""Contact: rigid obstacles, the nodal contact set, complementarity and the per-step solver."""

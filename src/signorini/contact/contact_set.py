@@ -24,7 +24,7 @@ class ContactSet:
     ----------
     nodes : (nc,) node indices on Gamma_C.
     normals : (nc, d) outward unit normals nu_i.
-    gaps : (nc,) initial gaps g_i [length].
+    gaps : (nc,) gaps g_i at t = 0 [length].
     weights : (nc,) w_i = int_{Gamma_C} N_i ds (1 per node in 1D).
     B : (nc, n_dofs) sparse, row i = nu_i^T on the dofs of node i.
     """
@@ -34,6 +34,8 @@ class ContactSet:
     gaps: np.ndarray
     weights: np.ndarray
     B: sp.csr_matrix
+    points: np.ndarray | None = None
+    obstacle: RigidObstacle | None = None
 
     @classmethod
     def from_tag(
@@ -56,7 +58,18 @@ class ContactSet:
                     f"condition in the normal direction (e.g. node {int(nodes[clash][0])}); "
                     "remove them from the Dirichlet or the contact tag"
                 )
-        return cls(nodes, normals, gaps, weights, B)
+        return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle)
+
+    @property
+    def moving(self) -> bool:
+        """Whether the gaps depend on time (a moving obstacle)."""
+        return bool(self.obstacle is not None and self.obstacle.moving)
+
+    def gaps_at(self, t: float) -> np.ndarray:
+        """Gaps g_i(t) (nc,) for the obstacle's position at time t [length]."""
+        if not self.moving:
+            return self.gaps
+        return np.asarray(self.obstacle.gaps(self.points, t), dtype=float)
 
     @property
     def size(self) -> int:

@@ -1,36 +1,49 @@
-"""The per-step exact contact solve on a matrix factorized once per run.
+"""The per-step exact contact solve on an operator factorized once per run.
 
-Each step solves::
+Each call solves, for the SPD operator K of the run and a right-hand side b,
 
-    K U = b + B^T lambda,   B U <= g,   lambda <= 0,   (B U - g) . lambda = 0
+    K x = b + B^T lambda,   B x <= c,   lambda <= 0,   (B x - c) . lambda = 0,
 
-with K = a M + S SPD.  Condensation onto the contact dofs: with Z = K^-1 B^T
-(n x nc, one solve per contact node at set-up) and the Delassus matrix W = B Z,
+where x is whatever the scheme's unknown is (displacements for position-level
+schemes, velocities for velocity-level ones) and the bound c is given per call
+(gaps at t_{n+1}, a moving obstacle, a two-step scheme's combination of levels).
 
-    U = U_free + Z lambda,     U_free = K^-1 b,
+:class:`CondensedContactSolver` (direct backends): condensation onto the contact
+dofs with Z = K^-1 B^T (n x nc, one solve per contact node at set-up) and the
+Delassus matrix W = B Z,
 
-and mu = -lambda solves the LCP  r = (g - B U_free) + W mu >= 0, mu >= 0, r.mu = 0
-(see :mod:`signorini.complementarity`).  A step therefore costs one forward/backward
+    x = x_free + Z lambda,     x_free = K^-1 b,
+
+and mu = -lambda solves the LCP  r = (c - B x_free) + W mu >= 0, mu >= 0, r.mu = 0
+(:mod:`signorini.contact.complementarity`).  A call costs one forward/backward
 substitution, a small dense LCP warm-started from the previous active set, and one
-product with the active columns of Z.  If Z does not fit in ``memory_budget`` bytes
-it is not stored and a second solve is made on steps with contact.
+product with the active columns of Z.  If Z does not fit in ``condense_budget``
+bytes it is not stored and a second solve is made on calls with contact.
+
+:class:`ActiveSetCGSolver` (backend ``cg``): semismooth Newton on the active set
+with projected preconditioned CG, no factor and no Z.
+
+Both keep counters (``factorizations``, ``linear_solves``, ``contact_iterations``,
+``fallbacks``, ``krylov_iterations``) and raise
+:class:`~signorini.errors.ConvergenceError` when they cannot converge.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.complementarity import complementarity_residual, solve_lcp
-from ..linalg.backends import Preconditioner, choose_backend, factorize, projected_cg
+from ..errors import ConvergenceError
+from ..linalg import Preconditioner, choose_backend, factorize, projected_cg, solver_options
+from .complementarity import complementarity_residual, solve_lcp
 
 
 def _best_time(op, n: int, repeats: int = 3) -> float:
     """Best of ``repeats`` timings of ``op`` on a random vector of length n [s]."""
-    import time
-
     x = np.random.default_rng(0).normal(size=n)
     best = float("inf")
     for _ in range(repeats):
@@ -42,33 +55,61 @@ def _best_time(op, n: int, repeats: int = 3) -> float:
 
 @dataclass
 class StepInfo:
+    """What one contact solve did: active-set iterations, NNLS fallback, residual."""
+
     iterations: int
     fallback: bool
     residual: float
     active: np.ndarray
 
 
-class ContactStepper:
-    """Factor ``K`` once, condense the contact problem, solve steps exactly."""
+class ContactSolver:
+    """Common counters and interface; see the module docstring."""
+
+    name = "contact-solver"
+
+    def __init__(self) -> None:
+        self.counters = {
+            "factorizations": 0,
+            "linear_solves": 0,
+            "contact_iterations": 0,
+            "fallbacks": 0,
+            "krylov_iterations": 0,
+        }
+        self.timings: dict[str, float] = {}
+        self.factor_bytes = 0
+
+    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """(x, lambda, info) for the right-hand side ``b`` and constraint bound ``bound``."""
+        raise NotImplementedError  # pragma: no cover
+
+    def solve_linear(self, b: np.ndarray) -> np.ndarray:
+        """K^-1 b without contact."""
+        raise NotImplementedError  # pragma: no cover
+
+
+class CondensedContactSolver(ContactSolver):
+    """Factor ``K`` once, condense the contact problem, solve calls exactly."""
 
     def __init__(
         self,
         K: sp.spmatrix,
         B: sp.csr_matrix,
-        gaps: np.ndarray,
+        gap_scale: float,
         backend: str = "superlu",
-        memory_budget: float = 2e9,
+        condense_budget: float = 2e9,
+        lcp_max_iter: int = 50,
     ):
-        import time
-
+        super().__init__()
         t0 = time.perf_counter()
         self.factor = factorize(K, backend)
+        self.counters["factorizations"] = 1
         t1 = time.perf_counter()
         self.name = self.factor.name
         self.B = sp.csr_matrix(B)
-        self.gaps = np.asarray(gaps, dtype=float)
+        self.lcp_max_iter = lcp_max_iter
         nc, n = self.B.shape
-        self.store_Z = n * nc * 8 <= memory_budget
+        self.store_Z = n * nc * 8 <= condense_budget
         if nc:
             # Z = K^-1 B^T in column blocks, to bound the dense temporaries
             Z = np.empty((n, nc))
@@ -82,20 +123,28 @@ class ContactStepper:
             self.W = np.zeros((0, 0))
             self.Z = np.zeros((n, 0))
         self.active = np.zeros(nc, dtype=bool)
-        self.gap_scale = max(float(np.max(np.abs(self.gaps))) if nc else 0.0, 1e-300)
+        self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
-        self.timings["bare_solve"] = _best_time(lambda x: self.factor.solve(x), n)
+        self.timings["bare_solve"] = _best_time(self.factor.solve, n)
+        self._setup_solves = self.factor.solves
         self.factor_bytes = self.factor.nbytes
 
-    def solve(self, b: np.ndarray, gaps: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        """Return (U, lambda, info) for the right-hand side ``b``; ``gaps`` replaces the
-        constraint's right-hand side g for this step (two-step schemes)."""
+    def _sync(self) -> None:
+        self.counters["linear_solves"] = self.factor.solves - self._setup_solves
+
+    def solve_linear(self, b: np.ndarray) -> np.ndarray:
+        x = self.factor.solve(b)
+        self._sync()
+        return x
+
+    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         U = self.factor.solve(b)
-        if self.gaps.size == 0:
+        if self.B.shape[0] == 0:
+            self._sync()
             return U, np.zeros(0), StepInfo(0, False, 0.0, self.active)
-        q = (self.gaps if gaps is None else gaps) - self.B @ U
+        q = bound - self.B @ U
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
-        res = solve_lcp(self.W, q, self.active, scale=scale)
+        res = solve_lcp(self.W, q, self.active, max_iter=self.lcp_max_iter, scale=scale)
         lam = -res.mu
         A = lam != 0.0
         if A.any():
@@ -104,16 +153,19 @@ class ContactStepper:
             else:
                 U = U + self.factor.solve(self.B.T @ lam)
         self.active = res.active
+        self.counters["contact_iterations"] += res.iterations
+        self.counters["fallbacks"] += int(res.fallback)
+        self._sync()
         return U, lam, StepInfo(res.iterations, res.fallback, res.residual, res.active)
 
 
-class IterativeContactStepper:
+class ActiveSetCGSolver(ContactSolver):
     """Active-set (semismooth Newton) contact solve on top of projected PCG, no factor.
 
-    For an active set A the constraint nu_i . u_i = g_i (i in A) is imposed exactly by
-    writing U = u_p + P w with u_p = B_A^T g_A and the orthogonal projector
-    P = I - B_A^T B_A (rows of B are orthonormal); ``P K P w = P (b - K u_p)`` is solved
-    by CG warm-started from the previous step.  Then lambda_A = B_A (K U - b), the gaps
+    For an active set A the constraint nu_i . x_i = c_i (i in A) is imposed exactly by
+    writing x = x_p + P w with x_p = B_A^T c_A and the orthogonal projector
+    P = I - B_A^T B_A (rows of B are orthonormal); ``P K P w = P (b - K x_p)`` is solved
+    by CG warm-started from the previous call.  Then lambda_A = B_A (K x - b), the gaps
     are checked and A is updated by the rule A = {i : -lambda_i - c gap_i > 0} until it
     no longer changes.
     """
@@ -122,36 +174,42 @@ class IterativeContactStepper:
         self,
         K: sp.spmatrix,
         B: sp.csr_matrix,
-        gaps: np.ndarray,
-        preconditioner: str | None = None,
+        gap_scale: float,
+        preconditioner: str = "jacobi",
         rtol: float = 1e-12,
+        max_iter: int = 2000,
         max_newton: int = 30,
     ):
-        import time
-
+        super().__init__()
         t0 = time.perf_counter()
         self.K = sp.csr_matrix(K)
         self.B = sp.csr_matrix(B)
-        self.gaps = np.asarray(gaps, dtype=float)
         # Jacobi by default: with dt ~ h, K = a M + S is spectrally close to a M and CG
         # needs a mesh-independent number of iterations (AMG was 4x slower per step here)
-        kind = preconditioner or "jacobi"
-        self.precond = Preconditioner(self.K, kind)
-        self.name = f"cg+{kind}"
+        self.precond = Preconditioner(self.K, preconditioner)
+        self.name = f"cg+{preconditioner}"
         self.rtol = rtol
+        self.max_iter = max_iter
         self.max_newton = max_newton
         self.c = float(np.mean(self.K.diagonal()))
         self.active = np.zeros(self.B.shape[0], dtype=bool)
         self.U_prev = np.zeros(self.K.shape[0])
-        self.gap_scale = max(float(np.max(np.abs(self.gaps))) if self.gaps.size else 0.0, 1e-300)
-        self.cg_iterations = 0
+        self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(lambda x: self.K @ x, self.K.shape[0])
-        self.factor_bytes = 0
 
-    def solve(self, b: np.ndarray, gaps: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+    def _cg(self, rhs: np.ndarray, x0: np.ndarray, project) -> np.ndarray:
+        w, n_cg = projected_cg(self.K, rhs, x0, project, self.precond, self.rtol, self.max_iter)
+        self.counters["linear_solves"] += 1
+        self.counters["krylov_iterations"] += n_cg
+        return w
+
+    def solve_linear(self, b: np.ndarray) -> np.ndarray:
+        return self._cg(b, self.U_prev, lambda x: x)
+
+    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         A = self.active.copy()
-        B, g = self.B, (self.gaps if gaps is None else gaps)
+        B, g = self.B, bound
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
@@ -160,9 +218,7 @@ class IterativeContactStepper:
                 return x - BA.T @ (BA @ x) if BA.shape[0] else x
 
             up = BA.T @ g[A] if BA.shape[0] else np.zeros_like(b)
-            w, n_cg = projected_cg(self.K, b - self.K @ up, self.U_prev - up, project, self.precond, self.rtol)
-            self.cg_iterations += n_cg
-            U = up + w
+            U = up + self._cg(b - self.K @ up, self.U_prev - up, project)
             lam = np.zeros(g.size)
             if A.any():
                 lam[A] = BA @ (self.K @ U - b)
@@ -172,11 +228,12 @@ class IterativeContactStepper:
                 break
             key = A_new.tobytes()
             if key in seen:
-                raise RuntimeError("active-set iteration cycles; reduce the time step or use a direct backend")
+                raise ConvergenceError("active-set iteration cycles; reduce the time step or use a direct backend")
             seen.add(key)
             A = A_new
         else:
-            raise RuntimeError(f"active-set iteration did not converge in {self.max_newton} iterations")
+            raise ConvergenceError(f"active-set iteration did not converge in {self.max_newton} iterations")
+        self.counters["contact_iterations"] += it
         self.active = A
         self.U_prev = U
         gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0)
@@ -184,22 +241,17 @@ class IterativeContactStepper:
         return U, lam, StepInfo(it, False, res, A)
 
 
-def make_stepper(
-    K: sp.spmatrix,
-    B: sp.csr_matrix,
-    gaps: np.ndarray,
-    backend: str = "auto",
-    dim: int = 3,
-    memory_budget: float | None = None,
-):
-    """The contact stepper for ``backend`` (``auto`` chooses by estimated factor size)."""
-    from ..errors import InputError
-    from ..linalg.backends import BACKENDS
-
-    if backend not in BACKENDS:
-        raise InputError(f"unknown linear solver backend {backend!r}; allowed: {', '.join(BACKENDS)}")
+def make_contact_solver(
+    K: sp.spmatrix, B: sp.csr_matrix, gap_scale: float, dim: int = 3, options: dict[str, Any] | None = None
+) -> ContactSolver:
+    """The contact solver for ``options['backend']`` (``auto`` chooses by factor size)."""
+    opts = solver_options(options)
+    backend = opts["backend"]
     if backend == "auto":
-        backend = choose_backend(K.shape[0], dim, memory_budget)
+        backend = choose_backend(K.shape[0], dim, opts["memory_budget"] or None)
     if backend == "cg":
-        return IterativeContactStepper(K, B, gaps)
-    return ContactStepper(K, B, gaps, backend=backend)
+        return ActiveSetCGSolver(
+            K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
+            opts.get("max_iter", 2000), opts.get("max_newton", 30),
+        )  # fmt: skip
+    return CondensedContactSolver(K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"])

@@ -1,4 +1,4 @@
-"""The result of a simulation: per-step scalars, per-contact-node series, snapshots."""
+"""The result of a simulation: status, counters, per-step scalars, per-contact-node series."""
 
 from __future__ import annotations
 
@@ -22,7 +22,11 @@ HISTORY_COLUMNS = (
     "active_contacts",
     "newton_iterations",
     "complementarity_residual",
+    "external_work",
+    "contact_work",
+    "numerical_dissipation",
 )
+STATUSES = ("finished", "interrupted", "failed")
 
 
 @dataclass
@@ -34,16 +38,24 @@ class History:
     t : (N+1,) times [s].
     gap : (N+1, nc) g_i - nu_i.u_i (>= 0) [length].
     lam : (N+1, nc) nodal multipliers lambda_i (<= 0, force).
-    kinetic_energy, elastic_energy, energy : (N+1,) with
-        E = 1/2 V.MV + 1/2 U.SU - U.F (spec eq. 6) [energy].
+    kinetic_energy, elastic_energy, energy : (N+1,) the scheme's discrete energy
+        (``meta['energy_definition']``; for CN and BE E = 1/2 V.MV + 1/2 U.SU - U.F,
+        spec eq. 6) split into its kinetic part and the rest [energy].
     predicted_increment : (N+1,) right-hand side of the scheme's energy identity for the
-        step ending at t_n (nan at n = 0 or when the scheme has none).
+        step ending at t_n (nan at n = 0 or when the scheme has none for that step).
+    external_work, contact_work, numerical_dissipation : (N+1,) cumulative sums of the
+        three parts of ``predicted_increment`` (0 at n = 0): work of time-dependent
+        loads and prescribed motion, contact term, the scheme's own dissipation.
     active, iterations, fallbacks, residual : per step active-set size, active-set
         (semismooth Newton) iterations, whether the robust fallback ran, and the
         relative complementarity residual.
     coordinates : (nc, d) contact node coordinates; weights : (nc,) contact area weights.
     snapshots : optional dict with ``t`` (k,), ``u`` and ``v`` (k, n_dofs) full fields.
-    meta : inputs and counters (dofs, timings, ...).
+    meta : inputs, sizes and timings (dofs, backend, ...).
+    status : ``finished``, ``interrupted`` (SIGINT/SIGTERM) or ``failed`` (non-finite
+        state or a solver that did not converge); the arrays hold the levels computed.
+    message : why the run stopped early ('' when finished).
+    counters : steps, factorizations, linear_solves, contact_iterations, fallbacks, ...
     """
 
     t: np.ndarray
@@ -60,6 +72,17 @@ class History:
     weights: np.ndarray
     snapshots: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
+    external_work: np.ndarray | None = None
+    contact_work: np.ndarray | None = None
+    numerical_dissipation: np.ndarray | None = None
+    status: str = "finished"
+    message: str = ""
+    counters: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        """True when the run reached its final time."""
+        return self.status == "finished"
 
     @property
     def energy(self) -> np.ndarray:
@@ -104,6 +127,9 @@ class History:
             "active_contacts": self.active,
             "newton_iterations": self.iterations,
             "complementarity_residual": self.residual,
+            "external_work": _or_nan(self.external_work, self.t.size),
+            "contact_work": _or_nan(self.contact_work, self.t.size),
+            "numerical_dissipation": _or_nan(self.numerical_dissipation, self.t.size),
         }
 
     def write_csv(self, path: str | Path) -> None:
@@ -124,22 +150,32 @@ class History:
         out = Path(out)
         self.write_csv(out / "history.csv")
         self.write_contact_npz(out / "contact.npz")
-        (out / "summary.json").write_text(json.dumps(self.summary(), indent=2, default=_json_default))
+        (out / "summary.json").write_text(json.dumps(finite_json(self.summary()), indent=2, default=_json_default))
 
     def summary(self) -> dict:
         E = self.energy
+        finite = E[np.isfinite(E)]
+        drift = float(np.max(np.abs(finite - E[0])) / abs(E[0])) if E[0] and finite.size else None
         return {
             **self.meta,
+            "status": self.status,
+            "success": self.success,
+            "message": self.message,
+            "counters": dict(self.counters),
             "steps": self.steps,
             "impacts": self.impacts,
             "energy_initial": float(E[0]),
             "energy_final": float(E[-1]),
-            "energy_max_relative_drift": float(np.max(np.abs(E - E[0])) / abs(E[0])) if E[0] else None,
+            "energy_max_relative_drift": drift,
             "max_complementarity_residual": float(np.max(self.residual)),
             "fallbacks": int(np.sum(self.fallbacks)),
             "min_gap": float(self.gap.min()) if self.gap.size else None,
             "max_lambda": float(self.lam.max()) if self.lam.size else None,
         }
+
+
+def _or_nan(a: np.ndarray | None, n: int) -> np.ndarray:
+    return np.full(n, np.nan) if a is None else a
 
 
 def empty_series(levels: int, n_contact: int) -> dict[str, np.ndarray]:
@@ -155,6 +191,17 @@ def empty_series(levels: int, n_contact: int) -> dict[str, np.ndarray]:
         "fallbacks": np.zeros(levels, dtype=bool),
         "residual": np.zeros(levels),
     }
+
+
+def finite_json(o):
+    """``o`` with every non-finite float replaced by None (strict JSON has no NaN)."""
+    if isinstance(o, dict):
+        return {k: finite_json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [finite_json(v) for v in o]
+    if isinstance(o, (float, np.floating)) and not np.isfinite(o):
+        return None
+    return o
 
 
 def _json_default(o):

@@ -45,8 +45,38 @@ import scipy.sparse as sp
 from ..errors import InputError
 from ..fem.assembly import scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
+from ..registry import Registry
 
-MASS_VARIANTS = ("standard", "lumped", "seed", "seed-normal", "moment-preserving", "neighbour", "mass-free-surface")
+
+def _needs_contact(name: str, contact_nodes: np.ndarray | None) -> np.ndarray:
+    if contact_nodes is None or len(contact_nodes) == 0:
+        raise InputError(f"mass {name!r} needs contact nodes (a non-empty contact boundary)")
+    return np.asarray(contact_nodes)
+
+
+def _standard(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
+    return vectorize(scalar_mass_matrix(mesh, rho), mesh.dim)
+
+
+def _lumped(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
+    m = np.asarray(scalar_mass_matrix(mesh, rho).sum(axis=1)).ravel()
+    return sp.diags(np.repeat(m, mesh.dim), format="csr")
+
+
+def _scalar_variant(name: str, build):
+    """A variant that applies the scalar redistribution ``build`` to every component."""
+
+    def variant(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
+        return vectorize(build(mesh, rho, _needs_contact(name, contact_nodes)), mesh.dim)
+
+    return variant
+
+
+def _seed_normal(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
+    return seed_normal_mass(mesh, rho, _needs_contact("seed-normal", contact_nodes), normals)
+
+
+MASS_VARIANTS = Registry("mass")
 
 
 def mass_matrix(
@@ -60,32 +90,13 @@ def mass_matrix(
 
     Parameters
     ----------
-    name : one of :data:`MASS_VARIANTS`.
+    name : a name (or alias) of :data:`MASS_VARIANTS`.
     mesh : the mesh.
     rho : density [mass / length^d].
     contact_nodes : node indices on Gamma_C (needed by the redistributed variants).
     normals : (n_contact, d) outward unit normals at the contact nodes (``seed-normal``).
     """
-    if name not in MASS_VARIANTS:
-        raise InputError(f"unknown mass {name!r}; allowed: {', '.join(MASS_VARIANTS)}")
-    d = mesh.dim
-    if name == "standard":
-        return vectorize(scalar_mass_matrix(mesh, rho), d)
-    if name == "lumped":
-        m = np.asarray(scalar_mass_matrix(mesh, rho).sum(axis=1)).ravel()
-        return sp.diags(np.repeat(m, d), format="csr")
-    if contact_nodes is None or len(contact_nodes) == 0:
-        raise InputError(f"mass {name!r} needs contact nodes (a non-empty contact boundary)")
-    contact_nodes = np.asarray(contact_nodes)
-    if name == "seed":
-        return vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
-    if name == "seed-normal":
-        return seed_normal_mass(mesh, rho, contact_nodes, normals)
-    if name == "neighbour":
-        return vectorize(neighbour_scalar_mass(mesh, rho, contact_nodes), d)
-    if name == "mass-free-surface":
-        return vectorize(mass_free_surface_scalar_mass(mesh, rho, contact_nodes), d)
-    return vectorize(moment_preserving_scalar_mass(mesh, rho, contact_nodes), d)
+    return MASS_VARIANTS.get(name).obj(mesh, rho, contact_nodes, normals)
 
 
 def massless_dofs(M: sp.spmatrix) -> np.ndarray:
@@ -314,3 +325,33 @@ def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray
     out = (T.T @ M @ T).tocsr()
     out.eliminate_zeros()
     return out
+
+
+# ----------------------------------------------------------------------------- registry
+MASS_VARIANTS.register("standard", _standard, "consistent mass rho int phi_i . phi_j (kernel {0})")
+MASS_VARIANTS.register("lumped", _lumped, "row-sum lumped consistent mass (kernel {0})")
+MASS_VARIANTS.register(
+    "seed",
+    _scalar_variant("seed", seed_scalar_mass),
+    "the paper's M_mod: mass integrated over the cells not touching Gamma_C; contact nodes massless",
+)
+MASS_VARIANTS.register(
+    "seed-normal",
+    _seed_normal,
+    "seed for the normal component only (flat, axis-aligned Gamma_C); kernel = normal components",
+)
+MASS_VARIANTS.register(
+    "moment-preserving",
+    _scalar_variant("moment-preserving", moment_preserving_scalar_mass),
+    "contact mass removed, redistributed so that mass, first and second moments are preserved",
+)
+MASS_VARIANTS.register(
+    "neighbour",
+    _scalar_variant("neighbour", neighbour_scalar_mass),
+    "contact mass lumped onto the non-contact neighbours in proportion to M_ij (total mass kept)",
+)
+MASS_VARIANTS.register(
+    "mass-free-surface",
+    _scalar_variant("mass-free-surface", mass_free_surface_scalar_mass),
+    "cells touching Gamma_C lump their mass on their non-contact nodes (Hager-Wohlmuth)",
+)

@@ -1,7 +1,17 @@
-"""A dynamic contact problem and its discrete operators on the free dofs."""
+"""A dynamic contact problem and its discrete operators.
+
+Data may depend on time: body force f(x, t), tractions t(x, t), Dirichlet values
+u_D(x, t) (prescribed motion) and the obstacle's position (a moving plane or ball).
+Operators are kept on the full space (all dofs, node-major); the time schemes work on
+full vectors and the contact solver eliminates the Dirichlet dofs when it solves
+(free rows, lifting with the prescribed values at the new time).  Kinetic and elastic
+energies are therefore the full ones, and the work of a prescribed motion is the
+work of the reaction forces on the fixed dofs (see :mod:`signorini.dynamics.schemes`).
+"""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -10,12 +20,13 @@ import scipy.sparse as sp
 
 from ..contact.contact_set import ContactSet
 from ..contact.obstacles import RigidObstacle
-from ..dynamics.mass import MASS_VARIANTS, mass_matrix
 from ..errors import InputError
 from ..fem.assembly import body_load, stiffness_matrix, surface_load
+from ..fem.fields import at_time, is_time_dependent
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
+from .mass import MASS_VARIANTS, mass_matrix
 
 
 @dataclass
@@ -26,12 +37,13 @@ class Problem:
     ----------
     mesh, material : geometry and isotropic material.
     contact_tag : boundary tag of Gamma_C.
-    obstacle : the rigid obstacle.
-    dirichlet : Dirichlet conditions (constant in time).
+    obstacle : the rigid obstacle (fixed, or moving: a position that is a function of t).
+    dirichlet : Dirichlet conditions; a value may be a function of (x, t).
     u0, v0 : initial displacement and velocity (constant vector or function of x);
-        the Dirichlet values override ``u0`` and the velocity of fixed dofs is 0.
-    body_force : constant vector or function of x [force / length^d].
-    tractions : tag -> constant traction vector [force / length^(d-1)].
+        the Dirichlet values override ``u0`` and ``v0`` on fixed dofs (the velocity of a
+        prescribed motion is its time derivative at t = 0).
+    body_force : constant vector, function of x, or of (x, t) [force / length^d].
+    tractions : tag -> constant vector, function of x, or of (x, t) [force / length^(d-1)].
     """
 
     mesh: Mesh
@@ -42,65 +54,122 @@ class Problem:
     u0: Value = 0.0
     v0: Value = 0.0
     body_force: Value | Callable | None = None
-    tractions: dict[str, Sequence[float]] = field(default_factory=dict)
+    tractions: dict[str, Sequence[float] | Callable] = field(default_factory=dict)
     name: str = "problem"
+
+
+def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(f'(0), f''(0)) by one-sided differences of second order with step h.
+
+    f'(0) = (-3 f0 + 4 f1 - f2) / (2h), f''(0) = (2 f0 - 5 f1 + 4 f2 - f3) / h^2
+    (exact for polynomials of degree 2, e.g. a constant-velocity or constant-
+    acceleration motion).
+    """
+    f0, f1, f2, f3 = (np.asarray(f(k * h), dtype=float) for k in range(4))
+    return (-3 * f0 + 4 * f1 - f2) / (2 * h), (2 * f0 - 5 * f1 + 4 * f2 - f3) / h**2
 
 
 @dataclass
 class Discretization:
-    """Operators restricted to the free dofs (Dirichlet dofs eliminated).
+    """Full-space operators, loads and constraints of a problem (all dofs).
 
-    ``F`` already contains the lifting ``-S_fD u_D``; ``energy_offset`` is the constant
-    ``1/2 u_D.S_DD u_D - u_D.F_D`` that turns the reduced energy into the full one.
+    Attributes
+    ----------
+    M, S : (n, n) mass (variant ``mass_name``) and stiffness matrices.
+    B : (nc, n) contact matrix; row i = nu_i^T on the dofs of contact node i.
+    U0, V0 : (n,) initial displacement and velocity (prescribed values on fixed dofs).
+    free, fixed : indices of free and Dirichlet dofs.
     """
 
     problem: Problem
     space: VectorSpace
     constraints: Constraints
     contact: ContactSet
-    B: sp.csr_matrix  # (nc, n_free)
+    B: sp.csr_matrix
     S: sp.csr_matrix
     M: sp.csr_matrix
-    F: np.ndarray
     U0: np.ndarray
     V0: np.ndarray
-    energy_offset: float
     mass_name: str
     timings: dict[str, float] = field(default_factory=dict)
+    _F_const: np.ndarray | None = None
+    _varying: list = field(default_factory=list)
+
+    @property
+    def free(self) -> np.ndarray:
+        return self.constraints.free
+
+    @property
+    def fixed(self) -> np.ndarray:
+        return self.constraints.fixed
+
+    @property
+    def loads_vary(self) -> bool:
+        return bool(self._varying)
+
+    @property
+    def dirichlet_varies(self) -> bool:
+        return self.constraints.time_dependent
+
+    def load(self, t: float) -> np.ndarray:
+        """F(t) (n,) = body load + tractions at time t [force]."""
+        if not self._varying:
+            return self._F_const
+        F = self._F_const.copy()
+        for build in self._varying:
+            F += build(t)
+        if not np.all(np.isfinite(F)):
+            raise InputError(f"the load is not finite at t = {t:g}")
+        return F
+
+    def dirichlet(self, t: float) -> np.ndarray:
+        """Prescribed values on the fixed dofs at time t."""
+        return self.constraints.values if not self.dirichlet_varies else self.constraints.values_at(t)
+
+    def dirichlet_rates(self, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity and acceleration of the prescribed values at t = 0 (zero if constant)."""
+        if not self.dirichlet_varies:
+            z = np.zeros(self.fixed.size)
+            return z, z
+        return time_derivatives(self.constraints.values_at, h)
+
+    def gaps(self, t: float) -> np.ndarray:
+        """Contact gaps g(t) (nc,) [length]."""
+        return self.contact.gaps_at(t)
+
+
+def _load_parts(problem: Problem, mesh: Mesh, n: int) -> tuple[np.ndarray, list]:
+    """Constant part of F and builders of the time-dependent parts."""
+    F = np.zeros(n)
+    varying = []
+    sources = [(lambda f: body_load(mesh, f), problem.body_force)] if problem.body_force is not None else []
+    for tag, tr in problem.tractions.items():
+        sources.append((lambda f, tag=tag: surface_load(mesh, tag, f), tr))
+    for assemble, data in sources:
+        if is_time_dependent(data):
+            varying.append(lambda t, assemble=assemble, data=data: assemble(at_time(data, t)))
+        else:
+            F += assemble(data)
+    return F, varying
 
 
 def discretize(problem: Problem, mass: str = "seed") -> Discretization:
     """Assemble S, the chosen mass variant, loads, contact set and initial data."""
-    import time
-
-    if mass not in MASS_VARIANTS:
-        raise InputError(f"unknown mass {mass!r}; allowed: {', '.join(MASS_VARIANTS)}")
+    mass = MASS_VARIANTS.resolve(mass)
     t0 = time.perf_counter()
     mesh = problem.mesh
     space = VectorSpace(mesh)
     cons = Constraints(space, problem.dirichlet)
     contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons)
-    S_full = stiffness_matrix(mesh, problem.material)
-    M_full = mass_matrix(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+    S = stiffness_matrix(mesh, problem.material)
+    M = mass_matrix(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
     t1 = time.perf_counter()
-    F_full = np.zeros(space.n_dofs)
-    if problem.body_force is not None:
-        F_full += body_load(mesh, problem.body_force)
-    for tag, t in problem.tractions.items():
-        F_full += surface_load(mesh, tag, t)
-    U0_full = space.interpolate(problem.u0)
-    U0_full[cons.fixed] = cons.values
-    V0_full = space.interpolate(problem.v0)
-    f = cons.free
-    S, lift = cons.reduce_with_lifting(S_full)
-    M = cons.reduce(M_full)
-    F = F_full[f] - lift
-    uD = cons.values
-    SDD = S_full[cons.fixed][:, cons.fixed] if cons.fixed.size else sp.csr_matrix((0, 0))
-    offset = 0.5 * float(uD @ (SDD @ uD)) - float(uD @ F_full[cons.fixed]) if uD.size else 0.0
-    B = contact.B[:, f].tocsr()
-    U0, V0 = U0_full[f], V0_full[f]
-    viol = B @ U0 - contact.gaps
+    F, varying = _load_parts(problem, mesh, space.n_dofs)
+    U0 = space.interpolate(problem.u0)
+    U0[cons.fixed] = cons.values
+    V0 = space.interpolate(problem.v0)
+    disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
+    viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
         i = int(np.argmax(viol))
@@ -108,5 +177,5 @@ def discretize(problem: Problem, mass: str = "seed") -> Discretization:
             f"initial displacement penetrates the obstacle at contact node {int(contact.nodes[i])} "
             f"(nu.u0 - g = {viol[i]:.3g} > 0); choose u0 with nu.u0 <= g"
         )
-    timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
-    return Discretization(problem, space, cons, contact, B, S, M, F, U0, V0, offset, mass, timings)
+    disc.timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
+    return disc

@@ -1,20 +1,39 @@
-"""The time loop: ``simulate(problem, scheme, dt, T, mass=...) -> History``."""
+"""The time loop: ``simulate(problem, scheme, dt, T, mass=...) -> History``.
+
+The only loop of the package.  It builds the :class:`~.context.Context`, factorizes
+the scheme's operator (and its starter's, unless proportional), computes the initial
+state, and advances the scheme level by level, calling the observers.  Every exit
+returns a :class:`~.history.History` with a status:
+
+``finished``     the final time was reached;
+``interrupted``  SIGINT (Ctrl-C) or SIGTERM arrived: the loop stops after the step in
+                 progress (a second Ctrl-C aborts that step);
+``failed``       a non-finite value appeared in the state, or a solver did not
+                 converge; the message names the step and the time.
+
+The levels computed before the stop are kept; observers are closed in every case.
+"""
 
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
+from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..contact.solver import make_stepper
-from ..dynamics.history import History, empty_series
-from ..dynamics.mass import massless_dofs
-from ..dynamics.problem import Discretization, Problem, discretize
-from ..dynamics.schemes import TimeScheme, get_scheme
-from ..errors import InputError, check_positive
+from ..errors import ConvergenceError, InputError, check_positive
+from ..linalg import solver_options as validate_solver_options
+from .context import Context
+from .history import History
+from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
+from .problem import Discretization, Problem, discretize
+from .schemes import Scheme, State, make_scheme
 
 
 def number_of_steps(dt: float, T: float) -> int:
@@ -29,164 +48,227 @@ def number_of_steps(dt: float, T: float) -> int:
     return int(n)
 
 
-def initial_acceleration(disc: Discretization, massless: np.ndarray) -> np.ndarray:
-    """A0 from equilibrium, M A0 = F - S U0 (lambda_0 = 0), with A0 = 0 on massless dofs.
+def initial_state(ctx: Context) -> State:
+    """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 (lambda_0 = 0).
 
-    Solved by Jacobi-preconditioned CG on the massive block (a mass matrix has a
-    mesh-independent condition number); skipped when F - S U0 vanishes to round-off
-    (e.g. a rigidly translated body at rest).
+    On Dirichlet dofs V and A are the prescribed motion's rates at t = 0; A0 = 0 on
+    massless dofs.  The free block is solved by Jacobi-preconditioned CG on the massive
+    dofs (a mass matrix has a mesh-independent condition number), skipped when the
+    residual vanishes to round-off.  ``extra['R0']`` keeps the residual of the
+    massless free dofs, which start out of equilibrium when F - S U0 is not zero there.
     """
-    n = disc.M.shape[0]
-    A0 = np.zeros(n)
-    SU0 = disc.S @ disc.U0
-    r = disc.F - SU0
+    disc = ctx.disc
+    U, V = disc.U0.copy(), disc.V0.copy()
+    n = U.size
+    A = np.zeros(n)
+    if ctx.has_fixed:
+        vD, aD = disc.dirichlet_rates(ctx.dt / 4)
+        V[ctx.fixed], A[ctx.fixed] = vD, aD
+    F = ctx.load(0.0)
+    r = F - ctx.S @ U - ctx.M @ A
     keep = np.ones(n, dtype=bool)
-    keep[massless] = False
+    keep[ctx.massless] = False
+    keep[ctx.fixed] = False
     idx = np.flatnonzero(keep)
-    smax = float(abs(disc.S).max()) if disc.S.nnz else 0.0
-    scale = np.abs(disc.F).max(initial=0.0) + smax * np.abs(disc.U0).max(initial=0.0)
-    if idx.size == 0 or np.abs(r[idx]).max(initial=0.0) <= 1e-13 * scale:
-        return A0
-    Mrr = disc.M[idx][:, idx].tocsr()
-    d = Mrr.diagonal()
-    pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
-    sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
-    if info != 0:  # fall back to a direct solve
-        sol = spla.spsolve(Mrr.tocsc(), r[idx])
-    A0[idx] = sol
-    return A0
+    smax = float(abs(ctx.S).max()) if ctx.S.nnz else 0.0
+    scale = np.abs(F).max(initial=0.0) + smax * np.abs(U).max(initial=0.0)
+    if idx.size and np.abs(r[idx]).max(initial=0.0) > 1e-13 * scale:
+        Mrr = ctx.M[idx][:, idx].tocsr()
+        d = Mrr.diagonal()
+        pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
+        sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
+        if info != 0:  # fall back to a direct solve
+            sol = spla.spsolve(Mrr.tocsc(), r[idx])
+        A[idx] = sol
+    state = State(0.0, U, V, A, np.zeros(disc.contact.size))
+    R0 = np.zeros(n)
+    ml = np.setdiff1d(ctx.massless, ctx.fixed)
+    R0[ml] = -r[ml]
+    if ml.size and np.any(R0[ml] != 0.0):
+        state.extra["R0"] = R0
+    return state
 
 
-def run_meta(
-    disc: Discretization,
-    stepper,
-    scheme: str,
-    dt: float,
-    N: int,
-    n_massless: int,
-    setup: float,
-    loop: float,
-    timed_steps: int,
-) -> dict:
+class _Interrupts:
+    """SIGINT/SIGTERM set a flag (the loop stops after the step); a second SIGINT raises."""
+
+    def __init__(self) -> None:
+        self.signal_name: str | None = None
+
+    def handler(self, signum, frame) -> None:
+        if self.signal_name is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.signal_name = signal.Signals(signum).name
+
+
+@contextmanager
+def _catch_signals(enabled: bool):
+    flag = _Interrupts()
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in old:
+        signal.signal(s, flag.handler)
+    try:
+        yield flag
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: int, timings: dict) -> dict:
     """The inputs, sizes and timings of a run, as stored in ``History.meta`` / summary.json."""
+    main = ctx.solvers[0]
     return {
         "problem": disc.problem.name,
-        "scheme": scheme,
+        "scheme": scheme.label,
+        "scheme_options": dict(scheme.options),
+        "energy_definition": scheme.energy_definition,
         "mass": disc.mass_name,
         "dt": dt,
         "T": N * dt,
         "dofs": int(disc.space.n_dofs),
-        "free_dofs": int(disc.M.shape[0]),
+        "free_dofs": int(disc.free.size),
         "contact_nodes": int(disc.contact.size),
-        "massless_dofs": int(n_massless),
-        "backend": stepper.name,
-        "factor_bytes": int(stepper.factor_bytes),
-        "setup_seconds": setup,
-        "loop_seconds": loop,
-        "step_seconds": loop / max(timed_steps, 1),
-        **{f"{k}_seconds": v for k, v in {**disc.timings, **stepper.timings}.items()},
+        "massless_dofs": int(ctx.massless.size),
+        "backend": main.name,
+        "solver_options": dict(ctx.solver_options),
+        "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
+        **timings,
+        **{f"{k}_seconds": v for k, v in {**disc.timings, **main.timings}.items()},
     }
 
 
 def simulate(
     problem: Problem | Discretization,
-    scheme: str | TimeScheme = "crank-nicolson",
+    scheme: str | type[Scheme] | Scheme = "crank-nicolson",
     dt: float = 0.01,
     T: float = 1.0,
     mass: str = "seed",
     snapshot_every: int = 0,
-    backend: str = "auto",
+    backend: str | None = None,
     memory_budget: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    scheme_options: Mapping[str, Any] | None = None,
+    solver_options: Mapping[str, Any] | None = None,
+    observers: Iterable[Observer] = (),
+    energy: bool = True,
+    handle_signals: bool = True,
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
 
     Parameters
     ----------
     problem : a :class:`Problem` or an already assembled :class:`Discretization`.
-    scheme : ``crank-nicolson`` / ``cn``, ``backward-euler`` / ``be`` or a TimeScheme.
+    scheme : a name or alias of :data:`~signorini.dynamics.schemes.SCHEMES`
+        (``crank-nicolson``/``cn``, ``backward-euler``/``be``, ``newmark``, ``theta``,
+        ``paoli-schatzman``/``ps``), a :class:`Scheme` subclass, or an instance.
     dt, T : time step and final time [s]; N = T/dt steps (T must be >= dt).
     mass : mass variant (ignored when a Discretization is given).
-    snapshot_every : store full displacement/velocity fields every k steps (0 = never).
-    backend : ``auto`` (default: a direct factor if its estimated size fits in
-        ``memory_budget`` bytes, else CG), ``superlu``, ``pardiso`` or ``cg``.
-    memory_budget : bytes allowed for a factor (default 40% of the RAM).
+    snapshot_every : keep full displacement/velocity fields in memory every k steps
+        and at the last level (0 = never); for large runs stream them with
+        :class:`signorini.io.output.FieldWriter` instead.
+    backend, memory_budget : shortcuts for ``solver_options['backend']`` and
+        ``solver_options['memory_budget']`` [bytes].
     progress : callback(step, n_steps) called after every step.
+    scheme_options : the scheme's parameters, e.g. ``{"beta": 0.3, "gamma": 0.6}``.
+    solver_options : backend, preconditioner, rtol, max_iter, max_newton, memory_budget,
+        lcp_max_iter, condense_budget (see :data:`signorini.linalg.SOLVER_OPTIONS`).
+    observers : extra :class:`~.observers.Observer` objects (e.g. a field writer).
+    energy : record the scheme's energy and its identity (a few products per step).
+    handle_signals : turn SIGINT/SIGTERM into ``status = "interrupted"``.
+
+    Returns
+    -------
+    History with ``status``, ``message``, ``counters`` and the levels computed.
     """
-    sch = get_scheme(scheme)
+    sch = make_scheme(scheme, scheme_options)
+    starter = make_scheme(sch.starter) if sch.starter else None
     N = number_of_steps(dt, T)
-    if not isinstance(snapshot_every, int) or snapshot_every < 0:
+    if not isinstance(snapshot_every, int) or isinstance(snapshot_every, bool) or snapshot_every < 0:
         raise InputError(f"snapshot_every must be a non-negative integer, got {snapshot_every!r}")
-    t_setup = time.perf_counter()
+    opts = dict(solver_options or {})
+    if backend is not None:
+        opts["backend"] = backend
+    if memory_budget is not None:
+        opts["memory_budget"] = memory_budget
+    opts = validate_solver_options(opts)
+    t0 = time.perf_counter()
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
-    M, S, F, B = disc.M, disc.S, disc.F, disc.B
-    a = sch.a(dt)
-    stepper = make_stepper((a * M + S).tocsr(), B, disc.contact.gaps, backend, disc.space.dim, memory_budget)
-    massless = massless_dofs(M)
-    U = disc.U0.copy()
-    V = disc.V0.copy()
-    A = initial_acceleration(disc, massless)
-    setup_seconds = time.perf_counter() - t_setup
+    ctx = Context(disc, dt, opts)
+    for s in (sch, starter):
+        op = s.operator(dt) if s is not None else None
+        if op is not None:
+            ctx.prepare(op)
+    state = initial_state(ctx)
+    setup = time.perf_counter() - t0
 
-    nc = disc.contact.size
-    series = empty_series(N + 1, nc)
-    gap, lam, kin, ela = series["gap"], series["lam"], series["kinetic_energy"], series["elastic_energy"]
-    pred, active, iters = series["predicted_increment"], series["active"], series["iterations"]
-    fallbacks, residual = series["fallbacks"], series["residual"]
-    offset = disc.energy_offset
-
-    MV, SU = M @ V, S @ U
-    R0 = F - SU - M @ A  # equilibrium residual of the initial state (massless rows)
-
-    def energies(U, V, MV, SU):
-        return 0.5 * float(V @ MV), 0.5 * float(U @ SU) - float(U @ F) + offset
-
-    gap[0] = disc.contact.gaps - B @ U
-    kin[0], ela[0] = energies(U, V, MV, SU)
-    snaps_t, snaps_u, snaps_v = [], [], []
-
-    def snapshot(n, U, V):
-        snaps_t.append(n * dt)
-        snaps_u.append(disc.constraints.expand(U))
-        snaps_v.append(disc.constraints.expand(V, fixed_values=0.0))
-
-    if snapshot_every:
-        snapshot(0, U, V)
+    recorder, energies = HistoryRecorder(), EnergyRecorder() if energy else None
+    snaps = SnapshotRecorder(snapshot_every) if snapshot_every else None
+    obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(observers)
+    if progress is not None:
+        obs.append(ProgressCallback(progress))
+    run = Run(ctx, sch, N, float(dt), state, disc.problem)
+    status, message, n_last = "finished", "", 0
     t_loop = time.perf_counter()
-    for n in range(1, N + 1):
-        rhs = M @ sch.predictor(U, V, A, dt) + F
-        U_new, lam_new, info = stepper.solve(rhs)
-        V_new, A_new = sch.update(U, V, A, U_new, dt)
-        if massless.size:
-            V_new[massless] = (U_new[massless] - U[massless]) / dt
-            A_new[massless] = 0.0
-        MV_new, SU_new = M @ V_new, S @ U_new
-        dU = U_new - U
-        R_old = R0 if n == 1 else None
-        pred[n] = sch.energy_increment(dU, V_new - V, lam[n - 1], lam_new, B @ dU, MV_new - MV, SU_new - SU, R_old)
-        U, V, A, MV, SU = U_new, V_new, A_new, MV_new, SU_new
-        gap[n] = disc.contact.gaps - B @ U
-        lam[n] = lam_new
-        kin[n], ela[n] = energies(U, V, MV, SU)
-        active[n] = int(np.count_nonzero(lam_new))
-        iters[n] = info.iterations
-        fallbacks[n] = info.fallback
-        residual[n] = info.residual
-        if snapshot_every and n % snapshot_every == 0:
-            snapshot(n, U, V)
-        if progress is not None:
-            progress(n, N)
-    loop_seconds = time.perf_counter() - t_loop
+    started = []
+    try:
+        for o in obs:
+            o.start(run)
+            started.append(o)
+        with _catch_signals(handle_signals) as interrupts:
+            for n in range(1, N + 1):
+                if interrupts.signal_name:
+                    status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"
+                    break
+                try:
+                    if n == 1 and starter is not None:
+                        new = sch.start(ctx, state, starter.step(ctx, state))
+                    else:
+                        new = sch.step(ctx, state)
+                except ConvergenceError as exc:
+                    status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
+                    break
+                except KeyboardInterrupt:
+                    status, message = "interrupted", f"SIGINT during step {n} of {N}"
+                    break
+                if not new.is_finite():
+                    status, message = "failed", f"step {n} (t = {n * dt:.6g}): non-finite value in the state"
+                    break
+                for o in obs:
+                    o.record(run, n, new)
+                state, n_last = new, n
+    finally:
+        for o in started:
+            o.close(run, status, n_last, state)
+    loop = time.perf_counter() - t_loop
 
-    meta = run_meta(disc, stepper, sch.name, dt, N, massless.size, setup_seconds, loop_seconds, N)
-    snaps = {}
-    if snapshot_every:
-        snaps = {"t": np.array(snaps_t), "u": np.array(snaps_u), "v": np.array(snaps_v)}
+    counters = {"steps": n_last, **ctx.counters()}
+    timings = {"setup_seconds": setup, "loop_seconds": loop, "step_seconds": loop / max(n_last, 1)}
+    series = dict(recorder.series)
+    if energies is not None:
+        E = energies.series
+        series.update(
+            kinetic_energy=E["kinetic_energy"],
+            elastic_energy=E["elastic_energy"],
+            predicted_increment=E["predicted_increment"],
+        )
+        work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
+    else:
+        nan = np.full(n_last + 1, np.nan)
+        series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())
+        work = {}
     return History(
-        t=np.arange(N + 1) * dt,
+        t=np.arange(n_last + 1) * dt,
         **series,
+        **work,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
-        snapshots=snaps,
-        meta=meta,
+        snapshots=snaps.snapshots() if snaps is not None else {},
+        meta=run_meta(disc, ctx, sch, dt, N, timings),
+        status=status,
+        message=message,
+        counters=counters,
     )

@@ -235,12 +235,34 @@ def facet_weights(mesh: Mesh, tag: str) -> np.ndarray:
     return np.bincount(facets.ravel(), weights=we.ravel(), minlength=mesh.n_nodes)
 
 
-def surface_load(mesh: Mesh, tag: str, traction: np.ndarray) -> np.ndarray:
-    """Load vector of a constant traction vector t on the facets of ``tag``:
-    F_(a,i) = t_i int_Gamma N_a ds (exact for P1/Q1 facets)."""
-    w = facet_weights(mesh, tag)
-    t = np.asarray(traction, dtype=float).reshape(1, -1)
-    return (w[:, None] * t).ravel()
+def surface_load(mesh: Mesh, tag: str, traction: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Load vector of a traction t on the facets of ``tag``: F_(a,i) = int_Gamma t_i N_a ds.
+
+    ``traction`` is a constant vector (exact: t_i w_a with the facet weights) or a
+    function of points (n, d) -> (n, d) integrated with the facet quadrature rule.
+    """
+    if not callable(traction):
+        w = facet_weights(mesh, tag)
+        t = np.asarray(traction, dtype=float).reshape(1, -1)
+        return (w[:, None] * t).ravel()
+    facets = mesh.facets_of(tag)
+    if mesh.dim == 1:
+        x = mesh.points[facets[:, 0]]
+        t = np.asarray(traction(x), dtype=float).reshape(len(facets), 1)
+        F = np.zeros((mesh.n_nodes, 1))
+        np.add.at(F, facets[:, 0], t)
+        return F.ravel()
+    fref = reference_element(FACET_TYPES[mesh.cell_type])
+    X = mesh.points[facets]  # (nf, nfv, d)
+    J = np.einsum("qak,fai->fqik", fref.dN, X)
+    area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))  # (nf, nq)
+    xq = np.einsum("qa,fai->fqi", fref.N, X)
+    tq = np.asarray(traction(xq.reshape(-1, mesh.dim)), dtype=float).reshape(xq.shape)
+    fe = np.einsum("fq,q,qa,fqi->fai", area, fref.weights, fref.N, tq)
+    F = np.zeros((mesh.n_nodes, mesh.dim))
+    for i in range(mesh.dim):
+        F[:, i] = np.bincount(facets.ravel(), weights=fe[..., i].ravel(), minlength=mesh.n_nodes)
+    return F.ravel()
 
 
 # ----------------------------------------------------------------------------- post-processing

@@ -17,9 +17,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..fem.fields import at_time, is_time_dependent
 from ..fem.mesh import Mesh
 
-Value = float | Sequence[float] | Callable[[np.ndarray], np.ndarray]
+Value = float | Sequence[float] | Callable[..., np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -27,8 +28,9 @@ class Dirichlet:
     """u_i = value_i on the nodes of ``tag`` for i in ``components``.
 
     ``value`` is a scalar (same for every listed component), a sequence with one value
-    per listed component, or a function of the node coordinates (n, d) returning
-    (n, len(components)).  ``components=None`` means all components.
+    per listed component, or a function of the node coordinates x (n, d) -- or of
+    (x, t) for a prescribed motion -- returning (n, len(components)).
+    ``components=None`` means all components.
     """
 
     tag: str
@@ -60,12 +62,12 @@ class VectorSpace:
 
 
 class Constraints:
-    """Fixed dofs with their values; reduction of matrices and vectors to free dofs."""
+    """Fixed dofs with their values (possibly functions of t); reduction to free dofs."""
 
     def __init__(self, space: VectorSpace, conditions: Sequence[Dirichlet] = ()):
         self.space = space
         fixed = np.zeros(space.n_dofs, dtype=bool)
-        values = np.zeros(space.n_dofs)
+        self._parts: list[tuple[Dirichlet, np.ndarray, np.ndarray]] = []
         for bc in conditions:
             comps = tuple(range(space.dim)) if bc.components is None else tuple(bc.components)
             for c in comps:
@@ -75,21 +77,33 @@ class Constraints:
                     )
             nodes = space.mesh.nodes_of(bc.tag)
             dofs = space.dofs(nodes, comps)
-            if callable(bc.value):
-                vals = np.asarray(bc.value(space.mesh.points[nodes]), dtype=float).reshape(len(nodes), -1)
-                vals = np.broadcast_to(vals, dofs.shape)
-            else:
+            if not callable(bc.value):
                 v = np.atleast_1d(np.asarray(bc.value, dtype=float))
                 if v.size not in (1, len(comps)):
                     raise InputError(f"Dirichlet value on tag {bc.tag!r} needs 1 or {len(comps)} numbers, got {v.size}")
-                vals = np.broadcast_to(v, dofs.shape)
             fixed[dofs.ravel()] = True
-            values[dofs.ravel()] = vals.ravel()
+            self._parts.append((bc, nodes, dofs))
         self.fixed = np.flatnonzero(fixed)
         self.free = np.flatnonzero(~fixed)
-        self.values = values[self.fixed]
+        self.time_dependent = any(is_time_dependent(bc.value) for bc, _, _ in self._parts)
         self._full_to_free = -np.ones(space.n_dofs, dtype=np.int64)
         self._full_to_free[self.free] = np.arange(self.free.size)
+        self.values = self.values_at(0.0)
+
+    def values_at(self, t: float) -> np.ndarray:
+        """Prescribed values on the fixed dofs (in the order of ``fixed``) at time t."""
+        values = np.zeros(self.space.n_dofs)
+        for bc, nodes, dofs in self._parts:
+            if callable(bc.value):
+                g = at_time(bc.value, t)
+                vals = np.asarray(g(self.space.mesh.points[nodes]), dtype=float).reshape(len(nodes), -1)
+            else:
+                vals = np.atleast_1d(np.asarray(bc.value, dtype=float))
+            values[dofs.ravel()] = np.broadcast_to(vals, dofs.shape).ravel()
+        out = values[self.fixed]
+        if not np.all(np.isfinite(out)):
+            raise InputError(f"a Dirichlet value is not finite at t = {t:g}")
+        return out
 
     @property
     def n_free(self) -> int:

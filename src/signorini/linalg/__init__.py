@@ -1,0 +1,31 @@
+"""Linear algebra: direct factorizations (SuperLU, Pardiso) and Krylov solvers."""
+
+from .base import (
+    BACKENDS,
+    PRECONDITIONERS,
+    SOLVER_OPTIONS,
+    Factor,
+    choose_backend,
+    estimate_factor_bytes,
+    factorize,
+    has_pardiso,
+    solver_options,
+    total_memory,
+)
+from .krylov import Preconditioner, has_pyamg, projected_cg
+
+__all__ = [
+    "BACKENDS",
+    "PRECONDITIONERS",
+    "SOLVER_OPTIONS",
+    "Factor",
+    "Preconditioner",
+    "choose_backend",
+    "estimate_factor_bytes",
+    "factorize",
+    "has_pardiso",
+    "has_pyamg",
+    "projected_cg",
+    "solver_options",
+    "total_memory",
+]

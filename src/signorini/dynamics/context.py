@@ -1,0 +1,170 @@
+"""What a time scheme's step may use: operators, data at time t, and the contact solver.
+
+A :class:`Context` is built once per run by :func:`~signorini.dynamics.simulate.simulate`.
+It holds the full-space matrices ``M``, ``S``, ``B``, gives the loads ``load(t)``, the
+prescribed values ``dirichlet(t)`` and the gaps ``gaps(t)``, and solves, for an
+operator K = c_M M + c_S S declared by the scheme,
+
+    K x = rhs + B^T lambda  on the free rows,   x = x_D on the fixed dofs,
+    B x <= bound,  lambda <= 0,  (B x - bound) . lambda = 0,
+
+with :meth:`Context.solve` (``bound`` per call: positions or velocities, any
+combination of levels).  Operators are factorized once: two operators that are
+multiples of each other (e.g. Paoli-Schatzman's M/dt^2 + S/4 and Crank-Nicolson's
+4 M/dt^2 + S) share one factorization, ``K' = s K`` being solved as
+``K x = rhs/s + B^T (lambda'/s)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.solver import ContactSolver, StepInfo, make_contact_solver
+from ..errors import InputError
+from .mass import massless_dofs
+from .problem import Discretization
+
+
+@dataclass(frozen=True)
+class Operator:
+    """The linear operator K = mass * M + stiffness * S of a scheme for a given dt."""
+
+    mass: float
+    stiffness: float
+
+    def matrix(self, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
+        return (self.mass * M + self.stiffness * S).tocsr()
+
+    def ratio_to(self, other: Operator) -> float | None:
+        """s with self = s * other, or None when they are not proportional."""
+        for a, b in ((self.stiffness, other.stiffness), (self.mass, other.mass)):
+            if b != 0.0:
+                s = a / b
+                break
+        else:  # pragma: no cover - a zero operator is rejected earlier
+            return None
+        ok = np.isclose(self.mass, s * other.mass, rtol=1e-13, atol=0.0) and np.isclose(
+            self.stiffness, s * other.stiffness, rtol=1e-13, atol=0.0
+        )
+        return float(s) if ok and s > 0 else None
+
+
+class _System:
+    """A factorized operator restricted to the free dofs, with its lifting block."""
+
+    def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
+        K = op.matrix(ctx.M, ctx.S)
+        f, D = ctx.free, ctx.fixed
+        Kff = K[f][:, f].tocsr() if D.size else K
+        self.KfD = K[f][:, D].tocsr() if D.size else None
+        self.op = op
+        gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
+        self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, ctx.disc.space.dim, options)
+        self._lift_key: np.ndarray | None = None
+        self._lift = None
+
+    def lift(self, xD: np.ndarray) -> np.ndarray | float:
+        """K_fD x_D (cached while x_D does not change)."""
+        if self.KfD is None:
+            return 0.0
+        if self._lift_key is None or not np.array_equal(self._lift_key, xD):
+            self._lift_key = np.array(xD, copy=True)
+            self._lift = self.KfD @ xD
+        return self._lift
+
+
+class Context:
+    """Operators, data of time t and the contact solver of one run (see module doc)."""
+
+    def __init__(self, disc: Discretization, dt: float, solver_options: dict[str, Any] | None = None):
+        self.disc = disc
+        self.dt = float(dt)
+        self.M, self.S, self.B = disc.M, disc.S, disc.B
+        self.free, self.fixed = disc.free, disc.fixed
+        self.has_fixed = self.fixed.size > 0
+        self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
+        BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
+        self.BD = BD if BD is not None and BD.nnz else None
+        self.solver_options = dict(solver_options or {})
+        self._systems: list[_System] = []
+        self.massless = massless_dofs(disc.M)
+
+    # -- data of time t ------------------------------------------------------------
+    def load(self, t: float) -> np.ndarray:
+        """F(t) (n,), full space [force]."""
+        return self.disc.load(t)
+
+    def dirichlet(self, t: float) -> np.ndarray:
+        """Prescribed displacements on the fixed dofs at time t."""
+        return self.disc.dirichlet(t)
+
+    def gaps(self, t: float) -> np.ndarray:
+        """Gaps g(t) (nc,) of the obstacle at time t."""
+        return self.disc.gaps(t)
+
+    # -- linear algebra ------------------------------------------------------------
+    def prepare(self, op: Operator) -> None:
+        """Factorize ``op`` now unless an existing factorization can serve it."""
+        self._system(op)
+
+    def _system(self, op: Operator) -> tuple[_System, float]:
+        if op.mass < 0 or op.stiffness < 0 or (op.mass == 0 and op.stiffness == 0):
+            raise InputError(f"a scheme operator needs non-negative coefficients, not both zero; got {op}")
+        for sys in self._systems:
+            s = op.ratio_to(sys.op)
+            if s is not None:
+                return sys, s
+        sys = _System(op, self, self.solver_options)
+        self._systems.append(sys)
+        return sys, 1.0
+
+    def solve(
+        self, op: Operator, rhs: np.ndarray, bound: np.ndarray, fixed_values: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """Solve ``K x = rhs + B^T lambda`` with contact ``B x <= bound``; x = fixed_values
+        on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info."""
+        sys, s = self._system(op)
+        b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
+        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd)
+        return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
+
+    def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
+        """Solve ``K x = rhs`` on the free rows without contact."""
+        sys, s = self._system(op)
+        b, _ = self._reduce(sys, s, rhs, None, fixed_values)
+        return self._expand(sys.solver.solve_linear(b / s), fixed_values)
+
+    def _reduce(self, sys: _System, s: float, rhs, bound, fixed_values):
+        if not self.has_fixed:
+            return rhs, bound
+        xD = np.zeros(self.fixed.size) if fixed_values is None else fixed_values
+        b = rhs[self.free] - s * sys.lift(xD)
+        if bound is not None and self.BD is not None:
+            bound = bound - self.BD @ xD
+        return b, bound
+
+    def _expand(self, x: np.ndarray, fixed_values) -> np.ndarray:
+        if not self.has_fixed:
+            return x
+        out = np.empty(self.M.shape[0])
+        out[self.free] = x
+        out[self.fixed] = 0.0 if fixed_values is None else fixed_values
+        return out
+
+    # -- bookkeeping ---------------------------------------------------------------
+    @property
+    def solvers(self) -> list[ContactSolver]:
+        return [s.solver for s in self._systems]
+
+    def counters(self) -> dict[str, int]:
+        """Sum of the solvers' counters (factorizations, linear_solves, ...)."""
+        out: dict[str, int] = {}
+        for solver in self.solvers:
+            for k, v in solver.counters.items():
+                out[k] = out.get(k, 0) + int(v)
+        return out
+

@@ -1,0 +1,151 @@
+"""Observers of the time loop: called at every level, closed on every exit.
+
+The loop in :func:`~signorini.dynamics.simulate.simulate` calls, for every observer,
+``start(run)`` once with the initial state (level 0), ``record(run, n, state)`` after
+every accepted step n, and ``close(run, status, n_last)`` exactly once on any exit
+(finished, interrupted, failed), so files are completed and memory released.
+
+Built in: :class:`HistoryRecorder` (gaps, multipliers and solver data per level),
+:class:`EnergyRecorder` (the scheme's energy and its identity; costs a few products per
+step, switch it off with ``simulate(..., energy=False)``), :class:`SnapshotRecorder`
+(full fields in memory every k steps, for studies) and :class:`ProgressCallback`.
+The XDMF field writer that streams to disk is :class:`signorini.io.output.FieldWriter`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .context import Context
+from .history import empty_series
+from .schemes import Scheme, State
+
+
+@dataclass
+class Run:
+    """What observers can see: the context, the scheme, the time grid, the level-0 state."""
+
+    ctx: Context
+    scheme: Scheme
+    n_steps: int
+    dt: float
+    initial: State
+    problem: Any = None
+
+
+class Observer:
+    """Base class: override any of ``start``, ``record``, ``close``."""
+
+    def start(self, run: Run) -> None:
+        pass
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        pass
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        pass
+
+
+class HistoryRecorder(Observer):
+    """Per-level gaps, multipliers, active set size, iterations, fallbacks, residuals."""
+
+    def start(self, run: Run) -> None:
+        nc = run.ctx.disc.contact.size
+        self.series = empty_series(run.n_steps + 1, nc)
+        for k in ("kinetic_energy", "elastic_energy"):
+            del self.series[k]
+        self._put(run, 0, run.initial)
+
+    def _put(self, run: Run, n: int, s: State) -> None:
+        S = self.series
+        S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
+        S["lam"][n] = s.lam
+        S["active"][n] = int(np.count_nonzero(s.lam))
+        if s.info is not None:
+            S["iterations"][n] = s.info.iterations
+            S["fallbacks"][n] = s.info.fallback
+            S["residual"][n] = s.info.residual
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        self._put(run, n, state)
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
+
+
+class EnergyRecorder(Observer):
+    """The scheme's discrete energy per level and the three parts of its identity."""
+
+    KEYS = ("kinetic_energy", "elastic_energy", "predicted_increment", "external", "contact", "numerical")
+
+    def start(self, run: Run) -> None:
+        n = run.n_steps + 1
+        self.series = {k: np.full(n, np.nan) for k in self.KEYS}
+        for k in ("external", "contact", "numerical"):
+            self.series[k][0] = 0.0
+        self.series["kinetic_energy"][0], self.series["elastic_energy"][0] = run.scheme.energy(run.ctx, run.initial)
+        self._prev = run.initial
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        S = self.series
+        S["kinetic_energy"][n], S["elastic_energy"][n] = run.scheme.energy(run.ctx, state)
+        parts = run.scheme.energy_increment(run.ctx, self._prev, state)
+        if parts is not None:
+            S["predicted_increment"][n] = parts.total
+            S["external"][n] = S["external"][n - 1] + parts.external
+            S["contact"][n] = S["contact"][n - 1] + parts.contact
+            S["numerical"][n] = S["numerical"][n - 1] + parts.numerical
+        else:
+            for k in ("external", "contact", "numerical"):
+                S[k][n] = S[k][n - 1]
+        self._prev.cache.clear()  # release the old level's products
+        self._prev = state
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
+
+
+class SnapshotRecorder(Observer):
+    """Full displacement and velocity fields in memory every ``every`` steps and at the
+    last level (for convergence studies; use the XDMF writer for large runs)."""
+
+    def __init__(self, every: int):
+        self.every = every
+        self.t: list[float] = []
+        self.u: list[np.ndarray] = []
+        self.v: list[np.ndarray] = []
+        self._last = -1
+
+    def _take(self, n: int, s: State) -> None:
+        self.t.append(s.t)
+        self.u.append(s.U.copy())
+        self.v.append(s.V.copy())
+        self._last = n
+
+    def start(self, run: Run) -> None:
+        self._take(0, run.initial)
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        if n % self.every == 0:
+            self._take(n, state)
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        if self._last != n_last:
+            self._take(n_last, state)
+
+    def snapshots(self) -> dict[str, np.ndarray]:
+        return {"t": np.array(self.t), "u": np.array(self.u), "v": np.array(self.v)}
+
+
+class ProgressCallback(Observer):
+    """Calls ``callback(step, n_steps)`` after every step."""
+
+    def __init__(self, callback: Callable[[int, int], None]):
+        self.callback = callback
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        self.callback(n, run.n_steps)

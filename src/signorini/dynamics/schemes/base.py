@@ -1,0 +1,192 @@
+"""The time-scheme contract (in the spirit of ``scipy.integrate.OdeSolver``).
+
+A scheme integrates ``M U'' + S U = F(t) + B^T lambda`` with contact, one time level
+at a time.  :func:`~signorini.dynamics.simulate.simulate` owns the loop; a scheme
+provides, as a subclass of :class:`Scheme`:
+
+1. ``name``, ``description``, ``parameters`` (a tuple of
+   :class:`~signorini.registry.Parameter`, validated when the scheme is built from an
+   options dict) and ``energy_definition`` (a formula, stated in ``summary.json``).
+2. ``operator(dt)``: the linear operator ``K = c_M M + c_S S`` it solves with
+   (:class:`~signorini.dynamics.context.Operator`), or None for an explicit scheme.
+   The run factorizes it once; proportional operators share one factorization.
+3. ``starter`` (optional): the registry name of a one-step scheme that makes the
+   first step of a two-step scheme, and ``start(ctx, first, second)`` which turns the
+   starter's state into this scheme's state.  The starter reuses the run's
+   factorization when its operator is proportional, else it is factorized once more
+   (``counters['factorizations']`` says which happened).
+4. ``step(ctx, state) -> State``: from the state at t_n and the
+   :class:`~signorini.dynamics.context.Context` (M, S, B, ``load(t)``,
+   ``dirichlet(t)``, ``gaps(t)``, ``solve(op, rhs, bound, fixed_values)``) to the state
+   at t_{n+1} with the contact forces ``lam`` and the solver's ``info``.  Vectors are
+   full-space (all dofs, prescribed values on the Dirichlet dofs).
+5. ``energy(ctx, state) -> (kinetic, potential)``: the scheme's discrete energy, and
+   ``energy_increment(ctx, old, new) -> EnergyParts | None``: the right-hand side of
+   its exact energy identity for the step old -> new, split into the work of
+   external loads and prescribed motion, the contact term and the scheme's numerical
+   dissipation.  None when the scheme has no identity for that step.
+
+A scheme written outside the package only needs these methods; register it with
+``SCHEMES.register(name, cls, cls.description, aliases, cls.parameters)`` or pass the
+class itself to ``simulate``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from ...contact.solver import StepInfo
+from ...registry import Entry, Parameter
+
+if TYPE_CHECKING:
+    from ..context import Context, Operator
+
+
+@dataclass
+class State:
+    """The discrete state at one time level (full-space vectors).
+
+    ``U``, ``V``, ``A`` : (n,) displacement, velocity, acceleration (A may be zero for
+    schemes that do not use it; on massless dofs V = (U^{n+1} - U^n)/dt and A = 0).
+    ``lam`` : (nc,) contact forces of the step that produced this level (<= 0).
+    ``extra`` : scheme-specific data (e.g. the previous level of a two-step scheme).
+    ``cache`` : products computed once per level (``M V``, ``S U``, ...).
+    """
+
+    t: float
+    U: np.ndarray
+    V: np.ndarray
+    A: np.ndarray
+    lam: np.ndarray
+    info: StepInfo | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+    cache: dict[str, Any] = field(default_factory=dict)
+
+    def product(self, key: str, compute) -> Any:
+        """``compute()`` once per state, memoized under ``key``."""
+        if key not in self.cache:
+            self.cache[key] = compute()
+        return self.cache[key]
+
+    def is_finite(self) -> bool:
+        """Whether every value of U, V and lambda is finite (a sum propagates nan/inf)."""
+        return bool(np.isfinite(self.U.sum() + self.V.sum() + self.lam.sum()))
+
+
+@dataclass
+class EnergyParts:
+    """Right-hand side of a scheme's energy identity for one step [energy]."""
+
+    external: float = 0.0  # work of time-dependent loads and of prescribed motion
+    contact: float = 0.0  # contact term
+    numerical: float = 0.0  # the scheme's own dissipation / start-up relaxation
+
+    @property
+    def total(self) -> float:
+        return self.external + self.contact + self.numerical
+
+
+class Scheme:
+    """Base class of the time schemes; see the module docstring for the contract."""
+
+    name: ClassVar[str] = "scheme"
+    description: ClassVar[str] = ""
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    starter: ClassVar[str | None] = None
+    energy_definition: ClassVar[str] = ""
+
+    def __init__(self, **options: Any):
+        entry = Entry(self.name, type(self), self.description, (), self.parameters)
+        self.options = entry.options(options, where=f"scheme {self.name}")
+        for k, v in self.options.items():
+            setattr(self, k, v)
+        self.check()
+
+    def check(self) -> None:
+        """Cross-parameter validation (raise InputError)."""
+
+    @property
+    def label(self) -> str:
+        """Name with its options, e.g. ``newmark(beta=0.3, gamma=0.6)``."""
+        if not self.options:
+            return self.name
+        return f"{self.name}({', '.join(f'{k}={v:g}' if isinstance(v, float) else f'{k}={v}' for k, v in self.options.items())})"
+
+    # -- the contract ---------------------------------------------------------------
+    def operator(self, dt: float) -> Operator | None:
+        raise NotImplementedError
+
+    def start(self, ctx: Context, first: State, second: State) -> State:
+        """Turn the starter's state at t_1 into this scheme's state (two-step schemes)."""
+        return second
+
+    def step(self, ctx: Context, state: State) -> State:
+        raise NotImplementedError
+
+    def energy(self, ctx: Context, state: State) -> tuple[float, float]:
+        """(kinetic, potential): 1/2 V.MV and 1/2 U.SU - U.F(t) by default."""
+        return mechanical_energy(ctx, state)
+
+    def energy_increment(self, ctx: Context, old: State, new: State) -> EnergyParts | None:
+        return None
+
+
+# ----------------------------------------------------------------------------- helpers
+def products(ctx: Context, s: State) -> tuple[np.ndarray, np.ndarray]:
+    """(M V, S U) of a state, computed once."""
+    return s.product("MV", lambda: ctx.M @ s.V), s.product("SU", lambda: ctx.S @ s.U)
+
+
+def mechanical_energy(ctx: Context, s: State) -> tuple[float, float]:
+    """(1/2 V.MV, 1/2 U.SU - U.F(t)) [energy]."""
+    MV, SU = products(ctx, s)
+    F = ctx.load(s.t)
+    return 0.5 * float(s.V @ MV), 0.5 * float(s.U @ SU) - float(s.U @ F)
+
+
+def residual(ctx: Context, s: State) -> np.ndarray | None:
+    """R = M A + S U - F - B^T lambda of a level, where it can be non-zero, else None.
+
+    On the Dirichlet dofs R is the reaction (computed when the prescribed values vary,
+    for the work of the prescribed motion); on the free dofs it vanishes except at
+    t = 0 when massless dofs start out of equilibrium (``extra['R0']``).
+    """
+
+    def compute():
+        R = None
+        if "R0" in s.extra:
+            R = s.extra["R0"].copy()
+        if ctx.has_fixed and ctx.disc.dirichlet_varies:
+            R = np.zeros(s.U.size) if R is None else R
+            D = ctx.fixed
+            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D]
+            if ctx.BD is not None:
+                RD = RD - ctx.B[:, D].T @ s.lam
+            R[D] = RD
+        return R
+
+    return s.product("R", compute)
+
+
+def load_work(ctx: Context, old: State, new: State, w_new: float) -> float:
+    """dU.F_w - Delta(U.F) with F_w = w F^{n+1} + (1 - w) F^n: zero for constant loads."""
+    F0, F1 = ctx.load(old.t), ctx.load(new.t)
+    if F1 is F0:
+        return 0.0
+    dU = new.U - old.U
+    return float(dU @ (w_new * F1 + (1 - w_new) * F0) - (new.U @ F1 - old.U @ F0))
+
+
+def reaction_work(ctx: Context, old: State, new: State, w_new: float) -> tuple[float, float]:
+    """dU . (w R^{n+1} + (1 - w) R^n), split into (Dirichlet dofs, free dofs)."""
+    R0, R1 = residual(ctx, old), residual(ctx, new)
+    if R0 is None and R1 is None:
+        return 0.0, 0.0
+    n = new.U.size
+    Rw = w_new * (R1 if R1 is not None else np.zeros(n)) + (1 - w_new) * (R0 if R0 is not None else np.zeros(n))
+    dU = new.U - old.U
+    fixed = float(dU[ctx.fixed] @ Rw[ctx.fixed]) if ctx.has_fixed else 0.0
+    return fixed, float(dU @ Rw) - fixed

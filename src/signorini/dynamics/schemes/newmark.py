@@ -1,0 +1,91 @@
+"""Newmark(beta, gamma) with contact enforced exactly at t_{n+1}; Crank-Nicolson.
+
+    U^{n+1} = U^n + dt V^n + dt^2 ((1/2 - beta) A^n + beta A^{n+1})
+    V^{n+1} = V^n + dt ((1 - gamma) A^n + gamma A^{n+1})
+    M A^{n+1} + S U^{n+1} = F^{n+1} + B^T lambda^{n+1},   0 >= B U^{n+1} - g ⊥ lambda <= 0
+
+i.e. ``(M/(beta dt^2) + S) U^{n+1} = M p + F^{n+1} + B^T lambda`` with
+``p = (U^n + dt V^n)/(beta dt^2) + (1/(2 beta) - 1) A^n``.  The dynamics only sees
+``M p``, so singular (redistributed) mass matrices are handled exactly.
+``crank-nicolson`` = Newmark(1/4, 1/2), the seed's eq. (8)-(9).
+
+Energy identity (exact, derived in docs/schemes.md), with R = M A + S U - F - B^T lambda
+(the reactions on Dirichlet dofs; zero on free dofs except at t = 0 with massless dofs
+out of equilibrium) and <x> = (x^n + x^{n+1})/2:
+
+    Delta [1/2 V.MV + 1/2 U.SU - U.F + 1/2 dt^2 (beta - gamma/2) A.MA]
+        = dU.<F> - Delta(U.F)          (work of time-dependent loads)
+        + dU_D.<R_D>                   (work of the prescribed motion)
+        + 1/2 (B dU).(lambda^n + lambda^{n+1})        (contact)
+        + dt (gamma - 1/2) <V>.M dA + dU_f.<R_f>      (numerical)
+
+For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
+"""
+
+from __future__ import annotations
+
+from ...registry import Parameter
+from ..context import Operator
+from .base import EnergyParts, Scheme, State, load_work, mechanical_energy, reaction_work
+
+
+class Newmark(Scheme):
+    name = "newmark"
+    description = "Newmark(beta, gamma), implicit, exact contact at t_{n+1}"
+    parameters = (
+        Parameter("beta", 0.25, "Newmark beta", float, 0.0, 0.5, open_low=True),
+        Parameter("gamma", 0.5, "Newmark gamma (>= 1/2: no negative damping)", float, 0.5, 1.0),
+    )
+    energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (beta - gamma/2) A.MA"
+
+    def operator(self, dt: float) -> Operator:
+        return Operator(1.0 / (self.beta * dt * dt), 1.0)
+
+    def step(self, ctx, s: State) -> State:
+        dt, b, g = ctx.dt, self.beta, self.gamma
+        t = s.t + dt
+        p = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
+        rhs = ctx.M @ p + ctx.load(t)
+        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
+        A = (U - s.U - dt * s.V) / (b * dt * dt) - (0.5 / b - 1.0) * s.A
+        V = s.V + dt * ((1 - g) * s.A + g * A)
+        ml = ctx.massless
+        if ml.size:
+            V[ml] = (U[ml] - s.U[ml]) / dt
+            A[ml] = 0.0
+        return State(t, U, V, A, lam, info)
+
+    def _extra(self, ctx) -> float:
+        return 0.5 * ctx.dt**2 * (self.beta - 0.5 * self.gamma)
+
+    def energy(self, ctx, s: State) -> tuple[float, float]:
+        kin, pot = mechanical_energy(ctx, s)
+        c = self._extra(ctx)
+        if c:
+            kin += c * float(s.A @ s.product("MA", lambda: ctx.M @ s.A))
+        return kin, pot
+
+    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
+        dU = new.U - old.U
+        dR_fixed, dR_free = reaction_work(ctx, old, new, 0.5)
+        parts = EnergyParts(
+            external=load_work(ctx, old, new, 0.5) + dR_fixed,
+            contact=0.5 * float((ctx.B @ dU) @ (old.lam + new.lam)),
+            numerical=dR_free,
+        )
+        if self.gamma != 0.5:
+            MA0 = old.product("MA", lambda: ctx.M @ old.A)
+            MA1 = new.product("MA", lambda: ctx.M @ new.A)
+            parts.numerical += ctx.dt * (self.gamma - 0.5) * float(0.5 * (old.V + new.V) @ (MA1 - MA0))
+        return parts
+
+
+class CrankNicolson(Newmark):
+    name = "crank-nicolson"
+    description = "Crank-Nicolson = Newmark(1/4, 1/2), the seed's scheme (8)-(9)"
+    parameters = ()
+    energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
+    beta, gamma = 0.25, 0.5
+
+

@@ -1,0 +1,72 @@
+"""The theta-method (GetFEM's ``add_theta_method_for_second_order``); backward Euler.
+
+    U^{n+1} = U^n + dt (theta V^{n+1} + (1 - theta) V^n)
+    V^{n+1} = V^n + dt (theta A^{n+1} + (1 - theta) A^n)
+    M A^{n+1} + S U^{n+1} = F^{n+1} + B^T lambda^{n+1}
+
+i.e. ``(M/(theta dt)^2 + S) U^{n+1} = M p + F^{n+1} + B^T lambda`` with
+``p = (U^n + dt V^n)/(theta dt)^2 + ((1 - theta)/theta) A^n``.
+``backward-euler`` = theta 1 (the seed's eq. (10)-(11)); theta = 1/2 is Crank-Nicolson.
+
+Energy identity (exact; docs/schemes.md), with x_theta = theta x^{n+1} + (1-theta) x^n:
+
+    Delta [1/2 V.MV + 1/2 U.SU - U.F] = dU.F_theta - Delta(U.F) + dU_D.R_D,theta
+        + (B dU).lambda_theta
+        - (theta - 1/2) (|dV|_M^2 + |dU|_S^2) + dU_f.R_f,theta
+
+so the scheme dissipates for theta > 1/2 (BE: -1/2|dV|_M^2 - 1/2|dU|_S^2 + dU.B^T lambda^{n+1},
+the seed's identity with a plus sign on the contact term).
+"""
+
+from __future__ import annotations
+
+from ...registry import Parameter
+from ..context import Operator
+from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
+
+
+class Theta(Scheme):
+    name = "theta"
+    description = "theta-method on (U, V, A), exact contact at t_{n+1}; dissipative for theta > 1/2"
+    parameters = (Parameter("theta", 1.0, "implicitness", float, 0.5, 1.0),)
+    energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
+
+    def operator(self, dt: float) -> Operator:
+        return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
+
+    def step(self, ctx, s: State) -> State:
+        dt, th = ctx.dt, self.theta
+        t = s.t + dt
+        p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
+        rhs = ctx.M @ p + ctx.load(t)
+        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
+        V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
+        A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
+        ml = ctx.massless
+        if ml.size:
+            V[ml] = (U[ml] - s.U[ml]) / dt
+            A[ml] = 0.0
+        return State(t, U, V, A, lam, info)
+
+    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
+        th = self.theta
+        dU, dV = new.U - old.U, new.V - old.V
+        MV0, SU0 = products(ctx, old)
+        MV1, SU1 = products(ctx, new)
+        dR_fixed, dR_free = reaction_work(ctx, old, new, th)
+        numerical = dR_free
+        if th != 0.5:
+            numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
+        return EnergyParts(
+            external=load_work(ctx, old, new, th) + dR_fixed,
+            contact=float((ctx.B @ dU) @ (th * new.lam + (1 - th) * old.lam)),
+            numerical=numerical,
+        )
+
+
+class BackwardEuler(Theta):
+    name = "backward-euler"
+    description = "backward Euler = theta 1, the seed's scheme (10)-(11); unconditionally dissipative"
+    parameters = ()
+    theta = 1.0
