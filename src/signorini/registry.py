@@ -21,8 +21,15 @@ from typing import Any
 
 from .errors import InputError
 
-
 _MISSING = object()
+
+
+class Vector(list):
+    """Parameter kind: a constant vector (one number per space dimension)."""
+
+
+class Motion(list):
+    """Parameter kind: a vector that may be a function of t (a prescribed motion)."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +58,7 @@ class Parameter:
         hi = "" if self.high is None else f" {'<' if self.open_high else '<='} {self.high}"
         if lo or hi:
             return f"{lo}{self.name}{hi}"
-        return "vector" if self.kind is list else self.kind.__name__
+        return {Vector: "vector", Motion: "vector or vector(t)"}.get(self.kind, self.kind.__name__)
 
     def convert(self, value: Any, where: str) -> Any:
         """Return ``value`` converted to ``kind`` and checked, or raise naming ``where``."""

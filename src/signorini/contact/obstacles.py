@@ -30,7 +30,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..registry import Parameter, Registry
+from ..registry import Motion, Parameter, Registry, Vector
 
 Position = Sequence[float] | np.ndarray | Callable[[float], Sequence[float]]
 
@@ -139,8 +139,8 @@ OBSTACLES.register(
     PlaneObstacle,
     "half-space {(x - point) . normal < 0}; normal points from the obstacle towards the body",
     parameters=(
-        Parameter("point", None, "a point of the plane; may depend on t (moving plane)", list),
-        Parameter("normal", None, "normal pointing out of the obstacle, towards the body", list),
+        Parameter("point", None, "a point of the plane; may depend on t (moving plane)", Motion),
+        Parameter("normal", None, "normal pointing out of the obstacle, towards the body", Vector),
     ),
 )
 OBSTACLES.register(
@@ -148,7 +148,7 @@ OBSTACLES.register(
     SphereObstacle,
     "rigid ball (disc in 2D) the body stays outside of",
     parameters=(
-        Parameter("center", None, "centre; may depend on t (moving ball)", list),
+        Parameter("center", None, "centre; may depend on t (moving ball)", Motion),
         Parameter("radius", None, "radius [length]", float, 0.0, open_low=True),
     ),
 )

@@ -167,4 +167,3 @@ class Context:
             for k, v in solver.counters.items():
                 out[k] = out.get(k, 0) + int(v)
         return out
-

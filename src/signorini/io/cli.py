@@ -1,26 +1,39 @@
 """The ``signorini`` command line.
 
-Exit codes: 0 success, 1 unexpected failure, 2 invalid input (nothing written).
+Exit codes: 0 success; 2 invalid input (nothing written); 3 numerical failure (a
+non-finite state or a solver that did not converge: the levels computed are written,
+with ``status = "failed"`` in summary.json); 130 interrupted by Ctrl-C or SIGTERM
+(the levels computed are written, ``status = "interrupted"``); 1 unexpected error.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import shutil
+import signal
 import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from .. import __version__
 from ..errors import InputError
+from ..registry import parse_assignments
+
+EXIT_CODES = {"finished": 0, "failed": 3, "interrupted": 130}
 
 EXAMPLES_RUN = """examples:
   signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
   signorini run bar2d --scheme be --mass standard --n 4 --T 1 --out out/bar2d-be
+  signorini run bar2d --scheme newmark --scheme-option beta=0.3 --scheme-option gamma=0.6 --out out/nm
   signorini run bar1d-impact --set gap=0.3 --set velocity=1 --n 80 --out out/impact
+  signorini run bar3d --n 8 --solver-option backend=cg --solver-option preconditioner=amg --out out/b3
   signorini run examples/bar2d.toml --out out/case
+  signorini run bar2d --scheme mypackage.schemes:MyScheme --out out/mine   # a scheme by import path
 """
 
 
@@ -49,16 +62,6 @@ class Progress:
         sys.stderr.flush()
 
 
-def parse_sets(items: list[str]) -> dict[str, str]:
-    out = {}
-    for item in items or []:
-        if "=" not in item:
-            raise InputError(f"--set expects NAME=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out
-
-
 def prepare_output(out: Path, overwrite: bool) -> Path:
     """Check ``out`` and return a fresh temporary directory next to it."""
     if out.exists() and not out.is_dir():
@@ -79,7 +82,7 @@ def commit_output(tmp: Path, out: Path) -> None:
 
 
 def run_into(out: Path, overwrite: bool, work: Callable[[Path], None]) -> None:
-    """Run ``work(tmpdir)`` and publish the directory only if it succeeds."""
+    """Run ``work(tmpdir)`` and publish the directory only if it returns."""
     tmp = prepare_output(out, overwrite)
     try:
         work(tmp)
@@ -92,81 +95,83 @@ def run_into(out: Path, overwrite: bool, work: Callable[[Path], None]) -> None:
 def one_screen_summary(H) -> str:
     s = H.summary()
     drift = s["energy_max_relative_drift"]
+    drift_text = f"max drift {100 * drift:.3g}% of E0" if drift is not None else "E0 = 0: no relative drift"
+    c = s["counters"]
     return (
         f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs, {s['contact_nodes']} contact nodes\n"
+        f"  status {s['status']}{': ' + s['message'] if s['message'] else ''}\n"
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
         f"fallbacks {s['fallbacks']}\n"
-        f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} "
-        f"(max drift {100 * drift:.3g}% of E0)\n"
+        f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} ({drift_text})\n"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
-        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']})"
+        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
+        f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves"
     )
 
 
-# ----------------------------------------------------------------------------- commands
-def cmd_run(args: argparse.Namespace) -> int:
-    from ..dynamics.simulate import simulate
+def load_scheme(name: str):
+    """A registered scheme name, or ``module:Class`` / ``module.Class`` (import path)."""
+    from ..dynamics.schemes import SCHEMES, Scheme
+
+    if name in SCHEMES or (":" not in name and "." not in name):
+        return SCHEMES.resolve(name)
+    module, _, cls = name.replace(":", ".").rpartition(".")
+    try:
+        obj = getattr(importlib.import_module(module), cls)
+    except (ImportError, AttributeError) as exc:
+        raise InputError(
+            f"--scheme {name!r}: cannot import it ({exc}); allowed: {', '.join(SCHEMES.names())}"
+        ) from None
+    if not (isinstance(obj, type) and issubclass(obj, Scheme)):
+        raise InputError(f"--scheme {name!r} is not a subclass of signorini.dynamics.schemes.Scheme")
+    return obj
+
+
+# ----------------------------------------------------------------------------- run
+@dataclass
+class RunSpec:
+    """Everything ``signorini run`` needs, from a benchmark or a case file."""
+
+    problem: Any
+    scheme: Any
+    dt: float
+    T: float
+    mass: str
+    out: Path
+    label: str
+    scheme_options: dict = field(default_factory=dict)
+    solver_options: dict = field(default_factory=dict)
+    snapshot_every: int = 0
+    meta: dict = field(default_factory=dict)
+    case_file: Path | None = None
+
+
+def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:
+    sch = {**scheme_options, **parse_assignments(args.scheme_option, "--scheme-option")}
+    sol = {**solver_options, **parse_assignments(args.solver_option, "--solver-option")}
+    if args.backend is not None:
+        sol["backend"] = args.backend
+    return sch, sol
+
+
+def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     from ..studies.benchmarks import get_benchmark
 
-    target = args.target
-    if target.endswith(".toml"):
-        return run_case_file(args)
-    bench = get_benchmark(target)
-    overrides = parse_sets(args.set)
+    bench = get_benchmark(args.target)
+    overrides = parse_assignments(args.set, "--set")
     n = args.n if args.n is not None else (40 if bench.dim == 1 else 4)
     problem = bench.problem(n, overrides)
     dt = args.dt if args.dt is not None else bench.h(n, overrides) / 2
     T = args.T if args.T is not None else (6.0 if bench.dim == 1 else 1.0)
-    out = Path(args.out or "out/run")
-    holder = {}
-
-    def work(tmp: Path) -> None:
-        if (args.scheme or "").lower() in ("ps", "paoli-schatzman"):
-            from ..competitors import paoli_schatzman
-
-            if args.snapshot_every:
-                raise InputError("--snapshot-every is not available with the paoli-schatzman scheme")
-            H = paoli_schatzman(problem, dt, T, mass=args.mass or "standard", backend=args.backend)
-            H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
-            save_run(tmp, H, problem, 0, holder)
-            return
-        H = simulate(
-            problem,
-            args.scheme or "cn",
-            dt,
-            T,
-            mass=args.mass or "seed",
-            snapshot_every=args.snapshot_every,
-            backend=args.backend,
-            progress=Progress(args.quiet, target),
-        )
-        H.meta.update({"benchmark": target, "n": n, "parameters": bench.params(overrides)})
-        save_run(tmp, H, problem, args.snapshot_every, holder)
-
-    run_into(out, args.overwrite, work)
-    return report_run(args, holder, out)
+    sch, sol = _options(args, {}, {})
+    meta = {"benchmark": args.target, "n": n, "parameters": bench.params(overrides)}
+    scheme = load_scheme(args.scheme or "cn")
+    return RunSpec(problem, scheme, dt, T, args.mass or "seed", Path(args.out or "out/run"), args.target,
+                   sch, sol, args.snapshot_every or 0, meta)  # fmt: skip
 
 
-def save_run(tmp: Path, H, problem, snapshot_every: int, holder: dict) -> None:
-    """Write a run's files (and its XDMF fields when snapshots were taken)."""
-    H.save(tmp)
-    if snapshot_every:
-        from ..io.output import write_fields
-
-        write_fields(tmp / "fields.xdmf", problem, H)
-    holder["H"] = H
-
-
-def report_run(args: argparse.Namespace, holder: dict, out: Path) -> int:
-    if not args.quiet:
-        print(one_screen_summary(holder["H"]))
-        print(f"  results in {out}")
-    return 0
-
-
-def run_case_file(args: argparse.Namespace) -> int:
-    from ..dynamics.simulate import simulate
-    from ..io.config import load_case
+def case_spec(args: argparse.Namespace) -> RunSpec:
+    from .config import load_case
 
     for flag in ("n", "dt", "T"):
         if getattr(args, flag) is not None:
@@ -175,26 +180,52 @@ def run_case_file(args: argparse.Namespace) -> int:
         raise InputError("--set does not apply to a case file; edit the file")
     case = load_case(args.target)
     out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
-    every = args.snapshot_every or case.snapshot_every
-    holder = {}
+    scheme = load_scheme(args.scheme) if args.scheme else case.scheme
+    sch, sol = _options(args, case.scheme_options if not args.scheme else {}, case.solver_options)
+    every = args.snapshot_every if args.snapshot_every is not None else case.snapshot_every
+    return RunSpec(case.problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
+                   sch, sol, every, {"case_file": str(args.target)}, Path(args.target))  # fmt: skip
+
+
+def execute(spec: RunSpec, args: argparse.Namespace) -> int:
+    """Run the simulation into a temporary directory and publish it, whatever the status."""
+    from ..dynamics.simulate import simulate
+    from .output import FieldWriter
+
+    holder: dict = {}
 
     def work(tmp: Path) -> None:
+        observers = [FieldWriter(tmp / "fields.xdmf", spec.snapshot_every)] if spec.snapshot_every else []
         H = simulate(
-            case.problem,
-            args.scheme or case.scheme,
-            case.dt,
-            case.T,
-            mass=args.mass or case.mass,
-            snapshot_every=every,
-            backend=args.backend,
-            progress=Progress(args.quiet, Path(args.target).name),
+            spec.problem,
+            spec.scheme,
+            spec.dt,
+            spec.T,
+            mass=spec.mass,
+            progress=Progress(args.quiet, spec.label),
+            scheme_options=spec.scheme_options,
+            solver_options=spec.solver_options,
+            observers=observers,
         )
-        H.meta.update({"case_file": str(args.target)})
-        shutil.copy(args.target, tmp / "case.toml")
-        save_run(tmp, H, case.problem, every, holder)
+        H.meta.update(spec.meta)
+        if spec.case_file is not None:
+            shutil.copy(spec.case_file, tmp / "case.toml")
+        H.save(tmp)
+        holder["H"] = H
 
-    run_into(out, args.overwrite, work)
-    return report_run(args, holder, out)
+    run_into(spec.out, args.overwrite, work)
+    H = holder["H"]
+    if not args.quiet:
+        print(one_screen_summary(H))
+        print(f"  results in {spec.out}")
+    if not H.success:
+        print(f"signorini: {H.status}: {H.message} (partial results in {spec.out})", file=sys.stderr)
+    return EXIT_CODES[H.status]
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    spec = case_spec(args) if args.target.endswith(".toml") else benchmark_spec(args)
+    return execute(spec, args)
 
 
 def cmd_study(args: argparse.Namespace) -> int:
@@ -206,7 +237,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from ..studies.reference_study import study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
-    overrides = parse_sets(args.set)
+    overrides = parse_assignments(args.set, "--set")
     bench.params(overrides)
     if args.levels < 2:
         raise InputError(f"--levels must be >= 2 to measure a rate, got {args.levels}")
@@ -263,6 +294,14 @@ def add_output_arguments(p: argparse.ArgumentParser, default: str | None, out_he
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The parser; every list of names in the help comes from a registry."""
+    from ..dynamics.mass import MASS_VARIANTS
+    from ..dynamics.schemes import SCHEMES
+    from ..linalg import BACKENDS, SOLVER_OPTIONS
+    from ..studies.benchmarks import BENCHMARKS
+
+    benchmarks = ", ".join(BENCHMARKS.names())
+    solver_opts = ", ".join([p.name for p in SOLVER_OPTIONS] + sorted({p.name for e in BACKENDS for p in e.parameters}))
     p = argparse.ArgumentParser(
         prog="signorini",
         description="Dynamic Signorini contact of elastic bodies with the mass redistribution method.",
@@ -272,23 +311,30 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser(
         "run",
-        help="run a named benchmark (bar1d, bar1d-impact, bar2d, bar3d) or a case file",
-        description="Run one simulation and write history.csv, contact.npz and summary.json into --out.",
+        help=f"run a named benchmark ({benchmarks}) or a case file",
+        description="Run one simulation and write history.csv, contact.npz and summary.json (and fields.xdmf "
+        "with --snapshot-every) into --out.  Exit codes: 0 finished, 2 invalid input, 3 numerical failure, "
+        "130 interrupted (partial results are written with their status).",
         epilog=EXAMPLES_RUN,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    r.add_argument("target", help="benchmark name (bar1d, bar1d-impact, bar2d, bar3d) or a CASE.toml file")
+    r.add_argument("target", help=f"benchmark name ({benchmarks}) or a CASE.toml file")
     r.add_argument(
         "--scheme",
         default=None,
-        help="cn|crank-nicolson, be|backward-euler, or ps|paoli-schatzman (benchmarks only) "
+        help=f"time scheme: {SCHEMES.help_text()}; or module:Class of a Scheme subclass "
         "(default cn, or the case file's)",
+    )
+    r.add_argument(
+        "--scheme-option",
+        action="append",
+        metavar="NAME=VALUE",
+        help="a parameter of the scheme (repeatable), e.g. beta=0.3",
     )
     r.add_argument(
         "--mass",
         default=None,
-        help="standard|lumped|seed|seed-normal|moment-preserving|neighbour|mass-free-surface "
-        "(default seed, or the case file's)",
+        help=f"mass variant: {', '.join(MASS_VARIANTS.names())} (default seed, or the case file's)",
     )
     r.add_argument(
         "--n",
@@ -301,10 +347,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     r.add_argument(
         "--backend",
-        default="auto",
-        help="linear solver: auto (default: direct factor if it fits in 40%% of RAM, else CG), superlu, pardiso, cg",
+        default=None,
+        help=f"linear solver: {'; '.join(f'{e.name}: {e.description}' for e in BACKENDS)} (default auto)",
     )
-    r.add_argument("--snapshot-every", type=int, default=0, help="write XDMF fields every k steps (0: none)")
+    r.add_argument(
+        "--solver-option",
+        action="append",
+        metavar="NAME=VALUE",
+        help=f"a solver option (repeatable): {solver_opts}",
+    )
+    r.add_argument(
+        "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps and at the end (0: none)"
+    )
     add_output_arguments(
         r, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
     )
@@ -319,8 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
         "  signorini study bar2d --scheme be --mass standard --n0 1 --levels 3 --T 1 --out out/s2",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    st.add_argument("benchmark", help="bar1d, bar1d-impact, bar2d or bar3d")
-    st.add_argument("--scheme", default="cn", help="cn|crank-nicolson or be|backward-euler (default cn)")
+    st.add_argument("benchmark", help=benchmarks)
+    st.add_argument("--scheme", default="cn", help=f"time scheme: {', '.join(SCHEMES.names())} (default cn)")
     st.add_argument("--mass", default="seed", help="mass variant, as for run (default seed)")
     st.add_argument("--n0", type=int, default=1, help="coarsest level (default 1)")
     st.add_argument("--levels", type=int, default=3, help="number of levels (default 3)")
@@ -348,20 +402,31 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _sigterm(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):
         parser.print_help()
         return 2
+    old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" else None
     try:
         return args.func(args)
     except InputError as exc:
         print(f"signorini: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("signorini: interrupted before the time loop; nothing written", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
 
 
 if __name__ == "__main__":

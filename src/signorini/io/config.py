@@ -17,33 +17,37 @@ errors that name the key and the allowed values)::
 
     [[dirichlet]]               # any number of blocks
     tag = "ymax"
-    value = [0.0, 0.2]          # one number per listed component
+    value = [0.0, "0.2 - 0.1 * t"]   # one number or expression of x, y, z, t per component
     components = [0, 1]         # optional, default all
 
-    [[traction]]                # optional, constant traction vectors
+    [[traction]]                # optional; numbers or expressions of x, y, z, t
     tag = "xmax"
-    value = [0.0, -1.0]
+    value = [0.0, "-1.0 * min(t, 1)"]
 
     [contact]
     tag = "ymin"
-    obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
+    obstacle = { type = "plane", point = [0.0, "0.1 * t"], normal = [0.0, 1.0] }
     # or { type = "sphere", center = [...], radius = R }: a rigid ball the body stays out of
+    # positions (point, center) may be expressions of t: a moving obstacle
 
     [initial]                   # numbers or expressions of x, y, z (numpy functions)
     displacement = [0.0, 0.2]
     velocity = [0.0, "-0.5"]
 
-    [loads]                     # optional
-    body_force = [0.0, 0.0]
+    [loads]                     # optional; numbers or expressions of x, y, z, t
+    body_force = [0.0, "-9.81 * min(t / 0.1, 1)"]
 
     [time]
-    scheme = "crank-nicolson"   # crank-nicolson | cn | backward-euler | be
+    scheme = "crank-nicolson"   # any name of the scheme registry (docs/registries.md)
     dt = 0.0125
     T = 1.0
+    # beta = 0.3                # the scheme's own options (newmark: beta, gamma; ...)
 
     [solver]
-    mass = "seed"               # standard | lumped | seed | seed-normal | moment-preserving |
-                                # neighbour | mass-free-surface
+    mass = "seed"               # any name of the mass registry
+    # backend = "auto"          # and the solver options: memory_budget, lcp_max_iter,
+    # preconditioner = "jacobi" # condense_budget, the backend's own (cg: preconditioner,
+                                # rtol, max_iter, max_newton)
 
     [output]
     directory = "out/case"
@@ -52,23 +56,24 @@ errors that name the key and the allowed values)::
 
 from __future__ import annotations
 
-import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..contact.obstacles import PlaneObstacle, SphereObstacle
+from ..contact.obstacles import OBSTACLES, RigidObstacle
 from ..dynamics.mass import MASS_VARIANTS
 from ..dynamics.problem import Problem
-from ..dynamics.schemes import ALIASES, SCHEMES
+from ..dynamics.schemes import SCHEMES
 from ..errors import InputError, check_choice, check_positive
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
+from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
+from ..registry import Motion, Vector
+from .expressions import vector_field
 
+TIME_KEYS = {"scheme", "dt", "T"}
 SECTIONS = {
     "mesh": {"generator", "cells", "size", "cell", "file"},
     "material": {"rho", "lam", "mu", "E", "nu"},
@@ -77,13 +82,11 @@ SECTIONS = {
     "contact": {"tag", "obstacle"},
     "initial": {"displacement", "velocity"},
     "loads": {"body_force"},
-    "time": {"scheme", "dt", "T"},
-    "solver": {"mass"},
+    "time": TIME_KEYS,  # + the scheme's parameters
+    "solver": {"mass"},  # + the solver options
     "output": {"directory", "snapshot_every"},
 }
 REQUIRED = ("mesh", "material", "contact", "time")
-_FUNCS = {k: getattr(np, k) for k in ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "tanh", "cosh", "sinh")}
-_FUNCS.update(pi=math.pi, e=math.e)
 
 
 @dataclass
@@ -95,6 +98,8 @@ class Case:
     mass: str
     out: Path | None
     snapshot_every: int
+    scheme_options: dict[str, Any] = field(default_factory=dict)
+    solver_options: dict[str, Any] = field(default_factory=dict)
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -117,41 +122,13 @@ def _vector(key: str, v: Any, dim: int) -> list[float]:
     return [_number(f"{key}[{i}]", x) for i, x in enumerate(v)]
 
 
-def expression(key: str, text: str, dim: int):
-    """Compile an expression of x, y, z with numpy functions; errors name ``key``."""
-    names = {"x", "y", "z"}
-    try:
-        code = compile(text, key, "eval")
-    except SyntaxError as exc:
-        raise InputError(f"'{key}': invalid expression {text!r}: {exc.msg}") from None
-    bad = [n for n in code.co_names if n not in names and n not in _FUNCS]
-    if bad:
-        allowed = ", ".join(sorted(names | set(_FUNCS)))
-        raise InputError(f"'{key}': unknown name(s) {bad} in {text!r}; allowed: {allowed}")
-
-    def f(points: np.ndarray) -> np.ndarray:
-        env = dict(_FUNCS)
-        for i, n in enumerate("xyz"):
-            env[n] = points[:, i] if i < points.shape[1] else np.zeros(points.shape[0])
-        return np.broadcast_to(np.asarray(eval(code, {"__builtins__": {}}, env), dtype=float), points.shape[:1])
-
-    return f
-
-
-def _field(key: str, v: Any, dim: int):
-    """A vector field given as numbers and/or expression strings."""
-    if not isinstance(v, list) or len(v) != dim:
-        raise InputError(f"'{key}' must be a list of {dim} numbers or expressions, got {v!r}")
-    comps = []
-    for i, c in enumerate(v):
-        if isinstance(c, str):
-            comps.append(expression(f"{key}[{i}]", c, dim))
-        else:
-            val = _number(f"{key}[{i}]", c)
-            comps.append(lambda p, val=val: np.full(p.shape[0], val))
-    if all(not isinstance(c, str) for c in v):
-        return [float(c) for c in v]
-    return lambda p: np.column_stack([c(p) for c in comps])
+def _tag(mesh: Mesh, key: str, table: dict) -> str:
+    if "tag" not in table:
+        raise InputError(f"missing key '{key}.tag'")
+    if not isinstance(table["tag"], str):
+        raise InputError(f"'{key}.tag' must be a string, got {table['tag']!r}")
+    mesh.nodes_of(table["tag"])
+    return table["tag"]
 
 
 def _mesh(m: dict, base: Path) -> Mesh:
@@ -168,10 +145,7 @@ def _mesh(m: dict, base: Path) -> Mesh:
     cells = m.get("cells")
     if not isinstance(cells, list) or len(cells) != dim or not all(isinstance(c, int) and c > 0 for c in cells):
         raise InputError(f"'mesh.cells' must be a list of {dim} positive integers, got {cells!r}")
-    size = [
-        check_positive(f"mesh.size[{i}]", _number(f"mesh.size[{i}]", s))
-        for i, s in enumerate(_vector("mesh.size", m.get("size"), dim))
-    ]
+    size = [check_positive(f"mesh.size[{i}]", s) for i, s in enumerate(_vector("mesh.size", m.get("size"), dim))]
     default_cell = {1: "line", 2: "quad", 3: "hexahedron"}[dim]
     cell = m.get("cell", default_cell)
     allowed = {1: {"line"}, 2: {"quad", "triangle"}, 3: {"hexahedron", "tetra"}}[dim]
@@ -195,74 +169,65 @@ def _material(t: dict) -> IsotropicElastic:
     raise InputError("[material] needs either lam and mu, or E (and optionally nu), plus rho")
 
 
-def load_case(path: str | Path) -> Case:
-    """Read and validate a case file; raises :class:`InputError` on any problem."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"case file {str(path)!r} does not exist")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path.name}: invalid TOML: {exc}") from None
-    for k in data:
-        if k not in SECTIONS:
-            raise InputError(f"unknown section [{k}]; allowed: {', '.join(SECTIONS)}")
-    for k in REQUIRED:
-        if k not in data:
-            raise InputError(f"missing section [{k}]")
-    mesh = _mesh(data["mesh"], path.parent)
-    dim = mesh.dim
-    material = _material(data["material"])
-
-    dirichlet = []
-    for i, d in enumerate(data.get("dirichlet", [])):
-        _keys(f"dirichlet[{i}]", d, SECTIONS["dirichlet"])
-        if "tag" not in d:
-            raise InputError(f"missing key 'dirichlet[{i}].tag'")
-        mesh.nodes_of(d["tag"])
+def _dirichlet(blocks: Any, mesh: Mesh) -> list[Dirichlet]:
+    if not isinstance(blocks, list):
+        raise InputError("[[dirichlet]] must be an array of tables")
+    out, dim = [], mesh.dim
+    for i, d in enumerate(blocks):
+        key = f"dirichlet[{i}]"
+        _keys(key, d, SECTIONS["dirichlet"])
+        tag = _tag(mesh, key, d)
         comps = d.get("components", list(range(dim)))
-        if not isinstance(comps, list) or not all(isinstance(c, int) and 0 <= c < dim for c in comps):
-            raise InputError(f"'dirichlet[{i}].components' must be a list of integers in 0..{dim - 1}")
-        value = _vector(f"dirichlet[{i}].value", d.get("value", [0.0] * len(comps)), len(comps))
-        dirichlet.append(Dirichlet(d["tag"], tuple(value), tuple(comps)))
-    tractions = {}
-    for i, t in enumerate(data.get("traction", [])):
-        _keys(f"traction[{i}]", t, SECTIONS["traction"])
-        mesh.nodes_of(t.get("tag", ""))
-        tractions[t["tag"]] = _vector(f"traction[{i}].value", t.get("value"), dim)
+        if (
+            not isinstance(comps, list)
+            or not comps
+            or not all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c < dim for c in comps)
+        ):
+            raise InputError(f"'{key}.components' must be a list of integers in 0..{dim - 1}")
+        value = vector_field(f"{key}.value", d.get("value", [0.0] * len(comps)), len(comps))
+        out.append(Dirichlet(tag, tuple(value) if isinstance(value, list) else value, tuple(comps)))
+    return out
 
-    c = data["contact"]
-    _keys("contact", c, SECTIONS["contact"])
-    if "tag" not in c:
-        raise InputError("missing key 'contact.tag'")
-    mesh.nodes_of(c["tag"])
-    ob = c.get("obstacle")
+
+def _tractions(blocks: Any, mesh: Mesh) -> dict:
+    if not isinstance(blocks, list):
+        raise InputError("[[traction]] must be an array of tables")
+    out = {}
+    for i, t in enumerate(blocks):
+        key = f"traction[{i}]"
+        _keys(key, t, SECTIONS["traction"])
+        out[_tag(mesh, key, t)] = vector_field(f"{key}.value", t.get("value"), mesh.dim)
+    return out
+
+
+def _obstacle(ob: Any, dim: int) -> RigidObstacle:
+    """An obstacle of the registry; vector parameters may be expressions of t."""
     if not isinstance(ob, dict):
         raise InputError("missing table 'contact.obstacle' = { type = \"plane\", point = [...], normal = [...] }")
-    kind = check_choice("contact.obstacle.type", ob.get("type", "plane"), {"plane", "sphere"})
-    if kind == "plane":
-        _keys("contact.obstacle", ob, {"type", "point", "normal"})
-        obstacle = PlaneObstacle(
-            _vector("contact.obstacle.point", ob.get("point"), dim),
-            _vector("contact.obstacle.normal", ob.get("normal"), dim),
-        )
-    else:
-        _keys("contact.obstacle", ob, {"type", "center", "radius"})
-        radius = check_positive("contact.obstacle.radius", _number("contact.obstacle.radius", ob.get("radius")))
-        obstacle = SphereObstacle(_vector("contact.obstacle.center", ob.get("center"), dim), radius)
+    kind = OBSTACLES.get(check_choice("contact.obstacle.type", ob.get("type", "plane"), set(OBSTACLES.names())))
+    _keys("contact.obstacle", ob, {"type"} | {p.name for p in kind.parameters})
+    kwargs = {}
+    for p in kind.parameters:
+        key = f"contact.obstacle.{p.name}"
+        if p.name not in ob:
+            raise InputError(f"missing key '{key}'")
+        if p.kind is Motion:
+            kwargs[p.name] = vector_field(key, ob[p.name], dim, allow_space=False)
+        elif p.kind is Vector:
+            kwargs[p.name] = _vector(key, ob[p.name], dim)
+        else:
+            kwargs[p.name] = p.convert(_number(key, ob[p.name]), "contact.obstacle")
+    return kind.obj(**kwargs)
 
-    init = data.get("initial", {})
-    _keys("initial", init, SECTIONS["initial"])
-    u0 = _field("initial.displacement", init.get("displacement", [0.0] * dim), dim)
-    v0 = _field("initial.velocity", init.get("velocity", [0.0] * dim), dim)
-    loads = data.get("loads", {})
-    _keys("loads", loads, SECTIONS["loads"])
-    body = _vector("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
 
-    tm = data["time"]
-    _keys("time", tm, SECTIONS["time"])
+def _time(tm: Any) -> tuple[str, float, float, dict]:
+    if not isinstance(tm, dict):
+        raise InputError("[time] must be a table")
     scheme = tm.get("scheme", "crank-nicolson")
-    check_choice("time.scheme", scheme, set(SCHEMES) | set(ALIASES))
+    if not isinstance(scheme, str) or scheme not in SCHEMES:
+        raise InputError(f"unknown time.scheme {scheme!r}; allowed: {', '.join(SCHEMES.names())}")
+    entry = SCHEMES.get(scheme)
+    _keys("time", tm, TIME_KEYS | {p.name for p in entry.parameters})
     for k in ("dt", "T"):
         if k not in tm:
             raise InputError(f"missing key 'time.{k}'")
@@ -270,10 +235,24 @@ def load_case(path: str | Path) -> Case:
     T = check_positive("time.T", _number("time.T", tm["T"]))
     if T < dt:
         raise InputError(f"'time.T' must be >= 'time.dt', got T={T} < dt={dt}")
-    sol = data.get("solver", {})
-    _keys("solver", sol, SECTIONS["solver"])
-    mass = check_choice("solver.mass", sol.get("mass", "seed"), set(MASS_VARIANTS))
-    outp = data.get("output", {})
+    options = entry.options({k: v for k, v in tm.items() if k not in TIME_KEYS}, where="time")
+    return entry.name, dt, T, {k: v for k, v in options.items() if k in tm}
+
+
+def _solver(sol: Any) -> tuple[str, dict]:
+    if not isinstance(sol, dict):
+        raise InputError("[solver] must be a table")
+    options = {p.name for p in SOLVER_OPTIONS} | {p.name for e in BACKENDS for p in e.parameters}
+    _keys("solver", sol, SECTIONS["solver"] | options)
+    mass = sol.get("mass", "seed")
+    if not isinstance(mass, str) or mass not in MASS_VARIANTS:
+        raise InputError(f"unknown solver.mass {mass!r}; allowed: {', '.join(MASS_VARIANTS.names())}")
+    given = {k: v for k, v in sol.items() if k != "mass"}
+    solver_options(given, where="solver")
+    return MASS_VARIANTS.resolve(mass), given
+
+
+def _output(outp: Any) -> tuple[Path | None, int]:
     _keys("output", outp, SECTIONS["output"])
     out = outp.get("directory")
     if out is not None and not isinstance(out, str):
@@ -281,5 +260,50 @@ def load_case(path: str | Path) -> Case:
     every = outp.get("snapshot_every", 0)
     if not isinstance(every, int) or isinstance(every, bool) or every < 0:
         raise InputError(f"'output.snapshot_every' must be a non-negative integer, got {every!r}")
-    problem = Problem(mesh, material, c["tag"], obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
-    return Case(problem, scheme, dt, T, mass, Path(out) if out else None, every)
+    return (Path(out) if out else None), every
+
+
+def _read(path: Path) -> dict:
+    if not path.is_file():
+        raise InputError(f"case file {str(path)!r} does not exist")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path.name}: invalid TOML: {exc}") from None
+    for k in data:
+        if k not in SECTIONS:
+            raise InputError(f"unknown section [{k}]; allowed: {', '.join(SECTIONS)}")
+    for k in REQUIRED:
+        if k not in data:
+            raise InputError(f"missing section [{k}]")
+    return data
+
+
+def load_case(path: str | Path) -> Case:
+    """Read and validate a case file; raises :class:`InputError` on any problem."""
+    path = Path(path)
+    data = _read(path)
+    mesh = _mesh(data["mesh"], path.parent)
+    dim = mesh.dim
+    material = _material(data["material"])
+    dirichlet = _dirichlet(data.get("dirichlet", []), mesh)
+    tractions = _tractions(data.get("traction", []), mesh)
+    c = data["contact"]
+    _keys("contact", c, SECTIONS["contact"])
+    tag = _tag(mesh, "contact", c)
+    obstacle = _obstacle(c.get("obstacle"), dim)
+    init = data.get("initial", {})
+    _keys("initial", init, SECTIONS["initial"])
+    u0 = vector_field("initial.displacement", init.get("displacement", [0.0] * dim), dim)
+    v0 = vector_field("initial.velocity", init.get("velocity", [0.0] * dim), dim)
+    for key, f in (("initial.displacement", u0), ("initial.velocity", v0)):
+        if getattr(f, "time_dependent", False):
+            raise InputError(f"'{key}' cannot depend on t (it is the state at t = 0)")
+    loads = data.get("loads", {})
+    _keys("loads", loads, SECTIONS["loads"])
+    body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
+    scheme, dt, T, scheme_options = _time(data["time"])
+    mass, solver_opts = _solver(data.get("solver", {}))
+    out, every = _output(data.get("output", {}))
+    problem = Problem(mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
+    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts)

@@ -1,4 +1,14 @@
-"""Field output for ParaView: an XDMF + HDF5 time series (meshio)."""
+"""Field output for ParaView: an XDMF + HDF5 time series streamed during the run (meshio).
+
+:class:`FieldWriter` is an observer of the time loop: every ``every`` steps it appends
+the fields of the current level to the HDF5 file, so memory does not grow with the
+number of snapshots; the last level computed is always written, also when the run is
+interrupted or fails; the XDMF index is written when the observer is closed.
+
+Point data per time: ``displacement`` and ``velocity`` (n_nodes, 3, padded with zeros
+below 3D), ``von_mises`` (n_nodes,), ``contact_pressure`` (n_nodes,, zero off Gamma_C,
+positive in compression, -lambda_i / w_i).
+"""
 
 from __future__ import annotations
 
@@ -7,42 +17,63 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dynamics.history import History
-from ..dynamics.problem import Problem
+from ..dynamics.observers import Observer, Run
+from ..dynamics.schemes import State
 from ..fem.assembly import von_mises
 
 
-def write_fields(path: str | Path, problem: Problem, history: History) -> None:
-    """Write displacement, velocity, von Mises stress and contact pressure snapshots.
+class FieldWriter(Observer):
+    """Stream displacement, velocity, von Mises stress and contact pressure to XDMF."""
 
-    Point data per time: ``displacement`` and ``velocity`` (n_nodes, 3, padded with
-    zeros below 3D), ``von_mises`` (n_nodes,), ``contact_pressure`` (n_nodes,, zero off
-    Gamma_C, positive in compression).  Needs ``simulate(..., snapshot_every=k)``.
-    """
-    import meshio
+    def __init__(self, path: str | Path, every: int = 1):
+        self.path = Path(path).resolve()
+        self.every = max(int(every), 1)
+        self.times: list[float] = []
+        self._writer = None
+        self._last = -1
 
-    snaps = history.snapshots
-    if not snaps:
-        raise ValueError("the history holds no field snapshots; run simulate(..., snapshot_every=k)")
-    mesh = problem.mesh
-    d = mesh.dim
-    pts = np.zeros((mesh.n_nodes, 3))
-    pts[:, :d] = mesh.points
-    contact_nodes = mesh.nodes_of(problem.contact_tag)
-    step_of = np.rint(snaps["t"] / (history.t[1] - history.t[0])).astype(int) if history.steps else [0]
-    path = Path(path).resolve()
-    # meshio writes the HDF5 file next to the current directory: write from the target's
-    with contextlib.chdir(path.parent), meshio.xdmf.TimeSeriesWriter(path.name) as w:
-        w.write_points_cells(pts, [(mesh.cell_type, mesh.cells)])
-        for k, t in enumerate(snaps["t"]):
-            u = np.zeros((mesh.n_nodes, 3))
-            v = np.zeros((mesh.n_nodes, 3))
-            u[:, :d] = snaps["u"][k].reshape(-1, d)
-            v[:, :d] = snaps["v"][k].reshape(-1, d)
-            p = np.zeros(mesh.n_nodes)
-            p[contact_nodes] = history.pressure[step_of[k]]
-            vm = von_mises(mesh, problem.material, snaps["u"][k])
-            w.write_data(
-                float(t),
-                point_data={"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p},
-            )
+    def start(self, run: Run) -> None:
+        import meshio
+
+        mesh = run.problem.mesh
+        self._mesh, self._material = mesh, run.problem.material
+        self._nodes = run.ctx.disc.contact.nodes
+        self._weights = run.ctx.disc.contact.weights
+        pts = np.zeros((mesh.n_nodes, 3))
+        pts[:, : mesh.dim] = mesh.points
+        # meshio names the HDF5 file relative to the working directory: open it from the target's
+        with contextlib.chdir(self.path.parent):
+            self._writer = meshio.xdmf.TimeSeriesWriter(self.path.name)
+            self._writer.__enter__()
+            self._writer.write_points_cells(pts, [(mesh.cell_type, mesh.cells)])
+        self._write(0, run.initial)
+
+    def _write(self, n: int, s: State) -> None:
+        mesh, d = self._mesh, self._mesh.dim
+        u = np.zeros((mesh.n_nodes, 3))
+        v = np.zeros((mesh.n_nodes, 3))
+        u[:, :d] = s.U.reshape(-1, d)
+        v[:, :d] = s.V.reshape(-1, d)
+        p = np.zeros(mesh.n_nodes)
+        p[self._nodes] = -s.lam / self._weights
+        vm = von_mises(mesh, self._material, s.U)
+        self._writer.write_data(
+            float(s.t), point_data={"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p}
+        )
+        self.times.append(float(s.t))
+        self._last = n
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        if n % self.every == 0:
+            self._write(n, state)
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        if self._writer is None:
+            return
+        try:
+            if self._last != n_last:
+                self._write(n_last, state)
+        finally:
+            with contextlib.chdir(self.path.parent):
+                self._writer.__exit__(None, None, None)
+            self._writer = None

@@ -113,7 +113,8 @@ class Scheme:
         """Name with its options, e.g. ``newmark(beta=0.3, gamma=0.6)``."""
         if not self.options:
             return self.name
-        return f"{self.name}({', '.join(f'{k}={v:g}' if isinstance(v, float) else f'{k}={v}' for k, v in self.options.items())})"
+        text = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in self.options.items())
+        return f"{self.name}({text})"
 
     # -- the contract ---------------------------------------------------------------
     def operator(self, dt: float) -> Operator | None:

@@ -87,5 +87,3 @@ class CrankNicolson(Newmark):
     parameters = ()
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     beta, gamma = 0.25, 0.5
-
-

@@ -49,7 +49,9 @@ class PaoliSchatzman(Scheme):
 
     def start(self, ctx, first: State, second: State) -> State:
         V = (second.U - first.U) / ctx.dt
-        return State(second.t, second.U, V, np.zeros_like(V), second.lam, second.info, {"U_prev": first.U, "starter": True})
+        return State(
+            second.t, second.U, V, np.zeros_like(V), second.lam, second.info, {"U_prev": first.U, "starter": True}
+        )
 
     def step(self, ctx, s: State) -> State:
         dt, e = ctx.dt, self.restitution
