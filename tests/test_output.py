@@ -2,15 +2,14 @@ import meshio
 import numpy as np
 
 from signorini.dynamics.simulate import simulate
-from signorini.io.output import write_fields
+from signorini.io.output import FieldWriter
 from signorini.studies.benchmarks import get_benchmark
 
 
 def test_xdmf_time_series_roundtrip(tmp_path):
     b = get_benchmark("bar3d")
     p = b.problem(2)
-    H = simulate(p, "cn", b.h(2) / 2, 0.6, mass="seed", snapshot_every=4)
-    write_fields(tmp_path / "f.xdmf", p, H)
+    H = simulate(p, "cn", b.h(2) / 2, 0.6, mass="seed", snapshot_every=4, observers=[FieldWriter(tmp_path / "f.xdmf", 4)])
     assert (tmp_path / "f.h5").exists()
     with meshio.xdmf.TimeSeriesReader(str(tmp_path / "f.xdmf")) as r:
         points, cells = r.read_points_cells()

@@ -129,8 +129,6 @@ def study_1d(levels: list[int], T: float = 3.0) -> list[dict]:
 def study_beyond(levels: list[int], T: float = 3.0) -> list[dict]:
     """CN with every redistributed mass, and Paoli-Schatzman (e = 0) with the standard
     mass, on ``bar1d``: H1 and stress errors per level, rates, energy drift."""
-    from ..competitors import paoli_schatzman
-
     b = get_benchmark("bar1d")
     ex = b.exact(b.params(), T)
     out = []
@@ -144,7 +142,7 @@ def study_beyond(levels: list[int], T: float = 3.0) -> list[dict]:
         for n in levels:
             p = b.problem(n)
             if label.startswith("paoli"):
-                H = paoli_schatzman(p, b.h(n) / 2, T, mass=mass)
+                H = simulate(p, "paoli-schatzman", b.h(n) / 2, T, mass=mass)
                 sig = ex.contact_stress(H.t[1:])
                 st.append(float(np.sqrt(np.sum((H.lam[1:, 0] - sig) ** 2) / np.sum(sig**2))))
                 h1.append(float("nan"))
@@ -169,26 +167,20 @@ def study_beyond(levels: list[int], T: float = 3.0) -> list[dict]:
     return out
 
 
-def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
-    """Run the study into ``out`` (which must exist and be empty); return the summary."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from . import plots
-
-    cfg = SIZES[size]
-    summary: dict = {"size": size, "config": cfg}
-    md = [
+def _header(size: str) -> list[str]:
+    return [
         "# signorini: reproduction of the mass redistribution study",
         "",
         f"Size: `{size}`. Every number below is computed by `signorini reproduce --{size}`.",
         "",
     ]
 
-    # 1. 1D exact benchmark
+
+def section_1d(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """1. The 1D exact benchmark: errors and rates for CN/BE with three masses."""
     s1 = study_1d(cfg["levels1d"])
     summary["bar1d"] = s1
-    md += [
+    md = [
         "## 1. 1D clamped bar against the exact solution (T = 3, dt = h/2)",
         "",
         "| scheme | mass | n | H1 u | L2 u | L2 v | stress | E(T) (exact 0.125) |",
@@ -205,30 +197,37 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         rr = ", ".join(f"{k} " + "/".join(f"{v:.2f}" for v in vals) for k, vals in s["rates"].items())
         md.append(f"- {s['scheme']} + {s['mass']}: {rr}")
     md.append("")
+    return md
 
-    # 2. 2D histories
+
+def _history_stats(H) -> dict:
+    E = H.energy
+    return {
+        "oscillation_index": oscillation_index(H.t, H.lambda_sum),
+        "energy_initial": float(E[0]),
+        "energy_final": float(E[-1]),
+        "energy_ratio_final": float(E[-1] / E[0]),
+        "energy_max_ratio": float(E.max() / E[0]),
+        "first_contact_time": float(H.t[np.argmax(H.gap.min(axis=1) <= 1e-12)]),
+        "impacts": H.impacts,
+        "max_complementarity_residual": float(H.residual.max()),
+    }
+
+
+def section_2d_histories(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """2. The 2D bar's contact and energy histories for the four scheme/mass pairs."""
+    from . import plots
+
     b2 = get_benchmark("bar2d")
     n2 = cfg["n2d"]
-    runs = {}
-    for scheme, mass in PAIRS:
-        runs[(scheme, mass)] = simulate(b2.problem(n2), scheme, b2.h(n2) / 2, cfg["T2d"], mass=mass)
-    hist = {}
-    for (scheme, mass), H in runs.items():
-        E = H.energy
-        hist[f"{scheme}/{mass}"] = {
-            "oscillation_index": oscillation_index(H.t, H.lambda_sum),
-            "energy_initial": float(E[0]),
-            "energy_final": float(E[-1]),
-            "energy_ratio_final": float(E[-1] / E[0]),
-            "energy_max_ratio": float(E.max() / E[0]),
-            "first_contact_time": float(H.t[np.argmax(H.gap.min(axis=1) <= 1e-12)]),
-            "impacts": H.impacts,
-            "max_complementarity_residual": float(H.residual.max()),
-        }
+    runs = {
+        (scheme, mass): simulate(b2.problem(n2), scheme, b2.h(n2) / 2, cfg["T2d"], mass=mass) for scheme, mass in PAIRS
+    }
+    hist = {f"{scheme}/{mass}": _history_stats(H) for (scheme, mass), H in runs.items()}
     summary["bar2d_histories"] = hist
     plots.contact_histories(runs, out / "fig_contact_2d.png", out / "fig_contact_2d.csv")
     plots.energies(runs, out / "fig_energy_2d.png", out / "fig_energy_2d.csv")
-    md += [
+    md = [
         f"## 2. 2D bar, n = {n2} ({n2}x{10 * n2} Q1), dt = h/2, T = {cfg['T2d']}",
         "",
         "| scheme / mass | oscillation index | E(T)/E(0) | max E/E(0) | first contact t | impacts |",
@@ -249,24 +248,33 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         "![energy](fig_energy_2d.png)",
         "",
     ]
+    return md
 
-    # 3. 2D convergence against a shared reference
+
+def section_2d_convergence(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """3. 2D convergence of the four pairs against one shared CN + seed reference."""
+    from . import plots
+
+    b2 = get_benchmark("bar2d")
     levels, ref_level = cfg["levels2d"], cfg["ref2d"]
-    pf = b2.problem(ref_level)
-    ref = simulate(pf, "crank-nicolson", b2.h(ref_level) / 2, 1.0, mass="seed", snapshot_every=1)
-    conv = {}
-    for scheme, mass in PAIRS:
-        conv[f"{scheme}/{mass}"] = convergence_study("bar2d", scheme, mass, levels, ref_level, T=1.0, reference=ref)
+    ref = simulate(b2.problem(ref_level), "crank-nicolson", b2.h(ref_level) / 2, 1.0, mass="seed", snapshot_every=1)
+    conv = {
+        f"{scheme}/{mass}": convergence_study("bar2d", scheme, mass, levels, ref_level, T=1.0, reference=ref)
+        for scheme, mass in PAIRS
+    }
     summary["bar2d_convergence"] = conv
     plots.convergence(conv, out / "fig_convergence_2d.png", out / "fig_convergence_2d.csv")
-    md += [f"## 3. 2D convergence, T = 1, reference: CN + seed at n = {ref_level}", ""]
+    md = [f"## 3. 2D convergence, T = 1, reference: CN + seed at n = {ref_level}", ""]
     md += convergence_table(conv, CONV_COLUMNS_2D)
     md += ["", "Observed rates:", ""]
     for k, c in conv.items():
         md.append(f"- {k}: " + ", ".join(f"{m} " + "/".join(f"{v:.2f}" for v in r) for m, r in c["rates"].items()))
     md += ["", "![convergence](fig_convergence_2d.png)", ""]
+    return md
 
-    # 3b. 3D convergence (CN, both masses) against a shared CN + seed reference
+
+def section_3d_convergence(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """3b. 3D convergence (CN, both masses) against a shared CN + seed reference."""
     b3 = get_benchmark("bar3d")
     r3 = cfg["ref3d"]
     ref3 = simulate(b3.problem(r3), "crank-nicolson", b3.h(r3) / 2, 1.0, mass="seed", snapshot_every=1)
@@ -277,22 +285,25 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         for m in ("standard", "seed")
     }
     summary["bar3d_convergence"] = conv3
-    md += [f"## 3b. 3D convergence, T = 1, reference: CN + seed at n = {r3}", ""]
-    md += convergence_table(conv3, CONV_COLUMNS_3D)
-    md.append("")
+    md = [f"## 3b. 3D convergence, T = 1, reference: CN + seed at n = {r3}", ""]
+    return md + convergence_table(conv3, CONV_COLUMNS_3D) + [""]
 
-    # 4. 3D von Mises
+
+def section_3d_von_mises(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """4. The 3D bar's von Mises stress on the face x = 0, standard vs seed."""
+    from . import plots
+
+    b3 = get_benchmark("bar3d")
     n3 = cfg["n3d"]
+    dt3 = b3.h(n3) / 2
+    every = max(1, int(round(0.1 / dt3)))
     runs3 = {}
     for mass in ("standard", "seed"):
         p3 = b3.problem(n3)
-        dt3 = b3.h(n3) / 2
-        every = max(1, int(round(0.1 / dt3)))
-        H3 = simulate(p3, "crank-nicolson", dt3, cfg["T3d"], mass=mass, snapshot_every=every)
-        runs3[mass] = (p3, H3)
+        runs3[mass] = (p3, simulate(p3, "crank-nicolson", dt3, cfg["T3d"], mass=mass, snapshot_every=every))
     vm = plots.von_mises_3d(runs3, out / "fig_von_mises_3d.png", out / "fig_von_mises_3d.csv")
     summary["bar3d_von_mises"] = vm
-    md += [
+    md = [
         f"## 4. 3D bar, n = {n3}, CN: von Mises stress on the face x = 0",
         "",
         "| mass | max von Mises near contact (z < 0.2) after impact | roughness (mean |jump| along z) |",
@@ -300,12 +311,14 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
     ]
     for mass, v in vm.items():
         md.append(f"| {mass} | {v['max_near_contact']:.4f} | {v['roughness']:.4f} |")
-    md += ["", "![von Mises](fig_von_mises_3d.png)", ""]
+    return md + ["", "![von Mises](fig_von_mises_3d.png)", ""]
 
-    # 5. beyond the paper: more redistributions and a competing scheme (1D exact benchmark)
+
+def section_beyond(cfg: dict, out: Path, summary: dict) -> list[str]:
+    """5. Beyond the paper: more redistributions and Paoli-Schatzman on the 1D benchmark."""
     beyond = study_beyond(cfg["levels1d"])
     summary["bar1d_beyond"] = beyond
-    md += [
+    md = [
         "## 5. Beyond the paper: mass variants and Paoli-Schatzman on the 1D exact benchmark",
         "",
         "Relative L2(0,T) errors at the finest level (T = 3, dt = h/2) and mean observed rates.",
@@ -318,11 +331,15 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
             f"| {r['label']} | {r['u_H1'][-1]:.4f} | {np.mean(r['rate_u_H1']):.2f} | "
             f"{r['stress'][-1]:.4f} | {np.mean(r['rate_stress']):.2f} | {r['energy_drift']:.4f} |"
         )
-    md.append("")
+    return md + [""]
 
-    # claims
+
+def findings(summary: dict) -> list[str]:
+    """The paper's claims, with the numbers of this run."""
+    hist, s1 = summary["bar2d_histories"], summary["bar1d"]
+    conv = summary["bar2d_convergence"]
     cs, cst = hist["crank-nicolson/seed"], hist["crank-nicolson/standard"]
-    md += [
+    return [
         "## Findings (numbers from this run)",
         "",
         f"- CN + standard mass: oscillation index {cst['oscillation_index']:.2f} vs {cs['oscillation_index']:.2f} "
@@ -336,6 +353,29 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
         + ".",
         "",
     ]
+
+
+SECTIONS = (
+    section_1d,
+    section_2d_histories,
+    section_2d_convergence,
+    section_3d_convergence,
+    section_3d_von_mises,
+    section_beyond,
+)
+
+
+def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
+    """Run the study into ``out`` (which must exist and be empty); return the summary."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    cfg = SIZES[size]
+    summary: dict = {"size": size, "config": cfg}
+    md = _header(size)
+    for section in SECTIONS:
+        md += section(cfg, out, summary)
+    md += findings(summary)
     (out / "report.md").write_text("\n".join(md))
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
     return summary
