@@ -9,7 +9,9 @@ from signorini.studies.benchmarks import get_benchmark
 def test_xdmf_time_series_roundtrip(tmp_path):
     b = get_benchmark("bar3d")
     p = b.problem(2)
-    H = simulate(p, "cn", b.h(2) / 2, 0.6, mass="seed", snapshot_every=4, observers=[FieldWriter(tmp_path / "f.xdmf", 4)])
+    H = simulate(
+        p, "cn", b.h(2) / 2, 0.6, mass="seed", snapshot_every=4, observers=[FieldWriter(tmp_path / "f.xdmf", 4)]
+    )
     assert (tmp_path / "f.h5").exists()
     with meshio.xdmf.TimeSeriesReader(str(tmp_path / "f.xdmf")) as r:
         points, cells = r.read_points_cells()

@@ -94,6 +94,10 @@ class Context:
         self.massless = massless_dofs(disc.M)
 
     # -- data of time t ------------------------------------------------------------
+    def next_time(self, t: float) -> float:
+        """t_{n+1} = (n + 1) dt for t = t_n (computed from n, without accumulated round-off)."""
+        return (round(t / self.dt) + 1) * self.dt
+
     def load(self, t: float) -> np.ndarray:
         """F(t) (n,), full space [force]."""
         return self.disc.load(t)

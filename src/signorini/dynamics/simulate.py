@@ -228,7 +228,7 @@ def simulate(
                         new = sch.start(ctx, state, starter.step(ctx, state))
                     else:
                         new = sch.step(ctx, state)
-                except ConvergenceError as exc:
+                except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
                     break
                 except KeyboardInterrupt:

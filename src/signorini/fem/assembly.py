@@ -206,12 +206,15 @@ def lumped_mass_matrix(M: sp.spmatrix) -> sp.dia_matrix:
 def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """Load vector F_(a,i) = int f_i N_a dx for a body force density f [force/length^d].
 
-    ``f`` is a constant vector of length d or a function of points (..., d) -> (..., d).
+    ``f`` is a constant vector of length d or a function of points (n, d) -> (n, d).
     """
     ref = reference_element(mesh.cell_type)
     wdet, _ = geometry(mesh)
     xq = quadrature_points(mesh)
-    fq = f(xq) if callable(f) else np.broadcast_to(np.asarray(f, dtype=float), xq.shape)
+    if callable(f):
+        fq = np.asarray(f(xq.reshape(-1, mesh.dim)), dtype=float).reshape(xq.shape)
+    else:
+        fq = np.broadcast_to(np.asarray(f, dtype=float), xq.shape)
     fe = np.einsum("eq,qa,eqi->eai", wdet, ref.N, fq)
     F = np.zeros((mesh.n_nodes, mesh.dim))
     for i in range(mesh.dim):

@@ -43,7 +43,7 @@ class Newmark(Scheme):
 
     def step(self, ctx, s: State) -> State:
         dt, b, g = ctx.dt, self.beta, self.gamma
-        t = s.t + dt
+        t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
         rhs = ctx.M @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None

@@ -56,7 +56,7 @@ class PaoliSchatzman(Scheme):
     def step(self, ctx, s: State) -> State:
         dt, e = ctx.dt, self.restitution
         Un, Up = s.U, self._previous(ctx, s)
-        t = s.t + dt
+        t = ctx.next_time(s.t)
         F = ctx.load(s.t)
         MU, SU = self._MU(ctx, s), self._SU(ctx, s)
         MUp, SUp = s.extra["MU_prev"], s.extra["SU_prev"]

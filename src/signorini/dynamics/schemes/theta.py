@@ -36,7 +36,7 @@ class Theta(Scheme):
 
     def step(self, ctx, s: State) -> State:
         dt, th = ctx.dt, self.theta
-        t = s.t + dt
+        t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
         rhs = ctx.M @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None

@@ -1,0 +1,70 @@
+"""The documentation tables of every registry, generated (``docs/registries.md``).
+
+``python -m signorini.io.doctables --write`` regenerates the file;
+``--check`` exits with 1 when it is out of date (the test suite checks it too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..contact.obstacles import OBSTACLES
+from ..dynamics.mass import MASS_VARIANTS
+from ..dynamics.schemes import SCHEMES
+from ..linalg import BACKENDS, PRECONDITIONERS, SOLVER_OPTIONS
+from ..registry import Registry
+from ..studies.benchmarks import BENCHMARKS
+
+DOC = Path(__file__).resolve().parents[3] / "docs" / "registries.md"
+
+
+def all_registries() -> dict[str, Registry]:
+    """Every registry of the package, by the title used in the documentation."""
+    return {
+        "Time schemes (`--scheme`, `[time] scheme`; options: `--scheme-option`, keys of `[time]`)": SCHEMES,
+        "Mass variants (`--mass`, `[solver] mass`)": MASS_VARIANTS,
+        "Obstacles (`[contact] obstacle = { type = ... }`)": OBSTACLES,
+        "Linear-algebra backends (`--backend`, `--solver-option backend=`, `[solver] backend`)": BACKENDS,
+        "Preconditioners (backend `cg`: `--solver-option preconditioner=`)": PRECONDITIONERS,
+        "Benchmarks (`signorini run NAME`, parameters with `--set NAME=VALUE`)": BENCHMARKS,
+    }
+
+
+def render() -> str:
+    """The whole ``docs/registries.md``."""
+    md = [
+        "# Registries",
+        "",
+        "Generated from the code by `python -m signorini.io.doctables --write`; do not edit by hand.",
+        "Every name below is accepted on the command line, in case files and in the Python API.",
+        "",
+    ]
+    for title, reg in all_registries().items():
+        md += [f"## {title}", "", reg.markdown_table()]
+    md += ["## Solver options (`--solver-option NAME=VALUE`, keys of `[solver]`)", ""]
+    md += ["| option | default | allowed | meaning |", "|---|---|---|---|"]
+    for p in SOLVER_OPTIONS:
+        md.append(f"| `{p.name}` | {p.default} | {p.bounds_text()} | {p.doc} |")
+    md.append("")
+    return "\n".join(md)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m signorini.io.doctables", description=__doc__.splitlines()[0])
+    ap.add_argument("--write", action="store_true", help="regenerate docs/registries.md")
+    ap.add_argument("--check", action="store_true", help="exit 1 if docs/registries.md is out of date")
+    a = ap.parse_args(argv)
+    text = render()
+    if a.write:
+        DOC.write_text(text)
+        return 0
+    if a.check:
+        return 0 if DOC.exists() and DOC.read_text() == text else 1
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

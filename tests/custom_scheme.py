@@ -1,0 +1,30 @@
+"""A time scheme written outside the package, through the public contract only.
+
+Used by tests/test_schemes.py (by class and by import path from the command line).
+It is the theta-method written from scratch, without reusing the package's Theta.
+"""
+
+from signorini.dynamics.context import Operator
+from signorini.dynamics.schemes import Scheme, State
+from signorini.registry import Parameter
+
+
+class MyTheta(Scheme):
+    name = "my-theta"
+    description = "theta-method written in a test file"
+    parameters = (Parameter("theta", 0.6, "implicitness", float, 0.5, 1.0),)
+    energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F"
+
+    def operator(self, dt):
+        return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
+
+    def step(self, ctx, s):
+        dt, th = ctx.dt, self.theta
+        t = ctx.next_time(s.t)
+        rhs = ctx.M @ ((s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A) + ctx.load(t)
+        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), ctx.dirichlet(t) if ctx.has_fixed else None)
+        V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
+        A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
+        V[ctx.massless] = (U - s.U)[ctx.massless] / dt
+        A[ctx.massless] = 0.0
+        return State(t, U, V, A, lam, info)

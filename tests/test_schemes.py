@@ -1,0 +1,163 @@
+"""The scheme contract: registry entries, schemes written outside the package, equivalences."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from signorini.dynamics.schemes import SCHEMES, make_scheme
+from signorini.dynamics.simulate import simulate
+from signorini.errors import InputError
+from signorini.io.cli import main
+from signorini.studies.benchmarks import get_benchmark
+
+sys.path.insert(0, str(Path(__file__).parent))
+from custom_scheme import MyTheta  # noqa: E402
+
+
+def _bar2d(n=2):
+    b = get_benchmark("bar2d")
+    return b.problem(n), b.h(n) / 2
+
+
+def _same(H1, H2, tol=1e-11):
+    scale = max(np.abs(H2.lam).max(), 1e-300)
+    assert np.abs(H1.lam - H2.lam).max() <= tol * scale
+    assert np.abs(H1.gap - H2.gap).max() <= tol * 0.2
+    assert np.abs(H1.energy - H2.energy).max() <= tol * H2.energy[0]
+
+
+@pytest.mark.parametrize("mass", ["seed", "standard"])
+def test_external_scheme_matches_builtin_theta(mass):
+    p, dt = _bar2d()
+    H_ext = simulate(p, MyTheta, dt, 1.0, mass=mass, scheme_options={"theta": 0.6})
+    H_reg = simulate(p, "theta", dt, 1.0, mass=mass, scheme_options={"theta": 0.6})
+    _same(H_ext, H_reg)
+    assert H_ext.lam.min() < 0  # there was contact
+
+
+def test_external_scheme_by_import_path_on_the_cli(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(Path(__file__).parent))
+    out = tmp_path / "o"
+    args = ["run", "bar2d", "--n", "2", "--T", "0.6", "--quiet", "--out", str(out)]
+    assert main(args + ["--scheme", "custom_scheme:MyTheta", "--scheme-option", "theta=0.6"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["scheme"] == "my-theta(theta=0.6)" and s["status"] == "finished"
+    out2 = tmp_path / "o2"
+    assert main(args[:-1] + [str(out2), "--scheme", "theta", "--scheme-option", "theta=0.6"]) == 0
+    a = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(out2 / "history.csv", delimiter=",", skiprows=1)
+    cols = [0, 1, 2, 3, 4, 6, 7, 8, 9, 10, 11]  # all but the identity columns (MyTheta declares none)
+    assert np.allclose(a[:, cols], b[:, cols], rtol=1e-10, atol=1e-14, equal_nan=True)
+
+
+def test_registered_at_runtime_then_removed():
+    SCHEMES.register("my-theta", MyTheta, MyTheta.description, ("mt",), MyTheta.parameters)
+    try:
+        p, dt = _bar2d()
+        H = simulate(p, "mt", dt, 0.5, scheme_options={"theta": 0.7})
+        assert H.meta["scheme"] == "my-theta(theta=0.7)"
+    finally:
+        SCHEMES.unregister("my-theta")
+    with pytest.raises(InputError, match="unknown scheme 'mt'; allowed: crank-nicolson, cn"):
+        simulate(p, "mt", dt, 0.5)
+
+
+@pytest.mark.parametrize(
+    "name, options, same_as",
+    [
+        ("newmark", {"beta": 0.25, "gamma": 0.5}, "crank-nicolson"),
+        ("theta", {"theta": 0.5}, "crank-nicolson"),
+        ("theta", {"theta": 1.0}, "backward-euler"),
+    ],
+)
+def test_parametrized_entries_reproduce_named_schemes(name, options, same_as):
+    p, dt = _bar2d()
+    _same(simulate(p, name, dt, 1.0, scheme_options=options), simulate(p, same_as, dt, 1.0))
+
+
+@pytest.mark.parametrize(
+    "name, options, message",
+    [
+        ("newmark", {"beta": 0.0}, "'scheme newmark.beta' must satisfy 0.0 < beta <= 0.5"),
+        ("newmark", {"gamma": 0.4}, "gamma"),
+        ("theta", {"theta": 0.3}, "theta"),
+        ("newmark", {"alpha": 0.1}, "unknown option 'alpha' for 'newmark'; allowed: beta, gamma"),
+        ("ps", {"restitution": "x"}, "must be a number"),
+        ("cn", {"beta": 0.3}, "allowed: none"),
+    ],
+)
+def test_bad_scheme_options(name, options, message):
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        make_scheme(name, options)
+
+
+@pytest.mark.parametrize("entry", list(SCHEMES), ids=lambda e: e.name)
+def test_every_registered_scheme_identity_and_complementarity(entry):
+    """Every registry entry: complementarity and its own energy identity to round-off."""
+    p, dt = _bar2d()
+    H = simulate(p, entry.name, dt, 1.2, mass="seed")
+    assert H.status == "finished" and H.gap.min() > -1e-12 and H.lam.max() <= 0
+    ok = np.isfinite(H.predicted_increment)
+    assert ok[2:].all()  # every step but a start-up step has an identity
+    err = np.abs(H.energy_increment - H.predicted_increment)[ok]
+    assert err.max() <= 1e-11 * H.energy[0]
+    # cumulative parts add up to the energy change
+    total = H.external_work + H.contact_work + H.numerical_dissipation
+    start = 1 if not ok[1] else 0
+    assert np.allclose(H.energy[start:] - H.energy[start], total[start:] - total[start], atol=1e-11 * H.energy[0])
+    assert H.meta["energy_definition"]
+
+
+def test_newmark_general_energy_identity_and_dissipation():
+    p, dt = _bar2d()
+    H = simulate(p, "newmark", dt, 2.0, mass="standard", scheme_options={"beta": 0.3025, "gamma": 0.6})
+    ok = np.isfinite(H.predicted_increment)
+    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 1e-11 * H.energy[0]
+    assert H.numerical_dissipation[-1] < 0  # gamma > 1/2 damps
+
+
+def _paoli_schatzman_reference(disc, dt, N, e=0.0):
+    """The previous implementation's loop (separate factor, CN start), for comparison."""
+    import scipy.sparse.linalg as spla
+
+    from signorini.contact.complementarity import solve_lcp
+
+    H1 = simulate(disc, "cn", dt, dt, snapshot_every=1)
+    f = disc.free
+    M, S, B = disc.M[f][:, f], disc.S[f][:, f], disc.B[:, f].toarray()
+    K = (M / dt**2 + 0.25 * S).tocsc()
+    lu = spla.splu(K)
+    F = disc.load(0.0)[f] - (disc.S[f][:, disc.fixed] @ disc.dirichlet(0.0))
+    g = disc.contact.gaps
+    Z = lu.solve(B.T.copy())
+    W = B @ Z
+    U_prev, U = disc.U0[f], H1.snapshots["u"][1][f]
+    lams = [H1.lam[0], H1.lam[1]]
+    for _ in range(1, N):
+        rhs = M @ (2 * U - U_prev) / dt**2 - 0.25 * (S @ (2 * U + U_prev)) + F
+        Uf = lu.solve(rhs)
+        res = solve_lcp(0.5 * (W + W.T), (1 + e) * g - e * (B @ U_prev) - B @ Uf)
+        U_prev, U = U, Uf - Z @ res.mu
+        lams.append(-res.mu)
+    return np.array(lams)
+
+
+@pytest.mark.parametrize("backend", ["superlu", "cg"])
+def test_paoli_schatzman_same_history_one_factorization(backend):
+    from signorini.dynamics.problem import discretize
+
+    b = get_benchmark("bar1d")
+    disc = discretize(b.problem(40), "standard")
+    dt = b.h(40) / 2
+    H = simulate(disc, "ps", dt, 3.0, backend=backend)
+    ref = _paoli_schatzman_reference(disc, dt, H.steps)
+    tol = 1e-10 if backend == "superlu" else 1e-7
+    assert np.abs(H.lam - ref).max() <= tol * np.abs(ref).max()
+    assert H.meta["backend"].startswith(backend)
+    assert H.counters["factorizations"] == (1 if backend == "superlu" else 0)
+    assert H.counters["steps"] == H.steps == 240
+    assert H.counters["linear_solves"] >= H.steps
+    assert H.counters["fallbacks"] == int(H.fallbacks.sum())

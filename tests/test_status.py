@@ -1,0 +1,129 @@
+"""Runs that stop early: status, message, partial results, exit codes, streaming fields."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import meshio
+import numpy as np
+
+from signorini.dynamics.simulate import simulate
+from signorini.errors import ConvergenceError
+from signorini.studies.benchmarks import get_benchmark
+
+
+def test_non_finite_load_at_step_5_fails_and_keeps_4_steps():
+    b = get_benchmark("bar2d")
+    p = b.problem(2)
+    dt = b.h(2) / 2
+    p.body_force = lambda x, t: np.full(x.shape, np.nan if t > 4.5 * dt else 0.0)
+    H = simulate(p, "cn", dt, 1.0)
+    assert H.status == "failed" and not H.success
+    assert "step 5" in H.message and "non-finite" in H.message
+    assert H.steps == 4 and H.counters["steps"] == 4 and np.isfinite(H.energy).all()
+
+
+def test_solver_failure_is_a_failed_status(monkeypatch):
+    from signorini.contact import solver as contact_solver
+
+    calls = {"n": 0}
+    original = contact_solver.CondensedContactSolver.solve
+
+    def flaky(self, b, bound):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise ConvergenceError("injected non-convergence")
+        return original(self, b, bound)
+
+    monkeypatch.setattr(contact_solver.CondensedContactSolver, "solve", flaky)
+    b = get_benchmark("bar1d")
+    H = simulate(b.problem(10), "cn", b.h(10) / 2, 1.0, backend="superlu")
+    assert H.status == "failed" and H.steps == 2 and "step 3" in H.message and "injected" in H.message
+
+
+def test_final_level_always_in_snapshots():
+    b = get_benchmark("bar1d")
+    H = simulate(b.problem(10), "cn", 0.05, 1.0, snapshot_every=3)  # 20 steps, not a multiple of 3
+    assert H.snapshots["t"][-1] == H.t[-1] and np.isclose(H.t[-1], 1.0)
+
+
+def test_sigint_stops_cli_cleanly(tmp_path):
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "signorini.io.cli", "run", "bar1d", "--n", "400", "--T", "500", "--quiet"]
+    cmd += ["--snapshot-every", "200", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    time.sleep(3.0)
+    t0 = time.perf_counter()
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=20)[1]
+    assert time.perf_counter() - t0 < 1.0
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and "interrupted" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and "SIGINT" in s["message"] and not s["success"]
+    rows = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
+    assert 0 < s["steps"] == rows.shape[0] - 1 < 400000
+    with meshio.xdmf.TimeSeriesReader(str(out / "fields.xdmf")) as r:
+        r.read_points_cells()
+        t_last = r.read_data(r.num_steps - 1)[0]
+    assert np.isclose(t_last, rows[-1, 0])  # the last level computed was written
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary directory left
+    assert sorted(p.name for p in out.iterdir()) == [
+        "contact.npz",
+        "fields.h5",
+        "fields.xdmf",
+        "history.csv",
+        "summary.json",
+    ]
+
+
+def test_failed_run_exit_code_3(tmp_path):
+    case = tmp_path / "c.toml"
+    case.write_text(
+        """[mesh]
+generator = "interval"
+cells = [10]
+size = [1.0]
+[material]
+rho = 1.0
+E = 1.0
+[[dirichlet]]
+tag = "xmax"
+value = ["0.1 * log(0.5 - t)"]
+[contact]
+tag = "xmin"
+obstacle = { type = "plane", point = [-1.0], normal = [1.0] }
+[time]
+dt = 0.05
+T = 1.0
+"""
+    )
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "signorini.io.cli", "run", str(case), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 3, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and "step 10" in s["message"]
+    assert s["steps"] == 9
+
+
+PEAK = """
+import resource, sys, tempfile
+from pathlib import Path
+from signorini.studies.benchmarks import get_benchmark
+from signorini.dynamics.simulate import simulate
+from signorini.io.output import FieldWriter
+b = get_benchmark("bar3d")
+obs = [FieldWriter(Path(tempfile.mkdtemp()) / "f.xdmf", 1)] if sys.argv[1] == "1" else []
+H = simulate(b.problem(8), "cn", b.h(8) / 2, 60 * b.h(8) / 2, observers=obs, backend="superlu")
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def test_streaming_fields_do_not_grow_memory():
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    peak = [int(subprocess.check_output([sys.executable, "-c", PEAK, k], env=env).split()[-1]) for k in ("0", "1")]
+    assert peak[1] <= 1.1 * peak[0], peak

@@ -1,0 +1,105 @@
+"""Time-dependent data: a moving clamp, a moving obstacle, loads switched on.
+
+Reference: the exact d'Alembert solutions of docs/exact_solutions.md (exact, so the
+observed rates measure the discretization only).  Rates are data, checked two-sided,
+with a bound on the finest error.
+"""
+
+import numpy as np
+import pytest
+
+from signorini.contact.obstacles import PlaneObstacle, SphereObstacle
+from signorini.dynamics.schemes import SCHEMES
+from signorini.dynamics.simulate import simulate
+from signorini.studies.benchmarks import get_benchmark
+from signorini.studies.study import errors_1d, observed_rates
+
+LEVELS = (20, 40, 80, 160)
+MOVING_CLAMP = {"velocity": 0.0, "gap": 0.2, "clamp_velocity": -0.5}
+PUSHING_OBSTACLE = {"velocity": 0.0, "gap": 0.0, "obstacle_velocity": 0.3}
+
+# (scenario, expected mean rate range per error, bound on the finest-level error)
+CASES = {
+    "moving-clamp": (MOVING_CLAMP, {"u_H1": (0.3, 0.6, 0.12), "u_L2": (0.85, 1.15, 0.007),
+                                    "stress": (0.3, 0.6, 0.1), "energy_L2": (0.85, 1.15, 0.0025)}),
+    "pushing-obstacle": (PUSHING_OBSTACLE, {"u_H1": (0.25, 0.5, 0.05), "u_L2": (0.9, 1.3, 0.001),
+                                            "stress": (0.25, 0.5, 0.055), "energy_L2": (0.85, 1.15, 0.0016)}),
+}  # fmt: skip
+
+
+def assert_identity(H, scale):
+    ok = np.isfinite(H.predicted_increment)
+    assert ok[2:].all()
+    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 1e-11 * scale
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_cn_seed_converges_to_the_exact_solution(case):
+    params, expected = CASES[case]
+    b = get_benchmark("bar1d-impact")
+    rows, hs = [], []
+    for n in LEVELS:
+        p = b.problem(n, params)
+        H = simulate(p, "cn", b.h(n) / 2, 3.0, mass="seed", snapshot_every=1)
+        assert H.gap.min() >= -1e-12 and H.lam.max() <= 0.0 and H.residual.max() <= 1e-10
+        assert_identity(H, np.abs(H.energy).max())
+        rows.append(errors_1d(H, p, b.exact(b.params(params), 3.0)))
+        hs.append(b.h(n))
+    for k, (lo, hi, finest) in expected.items():
+        rates = observed_rates([r[k] for r in rows], hs)
+        assert lo < np.mean(rates) < hi, (k, rates)
+        assert rows[-1][k] < finest, (k, rows[-1][k])
+
+
+def test_pushing_obstacle_stress_matches_closed_form():
+    """Contact stress -E w / c on [0, 2L/c), -3 E w / c on [2L/c, 4L/c) (docs/exact_solutions.md)."""
+    b = get_benchmark("bar1d-impact")
+    H = simulate(b.problem(160, PUSHING_OBSTACLE), "cn", b.h(160) / 2, 3.0, mass="seed")
+    lam = H.lam[:, 0]
+    w = 0.3
+    assert np.abs(lam[(H.t > 0.2) & (H.t < 1.8)] + w).max() < 0.05 * w
+    assert np.abs(lam[(H.t > 2.2) & (H.t < 2.9)] + 3 * w).max() < 0.05 * w
+    assert H.active[1:].min() == 1  # never released
+    assert H.external_work[-1] == 0.0 and H.contact_work[-1] > 0.4  # the obstacle does the work
+
+
+@pytest.mark.parametrize("scheme", SCHEMES.names(aliases=False))
+def test_energy_identity_with_external_work_every_scheme(scheme):
+    """Moving clamp + time-dependent body force and traction: each scheme's identity."""
+    b = get_benchmark("bar2d")
+    p = b.problem(2, {"velocity": 0.0})
+    dt = b.h(2) / 2
+    p.dirichlet = [
+        type(p.dirichlet[0])("ymax", lambda x, t: np.column_stack([0 * x[:, 0], 0.2 - 0.4 * t + 0 * x[:, 0]]))
+    ]
+    p.body_force = lambda x, t: np.column_stack(
+        [0.1 * np.sin(3 * t) + 0 * x[:, 0], -2.0 * min(t / 0.2, 1.0) + 0 * x[:, 1]]
+    )
+    p.tractions = {"xmax": lambda x, t: np.column_stack([0.5 * t * x[:, 1], 0 * x[:, 1]])}
+    H = simulate(p, scheme, dt, 1.5, mass="seed")
+    assert H.status == "finished" and H.lam.min() < 0  # contact happened
+    assert_identity(H, np.abs(H.energy).max())
+    assert abs(H.external_work[-1]) > 1e-3  # loads and the clamp did work
+
+
+def test_moving_sphere_and_gravity_switched_on():
+    """A disc (2D) pushed up by a ball that moves: identity and admissibility."""
+    b = get_benchmark("bar2d")
+    p = b.problem(2, {"velocity": 0.0, "gap": 0.0})
+    p.dirichlet = []
+    p.u0, p.v0 = 0.0, 0.0
+    p.obstacle = SphereObstacle(lambda t: [0.05, -1.01 + 0.1 * t], 1.0)
+    p.body_force = lambda x, t: np.column_stack([0 * x[:, 0], -0.5 * min(t, 1.0) + 0 * x[:, 1]])
+    H = simulate(p, "cn", b.h(2) / 2, 0.5, mass="seed")
+    assert H.status == "finished" and H.lam.min() < 0
+    assert H.gap.min() >= -1e-12
+    assert_identity(H, np.abs(H.energy).max() + 1e-3)
+
+
+def test_static_plane_given_as_function_of_time_matches_constant():
+    b = get_benchmark("bar2d")
+    p = b.problem(2)
+    H1 = simulate(p, "cn", b.h(2) / 2, 1.0)
+    p.obstacle = PlaneObstacle(lambda t: [0.0, 0.0], [0.0, 1.0])
+    H2 = simulate(p, "cn", b.h(2) / 2, 1.0)
+    assert np.array_equal(H1.lam, H2.lam)
