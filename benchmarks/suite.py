@@ -37,7 +37,7 @@ SERIES = {
 }
 
 
-def measure(bench: str, n: int, steps: int, backend: str) -> dict:
+def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -> dict:
     from signorini.dynamics.problem import discretize
     from signorini.dynamics.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
@@ -49,7 +49,7 @@ def measure(bench: str, n: int, steps: int, backend: str) -> dict:
     t_mesh = time.perf_counter() - t0
     disc = discretize(problem, "seed")
     dt = b.h(n) / 2
-    H = simulate(disc, "cn", dt, steps * dt, backend=backend)
+    H = simulate(disc, "cn", dt, steps * dt, backend=backend, energy=energy)
     m = H.meta
     ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
     return {
@@ -80,33 +80,13 @@ def fit(x, y) -> float:
     return float(np.polyfit(x, y, 1)[0]) if x.size > 1 else float("nan")
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="skip bar3d n = 16, 32 and bar2d n = 64")
-    ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
-    ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cg (default auto)")
-    ap.add_argument("--out", default="out/bench", help="output directory")
-    ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)
-    a = ap.parse_args(argv)
-    if a.one:
-        print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend)))
-        return 0
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+def run_series(series: list[tuple[str, int]], steps: int, backend: str, energy: bool) -> list[dict]:
+    """Measure every (benchmark, n) in a fresh process; print one line per size."""
     rows = []
-    for bench, n in SERIES["quick" if a.quick else "full"]:
-        cmd = [
-            sys.executable,
-            "-m",
-            "benchmarks",
-            "--one",
-            bench,
-            str(n),
-            "--steps",
-            str(a.steps),
-            "--backend",
-            a.backend,
-        ]
+    for bench, n in series:
+        cmd = [sys.executable, "-m", "benchmarks", "--one", bench, str(n), "--steps", str(steps), "--backend", backend]
+        if not energy:
+            cmd.append("--no-energy")
         r = json.loads(subprocess.check_output(cmd).decode().strip().splitlines()[-1])
         rows.append(r)
         print(
@@ -115,6 +95,23 @@ def main(argv=None) -> int:
             f"peak {r['peak_MB']:.0f} MB",
             flush=True,
         )
+    return rows
+
+
+def exponents(rows: list[dict]) -> dict:
+    """Fitted exponents p of time ~ dofs^p for set-up and step, per benchmark."""
+    exps = {}
+    for bench in ("bar2d", "bar3d"):
+        sel = [r for r in rows if r["benchmark"] == bench]
+        if len(sel) > 1:
+            exps[bench] = {
+                "setup": fit([r["dofs"] for r in sel], [r["setup_s"] for r in sel]),
+                "step": fit([r["dofs"] for r in sel], [r["step_s"] for r in sel]),
+            }
+    return exps
+
+
+def markdown(rows: list[dict], exps: dict) -> list[str]:
     md = [
         "| case | n | dofs | contact | backend | mesh s | assembly s | factor s | condense s | step ms "
         "| step/ref | ref | factor MB | peak MB |",
@@ -127,21 +124,16 @@ def main(argv=None) -> int:
             f"{r['condensation_s']:.2f} | {1e3 * r['step_s']:.2f} | {r['step_over_reference']:.2f} | "
             f"{r['reference_op']} | {r['factor_MB']:.0f} | {r['peak_MB']:.0f} |"
         )
-    exps = {}
-    for bench in ("bar2d", "bar3d"):
-        sel = [r for r in rows if r["benchmark"] == bench]
-        if len(sel) > 1:
-            exps[bench] = {
-                "setup": fit([r["dofs"] for r in sel], [r["setup_s"] for r in sel]),
-                "step": fit([r["dofs"] for r in sel], [r["step_s"] for r in sel]),
-            }
     md += [
         "",
         "Fitted exponents (time ~ dofs^p): "
         + ", ".join(f"{k}: setup {v['setup']:.2f}, step {v['step']:.2f}" for k, v in exps.items()),
     ]
-    (out / "bench.md").write_text("\n".join(md) + "\n")
-    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps}, indent=1))
+    return md
+
+
+def plot(rows: list[dict], exps: dict, path: Path) -> None:
+    """Log-log set-up and step time against dofs with the fitted exponents."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -152,22 +144,40 @@ def main(argv=None) -> int:
         sel = [r for r in rows if r["benchmark"] == bench]
         if sel:
             d = [r["dofs"] for r in sel]
+            p = exps.get(bench, {})
             ax.loglog(
-                d,
-                [r["setup_s"] for r in sel],
-                mk + "-",
-                label=f"{bench} setup (p={exps.get(bench, {}).get('setup', float('nan')):.2f})",
+                d, [r["setup_s"] for r in sel], mk + "-", label=f"{bench} setup (p={p.get('setup', float('nan')):.2f})"
             )
             ax.loglog(
-                d,
-                [r["step_s"] for r in sel],
-                mk + "--",
-                label=f"{bench} step (p={exps.get(bench, {}).get('step', float('nan')):.2f})",
+                d, [r["step_s"] for r in sel], mk + "--", label=f"{bench} step (p={p.get('step', float('nan')):.2f})"
             )
-    ax.set_xlabel("dofs")
-    ax.set_ylabel("seconds")
+    ax.set_xlabel("degrees of freedom")
+    ax.set_ylabel("time [s]")
+    ax.set_title("CN + seed mass: set-up and time per step")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "bench.png", dpi=110)
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="skip bar3d n = 16, 32 and bar2d n = 64")
+    ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
+    ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cg (default auto)")
+    ap.add_argument("--no-energy", action="store_true", help="switch the energy bookkeeping observer off")
+    ap.add_argument("--out", default="out/bench", help="output directory")
+    ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.one:
+        print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend, not a.no_energy)))
+        return 0
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = run_series(SERIES["quick" if a.quick else "full"], a.steps, a.backend, not a.no_energy)
+    exps = exponents(rows)
+    md = markdown(rows, exps)
+    (out / "bench.md").write_text("\n".join(md) + "\n")
+    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps}, indent=1))
+    plot(rows, exps, out / "bench.png")
     print("\n".join(md))
     return 0

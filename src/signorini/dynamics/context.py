@@ -66,14 +66,18 @@ class _System:
         self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, ctx.disc.space.dim, options)
         self._lift_key: np.ndarray | None = None
         self._lift = None
+        self._lift_source: np.ndarray | None = None
 
     def lift(self, xD: np.ndarray) -> np.ndarray | float:
         """K_fD x_D (cached while x_D does not change)."""
         if self.KfD is None:
             return 0.0
+        if xD is self._lift_source:  # the same (constant) array as last time
+            return self._lift
         if self._lift_key is None or not np.array_equal(self._lift_key, xD):
             self._lift_key = np.array(xD, copy=True)
             self._lift = self.KfD @ xD
+        self._lift_source = xD
         return self._lift
 
 
@@ -91,6 +95,7 @@ class Context:
         self.BD = BD if BD is not None and BD.nnz else None
         self.solver_options = dict(solver_options or {})
         self._systems: list[_System] = []
+        self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)
 
     # -- data of time t ------------------------------------------------------------
@@ -116,6 +121,12 @@ class Context:
         self._system(op)
 
     def _system(self, op: Operator) -> tuple[_System, float]:
+        found = self._lookup.get(op)
+        if found is None:
+            found = self._lookup[op] = self._find_or_factorize(op)
+        return found
+
+    def _find_or_factorize(self, op: Operator) -> tuple[_System, float]:
         if op.mass < 0 or op.stiffness < 0 or (op.mass == 0 and op.stiffness == 0):
             raise InputError(f"a scheme operator needs non-negative coefficients, not both zero; got {op}")
         for sys in self._systems:

@@ -211,11 +211,28 @@ def simulate(
     if progress is not None:
         obs.append(ProgressCallback(progress))
     run = Run(ctx, sch, N, float(dt), state, disc.problem)
-    status, message, n_last = "finished", "", 0
     t_loop = time.perf_counter()
+    status, message, n_last = advance(run, starter, obs, handle_signals)
+    loop = time.perf_counter() - t_loop
+    timings = {"setup_seconds": setup, "loop_seconds": loop, "step_seconds": loop / max(n_last, 1)}
+    H = assemble_history(run, n_last, recorder, energies, snaps, timings)
+    H.status, H.message = status, message
+    return H
+
+
+def _one_step(run: Run, starter: Scheme | None, state: State, n: int) -> State:
+    if n == 1 and starter is not None:
+        return run.scheme.start(run.ctx, state, starter.step(run.ctx, state))
+    return run.scheme.step(run.ctx, state)
+
+
+def advance(run: Run, starter: Scheme | None, observers: list[Observer], handle_signals: bool) -> tuple[str, str, int]:
+    """The time loop: (status, message, last level reached); observers closed on any exit."""
+    status, message, n_last = "finished", "", 0
+    state, N, dt = run.initial, run.n_steps, run.dt
     started = []
     try:
-        for o in obs:
+        for o in observers:
             o.start(run)
             started.append(o)
         with _catch_signals(handle_signals) as interrupts:
@@ -224,10 +241,7 @@ def simulate(
                     status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"
                     break
                 try:
-                    if n == 1 and starter is not None:
-                        new = sch.start(ctx, state, starter.step(ctx, state))
-                    else:
-                        new = sch.step(ctx, state)
+                    new = _one_step(run, starter, state, n)
                 except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
                     break
@@ -237,38 +251,35 @@ def simulate(
                 if not new.is_finite():
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): non-finite value in the state"
                     break
-                for o in obs:
+                for o in observers:
                     o.record(run, n, new)
                 state, n_last = new, n
     finally:
         for o in started:
             o.close(run, status, n_last, state)
-    loop = time.perf_counter() - t_loop
+    return status, message, n_last
 
-    counters = {"steps": n_last, **ctx.counters()}
-    timings = {"setup_seconds": setup, "loop_seconds": loop, "step_seconds": loop / max(n_last, 1)}
+
+def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: dict) -> History:
+    """The :class:`History` of the levels 0..n_last from the observers' series."""
+    ctx, disc = run.ctx, run.ctx.disc
     series = dict(recorder.series)
+    work = {}
     if energies is not None:
         E = energies.series
-        series.update(
-            kinetic_energy=E["kinetic_energy"],
-            elastic_energy=E["elastic_energy"],
-            predicted_increment=E["predicted_increment"],
-        )
+        series.update(kinetic_energy=E["kinetic_energy"], elastic_energy=E["elastic_energy"])
+        series["predicted_increment"] = E["predicted_increment"]
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())
-        work = {}
     return History(
-        t=np.arange(n_last + 1) * dt,
+        t=np.arange(n_last + 1) * run.dt,
         **series,
         **work,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
         snapshots=snaps.snapshots() if snaps is not None else {},
-        meta=run_meta(disc, ctx, sch, dt, N, timings),
-        status=status,
-        message=message,
-        counters=counters,
+        meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),
+        counters={"steps": n_last, **ctx.counters()},
     )

@@ -156,11 +156,15 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
     t = 0 when massless dofs start out of equilibrium (``extra['R0']``).
     """
 
+    varying = ctx.has_fixed and ctx.disc.dirichlet_varies
+    if not varying and "R0" not in s.extra:
+        return None
+
     def compute():
         R = None
         if "R0" in s.extra:
             R = s.extra["R0"].copy()
-        if ctx.has_fixed and ctx.disc.dirichlet_varies:
+        if varying:
             R = np.zeros(s.U.size) if R is None else R
             D = ctx.fixed
             RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D]
