@@ -19,6 +19,7 @@ generic :data:`SOLVER_OPTIONS` plus the chosen backend's own parameters.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import os
@@ -53,8 +54,16 @@ class Factor:
         raise NotImplementedError
 
 
+@functools.cache
 def has_pardiso() -> bool:
-    return importlib.util.find_spec("pypardiso") is not None
+    """Whether pypardiso is installed and loads (its MKL libraries found)."""
+    if importlib.util.find_spec("pypardiso") is None:
+        return False
+    try:
+        import pypardiso  # noqa: F401
+    except Exception:  # a broken MKL install: behave as if absent
+        return False
+    return True
 
 
 def total_memory() -> int:
