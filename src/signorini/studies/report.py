@@ -167,6 +167,14 @@ def study_beyond(levels: list[int], T: float = 3.0) -> list[dict]:
     return out
 
 
+def table_start(title: str, columns: list[str], intro: tuple[str, ...] = ()) -> list[str]:
+    """A report section's heading, optional intro lines and the header of its table."""
+    lines = [f"## {title}", ""]
+    for text in intro:
+        lines += [text, ""]
+    return lines + ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+
+
 def _header(size: str) -> list[str]:
     return [
         "# signorini: reproduction of the mass redistribution study",
@@ -180,12 +188,10 @@ def section_1d(cfg: dict, out: Path, summary: dict) -> list[str]:
     """1. The 1D exact benchmark: errors and rates for CN/BE with three masses."""
     s1 = study_1d(cfg["levels1d"])
     summary["bar1d"] = s1
-    md = [
-        "## 1. 1D clamped bar against the exact solution (T = 3, dt = h/2)",
-        "",
-        "| scheme | mass | n | H1 u | L2 u | L2 v | stress | E(T) (exact 0.125) |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
+    md = table_start(
+        "1. 1D clamped bar against the exact solution (T = 3, dt = h/2)",
+        ["scheme", "mass", "n", "H1 u", "L2 u", "L2 v", "stress", "E(T) (exact 0.125)"],
+    )
     for s in s1:
         for r in s["rows"]:
             md.append(
@@ -227,12 +233,10 @@ def section_2d_histories(cfg: dict, out: Path, summary: dict) -> list[str]:
     summary["bar2d_histories"] = hist
     plots.contact_histories(runs, out / "fig_contact_2d.png", out / "fig_contact_2d.csv")
     plots.energies(runs, out / "fig_energy_2d.png", out / "fig_energy_2d.csv")
-    md = [
-        f"## 2. 2D bar, n = {n2} ({n2}x{10 * n2} Q1), dt = h/2, T = {cfg['T2d']}",
-        "",
-        "| scheme / mass | oscillation index | E(T)/E(0) | max E/E(0) | first contact t | impacts |",
-        "|---|---|---|---|---|---|",
-    ]
+    md = table_start(
+        f"2. 2D bar, n = {n2} ({n2}x{10 * n2} Q1), dt = h/2, T = {cfg['T2d']}",
+        ["scheme / mass", "oscillation index", "E(T)/E(0)", "max E/E(0)", "first contact t", "impacts"],
+    )
     for k, v in hist.items():
         md.append(
             f"| {k} | {v['oscillation_index']:.2f} | {v['energy_ratio_final']:.4f} | "
@@ -303,12 +307,10 @@ def section_3d_von_mises(cfg: dict, out: Path, summary: dict) -> list[str]:
         runs3[mass] = (p3, simulate(p3, "crank-nicolson", dt3, cfg["T3d"], mass=mass, snapshot_every=every))
     vm = plots.von_mises_3d(runs3, out / "fig_von_mises_3d.png", out / "fig_von_mises_3d.csv")
     summary["bar3d_von_mises"] = vm
-    md = [
-        f"## 4. 3D bar, n = {n3}, CN: von Mises stress on the face x = 0",
-        "",
-        "| mass | max von Mises near contact (z < 0.2) after impact | roughness (mean |jump| along z) |",
-        "|---|---|---|",
-    ]
+    md = table_start(
+        f"4. 3D bar, n = {n3}, CN: von Mises stress on the face x = 0",
+        ["mass", "max von Mises near contact (z < 0.2) after impact", "roughness (mean |jump| along z)"],
+    )
     for mass, v in vm.items():
         md.append(f"| {mass} | {v['max_near_contact']:.4f} | {v['roughness']:.4f} |")
     return md + ["", "![von Mises](fig_von_mises_3d.png)", ""]
@@ -318,14 +320,11 @@ def section_beyond(cfg: dict, out: Path, summary: dict) -> list[str]:
     """5. Beyond the paper: more redistributions and Paoli-Schatzman on the 1D benchmark."""
     beyond = study_beyond(cfg["levels1d"])
     summary["bar1d_beyond"] = beyond
-    md = [
-        "## 5. Beyond the paper: mass variants and Paoli-Schatzman on the 1D exact benchmark",
-        "",
-        "Relative L2(0,T) errors at the finest level (T = 3, dt = h/2) and mean observed rates.",
-        "",
-        "| scheme / mass | H1 u | rate | stress | rate | max abs(E - E0)/E0 |",
-        "|---|---|---|---|---|---|",
-    ]
+    md = table_start(
+        "5. Beyond the paper: mass variants and Paoli-Schatzman on the 1D exact benchmark",
+        ["scheme / mass", "H1 u", "rate", "stress", "rate", "max abs(E - E0)/E0"],
+        ("Relative L2(0,T) errors at the finest level (T = 3, dt = h/2) and mean observed rates.",),
+    )
     for r in beyond:
         md.append(
             f"| {r['label']} | {r['u_H1'][-1]:.4f} | {np.mean(r['rate_u_H1']):.2f} | "
