@@ -5,8 +5,18 @@ the names :data:`VARIABLES` and :data:`CONSTANTS`, the operators ``+ - * / ** %`
 unary ``+ -``, and calls of the functions in :data:`FUNCTIONS` with positional
 arguments.  Anything else (attributes, subscripts, lambdas, comprehensions, strings,
 keywords, other names) is an error naming the key, so a case file cannot run code.
+
+Bounds, checked before anything is evaluated: at most :data:`MAX_LENGTH` characters,
+:data:`MAX_NODES` tree nodes and :data:`MAX_DEPTH` levels of nesting, and a constant
+exponent of ``**`` at most :data:`MAX_EXPONENT` in absolute value.  Every number is a
+float64 and every operation a numpy one (an overflow gives inf, never a Python
+big-integer computation), so the cost of an evaluation is at most MAX_NODES vectorized
+operations over the points: the size bound is the time bound.
+
 The tree is compiled into nested numpy closures; values are computed with numpy's
-vectorized functions over all points at once.
+vectorized functions over all points at once.  A value that is not finite at some
+point is an error naming the key, the expression and that point
+(:func:`check_finite`).
 """
 
 from __future__ import annotations
@@ -19,6 +29,11 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import InputError
+
+MAX_LENGTH = 2000
+MAX_NODES = 400
+MAX_DEPTH = 40
+MAX_EXPONENT = 64.0
 
 VARIABLES = ("x", "y", "z", "t")
 CONSTANTS = {"pi": math.pi, "e": math.e}
@@ -51,6 +66,30 @@ def allowed_names() -> str:
     return ", ".join([*VARIABLES, *CONSTANTS, *(f"{f}()" for f in FUNCTIONS)])
 
 
+def _check_size(tree: ast.AST, key: str, text: str) -> None:
+    """Reject trees with more than MAX_NODES nodes or deeper than MAX_DEPTH (iteratively)."""
+    count, stack = 0, [(tree, 0)]
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if count > MAX_NODES:
+            raise InputError(f"'{key}': expression {text[:60]!r}... has more than {MAX_NODES} terms")
+        if depth > MAX_DEPTH:
+            raise InputError(f"'{key}': expression {text[:60]!r}... nests deeper than {MAX_DEPTH} levels")
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+
+
+def _constant_value(node: ast.AST) -> float | None:
+    """The value of a (possibly signed) numeric literal, else None."""
+    sign = 1.0
+    while isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
+        sign = -sign if isinstance(node.op, ast.USub) else sign
+        node = node.operand
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+        return sign * float(node.value)
+    return None
+
+
 def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[dict], np.ndarray]:
     def bad(what: str) -> InputError:
         return InputError(f"'{key}': {what} is not allowed in expression {text!r}; allowed: numbers, + - * / ** %, "
@@ -61,7 +100,9 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             raise bad(f"the constant {node.value!r}")
-        value = float(node.value)
+        value = np.float64(node.value)
+        if not np.isfinite(value):
+            raise InputError(f"'{key}': the number {node.value!r} in {text!r} is not finite")
         return lambda env: value
     if isinstance(node, ast.Name):
         if node.id in VARIABLES:
@@ -69,11 +110,16 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
             name = node.id
             return lambda env: env[name]
         if node.id in CONSTANTS:
-            value = CONSTANTS[node.id]
+            value = np.float64(CONSTANTS[node.id])
             return lambda env: value
         names = f"[{node.id!r}]"
         raise InputError(f"'{key}': unknown name(s) {names} in {text!r}; allowed: {allowed_names()}")
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        if isinstance(node.op, ast.Pow):
+            exponent = _constant_value(node.right)
+            if exponent is None or abs(exponent) > MAX_EXPONENT:
+                raise bad(f"the power '{ast.unparse(node)}' (the exponent must be a number of size <= "
+                          f"{MAX_EXPONENT:g}; use exp() and log() for other powers)")  # fmt: skip
         op, left, right = (
             _BINARY[type(node.op)],
             _compile(node.left, key, text, used),
@@ -99,12 +145,13 @@ class Expression:
 
     def __init__(self, key: str, text: str):
         self.key, self.text = key, text
-        if len(text) > 2000:
-            raise InputError(f"'{key}': expression longer than 2000 characters")
+        if len(text) > MAX_LENGTH:
+            raise InputError(f"'{key}': expression longer than {MAX_LENGTH} characters")
         try:
             tree = ast.parse(text.strip(), mode="eval")
-        except SyntaxError as exc:
-            raise InputError(f"'{key}': invalid expression {text!r}: {exc.msg}") from None
+        except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:
+            raise InputError(f"'{key}': invalid expression {text!r}: {getattr(exc, 'msg', exc)}") from None
+        _check_size(tree, key, text)
         used: set[str] = set()
         self._f = _compile(tree, key, text, used)
         self.variables = used
@@ -122,6 +169,21 @@ class Expression:
         with np.errstate(all="ignore"):
             v = np.broadcast_to(np.asarray(self._f(env), dtype=float), (n,))
         return v
+
+
+def check_finite(key: str, text: str, values: np.ndarray, points: np.ndarray | None, t: float) -> np.ndarray:
+    """``values`` (n,) if all finite; else an error naming the key, the expression and one point."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size == 0:
+        return values
+    i = int(bad[0])
+    where = ""
+    if points is not None and len(points):
+        where = " at (" + ", ".join(f"{c}={v:.6g}" for c, v in zip("xyz", points[i], strict=False)) + ")"
+    raise InputError(
+        f"'{key}': {text!r} is {float(values[i])}{where}, t = {t:g}: not finite "
+        "(check the expression's domain and the size of its values)"
+    )
 
 
 def vector_field(key: str, items: list, dim: int, allow_space: bool = True):
@@ -148,30 +210,27 @@ def vector_field(key: str, items: list, dim: int, allow_space: bool = True):
     timed = any(isinstance(c, Expression) and c.time_dependent for c in comps)
 
     def column(c, p, t):
-        return c(p, t) if isinstance(c, Expression) else np.full(p.shape[0], c)
-
-    def check(v: np.ndarray, t: float) -> np.ndarray:
-        if not np.all(np.isfinite(v)):
-            raise InputError(f"'{key}' is not finite at t = {t:g} (check the expression's domain)")
-        return v
+        if isinstance(c, Expression):
+            return check_finite(c.key, c.text, c(p, t), p if allow_space else None, t)
+        return np.full(p.shape[0], c)
 
     if not allow_space:
 
         def position(t: float) -> np.ndarray:
-            return check(np.array([column(c, np.zeros((1, dim)), t)[0] for c in comps]), t)
+            return np.array([column(c, np.zeros((1, dim)), t)[0] for c in comps])
 
         return position
 
     if timed:
 
         def field_xt(p: np.ndarray, t: float) -> np.ndarray:
-            return check(np.column_stack([column(c, p, t) for c in comps]), t)
+            return np.column_stack([column(c, p, t) for c in comps])
 
         field_xt.time_dependent = True  # type: ignore[attr-defined]
         return field_xt
 
     def field_x(p: np.ndarray) -> np.ndarray:
-        return check(np.column_stack([column(c, p, 0.0) for c in comps]), 0.0)
+        return np.column_stack([column(c, p, 0.0) for c in comps])
 
     field_x.time_dependent = False  # type: ignore[attr-defined]
     return field_x
