@@ -32,10 +32,11 @@ def _levels(name, mass, scheme, levels, T=3.0, params=None):
         p = b.problem(n, params)
         h = b.h(n, params)
         dt = h / (2 * b.wave_speed(params))
-        H = simulate(p, scheme, dt, T, mass=mass, snapshot_every=1)
+        Tn = dt * round(T / dt)  # T must be a multiple of dt: the nearest one
+        H = simulate(p, scheme, dt, Tn, mass=mass, snapshot_every=1)
         assert_complementarity(H)
         assert_energy_identity(H)
-        rows.append(errors_1d(H, p, b.exact(b.params(params), T)))
+        rows.append(errors_1d(H, p, b.exact(b.params(params), Tn)))
         hs.append(h)
     return {k: observed_rates([r[k] for r in rows], hs) for k in rows[0]}, rows
 

@@ -37,14 +37,23 @@ from .schemes import Scheme, State, make_scheme
 
 
 def number_of_steps(dt: float, T: float) -> int:
-    """N = T/dt rounded to the nearest integer; T must be a multiple of dt to 1e-9."""
+    """N = T/dt; T must be an integer multiple of dt to a relative 1e-9.
+
+    Otherwise an :class:`InputError` names both and the two nearest valid time steps
+    T/floor(T/dt) and T/ceil(T/dt) (a run never silently ends after T).
+    """
     dt = check_positive("dt", dt)
     T = check_positive("T", T)
-    if T < dt * (1 - 1e-12):
-        raise InputError(f"T must be >= dt, got T={T} < dt={dt}")
-    n = round(T / dt)
+    if T < dt * (1 - 1e-9):
+        raise InputError(f"T must be >= dt, got T={T:g} < dt={dt:g}")
+    ratio = T / dt
+    n = round(ratio)
     if abs(n * dt - T) > 1e-9 * T:
-        n = math.ceil(T / dt - 1e-9)
+        lo, hi = math.floor(ratio), math.ceil(ratio)
+        raise InputError(
+            f"T = {T:g} is not an integer multiple of dt = {dt:g} (T/dt = {ratio:.6g}); "
+            f"nearest valid dt: {T / hi:.10g} ({hi} steps) or {T / lo:.10g} ({lo} steps)"
+        )
     return int(n)
 
 
