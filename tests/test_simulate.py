@@ -164,7 +164,7 @@ def test_bad_inputs():
         simulate(p, "rk4", 0.1, 1.0)
     with pytest.raises(InputError, match="unknown mass"):
         simulate(p, "cn", 0.1, 1.0, mass="nope")
-    with pytest.raises(InputError, match="penetrates"):
+    with pytest.raises(InputError, match="pushes contact node 0 .* into the obstacle"):
         simulate(b.problem(4, {"gap": 0.0}).__class__(**{**b.problem(4).__dict__, "u0": -0.1}), "cn", 0.1, 1.0)
 
 

@@ -41,3 +41,11 @@ class ConvergenceError(RuntimeError):
     :func:`signorini.dynamics.simulate.simulate` turns it into a result with
     ``status = "failed"``; the command line exits with code 3.
     """
+
+
+class NonFiniteError(ConvergenceError):
+    """A value that is inf or NaN where a finite one is needed: assembled operators,
+    loads, initial data or a step's state.  The message names the quantity.
+
+    A run stops with ``status = "failed"``; the command line exits with code 3.
+    """

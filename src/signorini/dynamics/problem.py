@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from ..contact.contact_set import ContactSet
 from ..contact.obstacles import RigidObstacle
-from ..errors import InputError
+from ..errors import InputError, NonFiniteError
 from ..fem.assembly import body_load, stiffness_matrix, surface_load
 from ..fem.fields import at_time, is_time_dependent
 from ..fem.material import IsotropicElastic
@@ -151,6 +151,52 @@ def _load_parts(problem: Problem, mesh: Mesh, n: int) -> tuple[np.ndarray, list]
     return F, varying
 
 
+def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> str:
+    """Why the initial state violates contact at contact node ``i``: say what is really wrong."""
+    from ..contact.obstacles import PlaneObstacle, SphereObstacle
+
+    ob, mesh = problem.obstacle, problem.mesh
+    node = int(contact.nodes[i])
+    g = float(contact.gaps[i])
+    where = f"contact node {node} at {np.round(mesh.points[node], 6).tolist()}"
+    if g < 0:  # the reference configuration itself is inside the obstacle
+        if isinstance(ob, PlaneObstacle):
+            inside = np.mean(ob.gaps(mesh.points, 0.0) < 0)
+            if inside > 0.5:
+                return (
+                    f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes, "
+                    f"e.g. {where}, gap {g:.3g} < 0): the plane's normal must point out of the obstacle, "
+                    f"towards the body; flip 'normal' (now {np.round(ob.normal, 6).tolist()}) or move 'point'"
+                )
+            return (
+                f"{where} starts inside the obstacle (gap {g:.3g} < 0): move the plane's 'point' so that the "
+                "body starts on the side its 'normal' points to"
+            )
+        if isinstance(ob, SphereObstacle):
+            d = float(np.linalg.norm(mesh.points[node] - ob.center))
+            return (
+                f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {ob.radius:.6g}): "
+                "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
+            )
+        return f"{where} starts inside the obstacle (gap {g:.3g} < 0)"
+    return (
+        f"the initial displacement pushes {where} into the obstacle "
+        f"(nu.u0 = {Bu0[i]:.3g} > gap {g:.3g}); choose u0 with nu.u0 <= gap"
+    )
+
+
+def check_finite_data(**arrays: np.ndarray) -> None:
+    """Raise :class:`NonFiniteError` naming the first array with an inf or NaN entry."""
+    for name, a in arrays.items():
+        a = np.asarray(a, dtype=float)
+        if not np.all(np.isfinite(a)):
+            i = int(np.flatnonzero(~np.isfinite(a.ravel()))[0])
+            raise NonFiniteError(
+                f"non-finite value in {name} (entry {i} = {a.ravel()[i]}) before the first step; "
+                "check the material, loads and initial data"
+            )
+
+
 def discretize(problem: Problem, mass: str = "seed") -> Discretization:
     """Assemble S, the chosen mass variant, loads, contact set and initial data."""
     mass = MASS_VARIANTS.resolve(mass)
@@ -166,14 +212,11 @@ def discretize(problem: Problem, mass: str = "seed") -> Discretization:
     U0 = space.interpolate(problem.u0)
     U0[cons.fixed] = cons.values
     V0 = space.interpolate(problem.v0)
+    check_finite_data(S=S.data, M=M.data, F=F, U0=U0, V0=V0, gaps=contact.gaps, dirichlet=cons.values)
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
-        i = int(np.argmax(viol))
-        raise InputError(
-            f"initial displacement penetrates the obstacle at contact node {int(contact.nodes[i])} "
-            f"(nu.u0 - g = {viol[i]:.3g} > 0); choose u0 with nu.u0 <= g"
-        )
+        raise InputError(_penetration_message(problem, contact, disc.B @ U0, int(np.argmax(viol))))
     disc.timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
     return disc

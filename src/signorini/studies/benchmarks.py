@@ -70,6 +70,18 @@ class Benchmark:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be >= 0, got {p[k]}")
         return p
 
+    def mesh_counts(self, n: int) -> tuple[int, int, int]:
+        """(nodes, cells, nodes per cell) of level n, without building the mesh."""
+        if self.dim == 1:
+            return n + 1, n, 2
+        if self.dim == 2:
+            return (n + 1) * (10 * n + 1), 10 * n * n, 4
+        return (n + 1) ** 2 * (10 * n + 1), 10 * n**3, 8
+
+    def contact_count(self, n: int) -> int:
+        """Number of contact nodes of level n (one end or side of the bar)."""
+        return (n + 1) ** (self.dim - 1)
+
     def problem(self, n: int, overrides: dict | None = None) -> Problem:
         if not isinstance(n, (int, np.integer)) or n < 1:
             raise InputError(f"n (number of elements) must be a positive integer, got {n!r}")
