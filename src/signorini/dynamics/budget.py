@@ -53,9 +53,7 @@ class RunEstimate:
         )
 
 
-def estimate_run(
-    n_nodes: int, n_cells: int, nodes_per_cell: int, dim: int, n_contact: int, steps: int
-) -> RunEstimate:
+def estimate_run(n_nodes: int, n_cells: int, nodes_per_cell: int, dim: int, n_contact: int, steps: int) -> RunEstimate:
     """The estimate of the module docstring from mesh counts, without building anything."""
     k = nodes_per_cell * dim
     setup = BASE_BYTES + TRIPLET_BYTES * float(n_cells) * k * k

@@ -16,6 +16,8 @@ knows and turns Gmsh physical groups of facets into tags.
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -258,10 +260,12 @@ def read_mesh(path: str | Path) -> Mesh:
     p = Path(path)
     if not p.is_file():
         raise MeshError(f"mesh file {str(p)!r} does not exist")
-    try:
-        m = meshio.read(p)
-    except Exception as exc:  # meshio raises many types
-        raise MeshError(f"cannot read mesh file {str(p)!r}: {exc}") from None
+    try:  # meshio raises many types, prints to stdout and may call sys.exit on unknown formats
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            m = meshio.read(p)
+    except (Exception, SystemExit) as exc:
+        reason = str(exc) if not isinstance(exc, SystemExit) else "not a mesh in a format meshio reads"
+        raise MeshError(f"cannot read mesh file {str(p)!r}: {reason}") from None
     kinds = {b.type for b in m.cells}
     volume = [t for t in kinds if t in _DIM_OF]
     unsupported = [t for t in kinds if t not in _DIM_OF and t not in ("vertex", "line", "triangle", "quad")]

@@ -1,30 +1,35 @@
 """The ``signorini`` command line.
 
 Exit codes: 0 success; 2 invalid input (nothing written); 3 numerical failure (a
-non-finite state or a solver that did not converge: the levels computed are written,
-with ``status = "failed"`` in summary.json); 130 interrupted by Ctrl-C or SIGTERM
-(the levels computed are written, ``status = "interrupted"``); 1 unexpected error.
+non-finite value or a solver that did not converge: the levels computed are written,
+with ``status = "failed"`` in summary.json); 4 the environment failed (out of memory,
+disk full, an I/O error: what could be kept is kept); 130 interrupted by Ctrl-C or
+SIGTERM (the levels computed are written, ``status = "interrupted"``); 1 an internal
+error (a bug: one line, the traceback with ``SIGNORINI_TRACEBACK=1``).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import json
+import os
 import shutil
 import signal
 import sys
-import tempfile
 import time
-from collections.abc import Callable
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..errors import InputError
+from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
+from .results_dir import ResultDirectory, run_into
 
 EXIT_CODES = {"finished": 0, "failed": 3, "interrupted": 130}
+EXIT_ENVIRONMENT = 4
 
 EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
   signorini run bar2d --scheme be --mass standard --n 4 --T 1 --out out/bar2d-be
@@ -59,36 +64,6 @@ class Progress:
         if i == n:
             sys.stderr.write("\n")
         sys.stderr.flush()
-
-
-def prepare_output(out: Path, overwrite: bool) -> Path:
-    """Check ``out`` and return a fresh temporary directory next to it."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {str(out)!r} exists and is not a directory")
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise InputError(f"output directory {str(out)!r} is not empty; pass --overwrite to replace it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    tmp.chmod(0o755)
-    return tmp
-
-
-def commit_output(tmp: Path, out: Path) -> None:
-    """Move the finished results into place (the old directory is replaced only now)."""
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
-
-
-def run_into(out: Path, overwrite: bool, work: Callable[[Path], None]) -> None:
-    """Run ``work(tmpdir)`` and publish the directory only if it returns."""
-    tmp = prepare_output(out, overwrite)
-    try:
-        work(tmp)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    commit_output(tmp, out)
 
 
 def one_screen_summary(H) -> str:
@@ -143,6 +118,42 @@ class RunSpec:
     snapshot_every: int = 0
     meta: dict = field(default_factory=dict)
     case_file: Path | None = None
+    limits: dict = field(default_factory=dict)
+
+
+def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
+    """--max-steps, --max-memory (GiB) and --yes over the case file's [limits]."""
+    out = dict(case_limits)
+    if args.max_steps is not None:
+        if args.max_steps < 1:
+            raise InputError(f"--max-steps must be a positive integer, got {args.max_steps}")
+        out["max_steps"] = args.max_steps
+    if args.max_memory is not None:
+        from ..errors import check_positive
+
+        out["max_memory"] = check_positive("--max-memory", args.max_memory)
+    if args.yes:
+        out["yes"] = True
+    return out
+
+
+def check_size(counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict) -> None:
+    """Refuse (exit 2, with the estimate) a run over the step or memory limit unless confirmed.
+
+    ``counts`` = (nodes, cells, nodes per cell, dim, contact nodes), known before meshing
+    for a benchmark.
+    """
+    from ..dynamics.budget import check_run_size, estimate_run
+    from ..dynamics.simulate import number_of_steps
+
+    est = estimate_run(*counts, number_of_steps(dt, T))
+    mem = limits.get("max_memory")
+    check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
+
+
+def mesh_counts(problem) -> tuple[int, int, int, int, int]:
+    m = problem.mesh
+    return m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size
 
 
 def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:
@@ -159,14 +170,19 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     bench = get_benchmark(args.target)
     overrides = parse_assignments(args.set, "--set")
     n = args.n if args.n is not None else (40 if bench.dim == 1 else 4)
-    problem = bench.problem(n, overrides)
+    if n < 1:
+        raise InputError(f"--n must be a positive integer, got {n}")
     dt = args.dt if args.dt is not None else bench.h(n, overrides) / 2
     T = args.T if args.T is not None else (6.0 if bench.dim == 1 else 1.0)
+    limits = _limits(args, {})
+    nodes, cells, per_cell = bench.mesh_counts(n)
+    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n)), dt, T, limits)
+    problem = bench.problem(n, overrides)
     sch, sol = _options(args, {}, {})
     meta = {"benchmark": args.target, "n": n, "parameters": bench.params(overrides)}
     scheme = load_scheme(args.scheme or "cn")
     return RunSpec(problem, scheme, dt, T, args.mass or "seed", Path(args.out or "out/run"), args.target,
-                   sch, sol, args.snapshot_every or 0, meta)  # fmt: skip
+                   sch, sol, args.snapshot_every or 0, meta, limits=limits)  # fmt: skip
 
 
 def case_spec(args: argparse.Namespace) -> RunSpec:
@@ -182,38 +198,72 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     scheme = load_scheme(args.scheme) if args.scheme else case.scheme
     sch, sol = _options(args, case.scheme_options if not args.scheme else {}, case.solver_options)
     every = args.snapshot_every if args.snapshot_every is not None else case.snapshot_every
+    if every < 0:
+        raise InputError(f"--snapshot-every must be >= 0, got {every}")
+    limits = _limits(args, case.limits)
+    check_size(mesh_counts(case.problem), case.dt, case.T, limits)
     return RunSpec(case.problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
-                   sch, sol, every, {"case_file": str(args.target)}, Path(args.target))  # fmt: skip
+                   sch, sol, every, {"case_file": str(args.target)}, Path(args.target), limits)  # fmt: skip
+
+
+class LazyFieldWriter:
+    """A :class:`~signorini.io.output.FieldWriter` into the result directory, which is
+    created only when the time loop starts (so invalid input creates nothing)."""
+
+    def __init__(self, rd: ResultDirectory, every: int):
+        self.rd, self.every, self.inner = rd, every, None
+
+    def start(self, run) -> None:
+        from .output import FieldWriter
+
+        self.inner = FieldWriter(self.rd.create() / "fields.xdmf", self.every)
+        self.inner.start(run)
+
+    def record(self, run, n, state) -> None:
+        self.inner.record(run, n, state)
+
+    def close(self, run, status, n_last, state) -> None:
+        if self.inner is not None:
+            self.inner.close(run, status, n_last, state)
+
+
+def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
+    """summary.json of a run that failed before its first step (status failed, no levels)."""
+    tmp = rd.create()
+    summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
+               "steps": 0, "counters": {"steps": 0}, **spec.meta}  # fmt: skip
+    (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    rd.commit()
 
 
 def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     """Run the simulation into a temporary directory and publish it, whatever the status."""
     from ..dynamics.simulate import simulate
-    from .output import FieldWriter
 
-    holder: dict = {}
-
-    def work(tmp: Path) -> None:
-        observers = [FieldWriter(tmp / "fields.xdmf", spec.snapshot_every)] if spec.snapshot_every else []
-        H = simulate(
-            spec.problem,
-            spec.scheme,
-            spec.dt,
-            spec.T,
-            mass=spec.mass,
-            progress=Progress(args.quiet, spec.label),
-            scheme_options=spec.scheme_options,
-            solver_options=spec.solver_options,
-            observers=observers,
-        )
+    with ResultDirectory(spec.out, args.overwrite) as rd:
+        observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
+        try:
+            H = simulate(
+                spec.problem,
+                spec.scheme,
+                spec.dt,
+                spec.T,
+                mass=spec.mass,
+                progress=Progress(args.quiet, spec.label),
+                scheme_options=spec.scheme_options,
+                solver_options=spec.solver_options,
+                observers=observers,
+            )
+        except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
+            write_setup_failure(rd, spec, exc)
+            print(f"signorini: failed: {exc} (summary in {spec.out})", file=sys.stderr)
+            return EXIT_CODES["failed"]
         H.meta.update(spec.meta)
+        tmp = rd.create()
         if spec.case_file is not None:
             shutil.copy(spec.case_file, tmp / "case.toml")
         H.save(tmp)
-        holder["H"] = H
-
-    run_into(spec.out, args.overwrite, work)
-    H = holder["H"]
+        rd.commit()
     if not args.quiet:
         print(one_screen_summary(H))
         print(f"  results in {spec.out}")
@@ -369,6 +419,21 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps and at the end (0: none)"
     )
+    r.add_argument(
+        "--max-steps",
+        type=int,
+        default=None,
+        help="refuse runs with more steps unless --yes (default 1,000,000; case file: [limits] max_steps)",
+    )
+    r.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GIB",
+        help="refuse runs whose estimated memory exceeds this many GiB unless --yes "
+        "(default 80%% of the machine's memory; case file: [limits] max_memory)",
+    )
+    r.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
     add_output_arguments(
         r, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
     )
@@ -434,6 +499,27 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
+    except ConvergenceError as exc:
+        print(f"signorini: failed: {exc}", file=sys.stderr)
+        return EXIT_CODES["failed"]
+    except MemoryError:
+        print(
+            "signorini: error: out of memory (try a smaller size, --backend cg, or a larger machine)", file=sys.stderr
+        )
+        return EXIT_ENVIRONMENT
+    except OSError as exc:
+        where = f" {exc.filename!r}" if exc.filename else ""
+        print(f"signorini: error: file system:{where} {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_ENVIRONMENT
+    except Exception as exc:  # a bug: one line, the traceback on request
+        if os.environ.get("SIGNORINI_TRACEBACK"):
+            traceback.print_exc()
+        print(
+            f"signorini: internal error: {type(exc).__name__}: {exc} "
+            "(please report it; SIGNORINI_TRACEBACK=1 shows the traceback)",
+            file=sys.stderr,
+        )
+        return 1
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)

@@ -52,6 +52,11 @@ errors that name the key and the allowed values)::
     [output]
     directory = "out/case"
     snapshot_every = 0          # XDMF fields every k steps (0: none)
+
+    [limits]                    # optional: refuse larger runs unless yes = true
+    max_steps = 1000000
+    max_memory = 16.0           # GiB (default 80% of the machine's memory)
+    yes = false
 """
 
 from __future__ import annotations
@@ -85,6 +90,7 @@ SECTIONS = {
     "time": TIME_KEYS,  # + the scheme's parameters
     "solver": {"mass"},  # + the solver options
     "output": {"directory", "snapshot_every"},
+    "limits": {"max_steps", "max_memory", "yes"},
 }
 REQUIRED = ("mesh", "material", "contact", "time")
 
@@ -100,6 +106,7 @@ class Case:
     snapshot_every: int
     scheme_options: dict[str, Any] = field(default_factory=dict)
     solver_options: dict[str, Any] = field(default_factory=dict)
+    limits: dict[str, Any] = field(default_factory=dict)
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -263,11 +270,30 @@ def _output(outp: Any) -> tuple[Path | None, int]:
     return (Path(out) if out else None), every
 
 
+def _limits(lim: Any) -> dict:
+    _keys("limits", lim, SECTIONS["limits"])
+    out: dict[str, Any] = {}
+    if "max_steps" in lim:
+        v = lim["max_steps"]
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise InputError(f"'limits.max_steps' must be a positive integer, got {v!r}")
+        out["max_steps"] = v
+    if "max_memory" in lim:
+        out["max_memory"] = check_positive("limits.max_memory", _number("limits.max_memory", lim["max_memory"]))
+    if "yes" in lim:
+        if not isinstance(lim["yes"], bool):
+            raise InputError(f"'limits.yes' must be true or false, got {lim['yes']!r}")
+        out["yes"] = lim["yes"]
+    return out
+
+
 def _read(path: Path) -> dict:
     if not path.is_file():
         raise InputError(f"case file {str(path)!r} does not exist")
     try:
         data = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise InputError(f"case file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{path.name}: invalid TOML: {exc}") from None
     for k in data:
@@ -305,5 +331,6 @@ def load_case(path: str | Path) -> Case:
     scheme, dt, T, scheme_options = _time(data["time"])
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every = _output(data.get("output", {}))
+    limits = _limits(data.get("limits", {}))
     problem = Problem(mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
-    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts)
+    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits)
