@@ -11,6 +11,9 @@ name                   definition                                               
                        tangential ones (flat, axis-aligned Gamma_C)                of contact nodes
 ``moment-preserving``  contact rows/columns removed, the mass put back so that    all components
                        total mass, first and second moments are preserved          of contact nodes
+                       (T^T M T, any mesh)
+``moment-preserving-   the same constraints in tensor form on generated            all components
+tensor``               structured grids (a different matrix in 2D/3D)              of contact nodes
 ``neighbour``          contact rows/columns removed; the mass of each contact      all components
                        node put on the diagonal of its non-contact neighbours      of contact nodes
                        in proportion to their coupling M_ij (a "weighted
@@ -26,15 +29,19 @@ The moment-preserving matrix uses, per component, the scalar redistribution
 and ``Delta`` changes only entries between non-contact nodes near Gamma_C, chosen so
 that ``p^T M_red q = p^T M q`` for all p, q in {1, x_1, ..., x_d}:
 
-* 1D P1 (and the normal factor of structured Q1 meshes, where ``M = M_x (x) M_y (x) M_z``):
-  only the entries (1,1), (1,2), (2,2) next to the contact node change; three
-  constraints, three unknowns.  For a uniform grid this gives M_11 = 8h/3,
-  M_12 = -2h/3, M_22 = h (rho = 1).
-* general meshes: ``M_red = T^T M T`` where T extrapolates the contact nodes' values
-  from the non-contact nodes within two layers, exactly for affine functions
-  (minimum-norm weights).  Moments are then preserved exactly and M_red is symmetric
-  positive semi-definite by construction (the 1D closed form is the special case
-  u_0 = 2 u_1 - u_2).
+* ``moment-preserving`` (every mesh): ``M_red = T^T M T`` where T extrapolates the
+  contact nodes' values from the non-contact nodes within two layers, exactly for
+  affine functions (minimum-norm weights).  Moments are then preserved exactly and
+  M_red is symmetric positive semi-definite by construction.  It depends on the
+  geometry and connectivity only: a generated mesh and the same mesh read from a file
+  give the same matrix, and rotating the mesh does not change it.
+* ``moment-preserving-tensor`` (generated structured grids, contact on one full side):
+  the 1D closed form below across the contact side, tensorized with the consistent 1D
+  mass along the other directions, ``M = M_x (x) M_y (x) M_z``.  A different matrix in
+  2D/3D (its extrapolation uses the nodes of the same grid line only).
+* 1D P1, where both coincide: only the entries (1,1), (1,2), (2,2) next to the contact
+  node change; three constraints, three unknowns.  For a uniform grid this gives
+  M_11 = 8h/3, M_12 = -2h/3, M_22 = h (rho = 1), i.e. u_0 = 2 u_1 - u_2.
 """
 
 from __future__ import annotations
@@ -251,18 +258,31 @@ def _structured_side(mesh: Mesh, contact_nodes: np.ndarray) -> tuple[int, str] |
 
 
 def moment_preserving_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
-    """Scalar moment-preserving redistributed mass (see the module docstring)."""
-    side = _structured_side(mesh, contact_nodes)
-    if side is not None and mesh.cell_type in ("line", "quad", "hexahedron"):
-        axis, end = side
-        factors = [
-            moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0) for k, g in enumerate(mesh.grid)
-        ]
-        out = factors[0]
-        for f in factors[1:]:
-            out = sp.kron(f, out, format="csr")  # node = i + nx (j + ny k)
-        return (rho * out).tocsr()
+    """Scalar moment-preserving redistributed mass T^T M T, on every mesh (module docstring).
+
+    The same matrix for a generated mesh and for the same mesh read from a file, and
+    rotation invariant (the weights depend on the geometry only).
+    """
     return _moment_preserving_general(mesh, rho, contact_nodes)
+
+
+def moment_preserving_tensor_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
+    """Tensor-product variant: the 1D closed form across the contact side, the consistent
+    1D mass along the others, ``M = M_x (x) M_y (x) M_z``; structured line/quad/hexahedron
+    grids made by :mod:`signorini.fem.mesh` with contact on one full side only."""
+    side = _structured_side(mesh, contact_nodes)
+    if side is None or mesh.cell_type not in ("line", "quad", "hexahedron"):
+        raise InputError(
+            "mass 'moment-preserving-tensor' needs a structured grid made by the interval, rectangle or box "
+            "generator (line, quad or hexahedron cells) with the contact on one full side; "
+            "use 'moment-preserving' on other meshes"
+        )
+    axis, end = side
+    factors = [moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0) for k, g in enumerate(mesh.grid)]
+    out = factors[0]
+    for f in factors[1:]:
+        out = sp.kron(f, out, format="csr")  # node = i + nx (j + ny k)
+    return (rho * out).tocsr()
 
 
 def extrapolation_operator(mesh: Mesh, contact_nodes: np.ndarray) -> sp.csr_matrix:
@@ -344,6 +364,11 @@ MASS_VARIANTS.register(
     "moment-preserving",
     _scalar_variant("moment-preserving", moment_preserving_scalar_mass),
     "contact mass removed, redistributed so that mass, first and second moments are preserved",
+)
+MASS_VARIANTS.register(
+    "moment-preserving-tensor",
+    _scalar_variant("moment-preserving-tensor", moment_preserving_tensor_scalar_mass),
+    "moment-preserving in tensor form M_x (x) M_y (x) M_z on generated structured grids (contact on a full side)",
 )
 MASS_VARIANTS.register(
     "neighbour",
