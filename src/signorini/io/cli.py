@@ -335,7 +335,14 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_output_arguments(p: argparse.ArgumentParser, default: str | None, out_help: str, quiet_help: str) -> None:
+def cmd_template(args: argparse.Namespace) -> int:
+    from .schema import template
+
+    print(template(args.dim), end="")
+    return 0
+
+
+def add_output_arguments(p, default: str | None, out_help: str, quiet_help: str) -> None:
     """--out, --overwrite and --quiet, shared by every command that writes a directory."""
     p.add_argument("--out", default=default, help=out_help)
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
@@ -374,58 +381,62 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         f"run a named benchmark ({benchmarks}) or a case file",
         "Run one simulation and write history.csv, contact.npz and summary.json (and fields.xdmf "
-        "with --snapshot-every) into --out.  Exit codes: 0 finished, 2 invalid input, 3 numerical failure, "
-        "130 interrupted (partial results are written with their status).",
+        "with --snapshot-every) into --out.  Exit codes: 0 finished, 2 invalid input (nothing written), "
+        "3 numerical failure, 4 out of memory or a file-system failure, 130 interrupted (partial results "
+        "are written with their status).  Case files: docs/case-files.md, `signorini template`.",
         EXAMPLES_RUN,
     )
-    r.add_argument("target", help=f"benchmark name ({benchmarks}) or a CASE.toml file")
-    r.add_argument(
+    r.add_argument("target", help=f"benchmark name ({benchmarks}) or a CASE.toml file (docs/case-files.md)")
+    both = r.add_argument_group("scheme, mass and solver (benchmarks and case files; override the file's)")
+    both.add_argument(
         "--scheme",
         default=None,
         help=f"time scheme: {SCHEMES.help_text()}; or module:Class of a Scheme subclass "
         "(default cn, or the case file's)",
     )
-    r.add_argument(
+    both.add_argument(
         "--scheme-option",
         action="append",
         metavar="NAME=VALUE",
         help="a parameter of the scheme (repeatable), e.g. beta=0.3",
     )
-    r.add_argument(
+    both.add_argument(
         "--mass",
         default=None,
         help=f"mass variant: {', '.join(MASS_VARIANTS.names())} (default seed, or the case file's)",
     )
-    r.add_argument(
-        "--n",
-        type=int,
-        default=None,
-        help="elements across the width (2D/3D, 10n along) or along the bar (1D)",
-    )
-    r.add_argument("--dt", type=float, default=None, help="time step (default h/2)")
-    r.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
-    r.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
-    r.add_argument(
+    both.add_argument(
         "--backend",
         default=None,
         help=f"linear solver: {'; '.join(f'{e.name}: {e.description}' for e in BACKENDS)} (default auto)",
     )
-    r.add_argument(
+    both.add_argument(
         "--solver-option",
         action="append",
         metavar="NAME=VALUE",
         help=f"a solver option (repeatable): {solver_opts}",
     )
-    r.add_argument(
+    bench = r.add_argument_group("benchmarks only (errors with a case file: set these in the file)")
+    bench.add_argument(
+        "--n",
+        type=int,
+        default=None,
+        help="elements across the width (2D/3D, 10n along) or along the bar (1D); default 40 in 1D, 4 in 2D/3D",
+    )
+    bench.add_argument("--dt", type=float, default=None, help="time step (default h/2); T must be a multiple of it")
+    bench.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
+    bench.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
+    out = r.add_argument_group("output and limits (benchmarks and case files; override the file's)")
+    out.add_argument(
         "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps and at the end (0: none)"
     )
-    r.add_argument(
+    out.add_argument(
         "--max-steps",
         type=int,
         default=None,
         help="refuse runs with more steps unless --yes (default 1,000,000; case file: [limits] max_steps)",
     )
-    r.add_argument(
+    out.add_argument(
         "--max-memory",
         type=float,
         default=None,
@@ -433,9 +444,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="refuse runs whose estimated memory exceeds this many GiB unless --yes "
         "(default 80%% of the machine's memory; case file: [limits] max_memory)",
     )
-    r.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
+    out.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
     add_output_arguments(
-        r, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
+        out, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
     )
     r.set_defaults(func=cmd_run)
 
@@ -459,6 +470,17 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     add_output_arguments(st, "out/study", "output directory (default out/study)", "no table on stdout")
     st.set_defaults(func=cmd_study)
+
+    tp = add_command(
+        sub,
+        "template",
+        "print a commented starting case file",
+        "Print a case file for a bar released onto a rigid plane, every key commented with its meaning "
+        "and units; it runs as printed.  Reference of every key: docs/case-files.md.",
+        "  signorini template --dim 2 > case.toml && signorini run case.toml --out out/case",
+    )
+    tp.add_argument("--dim", type=int, default=2, choices=(1, 2, 3), help="space dimension (default 2)")
+    tp.set_defaults(func=cmd_template)
 
     q = add_command(
         sub,

@@ -1,5 +1,8 @@
 """Case files (TOML): a whole simulation described in one validated file.
 
+The keys, types, defaults and units are data in :mod:`signorini.io.schema`
+(``docs/case-files.md`` is generated from it).
+
 Schema (every key is checked; unknown keys, wrong types and impossible values are
 errors that name the key and the allowed values)::
 
@@ -77,22 +80,10 @@ from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
 from ..registry import Motion, Vector
 from .expressions import vector_field
+from .schema import REQUIRED, section_keys
 
 TIME_KEYS = {"scheme", "dt", "T"}
-SECTIONS = {
-    "mesh": {"generator", "cells", "size", "cell", "file"},
-    "material": {"rho", "lam", "mu", "E", "nu"},
-    "dirichlet": {"tag", "value", "components"},
-    "traction": {"tag", "value"},
-    "contact": {"tag", "obstacle"},
-    "initial": {"displacement", "velocity"},
-    "loads": {"body_force"},
-    "time": TIME_KEYS,  # + the scheme's parameters
-    "solver": {"mass"},  # + the solver options
-    "output": {"directory", "snapshot_every"},
-    "limits": {"max_steps", "max_memory", "yes"},
-}
-REQUIRED = ("mesh", "material", "contact", "time")
+SECTIONS = section_keys()  # the fixed keys; [time] and [solver] also take registry-defined ones
 
 
 @dataclass

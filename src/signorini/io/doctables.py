@@ -1,7 +1,8 @@
-"""The documentation tables of every registry, generated (``docs/registries.md``).
+"""Generated documentation: the registry tables (``docs/registries.md``) and the
+case-file reference (``docs/case-files.md``).
 
-``python -m signorini.io.doctables --write`` regenerates the file;
-``--check`` exits with 1 when it is out of date (the test suite checks it too).
+``python -m signorini.io.doctables --write`` regenerates both files;
+``--check`` exits with 1 when one is out of date (the test suite checks it too).
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from ..linalg import BACKENDS, PRECONDITIONERS, SOLVER_OPTIONS
 from ..registry import Registry
 from ..studies.benchmarks import BENCHMARKS
 
-DOC = Path(__file__).resolve().parents[3] / "docs" / "registries.md"
+DOCS = Path(__file__).resolve().parents[3] / "docs"
+DOC = DOCS / "registries.md"
 
 
 def all_registries() -> dict[str, Registry]:
@@ -53,16 +55,19 @@ def render() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m signorini.io.doctables", description=__doc__.splitlines()[0])
-    ap.add_argument("--write", action="store_true", help="regenerate docs/registries.md")
-    ap.add_argument("--check", action="store_true", help="exit 1 if docs/registries.md is out of date")
+    ap.add_argument("--write", action="store_true", help="regenerate docs/registries.md and docs/case-files.md")
+    ap.add_argument("--check", action="store_true", help="exit 1 if one of them is out of date")
     a = ap.parse_args(argv)
-    text = render()
+    from .schema import reference_markdown
+
+    files = {DOC: render(), DOCS / "case-files.md": reference_markdown()}
     if a.write:
-        DOC.write_text(text)
+        for path, text in files.items():
+            path.write_text(text)
         return 0
     if a.check:
-        return 0 if DOC.exists() and DOC.read_text() == text else 1
-    print(text)
+        return 0 if all(p.exists() and p.read_text() == t for p, t in files.items()) else 1
+    print("\n".join(files.values()))
     return 0
 
 
