@@ -32,7 +32,7 @@ from ..errors import InputError
 
 MAX_LENGTH = 2000
 MAX_NODES = 400
-MAX_DEPTH = 40
+MAX_DEPTH = 100
 MAX_EXPONENT = 64.0
 
 VARIABLES = ("x", "y", "z", "t")
@@ -66,17 +66,20 @@ def allowed_names() -> str:
     return ", ".join([*VARIABLES, *CONSTANTS, *(f"{f}()" for f in FUNCTIONS)])
 
 
+_MARKERS = (ast.expr_context, ast.operator, ast.unaryop, ast.cmpop, ast.boolop)  # not terms
+
+
 def _check_size(tree: ast.AST, key: str, text: str) -> None:
     """Reject trees with more than MAX_NODES nodes or deeper than MAX_DEPTH (iteratively)."""
-    count, stack = 0, [(tree, 0)]
-    while stack:
+    count, deepest, stack = 0, 0, [(tree, 0)]
+    while stack:  # the tree is small: MAX_LENGTH characters bound its size
         node, depth = stack.pop()
-        count += 1
-        if count > MAX_NODES:
-            raise InputError(f"'{key}': expression {text[:60]!r}... has more than {MAX_NODES} terms")
-        if depth > MAX_DEPTH:
-            raise InputError(f"'{key}': expression {text[:60]!r}... nests deeper than {MAX_DEPTH} levels")
-        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+        count, deepest = count + 1, max(deepest, depth)
+        stack.extend((c, depth + 1) for c in ast.iter_child_nodes(node) if not isinstance(c, _MARKERS))
+    if count > MAX_NODES:
+        raise InputError(f"'{key}': expression {text[:60]!r}... has more than {MAX_NODES} terms")
+    if deepest > MAX_DEPTH:
+        raise InputError(f"'{key}': expression {text[:60]!r}... nests deeper than {MAX_DEPTH} levels")
 
 
 def _constant_value(node: ast.AST) -> float | None:

@@ -1,0 +1,113 @@
+"""Exit codes and one-line messages for every kind of failure (issue: hard inputs)."""
+
+import errno
+import json
+
+import pytest
+
+from signorini.io.cli import main
+
+BAR1D = (
+    '[mesh]\ngenerator = "interval"\ncells = [8]\nsize = [1.0]\n[material]\nrho = 1.0\nE = 1.0\n'
+    '[[dirichlet]]\ntag = "xmax"\nvalue = [0.2]\n[contact]\ntag = "xmin"\n'
+    'obstacle = { type = "plane", point = [0.0], normal = [1.0] }\n[initial]\ndisplacement = [0.2]\n'
+    "velocity = [-0.5]\n[time]\ndt = 0.0625\nT = 1.0\n"
+)
+
+
+def _run(tmp_path, capsys, args):
+    rc = main(args)
+    cap = capsys.readouterr()
+    assert "Traceback" not in cap.err + cap.out
+    return rc, cap.err
+
+
+def _one_line(err: str, prefix: str = "signorini: error:") -> None:
+    assert err.count("\n") == 1 and err.startswith(prefix), err
+
+
+def test_dt_not_dividing_T_names_both_and_the_nearest_valid_steps(tmp_path, capsys):
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--dt", "0.45", "--T", "1", "--out", str(tmp_path / "o")])
+    assert rc == 2
+    _one_line(err)
+    assert "T = 1 is not an integer multiple of dt = 0.45" in err and "0.3333333333 (3 steps) or 0.5 (2 steps)" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_large_runs_need_confirmation(tmp_path, capsys):
+    out = str(tmp_path / "o")
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--n", "4", "--T", "1e7", "--out", out])
+    assert rc == 2
+    _one_line(err)
+    assert "80,000,000 steps" in err and "GiB" in err and "--yes" in err
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--n", "4", "--T", "6", "--max-steps", "10", "--out", out])
+    assert rc == 2 and "more than --max-steps 10 steps" in err
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--n", "4", "--T", "1", "--max-memory", "1e-6", "--out", out])
+    assert rc == 2 and "more than --max-memory" in err
+    rc, _ = _run(tmp_path, capsys, ["run", "bar1d", "--n", "4", "--T", "6", "--max-steps", "10", "--yes",
+                                    "--out", out, "--quiet"])  # fmt: skip
+    assert rc == 0
+
+
+def test_case_file_limits(tmp_path, capsys):
+    case = tmp_path / "c.toml"
+    case.write_text(BAR1D + "[limits]\nmax_steps = 4\n")
+    rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 2 and "16 steps" in err
+    case.write_text(BAR1D + "[limits]\nmax_steps = 4\nyes = true\n")
+    assert _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o"), "--quiet"])[0] == 0
+    case.write_text(BAR1D + '[limits]\nyes = "please"\n')
+    rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o2"), "--quiet"])
+    assert rc == 2 and "'limits.yes' must be true or false" in err
+
+
+def test_inside_a_sphere_says_so(tmp_path, capsys):
+    case = tmp_path / "c.toml"
+    case.write_text(BAR1D.replace('{ type = "plane", point = [0.0], normal = [1.0] }',
+                                  '{ type = "sphere", center = [0.1], radius = 0.5 }'))  # fmt: skip
+    rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o")])
+    assert rc == 2
+    _one_line(err)
+    assert "starts inside the ball" in err and "radius 0.5" in err
+
+
+def test_file_that_is_not_a_mesh(tmp_path, capsys):
+    (tmp_path / "bad.msh").write_text("garbage\n")
+    case = tmp_path / "c.toml"
+    case.write_text(BAR1D.replace('generator = "interval"\ncells = [8]\nsize = [1.0]', 'file = "bad.msh"'))
+    rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o")])
+    assert rc == 2
+    _one_line(err)
+    assert "cannot read mesh file" in err and "bad.msh" in err
+
+
+def test_non_finite_operators_fail_with_status_and_exit_3(tmp_path, capsys):
+    """E = 1e308 overflows the stiffness: exit 3, status failed in summary.json, one line."""
+    case = tmp_path / "c.toml"
+    case.write_text(BAR1D.replace("E = 1.0", "E = 1e308"))
+    rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 3
+    _one_line(err, "signorini: failed:")
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["status"] == "failed" and not s["success"] and "non-finite value in S" in s["message"]
+
+
+@pytest.mark.parametrize(
+    "exc, code, text",
+    [
+        (MemoryError(), 4, "out of memory"),
+        (OSError(errno.ENOSPC, "No space left on device"), 4, "No space left on device"),
+        (TypeError("a bug"), 1, "internal error: TypeError: a bug"),
+    ],
+)
+def test_environment_failures_and_bugs_are_one_line(tmp_path, capsys, monkeypatch, exc, code, text):
+    import signorini.dynamics.simulate as sim
+
+    def boom(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(sim, "simulate", boom)
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--n", "4", "--T", "1", "--out", str(tmp_path / "o")])
+    assert rc == code
+    assert err.count("\n") == 1 and text in err
+    assert list(tmp_path.iterdir()) == []

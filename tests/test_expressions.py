@@ -1,0 +1,90 @@
+"""Case-file expressions: whitelist, bounds before evaluation, finiteness with a point."""
+
+import time
+
+import numpy as np
+import pytest
+
+from signorini.errors import InputError
+from signorini.io.expressions import MAX_DEPTH, MAX_NODES, Expression, vector_field
+
+POINTS = np.linspace(0, 1, 11)[:, None]
+
+HOSTILE = [
+    "(lambda: 1)()",
+    "x.__class__",
+    "__import__('os').system('true')",
+    "().__class__.__bases__[0].__subclasses__()",
+    "[c for c in ()]",
+    "open('/etc/passwd')",
+    "exp(x, out=x)",
+    "'a' * 10",
+    "x if x else t",
+    "sin",
+    "eval('1')",
+    "x[0]",
+    "{1: 2}",
+    "f'{x}'",
+    "True + x",
+    "None",
+    "x := 1",
+]
+
+
+@pytest.mark.parametrize("text", HOSTILE)
+def test_hostile_expressions_are_rejected_before_evaluation(text):
+    with pytest.raises(InputError, match="'k'"):
+        Expression("k", text)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("9**9**9**9", "the power"),
+        ("10**400", "the power"),
+        ("x**x", "the power"),
+        ("2**(1+1)", "the power"),
+        ("-" * 150 + "x", "nests deeper"),
+        ("+".join(["x"] * (MAX_NODES + 1)), "more than"),
+        ("(" * 300 + "x" + ")" * 300, "invalid expression"),
+        ("x" * 3000, "longer than"),
+        ("1e999", "not finite"),
+    ],
+)
+def test_expensive_or_overflowing_expressions_are_rejected_fast(text, message):
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=message):
+        Expression("k", text)
+    assert time.perf_counter() - t0 < 1.0
+
+
+def test_allowed_expressions_evaluate_as_numpy():
+    e = Expression("k", "0.5 * (1 - x)**2 + sin(pi * t) - max(x, 0.3) + abs(-x)**0.5")
+    v = e(POINTS, 0.25)
+    x = POINTS[:, 0]
+    ref = 0.5 * (1 - x) ** 2 + np.sin(np.pi * 0.25) - np.maximum(x, 0.3) + np.abs(-x) ** 0.5
+    assert np.allclose(v, ref)
+    assert e.variables == {"x", "t"} and e.time_dependent
+    assert MAX_DEPTH >= 20  # realistic nesting is allowed
+
+
+@pytest.mark.parametrize(
+    "text, point",
+    [("exp(1000*x)", "x=0.8"), ("log(x-1)", "x=0)"), ("1/(x-0.5)", "x=0.5"), ("sqrt(x-2)", "x=0)")],
+)
+def test_non_finite_values_name_key_expression_and_point(text, point):
+    f = vector_field("initial.displacement", [text], 1)
+    with pytest.raises(InputError) as e:
+        f(POINTS)
+    msg = str(e.value)
+    assert "'initial.displacement[0]'" in msg and repr(text) in msg and point in msg
+
+
+def test_evaluation_cost_is_bounded_by_the_size_bound():
+    """The largest allowed expression over 1e5 points takes a fraction of a second."""
+    text = "+".join(["sin(x)*cos(y)"] * (MAX_NODES // 10))
+    e = Expression("k", text)
+    pts = np.random.default_rng(0).random((100_000, 2))
+    t0 = time.perf_counter()
+    assert np.all(np.isfinite(e(pts)))
+    assert time.perf_counter() - t0 < 2.0
