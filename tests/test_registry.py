@@ -18,9 +18,13 @@ BASE = (ROOT / "examples" / "bar2d.toml").read_text()
 
 
 def _run_help() -> str:
-    p = build_parser()
-    sub = next(a for a in p._actions if a.dest == "command")
-    return " ".join(sub.choices["run"].format_help().split())
+    import os
+    from unittest import mock
+
+    with mock.patch.dict(os.environ, {"COLUMNS": "100000"}):  # no wrapping inside hyphenated names
+        p = build_parser()
+        sub = next(a for a in p._actions if a.dest == "command")
+        return " ".join(sub.choices["run"].format_help().split())
 
 
 def test_docs_table_is_generated_and_up_to_date():

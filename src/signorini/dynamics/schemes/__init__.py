@@ -12,6 +12,7 @@ from typing import Any
 from ...errors import InputError
 from ...registry import Registry
 from .base import EnergyParts, Scheme, State
+from .generalized_alpha import HHT, GeneralizedAlpha
 from .newmark import CrankNicolson, Newmark
 from .paoli_schatzman import PaoliSchatzman
 from .theta import BackwardEuler, Theta
@@ -30,6 +31,8 @@ register_scheme(BackwardEuler, ("be",))
 register_scheme(Newmark)
 register_scheme(Theta)
 register_scheme(PaoliSchatzman, ("ps",))
+register_scheme(HHT)
+register_scheme(GeneralizedAlpha)
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -49,6 +52,8 @@ __all__ = [
     "BackwardEuler",
     "CrankNicolson",
     "EnergyParts",
+    "GeneralizedAlpha",
+    "HHT",
     "Newmark",
     "PaoliSchatzman",
     "Scheme",

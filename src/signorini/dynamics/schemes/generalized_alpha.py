@@ -1,0 +1,134 @@
+"""Generalized-alpha (Chung-Hulbert 1993) and HHT-alpha (Hilber-Hughes-Taylor 1977)
+with contact enforced exactly at t_{n+1}.
+
+Balance at the intermediate levels (alpha_m, alpha_f in [0, 1)):
+
+    (1 - a_m) M A^{n+1} + a_m M A^n + (1 - a_f) S U^{n+1} + a_f S U^n
+        = (1 - a_f) F^{n+1} + a_f F^n + B^T ((1 - a_f) lambda^{n+1} + a_f lambda^n),
+    0 >= B U^{n+1} - g(t_{n+1})  ⊥  lambda^{n+1} <= 0,
+
+with the Newmark updates of (beta, gamma) = ((1 - a_m + a_f)^2 / 4, 1/2 - a_m + a_f).
+The contact force enters at the same weighted level as the elastic force, so a
+level where the balance holds exactly (a_m = a_f = 1/2) stays so: ``rho_inf = 1`` is
+Crank-Nicolson, to round-off.  Dividing by (1 - a_f) gives the operator
+``(1 - a_m)/((1 - a_f) beta dt^2) M + S`` (factorized once) and the multiplier of the
+solve is lambda^{n+1} itself.  On massless dofs the M terms vanish, V = dU/dt, A = 0.
+
+``generalized-alpha``: a_m = (2 rho_inf - 1)/(rho_inf + 1), a_f = rho_inf/(rho_inf + 1)
+(Chung-Hulbert's optimal choice for a spectral radius rho_inf at infinite frequency).
+``hht``: a_m = 0, a_f = alpha in [0, 1/3] (Hilber-Hughes-Taylor's alpha with the sign
+convention alpha >= 0 = dissipative; HHT's own parameter is -alpha).
+
+Energy identity (exact; derived in docs/schemes.md by multiplying the weighted balance
+by dU = U^{n+1} - U^n and using dU = dt <V> + dt^2 (beta - gamma/2) dA), with
+x_w = (1 - w) x^{n+1} + w x^n and <x> = (x^n + x^{n+1})/2:
+
+    Delta [1/2 V.MV + 1/2 U.SU - U.F + 1/2 dt^2 (beta - gamma/2) A.MA]
+        = dU.F_{a_f} - Delta(U.F) + dU_D.R_D               (loads, prescribed motion)
+        + (B dU).lambda_{a_f}                               (contact)
+        - (1/2 - a_f) (dt <V>.M dA + dU.S dU)
+        - dt^2 (beta - gamma/2) (1/2 - a_m) dA.M dA         (numerical)
+
+where beta - gamma/2 = (a_f - a_m)^2 / 4 >= 0 and R_D = M A_{a_m} + S U_{a_f} - F_{a_f}
+- B^T lambda_{a_f} on the Dirichlet dofs (the weighted reactions).  For
+a_m = a_f = 1/2 every numerical term vanishes: the CN identity.
+"""
+
+from __future__ import annotations
+
+from ...errors import InputError
+from ...registry import Parameter
+from ..context import Operator
+from .base import EnergyParts, Scheme, State, load_work, mechanical_energy
+
+
+class GeneralizedAlpha(Scheme):
+    name = "generalized-alpha"
+    description = "Chung-Hulbert generalized-alpha, exact contact at t_{n+1}; rho_inf = 1 is CN"
+    parameters = (
+        Parameter("rho_inf", 1.0, "spectral radius at infinite frequency (1: no dissipation)", float, 0.0, 1.0),
+    )
+    energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (a_f - a_m)^2/4 A.MA"
+
+    def alphas(self) -> tuple[float, float]:
+        r = self.rho_inf
+        return (2 * r - 1) / (r + 1), r / (r + 1)
+
+    def newmark(self) -> tuple[float, float]:
+        am, af = self.alphas()
+        return 0.25 * (1 - am + af) ** 2, 0.5 - am + af
+
+    def operator(self, dt: float) -> Operator:
+        am, af = self.alphas()
+        beta, _ = self.newmark()
+        return Operator((1 - am) / ((1 - af) * beta * dt * dt), 1.0)
+
+    def step(self, ctx, s: State) -> State:
+        dt = ctx.dt
+        am, af = self.alphas()
+        b, g = self.newmark()
+        t = ctx.next_time(s.t)
+        pred = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A  # A^{n+1} = U^{n+1}/(b dt^2) - pred
+        F1 = ctx.load(t)
+        rhs = (1 - am) * pred - am * s.A
+        rhs = ctx.M @ rhs
+        if af:
+            F0 = ctx.load(s.t)
+            rhs += af * (F0 - s.product("SU", lambda: ctx.S @ s.U) + ctx.B.T @ s.lam)
+        rhs = rhs / (1 - af) + F1
+        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
+        A = U / (b * dt * dt) - pred
+        V = s.V + dt * ((1 - g) * s.A + g * A)
+        ml = ctx.massless
+        if ml.size:
+            V[ml] = (U[ml] - s.U[ml]) / dt
+            A[ml] = 0.0
+        return State(t, U, V, A, lam, info)
+
+    def _extra(self, ctx) -> float:
+        beta, gamma = self.newmark()
+        return 0.5 * ctx.dt**2 * (beta - 0.5 * gamma)
+
+    def energy(self, ctx, s: State) -> tuple[float, float]:
+        kin, pot = mechanical_energy(ctx, s)
+        c = self._extra(ctx)
+        if c:
+            kin += c * float(s.A @ s.product("MA", lambda: ctx.M @ s.A))
+        return kin, pot
+
+    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
+        am, af = self.alphas()
+        dt = ctx.dt
+        dU = new.U - old.U
+        lam_w = (1 - af) * new.lam + af * old.lam
+        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=float((ctx.B @ dU) @ lam_w))
+        if ctx.has_fixed and ctx.disc.dirichlet_varies:
+            D = ctx.fixed
+            A_w = (1 - am) * new.A + am * old.A
+            U_w = (1 - af) * new.U + af * old.U
+            F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
+            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D]
+            if ctx.BD is not None:
+                RD = RD - ctx.B[:, D].T @ lam_w
+            parts.external += float(dU[D] @ RD)
+        if af != 0.5 or am != 0.5:
+            dA = new.A - old.A
+            MdA = new.product("MA", lambda: ctx.M @ new.A) - old.product("MA", lambda: ctx.M @ old.A)
+            vbar = 0.5 * (old.V + new.V)
+            parts.numerical = -(0.5 - af) * (dt * float(vbar @ MdA) + float(dU @ (ctx.S @ dU)))
+            parts.numerical -= 2 * self._extra(ctx) * (0.5 - am) * float(dA @ MdA)
+        return parts
+
+
+class HHT(GeneralizedAlpha):
+    name = "hht"
+    description = "Hilber-Hughes-Taylor alpha (alpha >= 0 dissipative), exact contact at t_{n+1}; alpha = 0 is CN"
+    parameters = (Parameter("alpha", 0.1, "HHT alpha in [0, 1/3] (0: Crank-Nicolson)", float, 0.0, 1.0 / 3.0),)
+
+    def check(self) -> None:
+        if not 0.0 <= self.alpha <= 1.0 / 3.0:
+            raise InputError(f"scheme hht: alpha must be in [0, 1/3], got {self.alpha}")
+
+    def alphas(self) -> tuple[float, float]:
+        return 0.0, self.alpha
