@@ -183,9 +183,11 @@ def _level_axis(a, levels: list[int], rows: list[dict] | None = None, ratio: flo
     lo, hi = a.get_ylim()
     plain = FuncFormatter(lambda v, _: f"{v:.3g}")
     a.yaxis.set_major_formatter(plain)
-    if np.log10(hi / lo) <= 1.2:  # less than about a decade: label 2, 3, 5 x 10^k too
+    decades = np.log10(hi / lo)
+    marks = (2, 3, 5) if decades <= 1.2 else (2, 5) if decades <= 2.2 else ()  # label minor ticks too
+    if marks:
         a.yaxis.set_minor_formatter(
-            FuncFormatter(lambda v, _: f"{v:.2g}" if round(v / 10 ** np.floor(np.log10(v)), 6) in (2, 3, 5) else "")
+            FuncFormatter(lambda v, _: f"{v:.2g}" if round(v / 10 ** np.floor(np.log10(v)), 6) in marks else "")
         )
     else:
         a.yaxis.set_minor_formatter(NullFormatter())
