@@ -185,7 +185,24 @@ def period_1d(bench) -> float:
     return 3.0 * p["L"] / float(np.sqrt(p["E"] / p["rho"]))
 
 
-def study_1d(levels: list[int], T: float | None = None, ratio: float = 0.5) -> list[dict]:
+def _case_1d(b, ex, scheme: str, mass: str, n: int, T: float, ratio: float, cache: dict | None) -> dict:
+    """Errors (:func:`errors_1d`), E(T) and max |E - E0|/E0 of one ``bar1d`` run (memoized)."""
+    key = (scheme, mass, n, T, ratio)
+    if cache is not None and key in cache:
+        return cache[key]
+    p = b.problem(n)
+    H = simulate(p, scheme, ratio * b.h(n), T, mass=mass, snapshot_every=1)
+    out = {
+        **errors_1d(H, p, ex),
+        "E_T": float(H.energy[-1]),
+        "drift": float(np.max(np.abs(H.energy - ex.energy0)) / ex.energy0),
+    }
+    if cache is not None:
+        cache[key] = out
+    return out
+
+
+def study_1d(levels: list[int], T: float | None = None, ratio: float = 0.5, cache: dict | None = None) -> list[dict]:
     b = get_benchmark("bar1d")
     T = period_1d(b) if T is None else T
     ex = b.exact(b.params(), T)
@@ -199,16 +216,17 @@ def study_1d(levels: list[int], T: float | None = None, ratio: float = 0.5) -> l
     ]:
         rows = []
         for n in levels:
-            p = b.problem(n)
-            H = simulate(p, scheme, ratio * b.h(n), T, mass=mass, snapshot_every=1)
-            rows.append({"n": n, **errors_1d(H, p, ex), "E_T": float(H.energy[-1])})
+            e = _case_1d(b, ex, scheme, mass, n, T, ratio, cache)
+            rows.append({"n": n, **{k: v for k, v in e.items() if k != "drift"}})
         hs = [b.h(r["n"]) for r in rows]
         rates = {k: observed_rates([r[k] for r in rows], hs) for k in ("u_H1", "u_L2", "v_L2", "stress")}
         out.append({"scheme": scheme, "mass": mass, "rows": rows, "rates": rates})
     return out
 
 
-def study_beyond(levels: list[int], T: float | None = None, ratio: float = 0.5) -> list[dict]:
+def study_beyond(
+    levels: list[int], T: float | None = None, ratio: float = 0.5, cache: dict | None = None
+) -> list[dict]:
     """CN with every redistributed mass, and Paoli-Schatzman (e = 0) with the standard
     mass, on ``bar1d``: H1 and stress errors per level, rates, energy drift.
 
@@ -228,12 +246,10 @@ def study_beyond(levels: list[int], T: float | None = None, ratio: float = 0.5) 
     for label, scheme, mass in cases:
         h1, st, drift = [], [], 0.0
         for n in levels:
-            p = b.problem(n)
-            H = simulate(p, scheme, ratio * b.h(n), T, mass=mass, snapshot_every=1)
-            e = errors_1d(H, p, ex)
+            e = _case_1d(b, ex, scheme, mass, n, T, ratio, cache)
             h1.append(e["u_H1"])
             st.append(e["stress"])
-            drift = float(np.max(np.abs(H.energy - ex.energy0)) / ex.energy0)
+            drift = e["drift"]
         hs = [b.h(n) for n in levels]
         out.append(
             {
@@ -305,7 +321,7 @@ def section_1d(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
     T = period_1d(b)
     ratio = cfg["ratio"]
     ex = b.exact(b.params(), T)
-    s1 = study_1d(cfg["levels1d"], T, ratio)
+    s1 = study_1d(cfg["levels1d"], T, ratio, ctx.setdefault("runs1d", {}))
     summary["bar1d"] = s1
     p = b.params()
     md = table_start(
@@ -595,7 +611,7 @@ def section_beyond(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
     """5. Beyond the paper: more redistributions and Paoli-Schatzman on the 1D benchmark."""
     b = get_benchmark("bar1d")
     T, ratio = period_1d(b), cfg["ratio"]
-    beyond = study_beyond(cfg["levels1d"], T, ratio)
+    beyond = study_beyond(cfg["levels1d"], T, ratio, ctx.setdefault("runs1d", {}))
     summary["bar1d_beyond"] = beyond
     md = table_start(
         "5. Beyond the paper: mass variants and Paoli-Schatzman on the 1D exact benchmark",
