@@ -105,3 +105,21 @@ def test_time_interpolation_linear():
     field = np.stack([3 * t_c - 1, t_c], 1)
     t_f = np.linspace(0, 1, 17)
     assert np.allclose(time_interpolate(t_c, field, t_f), np.stack([3 * t_f - 1, t_f], 1))
+
+
+def test_cli_study_with_check_reference(tmp_path):
+    out = tmp_path / "s"
+    args = ["study", "bar2d", "--scheme", "be", "--levels", "2", "--T", "0.5", "--quiet"]
+    assert main([*args, "--check-ref-level", "4", "--out", str(out)]) == 0
+    md = (out / "study.md").read_text()
+    assert "Reference: be + seed at n = 8" in md and "4x finer in h" in md
+    assert "ref n = 4" in md and "references 2x vs 4x finer" in md
+    import csv
+    import json
+
+    rows = list(csv.DictReader(open(out / "study.csv")))
+    assert [r["reference_level"] for r in rows] == ["8", "8"]
+    assert json.loads((out / "study.json").read_text())["checks"][0]["reference"]["level"] == 4
+    # a check reference finer than only one level gives no rate: refused
+    assert main([*args, "--check-ref-level", "2", "--out", str(tmp_path / "t")]) == 2
+    assert not (tmp_path / "t").exists()
