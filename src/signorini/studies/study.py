@@ -71,6 +71,13 @@ def errors_1d(history: History, problem: Problem, exact: ExactBar1D, samples: in
 
 
 def observed_rates(errors: list[float], sizes: list[float]) -> list[float]:
-    """Rates log(e_k / e_{k+1}) / log(h_k / h_{k+1}) between successive levels."""
+    """Rates log(e_k / e_{k+1}) / log(h_k / h_{k+1}) between successive levels.
+
+    A rate is undefined (nan) when one of its two errors is not a positive finite number
+    (a zero error, a missing value); reports print such values as "n/a".
+    """
     e, h = np.asarray(errors, float), np.asarray(sizes, float)
-    return list(np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:]))
+    ok = np.isfinite(e) & (e > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:])
+    return [float(x) if (a and b) else float("nan") for x, a, b in zip(r, ok[:-1], ok[1:], strict=True)]
