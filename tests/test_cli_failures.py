@@ -82,14 +82,16 @@ def test_file_that_is_not_a_mesh(tmp_path, capsys):
 
 
 def test_non_finite_operators_fail_with_status_and_exit_3(tmp_path, capsys):
-    """E = 1e308 overflows the stiffness: exit 3, status failed in summary.json, one line."""
+    """rho = 1e100 with dt = 1e-150 overflows rho/dt^2: exit 3, status failed in summary.json, one line."""
     case = tmp_path / "c.toml"
-    case.write_text(BAR1D.replace("E = 1.0", "E = 1e308"))
+    case.write_text(
+        BAR1D.replace("rho = 1.0", "rho = 1e100").replace("dt = 0.0625\nT = 1.0", "dt = 1e-150\nT = 1.6e-149")
+    )
     rc, err = _run(tmp_path, capsys, ["run", str(case), "--out", str(tmp_path / "o"), "--quiet"])
     assert rc == 3
     _one_line(err, "signorini: failed:")
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert s["status"] == "failed" and not s["success"] and "non-finite value in S" in s["message"]
+    assert s["status"] == "failed" and not s["success"] and "non-finite entries" in s["message"]
 
 
 @pytest.mark.parametrize(

@@ -442,9 +442,9 @@ HOSTILE_EXPRESSIONS = [
     ("0x" + "f" * 300, INVALID),
     ("9" * 2000, INVALID),
     ("1" * 5000, INVALID),
-    ("-" * 50 + "x", INVALID),
+    ("-" * 150 + "x", INVALID),  # deeper than MAX_DEPTH = 100
     ("-" * 100000 + "1", INVALID),
-    ("sin(" * 50 + "x" + ")" * 50, INVALID),
+    ("sin(" * 150 + "x" + ")" * 150, INVALID),  # deeper than MAX_DEPTH = 100
     ("x" + " + x" * 500, INVALID),
     ("(" * 300 + "1" + ")" * 300, INVALID),
     ("x if x else 1", INVALID),

@@ -16,10 +16,14 @@ class MeshError(InputError):
 
 def check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
     """Return ``float(value)`` or raise :class:`InputError` naming ``name``."""
+    if isinstance(value, bool):
+        raise InputError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be a number, got {value!r}") from None
+    except OverflowError:
+        raise InputError(f"{name} must be finite, got an integer of {len(str(value))} digits") from None
     if v != v or v in (float("inf"), float("-inf")):
         raise InputError(f"{name} must be finite, got {value!r}")
     if v < 0 or (v == 0 and not allow_zero):
@@ -30,6 +34,8 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> floa
 
 def check_choice(name: str, value: str, allowed) -> str:
     """Return ``value`` if it is one of ``allowed``; otherwise raise naming both."""
+    if not isinstance(value, str):
+        raise InputError(f"{name} must be a string, one of: {', '.join(sorted(allowed))}; got {value!r}")
     if value not in allowed:
         raise InputError(f"unknown {name} {value!r}; allowed: {', '.join(sorted(allowed))}")
     return value

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.solver import ContactSolver, StepInfo, make_contact_solver
-from ..errors import InputError
+from ..errors import ConvergenceError, InputError, NonFiniteError
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -58,12 +58,27 @@ class _System:
 
     def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
         K = op.matrix(ctx.M, ctx.S)
+        if not np.all(np.isfinite(K.data)):
+            raise NonFiniteError(
+                f"the operator {op} has non-finite entries (material, mesh or dt at the limits of double precision)"
+            )
         f, D = ctx.free, ctx.fixed
         Kff = K[f][:, f].tocsr() if D.size else K
         self.KfD = K[f][:, D].tocsr() if D.size else None
         self.op = op
         gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
-        self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, ctx.disc.space.dim, options)
+        try:
+            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, ctx.disc.space.dim, options)
+        except (InputError, ConvergenceError, MemoryError):
+            raise
+        except Exception as exc:  # SuperLU's RuntimeError, LinAlgError, Pardiso's errors
+            raise InputError(
+                f"the operator {op} on the free dofs cannot be factorized ({type(exc).__name__}: {exc}): it is "
+                "singular or not positive definite.  Likely cause: rigid-body motions held neither by Dirichlet "
+                "conditions nor by mass (a redistributed mass such as 'seed' on a mesh one cell thick has no mass "
+                "left; add a Dirichlet condition or use the 'standard' mass), or material, mesh or dt values at "
+                "the limits of double precision"
+            ) from None
         self._lift_key: np.ndarray | None = None
         self._lift = None
         self._lift_source: np.ndarray | None = None
@@ -97,6 +112,11 @@ class Context:
         self._systems: list[_System] = []
         self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)
+        if self.massless.size == disc.M.shape[0]:
+            raise InputError(
+                f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "
+                "boundary): refine the mesh across the contact layer or use the 'standard' mass"
+            )
 
     # -- data of time t ------------------------------------------------------------
     def next_time(self, t: float) -> float:

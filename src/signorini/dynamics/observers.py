@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import NonFiniteError
 from .context import Context
 from .history import empty_series
 from .schemes import Scheme, State
@@ -77,6 +78,16 @@ class HistoryRecorder(Observer):
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
 
 
+def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:
+    """(kinetic, potential) if both are finite; else :class:`NonFiniteError` (values beyond doubles)."""
+    if not (np.isfinite(parts[0]) and np.isfinite(parts[1])):
+        raise NonFiniteError(
+            f"the energy of level {n} is not finite ({parts[0]:.3g} kinetic, {parts[1]:.3g} potential): "
+            "values beyond double precision"
+        )
+    return parts
+
+
 class EnergyRecorder(Observer):
     """The scheme's discrete energy per level and the three parts of its identity."""
 
@@ -87,12 +98,14 @@ class EnergyRecorder(Observer):
         self.series = {k: np.full(n, np.nan) for k in self.KEYS}
         for k in ("external", "contact", "numerical"):
             self.series[k][0] = 0.0
-        self.series["kinetic_energy"][0], self.series["elastic_energy"][0] = run.scheme.energy(run.ctx, run.initial)
+        self.series["kinetic_energy"][0], self.series["elastic_energy"][0] = _finite_energy(
+            run.scheme.energy(run.ctx, run.initial), 0
+        )
         self._prev = run.initial
 
     def record(self, run: Run, n: int, state: State) -> None:
         S = self.series
-        S["kinetic_energy"][n], S["elastic_energy"][n] = run.scheme.energy(run.ctx, state)
+        S["kinetic_energy"][n], S["elastic_energy"][n] = _finite_energy(run.scheme.energy(run.ctx, state), n)
         parts = run.scheme.energy_increment(run.ctx, self._prev, state)
         if parts is not None:
             S["predicted_increment"][n] = parts.total

@@ -185,6 +185,41 @@ def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> 
     )
 
 
+MAX_MAGNITUDE = 1e100
+
+
+def check_magnitude(**arrays: np.ndarray) -> None:
+    """Raise :class:`InputError` if data exceed MAX_MAGNITUDE (their squares would overflow)."""
+    for name, a in arrays.items():
+        a = np.asarray(a, dtype=float)
+        if a.size and np.abs(a).max() > MAX_MAGNITUDE:
+            raise InputError(f"{name} reach {np.abs(a).max():.3g} > {MAX_MAGNITUDE:g}: change units")
+
+
+def _check_body_side(problem: Problem) -> None:
+    """The body must start outside the obstacle: refuse a body mostly inside it."""
+    from ..contact.obstacles import PlaneObstacle, SphereObstacle
+
+    ob, pts = problem.obstacle, problem.mesh.points
+    phi = ob.gaps(pts, 0.0)
+    diam = float(np.ptp(pts, axis=0).max()) or 1.0
+    inside = float(np.mean(phi < -1e-9 * diam))
+    if inside <= 0.5:
+        return
+    if isinstance(ob, PlaneObstacle):
+        raise InputError(
+            f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes): the plane's "
+            f"normal must point out of the obstacle, towards the body; flip 'normal' (now "
+            f"{np.round(ob.normal, 6).tolist()}) or move 'point'"
+        )
+    if isinstance(ob, SphereObstacle):
+        raise InputError(
+            f"{100 * inside:.0f}% of the body's nodes lie inside the ball (radius {ob.radius:.6g}): the body must "
+            "start outside the sphere obstacle; move 'center' or reduce 'radius'"
+        )
+    raise InputError(f"{100 * inside:.0f}% of the body's nodes start inside the obstacle")
+
+
 def check_finite_data(**arrays: np.ndarray) -> None:
     """Raise :class:`NonFiniteError` naming the first array with an inf or NaN entry."""
     for name, a in arrays.items():
@@ -213,10 +248,14 @@ def discretize(problem: Problem, mass: str = "seed") -> Discretization:
     U0[cons.fixed] = cons.values
     V0 = space.interpolate(problem.v0)
     check_finite_data(S=S.data, M=M.data, F=F, U0=U0, V0=V0, gaps=contact.gaps, dirichlet=cons.values)
+    check_magnitude(
+        **{"initial displacement": U0, "initial velocity": V0, "gaps": contact.gaps, "Dirichlet values": cons.values}
+    )
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
         raise InputError(_penetration_message(problem, contact, disc.B @ U0, int(np.argmax(viol))))
+    _check_body_side(problem)
     disc.timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
     return disc

@@ -35,6 +35,10 @@ from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallba
 from .problem import Discretization, Problem, discretize
 from .schemes import Scheme, State, make_scheme
 
+DT_RANGE = (1e-150, 1e150)
+MAX_CONTACT_RESIDUAL = 1e-6  # scaled complementarity residual above which a step has failed
+MAX_STEPS_EVER = 1e15
+
 
 def number_of_steps(dt: float, T: float) -> int:
     """N = T/dt; T must be an integer multiple of dt to a relative 1e-9.
@@ -44,9 +48,15 @@ def number_of_steps(dt: float, T: float) -> int:
     """
     dt = check_positive("dt", dt)
     T = check_positive("T", T)
+    if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
+        raise InputError(
+            f"dt must be between {DT_RANGE[0]:g} and {DT_RANGE[1]:g} (dt^2 must be a normal double), got {dt:g}"
+        )
     if T < dt * (1 - 1e-9):
         raise InputError(f"T must be >= dt, got T={T:g} < dt={dt:g}")
     ratio = T / dt
+    if not ratio <= MAX_STEPS_EVER:
+        raise InputError(f"T/dt = {ratio:.3g} steps is more than any run can take ({MAX_STEPS_EVER:.0e})")
     n = round(ratio)
     if abs(n * dt - T) > 1e-9 * T:
         lo, hi = math.floor(ratio), math.ceil(ratio)
@@ -260,8 +270,19 @@ def advance(run: Run, starter: Scheme | None, observers: list[Observer], handle_
                 if not new.is_finite():
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): non-finite value in the state"
                     break
-                for o in observers:
-                    o.record(run, n, new)
+                if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
+                    status = "failed"
+                    message = (
+                        f"step {n} (t = {n * dt:.6g}): the contact solve did not reach complementarity "
+                        f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})"
+                    )
+                    break
+                try:
+                    for o in observers:
+                        o.record(run, n, new)
+                except ConvergenceError as exc:  # e.g. an energy that overflows
+                    status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
+                    break
                 state, n_last = new, n
     finally:
         for o in started:

@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import MeshError
 from ..fem.elements import FACET_TYPES, reference_element
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh
@@ -36,6 +37,9 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     X = mesh.points[mesh.cells]  # (ne, nv, d)
     J = np.einsum("qak,eai->eqik", ref.dN, X)  # J_ik = dx_i / dxi_k
     det = np.linalg.det(J) if mesh.dim > 1 else J[..., 0, 0]
+    if not np.all(np.abs(det) > 0) or not np.all(np.isfinite(det)):
+        bad = np.flatnonzero(~(np.abs(det) > 0).all(axis=1) | ~np.isfinite(det).all(axis=1))
+        raise MeshError(f"{bad.size} degenerate element(s) (det J = 0 or not finite), e.g. cells {bad[:5].tolist()}")
     Jinv = np.linalg.inv(J) if mesh.dim > 1 else 1.0 / J
     grad = np.einsum("qak,eqki->eqai", ref.dN, Jinv)
     wdet = np.abs(det) * ref.weights[None, :]

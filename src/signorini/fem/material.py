@@ -8,6 +8,8 @@ import numpy as np
 
 from ..errors import InputError
 
+RANGE = (1e-100, 1e100)  # magnitudes whose products and squares stay normal doubles
+
 
 @dataclass(frozen=True)
 class IsotropicElastic:
@@ -32,6 +34,11 @@ class IsotropicElastic:
             v = getattr(self, name)
             if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
                 raise InputError(f"material {name} must be a finite number, got {v!r}")
+            if abs(v) > RANGE[1] or (v != 0 and abs(v) < RANGE[0]):
+                raise InputError(
+                    f"material {name} = {v:g} is outside {RANGE[0]:g} <= |{name}| <= {RANGE[1]:g}: products of "
+                    "such values leave double precision; change units"
+                )
         if self.rho <= 0:
             raise InputError(f"material rho (density) must be > 0, got {self.rho}")
         if self.mu <= 0:
@@ -44,8 +51,8 @@ class IsotropicElastic:
     @classmethod
     def from_young(cls, E: float, nu: float = 0.0, rho: float = 1.0) -> IsotropicElastic:
         """Build from Young's modulus ``E`` > 0 and Poisson ratio -1 < ``nu`` < 0.5."""
-        if not np.isfinite(E) or E <= 0:
-            raise InputError(f"material E (Young's modulus) must be > 0, got {E}")
+        if not np.isfinite(E) or E <= 0 or not RANGE[0] <= E <= RANGE[1]:
+            raise InputError(f"material E (Young's modulus) must be in [{RANGE[0]:g}, {RANGE[1]:g}], got {E}")
         if not (-1.0 < nu < 0.5):
             raise InputError(f"material nu (Poisson ratio) must satisfy -1 < nu < 0.5, got {nu}")
         lam = E * nu / ((1 + nu) * (1 - 2 * nu))

@@ -60,9 +60,9 @@ class Mesh:
             raise MeshError(f"cell type {self.cell_type!r} needs {ref.dim}D points, got {self.points.shape[1]}D")
         if self.cells.ndim != 2 or self.cells.shape[1] != ref.n_nodes:
             raise MeshError(f"cells of type {self.cell_type!r} need {ref.n_nodes} nodes each")
-        if not np.all(np.isfinite(self.points)):
-            i = int(np.flatnonzero(~np.isfinite(self.points).all(axis=1))[0])
-            raise MeshError(f"mesh node {i} has a non-finite coordinate {self.points[i].tolist()}")
+        if not np.all(np.isfinite(self.points)) or np.abs(self.points).max(initial=0.0) > 1e100:
+            i = int(np.flatnonzero(~(np.abs(self.points) <= 1e100).all(axis=1))[0])
+            raise MeshError(f"mesh node {i} has a non-finite or huge (> 1e100) coordinate {self.points[i].tolist()}")
         if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
             raise MeshError("cells reference nodes that do not exist")
         self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}

@@ -19,9 +19,12 @@ import signal
 import sys
 import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from .. import __version__
 from ..errors import ConvergenceError, InputError
@@ -193,7 +196,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
             raise InputError(f"--{flag} does not apply to a case file; set it in the file")
     if args.set:
         raise InputError("--set does not apply to a case file; edit the file")
-    case = load_case(args.target)
+    case = load_case(args.target, _limits(args, {}), check_size)
     out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
     scheme = load_scheme(args.scheme) if args.scheme else case.scheme
     sch, sol = _options(args, case.scheme_options if not args.scheme else {}, case.solver_options)
@@ -535,7 +538,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" else None
     try:
-        return args.func(args)
+        # every quantity is checked for finiteness where it matters; numpy's floating-point
+        # warnings would only add lines before a one-line error
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return args.func(args)
     except InputError as exc:
         print(f"signorini: error: {exc}", file=sys.stderr)
         return 2

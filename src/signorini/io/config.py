@@ -64,6 +64,7 @@ errors that name the key and the allowed values)::
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -110,8 +111,14 @@ def _keys(section: str, table: dict, allowed: set[str]) -> None:
 
 def _number(key: str, v: Any) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(f"'{key}' must be a number, got {v!r}")
-    return float(v)
+        raise InputError(f"'{key}' must be a number, got {str(v)[:60]!r}")
+    try:
+        f = float(v)
+    except OverflowError:
+        f = math.inf
+    if not math.isfinite(f):
+        raise InputError(f"'{key}' must be a finite number, got {str(v)[:60]}")
+    return f
 
 
 def _vector(key: str, v: Any, dim: int) -> list[float]:
@@ -129,7 +136,7 @@ def _tag(mesh: Mesh, key: str, table: dict) -> str:
     return table["tag"]
 
 
-def _mesh(m: dict, base: Path) -> Mesh:
+def _mesh(m: dict, base: Path, guard=None) -> Mesh:
     _keys("mesh", m, SECTIONS["mesh"])
     gen = m.get("generator", "file" if "file" in m else None)
     gen = check_choice("mesh.generator", gen, {"interval", "rectangle", "box", "file"}) if gen else None
@@ -141,13 +148,26 @@ def _mesh(m: dict, base: Path) -> Mesh:
         return read_mesh(base / m["file"])
     dim = {"interval": 1, "rectangle": 2, "box": 3}[gen]
     cells = m.get("cells")
-    if not isinstance(cells, list) or len(cells) != dim or not all(isinstance(c, int) and c > 0 for c in cells):
+    if (
+        not isinstance(cells, list)
+        or len(cells) != dim
+        or not all(isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in cells)
+    ):
         raise InputError(f"'mesh.cells' must be a list of {dim} positive integers, got {cells!r}")
     size = [check_positive(f"mesh.size[{i}]", s) for i, s in enumerate(_vector("mesh.size", m.get("size"), dim))]
+    for i, (s, c) in enumerate(zip(size, cells, strict=True)):
+        if not (1e-100 <= s / c and s <= 1e100):
+            raise InputError(f"'mesh.size[{i}]' = {s:g} over {c} cells: sizes must stay within 1e-100 .. 1e100")
     default_cell = {1: "line", 2: "quad", 3: "hexahedron"}[dim]
     cell = m.get("cell", default_cell)
     allowed = {1: {"line"}, 2: {"quad", "triangle"}, 3: {"hexahedron", "tetra"}}[dim]
     check_choice("mesh.cell", cell, allowed)
+    if guard is not None:  # the run-size check, before anything is allocated
+        per_cell, split = {"line": (2, 1), "quad": (4, 1), "triangle": (3, 2), "hexahedron": (8, 1), "tetra": (4, 6)}[
+            cell
+        ]
+        nodes = math.prod(c + 1 for c in cells)
+        guard((nodes, split * math.prod(cells), per_cell, dim, nodes // (min(cells) + 1)))
     if dim == 1:
         return interval(cells[0], size[0])
     if dim == 2:
@@ -296,11 +316,23 @@ def _read(path: Path) -> dict:
     return data
 
 
-def load_case(path: str | Path) -> Case:
-    """Read and validate a case file; raises :class:`InputError` on any problem."""
+def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> Case:
+    """Read and validate a case file; raises :class:`InputError` on any problem.
+
+    ``limits`` override the file's ``[limits]``; ``size_check(counts, dt, T, limits)``
+    (the command line's run-size check) is called before a generated mesh is built.
+    """
     path = Path(path)
     data = _read(path)
-    mesh = _mesh(data["mesh"], path.parent)
+    scheme, dt, T, scheme_options = _time(data["time"])
+    limits = {**_limits(data.get("limits", {})), **(limits or {})}
+    guard = None
+    if size_check is not None:
+
+        def guard(counts):
+            size_check(counts, dt, T, limits)
+
+    mesh = _mesh(data["mesh"], path.parent, guard)
     dim = mesh.dim
     material = _material(data["material"])
     dirichlet = _dirichlet(data.get("dirichlet", []), mesh)
@@ -319,9 +351,7 @@ def load_case(path: str | Path) -> Case:
     loads = data.get("loads", {})
     _keys("loads", loads, SECTIONS["loads"])
     body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
-    scheme, dt, T, scheme_options = _time(data["time"])
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every = _output(data.get("output", {}))
-    limits = _limits(data.get("limits", {}))
     problem = Problem(mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits)

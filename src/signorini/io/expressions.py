@@ -103,7 +103,10 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             raise bad(f"the constant {node.value!r}")
-        value = np.float64(node.value)
+        try:
+            value = np.float64(float(node.value))
+        except OverflowError:
+            value = np.float64(np.inf)
         if not np.isfinite(value):
             raise InputError(f"'{key}': the number {node.value!r} in {text!r} is not finite")
         return lambda env: value
@@ -136,9 +139,13 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS or node.keywords:
             raise bad("this call")
         fn = FUNCTIONS[node.func.id]
+        arity = 2 if node.func.id in ("min", "max") else 1
+        if len(node.args) != arity or any(isinstance(a, ast.Starred) for a in node.args):
+            raise InputError(
+                f"'{key}': {node.func.id}() takes {arity} argument{'s' if arity > 1 else ''}, "
+                f"got {len(node.args)} in {text!r}"
+            )
         args = [_compile(a, key, text, used) for a in node.args]
-        if not args:
-            raise bad("a call without arguments")
         return lambda env: fn(*(a(env) for a in args))
     raise bad(f"'{type(node).__name__}'")
 
@@ -189,6 +196,19 @@ def check_finite(key: str, text: str, values: np.ndarray, points: np.ndarray | N
     )
 
 
+def _finite_float(v: int | float) -> bool:
+    """Whether ``v`` converts to a finite float (TOML integers may be arbitrarily large)."""
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
+def _short(v) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def vector_field(key: str, items: list, dim: int, allow_space: bool = True):
     """A vector of numbers and/or expressions -> constant list, f(x), or f(x, t).
 
@@ -196,7 +216,7 @@ def vector_field(key: str, items: list, dim: int, allow_space: bool = True):
     result is a list of numbers or a function of t returning a vector.
     """
     if not isinstance(items, list) or len(items) != dim:
-        raise InputError(f"'{key}' must be a list of {dim} numbers or expressions, got {items!r}")
+        raise InputError(f"'{key}' must be a list of {dim} numbers or expressions, got {_short(items)}")
     comps: list[float | Expression] = []
     for i, c in enumerate(items):
         if isinstance(c, str):
@@ -204,8 +224,8 @@ def vector_field(key: str, items: list, dim: int, allow_space: bool = True):
             if not allow_space and ex.variables - {"t"}:
                 raise InputError(f"'{key}[{i}]': only t may appear here, got {sorted(ex.variables)}")
             comps.append(ex)
-        elif isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
-            raise InputError(f"'{key}[{i}]' must be a finite number or an expression string, got {c!r}")
+        elif isinstance(c, bool) or not isinstance(c, (int, float)) or not _finite_float(c):
+            raise InputError(f"'{key}[{i}]' must be a finite number or an expression string, got {_short(c)}")
         else:
             comps.append(float(c))
     if all(isinstance(c, float) for c in comps):
