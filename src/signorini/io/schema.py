@@ -97,7 +97,8 @@ SECTIONS: tuple[Section, ...] = (
     Section(
         "material",
         "Isotropic linear elasticity (plane strain in 2D; Young's modulus in 1D): `lam` and `mu`, or `E` "
-        "and optionally `nu`; `rho` always.",
+        "and optionally `nu`; `rho` always.  Magnitudes must lie within 1e-100 .. 1e100 (their products must "
+        "stay normal doubles: change units otherwise).",
         (
             Key("rho", "number > 0", "required", "mass / length^d", "density", _same("1.0")),
             Key("lam", "number", "", "stress", "first Lamé constant (3 lam + 2 mu > 0)", _ex("", "0.25", "0.25")),
@@ -188,8 +189,8 @@ SECTIONS: tuple[Section, ...] = (
     ),
     Section(
         "time",
-        "Time integration.  T must be an integer multiple of dt (to 1e-9 relative).  The scheme's own "
-        "parameters are keys of this section too.",
+        "Time integration.  T must be an integer multiple of dt (to 1e-9 relative); dt within 1e-150 .. 1e150 "
+        "(dt^2 must be a normal double).  The scheme's own parameters are keys of this section too.",
         (
             Key("scheme", "string", "crank-nicolson", "", "a name of the scheme registry", _same('"crank-nicolson"')),
             Key("dt", "number > 0", "required", "time", "time step", _ex("0.0125", "0.0125", "0.0125")),
