@@ -617,6 +617,9 @@ def obstacle_inside(draw, base: Case) -> Case:
         else:
             ob["point"] = [0.0] * (len(size) - 1) + [size[-1] + draw(decimals(0.01, 1.0))]
     else:
+        # the initial configuration is x + u0: without u0 the contact nodes start inside the ball
+        # (an overlap smaller than u0 would legitimately be lifted out of it)
+        doc.setdefault("initial", {})["displacement"] = [0.0] * len(size)
         how = draw(st.sampled_from(["center", "radius"]))
         if how == "center":
             ob["center"] = [s / 2 for s in size]
