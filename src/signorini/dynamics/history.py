@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .diagnostics import oscillation_index, oscillation_indices, penetration
+
 HISTORY_COLUMNS = (
     "t",
     "energy",
@@ -130,6 +132,7 @@ class History:
             "external_work": _or_nan(self.external_work, self.t.size),
             "contact_work": _or_nan(self.contact_work, self.t.size),
             "numerical_dissipation": _or_nan(self.numerical_dissipation, self.t.size),
+            "penetration": penetration(self.gap),
         }
 
     def write_csv(self, path: str | Path) -> None:
@@ -171,6 +174,30 @@ class History:
             "fallbacks": int(np.sum(self.fallbacks)),
             "min_gap": float(self.gap.min()) if self.gap.size else None,
             "max_lambda": float(self.lam.max()) if self.lam.size else None,
+            **self.diagnostics(),
+        }
+
+    def diagnostics(self) -> dict:
+        """Scheme-comparison figures: penetration, oscillation per impact, identity residual.
+
+        ``penetration_max`` [length] and ``penetration_time_integral`` [length x time]
+        (rectangle rule over the levels) of max_i max(0, -gap_i); ``oscillation_index`` of
+        the first impact and ``impact_oscillation_indices`` of every impact
+        (:mod:`signorini.dynamics.diagnostics`); ``energy_identity_residual`` =
+        max_n |E^{n+1} - E^n - predicted| / max_n |E^n| over the steps that have an
+        identity (None when none has).
+        """
+        pen = penetration(self.gap)
+        dt = float(self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
+        dE = self.energy_increment - self.predicted_increment
+        ok = np.isfinite(dE)
+        scale = float(np.max(np.abs(self.energy))) if self.energy.size else 0.0
+        return {
+            "penetration_max": float(pen.max(initial=0.0)),
+            "penetration_time_integral": float(pen[1:].sum() * dt),
+            "oscillation_index": oscillation_index(self.t, self.lambda_sum),
+            "impact_oscillation_indices": oscillation_indices(self.lambda_sum),
+            "energy_identity_residual": float(np.max(np.abs(dE[ok])) / scale) if ok.any() and scale > 0 else None,
         }
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..dynamics.diagnostics import impact_windows, oscillation_index  # noqa: F401 (re-exported)
 from ..dynamics.history import _json_default
 from ..dynamics.simulate import simulate
 from ..studies.benchmarks import get_benchmark
@@ -143,38 +144,10 @@ def convergence_table(conv: dict, columns: list[tuple[str, str]]) -> list[str]:
     return lines
 
 
-def oscillation_index(t: np.ndarray, force: np.ndarray, separation: int = 20) -> float:
-    """Total variation of the contact force over the first impact / (2 x its peak |force|).
-
-    One monotone rise from 0 to the peak and fall back to 0 has total variation 2 x peak:
-    **index 1**.  Every extra swing adds its amplitude relative to the peak (a dip of
-    depth a x peak during contact gives 1 + a), so the index measures the oscillation on
-    top of the monotone pulse.  0 when there is no contact; if the run ends during the
-    first impact, the fall is missing (0.5 for a monotone rise).
-
-    The first impact is the first cluster of steps with a non-zero force; gaps of at
-    most ``separation`` force-free steps (the standard mass chatters) belong to the
-    cluster.  The window includes one step before and after, so the rise from 0 and the
-    fall to 0 count.
-    """
-    force = np.asarray(force, float)
-    window = _first_impact(force, separation)
-    if window is None:
-        return 0.0
-    first, end = window
-    seg = force[max(first - 1, 0) : end + 2]
-    if first == 0:  # in contact at t = 0: the rise starts from 0
-        seg = np.concatenate([[0.0], seg])
-    return float(np.sum(np.abs(np.diff(seg))) / (2 * np.max(np.abs(seg))))
-
-
 def _first_impact(force: np.ndarray, separation: int = 20) -> tuple[int, int] | None:
     """First and last level with a non-zero force in the first impact (see oscillation_index)."""
-    on = np.flatnonzero(np.asarray(force) != 0)
-    if on.size == 0:
-        return None
-    breaks = np.flatnonzero(np.diff(on) > separation)
-    return int(on[0]), int(on[breaks[0]] if breaks.size else on[-1])
+    windows = impact_windows(force, separation)
+    return windows[0] if windows else None
 
 
 def first_impact_times(H, separation: int = 20) -> tuple[float, float]:
