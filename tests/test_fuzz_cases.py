@@ -974,8 +974,9 @@ def read_results(o: Outcome) -> None:
 
 # ----------------------------------------------------------------------------- the contract
 # null in summary.json: the relative energy drift when E0 = 0 (the CLI prints "E0 = 0"),
-# min_gap and max_lambda without contact nodes (History.summary)
-NULLABLE = {"energy_max_relative_drift", "min_gap", "max_lambda"}
+# min_gap and max_lambda without contact nodes, energy_identity_residual when the energy
+# is zero at every level or no step has an identity (History.summary / diagnostics)
+NULLABLE = {"energy_max_relative_drift", "min_gap", "max_lambda", "energy_identity_residual"}
 # nan in history.csv: energy_increment at level 0, predicted_increment at level 0 and
 # wherever the scheme has no energy identity (History docstring)
 NAN_COLUMNS = {"predicted_increment"}
