@@ -1057,6 +1057,9 @@ def check_finished(case: Case, o: Outcome, info: str) -> None:
             assert key in NULLABLE, f"summary.json: {key} is null{info}"
             if key == "energy_max_relative_drift":
                 assert s["energy_initial"] == 0, f"summary.json: drift null with E0 != 0{info}"
+            elif key == "energy_identity_residual":
+                no_identity = not any(math.isfinite(float(r["predicted_increment"])) for r in H[1:])
+                assert s["energy_initial"] == 0 or no_identity, f"summary.json: {key} null{info}"
             else:
                 assert s["contact_nodes"] == 0, f"summary.json: {key} null with contact nodes{info}"
         else:
