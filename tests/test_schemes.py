@@ -99,7 +99,11 @@ def test_every_registered_scheme_identity_and_complementarity(entry):
     """Every registry entry: complementarity and its own energy identity to round-off."""
     p, dt = _bar2d()
     H = simulate(p, entry.name, dt, 1.2, mass="seed")
-    assert H.status == "finished" and H.gap.min() > -1e-12 and H.lam.max() <= 0
+    assert H.status == "finished" and H.lam.max() <= 0
+    if entry.obj.exact_contact:
+        assert H.gap.min() > -1e-12
+    else:  # velocity-level or penalized contact: penetration of the order of v dt
+        assert H.gap.min() > -dt
     ok = np.isfinite(H.predicted_increment)
     assert ok[2:].all()  # every step but a start-up step has an identity
     err = np.abs(H.energy_increment - H.predicted_increment)[ok]

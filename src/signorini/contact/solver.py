@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ConvergenceError
+from ..errors import ConvergenceError, InputError
 from ..linalg import Preconditioner, choose_backend, factorize, projected_cg, solver_options
 from .complementarity import complementarity_residual, solve_lcp
 
@@ -79,8 +79,14 @@ class ContactSolver:
         self.timings: dict[str, float] = {}
         self.factor_bytes = 0
 
-    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        """(x, lambda, info) for the right-hand side ``b`` and constraint bound ``bound``."""
+    def solve(
+        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """(x, lambda, info) for the right-hand side ``b`` and constraint bound ``bound``.
+
+        ``subset`` (bool, nc): only these contact nodes are constrained (an index set of a
+        velocity-level scheme); lambda is zero elsewhere.  None: all of them.
+        """
         raise NotImplementedError  # pragma: no cover
 
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
@@ -137,26 +143,35 @@ class CondensedContactSolver(ContactSolver):
         self._sync()
         return x
 
-    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+    def solve(
+        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         U = self.factor.solve(b)
-        if self.B.shape[0] == 0:
+        nc = self.B.shape[0]
+        if nc == 0 or (subset is not None and not subset.any()):
             self._sync()
-            return U, np.zeros(0), StepInfo(0, False, 0.0, self.active)
+            self.active = np.zeros(nc, dtype=bool)
+            return U, np.zeros(nc), StepInfo(0, False, 0.0, self.active)
         q = bound - self.B @ U
+        idx = np.arange(nc) if subset is None else np.flatnonzero(subset)
+        q = q[idx]
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
-        res = solve_lcp(self.W, q, self.active, max_iter=self.lcp_max_iter, scale=scale)
-        lam = -res.mu
+        W = self.W if subset is None else self.W[np.ix_(idx, idx)]
+        res = solve_lcp(W, q, self.active[idx], max_iter=self.lcp_max_iter, scale=scale)
+        lam = np.zeros(nc)
+        lam[idx] = -res.mu
         A = lam != 0.0
         if A.any():
             if self.Z is not None:
                 U = U + self.Z[:, A] @ lam[A]
             else:
                 U = U + self.factor.solve(self.B.T @ lam)
-        self.active = res.active
+        self.active = np.zeros(nc, dtype=bool)
+        self.active[idx] = res.active
         self.counters["contact_iterations"] += res.iterations
         self.counters["fallbacks"] += int(res.fallback)
         self._sync()
-        return U, lam, StepInfo(res.iterations, res.fallback, res.residual, res.active)
+        return U, lam, StepInfo(res.iterations, res.fallback, res.residual, self.active)
 
 
 class ActiveSetCGSolver(ContactSolver):
@@ -207,7 +222,11 @@ class ActiveSetCGSolver(ContactSolver):
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
         return self._cg(b, self.U_prev, lambda x: x)
 
-    def solve(self, b: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+    def solve(
+        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        if subset is not None and not subset.all():
+            raise InputError("index sets of velocity-level schemes need a direct backend (superlu or pardiso), not cg")
         A = self.active.copy()
         B, g = self.B, bound
         seen = set()

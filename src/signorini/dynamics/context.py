@@ -158,13 +158,19 @@ class Context:
         return sys, 1.0
 
     def solve(
-        self, op: Operator, rhs: np.ndarray, bound: np.ndarray, fixed_values: np.ndarray | None = None
+        self,
+        op: Operator,
+        rhs: np.ndarray,
+        bound: np.ndarray,
+        fixed_values: np.ndarray | None = None,
+        subset: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         """Solve ``K x = rhs + B^T lambda`` with contact ``B x <= bound``; x = fixed_values
-        on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info."""
+        on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info.
+        ``subset`` (bool, nc) constrains only those contact nodes (an index set)."""
         sys, s = self._system(op)
         b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
-        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd)
+        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, subset)
         return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:

@@ -27,6 +27,7 @@ HISTORY_COLUMNS = (
     "external_work",
     "contact_work",
     "numerical_dissipation",
+    "penetration",
 )
 STATUSES = ("finished", "interrupted", "failed")
 

@@ -13,6 +13,7 @@ from ...errors import InputError
 from ...registry import Registry
 from .base import EnergyParts, Scheme, State
 from .generalized_alpha import HHT, GeneralizedAlpha
+from .moreau_jean import MoreauJean
 from .newmark import CrankNicolson, Newmark
 from .paoli_schatzman import PaoliSchatzman
 from .theta import BackwardEuler, Theta
@@ -33,6 +34,7 @@ register_scheme(Theta)
 register_scheme(PaoliSchatzman, ("ps",))
 register_scheme(HHT)
 register_scheme(GeneralizedAlpha)
+register_scheme(MoreauJean)
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -54,6 +56,7 @@ __all__ = [
     "EnergyParts",
     "GeneralizedAlpha",
     "HHT",
+    "MoreauJean",
     "Newmark",
     "PaoliSchatzman",
     "Scheme",

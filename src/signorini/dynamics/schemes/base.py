@@ -97,6 +97,8 @@ class Scheme:
     parameters: ClassVar[tuple[Parameter, ...]] = ()
     starter: ClassVar[str | None] = None
     energy_definition: ClassVar[str] = ""
+    #: positions satisfy nu.u <= g at every level (False: velocity-level or penalized contact)
+    exact_contact: ClassVar[bool] = True
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
