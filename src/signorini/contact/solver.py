@@ -80,12 +80,18 @@ class ContactSolver:
         self.factor_bytes = 0
 
     def solve(
-        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+        self,
+        b: np.ndarray,
+        bound: np.ndarray,
+        subset: np.ndarray | None = None,
+        compliance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         """(x, lambda, info) for the right-hand side ``b`` and constraint bound ``bound``.
 
         ``subset`` (bool, nc): only these contact nodes are constrained (an index set of a
         velocity-level scheme); lambda is zero elsewhere.  None: all of them.
+        ``compliance`` (nc,) >= 0: the constraint becomes B x + c lambda <= bound, i.e. a
+        penalty lambda_i = -max(0, (B x)_i - bound_i) / c_i (regularized contact).
         """
         raise NotImplementedError  # pragma: no cover
 
@@ -144,7 +150,11 @@ class CondensedContactSolver(ContactSolver):
         return x
 
     def solve(
-        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+        self,
+        b: np.ndarray,
+        bound: np.ndarray,
+        subset: np.ndarray | None = None,
+        compliance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         U = self.factor.solve(b)
         nc = self.B.shape[0]
@@ -157,6 +167,8 @@ class CondensedContactSolver(ContactSolver):
         q = q[idx]
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
         W = self.W if subset is None else self.W[np.ix_(idx, idx)]
+        if compliance is not None:
+            W = W + np.diag(np.asarray(compliance, dtype=float)[idx])
         res = solve_lcp(W, q, self.active[idx], max_iter=self.lcp_max_iter, scale=scale)
         lam = np.zeros(nc)
         lam[idx] = -res.mu
@@ -223,10 +235,17 @@ class ActiveSetCGSolver(ContactSolver):
         return self._cg(b, self.U_prev, lambda x: x)
 
     def solve(
-        self, b: np.ndarray, bound: np.ndarray, subset: np.ndarray | None = None
+        self,
+        b: np.ndarray,
+        bound: np.ndarray,
+        subset: np.ndarray | None = None,
+        compliance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        if subset is not None and not subset.all():
-            raise InputError("index sets of velocity-level schemes need a direct backend (superlu or pardiso), not cg")
+        if (subset is not None and not subset.all()) or compliance is not None:  # schemes check it at set-up
+            raise InputError(
+                "index sets and penalty compliances need the condensed contact solve of a direct backend "
+                "(superlu or pardiso), not cg"
+            )
         A = self.active.copy()
         B, g = self.B, bound
         seen = set()

@@ -164,13 +164,17 @@ class Context:
         bound: np.ndarray,
         fixed_values: np.ndarray | None = None,
         subset: np.ndarray | None = None,
+        compliance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         """Solve ``K x = rhs + B^T lambda`` with contact ``B x <= bound``; x = fixed_values
         on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info.
-        ``subset`` (bool, nc) constrains only those contact nodes (an index set)."""
+        ``subset`` (bool, nc) constrains only those contact nodes (an index set);
+        ``compliance`` c (nc,) relaxes the constraint to B x + c lambda <= bound (penalty)."""
         sys, s = self._system(op)
         b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
-        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, subset)
+        if s != 1.0 and compliance is not None:
+            compliance = np.asarray(compliance) * s  # lambda = s mu for the scaled system
+        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, subset, compliance)
         return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:

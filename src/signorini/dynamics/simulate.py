@@ -218,9 +218,13 @@ def simulate(
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
     ctx = Context(disc, dt, opts)
     for s in (sch, starter):
+        if s is not None:
+            s.check_context(ctx)
+    for s in (sch, starter):
         op = s.operator(dt) if s is not None else None
         if op is not None:
             ctx.prepare(op)
+            s.check_context(ctx, prepared=True)
     state = initial_state(ctx)
     setup = time.perf_counter() - t0
 

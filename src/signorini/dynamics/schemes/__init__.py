@@ -16,6 +16,7 @@ from .generalized_alpha import HHT, GeneralizedAlpha
 from .moreau_jean import MoreauJean
 from .newmark import CrankNicolson, Newmark
 from .paoli_schatzman import PaoliSchatzman
+from .penalty import PenaltyCN
 from .theta import BackwardEuler, Theta
 
 SCHEMES = Registry("scheme")
@@ -35,6 +36,7 @@ register_scheme(PaoliSchatzman, ("ps",))
 register_scheme(HHT)
 register_scheme(GeneralizedAlpha)
 register_scheme(MoreauJean)
+register_scheme(PenaltyCN)
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -57,6 +59,7 @@ __all__ = [
     "GeneralizedAlpha",
     "HHT",
     "MoreauJean",
+    "PenaltyCN",
     "Newmark",
     "PaoliSchatzman",
     "Scheme",

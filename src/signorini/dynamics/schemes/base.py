@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ...contact.solver import StepInfo
+from ...errors import InputError
 from ...registry import Entry, Parameter
 
 if TYPE_CHECKING:
@@ -99,6 +100,8 @@ class Scheme:
     energy_definition: ClassVar[str] = ""
     #: positions satisfy nu.u <= g at every level (False: velocity-level or penalized contact)
     exact_contact: ClassVar[bool] = True
+    #: works with massless free dofs (redistributed masses); False: refused in check_context
+    massless_dofs_allowed: ClassVar[bool] = True
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
@@ -109,6 +112,18 @@ class Scheme:
 
     def check(self) -> None:
         """Cross-parameter validation (raise InputError)."""
+
+    def check_context(self, ctx: Context, prepared: bool = False) -> None:
+        """Refuse a problem or solver this scheme cannot handle (raise InputError).
+
+        Called before the factorization (``prepared=False``) and after it
+        (``prepared=True``, when ``ctx.solvers`` exist), so that nothing is written.
+        """
+
+    def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
+        if prepared and any(s.name.startswith("cg") for s in ctx.solvers):
+            raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
+                             "(superlu or pardiso), not cg")  # fmt: skip
 
     @property
     def label(self) -> str:

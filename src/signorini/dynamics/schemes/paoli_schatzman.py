@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
 from .base import EnergyParts, Scheme, State
@@ -43,6 +44,18 @@ class PaoliSchatzman(Scheme):
         "E^{n-1/2} = 1/2 D.MD + 1/2 Ubar.S Ubar - Ubar.Fbar with D = (U^n - U^{n-1})/dt, "
         "Ubar = (U^n + U^{n-1})/2, Fbar = (F^n + F^{n-1})/2 (U^{-1} = U^0 - dt V^0 + dt^2/2 A^0)"
     )
+
+    massless_dofs_allowed = False
+
+    def check_context(self, ctx, prepared: bool = False) -> None:
+        free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
+        if free_massless.size:
+            raise InputError(
+                f"scheme paoli-schatzman needs mass on every free dof, but mass {ctx.disc.mass_name!r} leaves "
+                f"{free_massless.size} massless: its stiffness average (U^{{n+1}} + 2 U^n + U^{{n-1}})/4 then has "
+                "an undamped growing oscillation on those dofs (docs/schemes.md); use the 'standard' or 'lumped' "
+                "mass, or crank-nicolson with a redistributed mass"
+            )
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / dt**2, 0.25)
