@@ -1,4 +1,5 @@
-"""Benchmark suite: bar3d (n = 4, 8, 16, 32) and bar2d series, CN with the seed mass.
+"""Benchmark suite: bar3d (n = 4, 8, 16, 32) and bar2d series, CN with the seed mass,
+and the per-step cost of every registered scheme on bar3d n = 8.
 
 Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
 
@@ -73,6 +74,48 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -
         "impacts": H.impacts,
         "max_residual": float(H.residual.max()),
     }
+
+
+def measure_schemes(bench: str, n: int, steps: int, backend: str) -> list[dict]:
+    """Per-step time of every registered scheme on one discretization (standard mass, which
+    every scheme accepts), with its ratio to one bare solve and to the CN step."""
+    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.schemes import SCHEMES
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark(bench)
+    disc = discretize(b.problem(n), "standard")
+    dt = b.h(n) / 2
+    rows = []
+    for entry in SCHEMES:
+        H = simulate(disc, entry.name, dt, steps * dt, backend=backend)
+        m = H.meta
+        ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
+        rows.append({
+            "scheme": entry.name,
+            "status": H.status,
+            "step_ms": 1e3 * m["step_seconds"],
+            "step_over_reference": m["step_seconds"] / ref,
+            "factorizations": H.counters["factorizations"],
+            "solves_per_step": H.counters["linear_solves"] / max(H.steps, 1),
+        })  # fmt: skip
+    cn = next(r["step_ms"] for r in rows if r["scheme"] == "crank-nicolson")
+    for r in rows:
+        r["step_over_cn"] = r["step_ms"] / cn
+    return rows
+
+
+def schemes_markdown(bench: str, n: int, rows: list[dict]) -> list[str]:
+    md = [f"\nPer scheme, {bench} n={n}, standard mass (one run each, same process):", ""]
+    md += ["| scheme | step ms | step / bare solve | step / CN step | factorizations | solves per step |"]
+    md += ["|---|---|---|---|---|---|"]
+    for r in rows:
+        md.append(
+            f"| {r['scheme']} | {r['step_ms']:.2f} | {r['step_over_reference']:.2f} | {r['step_over_cn']:.2f} | "
+            f"{r['factorizations']} | {r['solves_per_step']:.2f} |"
+        )
+    return md
 
 
 def fit(x, y) -> float:
@@ -167,6 +210,13 @@ def main(argv=None) -> int:
     ap.add_argument("--no-energy", action="store_true", help="switch the energy bookkeeping observer off")
     ap.add_argument("--out", default="out/bench", help="output directory")
     ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)
+    ap.add_argument(
+        "--schemes-on",
+        nargs=2,
+        metavar=("BENCH", "N"),
+        default=("bar3d", "8"),
+        help="benchmark and size of the per-scheme table (default bar3d 8)",
+    )
     a = ap.parse_args(argv)
     if a.one:
         print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend, not a.no_energy)))
@@ -176,8 +226,11 @@ def main(argv=None) -> int:
     rows = run_series(SERIES["quick" if a.quick else "full"], a.steps, a.backend, not a.no_energy)
     exps = exponents(rows)
     md = markdown(rows, exps)
+    sbench, sn = a.schemes_on[0], int(a.schemes_on[1])
+    srows = measure_schemes(sbench, sn, a.steps, a.backend)
+    md += schemes_markdown(sbench, sn, srows)
     (out / "bench.md").write_text("\n".join(md) + "\n")
-    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps}, indent=1))
+    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps, "schemes": srows}, indent=1))
     plot(rows, exps, out / "bench.png")
     print("\n".join(md))
     return 0
