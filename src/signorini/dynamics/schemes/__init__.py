@@ -12,6 +12,7 @@ from typing import Any
 from ...errors import InputError
 from ...registry import Registry
 from .base import EnergyParts, Scheme, State
+from .contact_stabilized import ContactStabilizedNewmark
 from .generalized_alpha import HHT, GeneralizedAlpha
 from .moreau_jean import MoreauJean
 from .newmark import CrankNicolson, Newmark
@@ -37,6 +38,7 @@ register_scheme(HHT)
 register_scheme(GeneralizedAlpha)
 register_scheme(MoreauJean)
 register_scheme(PenaltyCN)
+register_scheme(ContactStabilizedNewmark, ("csn",))
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -54,6 +56,7 @@ def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] 
 __all__ = [
     "SCHEMES",
     "BackwardEuler",
+    "ContactStabilizedNewmark",
     "CrankNicolson",
     "EnergyParts",
     "GeneralizedAlpha",
