@@ -14,7 +14,7 @@ from ...registry import Registry
 from .base import EnergyParts, Scheme, State
 from .contact_stabilized import ContactStabilizedNewmark
 from .generalized_alpha import HHT, GeneralizedAlpha
-from .moreau_jean import MoreauJean
+from .moreau_jean import EnergyConserving, MoreauJean
 from .newmark import CrankNicolson, Newmark
 from .paoli_schatzman import PaoliSchatzman
 from .penalty import PenaltyCN
@@ -39,6 +39,7 @@ register_scheme(GeneralizedAlpha)
 register_scheme(MoreauJean)
 register_scheme(PenaltyCN)
 register_scheme(ContactStabilizedNewmark, ("csn",))
+register_scheme(EnergyConserving)
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -58,6 +59,7 @@ __all__ = [
     "BackwardEuler",
     "ContactStabilizedNewmark",
     "CrankNicolson",
+    "EnergyConserving",
     "EnergyParts",
     "GeneralizedAlpha",
     "HHT",
