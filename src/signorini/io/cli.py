@@ -377,7 +377,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         cmp.write_report(result, series, tmp)
         holder["result"] = result
 
-    run_into(out, args.overwrite, work)
+    try:
+        run_into(out, args.overwrite, work)
+    except KeyboardInterrupt:
+        print("signorini: compare interrupted; nothing written", file=sys.stderr)
+        return EXIT_CODES["interrupted"]
     if not args.quiet:
         r = holder["result"]
         print(cmp.setup_text(r))

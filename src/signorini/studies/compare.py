@@ -43,6 +43,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -402,6 +403,9 @@ def run_jobs(jobs: Sequence[Job], workers: int) -> list[Outcome]:
     ex = ProcessPoolExecutor(min(workers, len(jobs)), _context(), _watch_parent, (os.getpid(),))
     try:
         results = list(ex.map(execute_job, [jobs[i] for i in order]))
+    except BrokenProcessPool as exc:
+        ex.shutdown(wait=True, cancel_futures=True)
+        raise RuntimeError(f"a worker process died ({exc}; out of memory?); rerun with --jobs 1") from None
     except BaseException:
         ex.shutdown(wait=True, cancel_futures=True)
         raise
@@ -441,9 +445,6 @@ class Plan:
     @property
     def exact(self) -> bool:
         return self.kind == "benchmark" and self.target.bench.dim == 1
-
-    def runs(self) -> int:
-        return len(self.pairs) * len(self.levels) + (1 if isinstance(self.reference, tuple) else 0)
 
 
 def _steps(dt: float, T: float, where: str) -> int:
@@ -568,8 +569,8 @@ def _reference(plan: Plan, outcome: Outcome | None) -> Reference | None:
         return None
     scheme, mass, level = plan.reference
     if outcome.status != "finished":
-        raise InputError(f"the reference run ({scheme.label} + {mass} at n = {level}) did not finish: "
-                         f"{outcome.status} ({outcome.reason})")  # fmt: skip
+        raise ConvergenceError(f"the reference run ({scheme.label} + {mass} at n = {level}) did not finish: "
+                               f"{outcome.status} ({outcome.reason})")  # fmt: skip
     b = plan.target.bench
     p = plan.target.problem(level)
     return Reference(b.name, level, scheme.label, mass, outcome.history, p, b.h(level, plan.target.params),

@@ -312,6 +312,7 @@ def von_mises_figures(runs: dict, figures: dict, t_contact: float, near_layer: f
 
 # ----------------------------------------------------------------------------- compare
 LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1)))
+DRIFT_FLOOR = 1e-16  # |E - E0|/|E0| below round-off is drawn at this floor on the log axis
 MARKERS = ("o", "s", "^", "D", "v", "P")
 
 
@@ -373,7 +374,8 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
     E0s = {p["label"]: float(series[p["label"]]["energy"][0]) for p in pairs}
     relative = quantity == "energy" and all(e != 0 and np.isfinite(e) for e in E0s.values())
     ylabel = spec[1] if relative or quantity != "energy" else f"scheme energy E(t) ({units})"
-    fig, ax = _fig(1, 1, (9.5, 4.6))
+    drift_panel = relative  # energy: also |E - E0|/|E0| on a log scale, where small drifts differ
+    fig, ax = _fig(1, 2 if drift_panel else 1, (14, 4.8) if drift_panel else (9.5, 4.6))
     a = ax[0, 0]
     rows = []
     for p in pairs:
@@ -383,21 +385,46 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
             y = y / E0s[p["label"]]
         st = styles[p["label"]]
         a.plot(s["t"], y, color=st["color"], ls=st["ls"], lw=1.2, label=p["label"])
-        rows += [(p["label"], p["scheme_label"], p["mass"], float(t), float(v), float(w))
-                 for t, v, w in zip(s["t"], s[spec[0]], y, strict=True)]  # fmt: skip
-    a.set_xlabel(f"t ({units})")
+        extra = [()] * y.size
+        if drift_panel:
+            d = np.abs(y - 1.0)
+            ax[0, 1].plot(s["t"][1:], np.maximum(d[1:], DRIFT_FLOOR), color=st["color"], ls=st["ls"], lw=1.2)
+            extra = [(float(v),) for v in d]
+        rows += [(p["label"], p["scheme_label"], p["mass"], float(t), float(v), float(w), *e)
+                 for t, v, w, e in zip(s["t"], s[spec[0]], y, extra, strict=True)]  # fmt: skip
+    for b in ax[0]:
+        b.set_xlabel(f"t ({units})")
+        b.grid(alpha=0.3)
     a.set_ylabel(ylabel)
-    a.grid(alpha=0.3)
     if quantity == "energy":
         a.ticklabel_format(axis="y", useOffset=False)
+    if drift_panel:
+        b = ax[0, 1]
+        b.set_yscale("log")
+        b.set_ylabel(f"energy drift |E(t) - E(0)| / |E(0)| (floor {DRIFT_FLOOR:g})")
+        b.set_title("drift on a log scale", fontsize=9)
+        a.set_title("E(t) / E(0)", fontsize=9)
     if quantity == "penetration":
         _penetration_axis(a, [float(np.max(series[p["label"]]["penetration"], initial=0.0)) for p in pairs], result)
-    _legend_right(fig, a)
+    _legend_right(fig, ax[0, -1] if not drift_panel else a)
+    if drift_panel:  # the legend of the left panel goes below both
+        a.get_legend().remove()
+        handles, labels = a.get_legend_handles_labels()
+        ncol = min(4, max(1, len(labels)))
+        fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     what = spec[2][0].upper() + spec[2][1:]
     title = f"{what} vs time, one line per scheme / mass pair ({_where(result)}){_unavailable_note(result)}"
-    _save(fig, png, _wrap(title))
+    if drift_panel:
+        import matplotlib.pyplot as plt
+
+        fig.suptitle(_wrap(title, 140), fontsize=10)
+        fig.tight_layout(rect=(0, 0.045 * -(-len(labels) // ncol) + 0.02, 1, 0.95))
+        fig.savefig(png, dpi=110)
+        plt.close(fig)
+    else:
+        _save(fig, png, _wrap(title))
     value = {"energy": "energy", "force": "total_contact_force", "penetration": "penetration"}[quantity]
-    header = [value, "energy_over_E0" if relative else f"plotted_{value}"]
+    header = [value, "energy_over_E0", "energy_drift"] if relative else [value, f"plotted_{value}"]
     _write_csv_rows(csv_path, ["pair", "scheme", "mass", "t", *header], rows)
     return title
 
@@ -409,7 +436,7 @@ def _penetration_axis(a, peaks: list[float], result: dict) -> None:
     if top <= tiny:
         a.set_ylim(0.0, max(10 * top, tiny))
         what = "0" if top == 0 else f"at most {top:.2g} (round-off)"
-        a.text(0.5, 0.5, f"penetration {what} at every level for every pair:\ncontact enforced exactly",
+        a.text(0.5, 0.5, f"penetration {what} at every time step for every pair:\ncontact enforced exactly",
                transform=a.transAxes, ha="center", va="center", fontsize=9, color="0.3")  # fmt: skip
     else:
         a.set_ylim(bottom=0.0)
@@ -435,7 +462,9 @@ def compare_error_figure(result: dict, png: Path, csv_path: Path) -> str:
     norms = ["u_H1", "v_L2", result["contact_norm"]]
     pairs = [p for p in result["pairs"] if p["available"]]
     styles = _pair_styles(result["pairs"])
-    fig, ax = _fig(1, len(norms), (4.3 * len(norms), 4.6))
+    ncol = min(4, max(1, len(pairs)))
+    height = 4.4 + 0.2 * (-(-len(pairs) // 3)) + 0.2 * (-(-len(pairs) // ncol))
+    fig, ax = _fig(1, len(norms), (4.6 * len(norms), height), layout="constrained")
     rows = []
     levels = [int(n) for n in result["levels"]]
     for j, k in enumerate(norms):
@@ -462,24 +491,23 @@ def compare_error_figure(result: dict, png: Path, csv_path: Path) -> str:
             _level_axis(a, levels, [{"n": levels[0], "h": result["h"][0]}], result["ratio"])
         a.set_ylabel("relative error")
         a.set_title(ERROR_PANELS.get(k, k), fontsize=9)
-        if any(line.get_label()[0] != "_" for line in a.get_lines()):
-            a.legend(fontsize=6.5, title="fitted slope", title_fontsize=7, loc="best")
+        if any(line.get_label()[0] != "_" for line in a.get_lines()):  # below the panel, off the data
+            a.legend(fontsize=6.5, title="fitted slope (same line style as the pair)", title_fontsize=7,
+                     loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3, frameon=False)  # fmt: skip
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], ls=styles[p["label"]]["ls"], color=styles[p["label"]]["color"],
                       marker=styles[p["label"]]["marker"], ms=5) for p in pairs]  # fmt: skip
     labels = [p["label"] for p in pairs]
-    ncol = min(4, max(1, len(labels)))
     if handles:
-        fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
-    ref = result["reference"]["description"]
-    title = (f"Relative error vs refinement, markers = runs, lines = least-squares fits (slope in the legend); "
-             f"{result['target']}, T = {result['T']:g}, against the {ref}{_unavailable_note(result)}")  # fmt: skip
+        fig.legend(handles, labels, fontsize=7, loc="outside lower center", ncol=ncol, frameon=False)
+    ref = result["reference"]
+    against = "the exact solution" if ref["kind"] == "exact" else f"the reference {ref['description']}"
+    title = (f"Relative error vs refinement, markers = runs, lines = least-squares fits; {result['target']}, "
+             f"T = {result['T']:g}, against {against}{_unavailable_note(result)}")  # fmt: skip
     import matplotlib.pyplot as plt
 
-    fig.suptitle(_wrap(title, 140), fontsize=9)
-    rows_legend = -(-len(labels) // ncol)
-    fig.tight_layout(rect=(0, 0.045 * rows_legend + 0.02, 1, 0.93))
+    fig.suptitle(_wrap(title, 150), fontsize=9)
     fig.savefig(png, dpi=110)
     plt.close(fig)
     _write_csv_rows(csv_path, ["pair", "scheme", "mass", "n", "h", "norm", "relative_error", "fitted_rate"], rows)
