@@ -119,3 +119,24 @@ def test_fmt_prints_na_for_undefined_values():
     assert report.fmt(0.12345) == "0.1235"
     assert report.mean_rate([0.5, float("nan")]) != report.mean_rate([0.5, float("nan")])  # nan
     assert report.fmt(report.mean_rate([])) == "n/a"
+
+
+def test_report_has_the_compare_section(tiny_report):
+    _, text, s = tiny_report
+    sec = text[text.index("## 6. Scheme x mass comparison") :]
+    assert "### 6a. 1D impact `bar1d-impact` against the exact solution" in sec
+    assert "### 6b. 2D bar against the reference of section 3" in sec
+    assert sec.count("\n| rank |") == 2
+    c2 = s["compare"]["bar2d"]
+    conv = s["bar2d_convergence"]["crank-nicolson/seed"]
+    # the comparison reuses section 3's reference and states it
+    assert c2["reference"]["level"] == conv["reference"]["level"] == report.SIZES["tiny"]["ref2d"]
+    assert f"at n = {c2['reference']['level']}" in sec and "x finer in h" in sec
+    assert s["compare"]["bar1d-impact"]["reference"]["kind"] == "exact"
+    for c in s["compare"].values():
+        assert len(c["pairs"]) == 8 and all(p["available"] for p in c["pairs"])
+        assert sorted(p["rank"] for p in c["pairs"])[0] == 1
+    # same numbers as section 3 for a pair both compute (same runs, same reference)
+    row = conv["rows"][-1]
+    pair = next(p for p in c2["pairs"] if p["label"] == "crank-nicolson / seed")
+    assert pair["runs"][-1]["errors"]["u_H1"] == pytest.approx(row["u_H1"], rel=1e-12)

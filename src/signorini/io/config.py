@@ -355,3 +355,8 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     out, every = _output(data.get("output", {}))
     problem = Problem(mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits)
+
+
+def case_problem(path: str | Path) -> Problem:
+    """The Problem of a case file (a module-level function: picklable for worker processes)."""
+    return load_case(path).problem

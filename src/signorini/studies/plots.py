@@ -308,3 +308,251 @@ def von_mises_figures(runs: dict, figures: dict, t_contact: float, near_layer: f
             w.writerow(["mass", "t", "y", "z", "von_mises"])
             w.writerows(rows)
     return {"clim": clim, "masses": stats}
+
+
+# ----------------------------------------------------------------------------- compare
+LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1)))
+DRIFT_FLOOR = 1e-16  # |E - E0|/|E0| below round-off is drawn at this floor on the log axis
+MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def _pair_styles(pairs: list[dict]) -> dict[str, dict]:
+    """Colour per scheme, line style and marker per mass (same look in every figure)."""
+    schemes = list(dict.fromkeys(p["scheme_label"] for p in pairs))
+    masses = list(dict.fromkeys(p["mass"] for p in pairs))
+    return {
+        p["label"]: {
+            "color": f"C{schemes.index(p['scheme_label']) % 10}",
+            "ls": LINESTYLES[masses.index(p["mass"]) % len(LINESTYLES)],
+            "marker": MARKERS[masses.index(p["mass"]) % len(MARKERS)],
+        }
+        for p in pairs
+    }
+
+
+def _units(result: dict) -> str:
+    return "nondimensional" if result["kind"] == "benchmark" else "units of the case file"
+
+
+def _where(result: dict) -> str:
+    if result["kind"] == "benchmark":
+        return f"{result['target']}, n = {result['levels'][-1]}, dt = {result['dt'][-1]:.4g}"
+    return f"{result['target']}, dt = {result['dt'][0]:.4g}"
+
+
+def _unavailable_note(result: dict) -> str:
+    missing = [p["label"] for p in result["pairs"] if not p["available"]]
+    return f"; not plotted (n/a, see compare.md): {', '.join(missing)}" if missing else ""
+
+
+def _wrap(title: str, width: int = 115) -> str:
+    import textwrap
+
+    return textwrap.fill(title, width)
+
+
+def _legend_right(fig, ax) -> None:
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+
+
+def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, csv_path: Path) -> str:
+    """One line per pair of ``quantity`` (energy, force, penetration) against t at the finest level."""
+    units = _units(result)
+    spec = {
+        "energy": ("energy", "scheme energy E(t) / E(0)", "energy"),
+        "force": (
+            "force",
+            rf"total contact force $-\sum_i \lambda_i$ ({units})",
+            "total contact force (> 0: compression)",
+        ),
+        "penetration": ("penetration", rf"penetration $\max_i \max(0, -g_i)$ ({units})", "penetration"),
+    }[quantity]
+    pairs = [p for p in result["pairs"] if p["label"] in series]
+    styles = _pair_styles(result["pairs"])
+    E0s = {p["label"]: float(series[p["label"]]["energy"][0]) for p in pairs}
+    relative = quantity == "energy" and all(e != 0 and np.isfinite(e) for e in E0s.values())
+    ylabel = spec[1] if relative or quantity != "energy" else f"scheme energy E(t) ({units})"
+    drift_panel = relative  # energy: also |E - E0|/|E0| on a log scale, where small drifts differ
+    fig, ax = _fig(1, 2 if drift_panel else 1, (14, 4.8) if drift_panel else (9.5, 4.6))
+    a = ax[0, 0]
+    rows = []
+    for p in pairs:
+        s = series[p["label"]]
+        y = np.asarray(s[spec[0]], float)
+        if relative:
+            y = y / E0s[p["label"]]
+        st = styles[p["label"]]
+        a.plot(s["t"], y, color=st["color"], ls=st["ls"], lw=1.2, label=p["label"])
+        extra = [()] * y.size
+        if drift_panel:
+            d = np.abs(y - 1.0)
+            ax[0, 1].plot(s["t"][1:], np.maximum(d[1:], DRIFT_FLOOR), color=st["color"], ls=st["ls"], lw=1.2)
+            extra = [(float(v),) for v in d]
+        rows += [(p["label"], p["scheme_label"], p["mass"], float(t), float(v), float(w), *e)
+                 for t, v, w, e in zip(s["t"], s[spec[0]], y, extra, strict=True)]  # fmt: skip
+    for b in ax[0]:
+        b.set_xlabel(f"t ({units})")
+        b.grid(alpha=0.3)
+    a.set_ylabel(ylabel)
+    if quantity == "energy":
+        a.ticklabel_format(axis="y", useOffset=False)
+    if drift_panel:
+        b = ax[0, 1]
+        b.set_yscale("log")
+        b.set_ylabel(f"energy drift |E(t) - E(0)| / |E(0)| (floor {DRIFT_FLOOR:g})")
+        b.set_title("drift on a log scale", fontsize=9)
+        a.set_title("E(t) / E(0)", fontsize=9)
+    if quantity == "penetration":
+        _penetration_axis(a, [float(np.max(series[p["label"]]["penetration"], initial=0.0)) for p in pairs], result)
+    _legend_right(fig, ax[0, -1] if not drift_panel else a)
+    if drift_panel:  # the legend of the left panel goes below both
+        a.get_legend().remove()
+        handles, labels = a.get_legend_handles_labels()
+        ncol = min(4, max(1, len(labels)))
+        fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
+    what = spec[2][0].upper() + spec[2][1:]
+    title = f"{what} vs time, one line per scheme / mass pair ({_where(result)}){_unavailable_note(result)}"
+    if drift_panel:
+        import matplotlib.pyplot as plt
+
+        fig.suptitle(_wrap(title, 140), fontsize=10)
+        fig.tight_layout(rect=(0, 0.045 * -(-len(labels) // ncol) + 0.02, 1, 0.95))
+        fig.savefig(png, dpi=110)
+        plt.close(fig)
+    else:
+        _save(fig, png, _wrap(title))
+    value = {"energy": "energy", "force": "total_contact_force", "penetration": "penetration"}[quantity]
+    header = [value, "energy_over_E0", "energy_drift"] if relative else [value, f"plotted_{value}"]
+    _write_csv_rows(csv_path, ["pair", "scheme", "mass", "t", *header], rows)
+    return title
+
+
+def _penetration_axis(a, peaks: list[float], result: dict) -> None:
+    """Penetration is >= 0; say so when every pair keeps it at zero or round-off."""
+    top = max(peaks, default=0.0)
+    tiny = 1e-12 * result.get("length_scale", 1.0)
+    if top <= tiny:
+        a.set_ylim(0.0, max(10 * top, tiny))
+        what = "0" if top == 0 else f"at most {top:.2g} (round-off)"
+        a.text(0.5, 0.5, f"penetration {what} at every time step for every pair:\ncontact enforced exactly",
+               transform=a.transAxes, ha="center", va="center", fontsize=9, color="0.3")  # fmt: skip
+    else:
+        a.set_ylim(bottom=0.0)
+
+
+def _write_csv_rows(path: Path, header: list[str], rows: list[tuple]) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+
+
+ERROR_PANELS = {
+    "u_H1": "displacement u: L2(0,T; H1)",
+    "v_L2": "velocity v: L2(0,T; L2)",
+    "stress": "contact stress at x = 0: L2(0,T)",
+    "force": "total contact force: L2(0,T)",
+}
+
+
+def compare_error_figure(result: dict, png: Path, csv_path: Path) -> str:
+    """Relative errors against the level, one panel per norm, with the least-squares slopes."""
+    norms = ["u_H1", "v_L2", result["contact_norm"]]
+    pairs = [p for p in result["pairs"] if p["available"]]
+    styles = _pair_styles(result["pairs"])
+    ncol = min(4, max(1, len(pairs)))
+    height = 4.4 + 0.2 * (-(-len(pairs) // 3)) + 0.2 * (-(-len(pairs) // ncol))
+    fig, ax = _fig(1, len(norms), (4.6 * len(norms), height), layout="constrained")
+    rows = []
+    levels = [int(n) for n in result["levels"]]
+    for j, k in enumerate(norms):
+        a = ax[0, j]
+        for p in pairs:
+            pts = [(r["n"], r["h"], (r["errors"] or {}).get(k)) for r in p["runs"]]
+            pts = [(n, h, e) for n, h, e in pts if e is not None and np.isfinite(e) and e > 0]
+            rate = p["rates"].get(k)
+            for n, h, e in pts:
+                rows.append((p["label"], p["scheme_label"], p["mass"], n, h, k, e, rate if rate is not None else ""))
+            if not pts:
+                continue
+            st = styles[p["label"]]
+            n = np.array([q[0] for q in pts], float)
+            e = np.array([q[2] for q in pts])
+            a.plot(n, e, marker=st["marker"], ls="none", color=st["color"], ms=5)
+            if rate is not None:
+                h = np.array([q[1] for q in pts])
+                c = np.exp(np.mean(np.log(e) - rate * np.log(h)))
+                a.plot(n, c * h**rate, ls=st["ls"], color=st["color"], lw=1, marker=st["marker"], ms=0,
+                       label=f"{rate:.2f}")  # fmt: skip
+        a.set_yscale("log")
+        if a.has_data():
+            _level_axis(a, levels, [{"n": levels[0], "h": result["h"][0]}], result["ratio"])
+        a.set_ylabel("relative error")
+        a.set_title(ERROR_PANELS.get(k, k), fontsize=9)
+        if any(line.get_label()[0] != "_" for line in a.get_lines()):  # below the panel, off the data
+            a.legend(fontsize=6.5, title="fitted slope (same line style as the pair)", title_fontsize=7,
+                     loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3, frameon=False)  # fmt: skip
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], ls=styles[p["label"]]["ls"], color=styles[p["label"]]["color"],
+                      marker=styles[p["label"]]["marker"], ms=5) for p in pairs]  # fmt: skip
+    labels = [p["label"] for p in pairs]
+    if handles:
+        fig.legend(handles, labels, fontsize=7, loc="outside lower center", ncol=ncol, frameon=False)
+    ref = result["reference"]
+    against = "the exact solution" if ref["kind"] == "exact" else f"the reference {ref['description']}"
+    title = (f"Relative error vs refinement, markers = runs, lines = least-squares fits; {result['target']}, "
+             f"T = {result['T']:g}, against {against}{_unavailable_note(result)}")  # fmt: skip
+    import matplotlib.pyplot as plt
+
+    fig.suptitle(_wrap(title, 150), fontsize=9)
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    _write_csv_rows(csv_path, ["pair", "scheme", "mass", "n", "h", "norm", "relative_error", "fitted_rate"], rows)
+    return title
+
+
+def compare_cost_figure(result: dict, png: Path, csv_path: Path) -> str:
+    """Time per step of every pair at the finest level (bars), annotated with the ratio to a bare solve."""
+    pairs = [p for p in result["pairs"] if p["available"]]
+    styles = _pair_styles(result["pairs"])
+    fig, ax = _fig(1, 1, (8.5, 0.45 * max(len(pairs), 2) + 1.6))
+    a = ax[0, 0]
+    ms = [p["metrics"]["step_ms"] for p in pairs]
+    y = np.arange(len(pairs))[::-1]
+    a.barh(y, ms, color=[styles[p["label"]]["color"] for p in pairs], alpha=0.8)
+    a.set_yticks(y)
+    a.set_yticklabels([p["label"] for p in pairs], fontsize=8)
+    rows = []
+    for yi, p, v in zip(y, pairs, ms, strict=True):
+        m = p["metrics"]
+        ratio = m["step_over_bare"]
+        text = f" {v:.3g} ms" + (f" = {ratio:.2f} x bare {m['bare_op']}" if ratio is not None else "")
+        a.text(v, yi, text, va="center", fontsize=7)
+        bare = v / ratio if ratio else None
+        rows.append((p["label"], p["scheme_label"], p["mass"], result["levels"][-1], v, m["bare_op"] or "",
+                     bare if bare is not None else "", ratio if ratio is not None else ""))  # fmt: skip
+    a.set_xlim(0, max(ms, default=1.0) * 1.6 or 1.0)
+    a.set_xlabel("wall time per time step (ms)")
+    a.grid(alpha=0.3, axis="x")
+    where = f"n = {result['levels'][-1]}" if result["kind"] == "benchmark" else "the case file's mesh"
+    title = (f"Cost per step at {where} ({result['target']}; {result['jobs']} process(es) ran concurrently), "
+             f"with its ratio to one bare solve of the same factor{_unavailable_note(result)}")  # fmt: skip
+    _save(fig, png, _wrap(title))
+    _write_csv_rows(csv_path, ["pair", "scheme", "mass", "n", "ms_per_step", "bare_op", "bare_ms", "step_over_bare"],
+                    rows)  # fmt: skip
+    return title
+
+
+def compare_figures(result: dict, series: dict, out: Path) -> list[tuple[str, str]]:
+    """Every figure of ``signorini compare`` into ``out``: [(png name, caption)]."""
+    out = Path(out)
+    figs = []
+    for name, q in (("energy", "energy"), ("contact_force", "force"), ("penetration", "penetration")):
+        figs.append((f"{name}.png", compare_time_figure(result, series, q, out / f"{name}.png", out / f"{name}.csv")))
+    if result["kind"] == "benchmark":
+        figs.append(("errors.png", compare_error_figure(result, out / "errors.png", out / "errors.csv")))
+    figs.append(("cost.png", compare_cost_figure(result, out / "cost.png", out / "cost.csv")))
+    return figs

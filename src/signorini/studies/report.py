@@ -15,6 +15,9 @@ parameters or from the computed histories, never from literals):
 4. 3D bar: von Mises stress on the face x = 0 at several times, standard (Fig. 4) vs
    ``seed`` (Fig. 5) on one colour scale.
 5. Beyond the paper: more redistributed masses and Paoli-Schatzman on ``bar1d``.
+6. ``signorini compare`` (:mod:`signorini.studies.compare`): CN, BE, generalized-alpha
+   (rho_inf = 0.5) and Paoli-Schatzman x standard/``seed``, ranked, on ``bar1d-impact``
+   (exact solution) and on the 2D bar (section 3's reference).
 
 The figure files are named after the paper's figures (``plots.PAPER_FIGURES``), and the
 report starts with the mapping.
@@ -29,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dynamics.diagnostics import impact_windows, oscillation_index  # noqa: F401 (re-exported)
-from ..dynamics.history import _json_default
+from ..dynamics.history import _json_default, finite_json
 from ..dynamics.simulate import simulate
 from ..studies.benchmarks import get_benchmark
 from ..studies.reference_study import (
@@ -51,7 +54,8 @@ PAIRS = [
 # levels*: nested refinement levels; ref*: the shared reference level (>= 4x the finest
 # level); checks*: further reference levels the rates are recomputed against.
 # T2d: length of the 2D histories (two impacts); Tconv: horizon of the convergence
-# studies (first impact and release); T3d: horizon of the von Mises snapshots.
+# studies (first impact and release); T3d: horizon of the von Mises snapshots;
+# Tcmp1d: horizon of the bar1d-impact comparison (first impact and release).
 SIZES = {
     "tiny": {
         "levels1d": [10, 20, 40],
@@ -67,6 +71,7 @@ SIZES = {
         "ref3d": 4,
         "checks3d": [2],
         "ratio": 0.5,
+        "Tcmp1d": 1.2,
     },
     "quick": {
         "levels1d": [20, 40, 80, 160],
@@ -82,6 +87,7 @@ SIZES = {
         "ref3d": 8,
         "checks3d": [4],
         "ratio": 0.5,
+        "Tcmp1d": 1.2,
     },
     "full": {
         "levels1d": [20, 40, 80, 160, 320, 640],
@@ -97,6 +103,7 @@ SIZES = {
         "ref3d": 8,
         "checks3d": [4],
         "ratio": 0.5,
+        "Tcmp1d": 1.2,
     },
 }
 AGREE_TOL = 0.1  # rates against two references "agree" when they differ by at most this
@@ -512,6 +519,7 @@ def section_2d_convergence(cfg: dict, out: Path, summary: dict, ctx: dict) -> li
         )
         for scheme, mass in PAIRS
     }
+    ctx["ref2d"] = ref  # shared with the scheme comparison (section 6), released there
     del ref, checks
     summary["bar2d_convergence"] = conv
     runs = ctx["runs2d"]
@@ -627,6 +635,79 @@ def section_beyond(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
     return md + [""]
 
 
+COMPARE_SCHEMES = "crank-nicolson,backward-euler,generalized-alpha[rho_inf=0.5],paoli-schatzman"
+COMPARE_MASSES = "standard,seed"
+
+
+def _exact_impact(bench, T: float) -> tuple[float, float]:
+    """First and last time of the exact solution's first impact (stress below -1e-9 max|stress|)."""
+    ex = bench.exact(bench.params(), T)
+    t = np.linspace(0.0, T, 4001)
+    s = ex.contact_stress(t)
+    on = np.flatnonzero(s < -1e-9 * max(float(np.abs(s).max()), 1e-300))
+    if not on.size:
+        return float("nan"), float("nan")
+    end = on[int(np.argmax(np.diff(np.concatenate([on, [on[-1] + 2]])) > 1))]
+    return float(t[on[0]]), float(t[end])
+
+
+def section_compare(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
+    """6. ``signorini compare`` on bar1d-impact (exact) and the 2D bar (section 3's reference).
+
+    Runs right after section 3 (so its reference can be released); the text is placed
+    at the end by :func:`section_compare_text`.
+    """
+    from . import compare as cmp
+
+    pairs = cmp.make_pairs(cmp.parse_schemes(COMPARE_SCHEMES), cmp.parse_masses(COMPARE_MASSES))
+    ratio = cfg["ratio"]
+    l1, l2 = cfg["levels1d"], cfg["levels2d"]
+    plan1 = cmp.plan_benchmark("bar1d-impact", pairs, len(l1), l1[0], cfg["Tcmp1d"], ratio)
+    r1, _ = cmp.run_plan(plan1)
+    ref = ctx.pop("ref2d")
+    plan2 = cmp.plan_benchmark("bar2d", pairs, len(l2), l2[0], cfg["Tconv"], ratio, reference=ref)
+    r2, _ = cmp.run_plan(plan2)
+    del ref, plan2
+    summary["compare"] = {"bar1d-impact": finite_json(r1), "bar2d": finite_json(r2)}
+    b1 = get_benchmark("bar1d-impact")
+    t_on, t_off = _exact_impact(b1, cfg["Tcmp1d"])
+    p1 = b1.params()
+    schemes, masses = COMPARE_SCHEMES, COMPARE_MASSES
+    cmd1 = (f"signorini compare bar1d-impact --schemes '{schemes}' --masses {masses} --n0 {l1[0]} "
+            f"--levels {len(l1)} --T {cfg['Tcmp1d']:g} --ratio {ratio:g}")  # fmt: skip
+    cmd2 = (f"signorini compare bar2d --schemes '{schemes}' --masses {masses} --n0 {l2[0]} --levels {len(l2)} "
+            f"--T {cfg['Tconv']:g} --ratio {ratio:g} --reference {r2['reference']['level']}")  # fmt: skip
+    md = [
+        "## 6. Scheme x mass comparison (`signorini compare`)",
+        "",
+        f"Every pair of {schemes.replace(',', ', ')} x {masses.replace(',', ', ')}, ranked by the rule of "
+        f"`signorini compare` (docs/design.md): {cmp.RANKING_RULE}",
+        "",
+        f"### 6a. 1D impact `bar1d-impact` against the exact solution (T = {cfg['Tcmp1d']:g})",
+        "",
+        f"{cmp.setup_text(r1)} The exact first impact (gap/velocity = {p1['gap']:g}/{p1['velocity']:g}) lasts "
+        f"from t = {fmt(t_on, '.3g')} to t = {fmt(t_off, '.3g')}. Same table with figures: `{cmd1}`.",
+        "",
+        *cmp.table_markdown(r1),
+        "",
+        "### 6b. 2D bar against the reference of section 3",
+        "",
+        f"{cmp.setup_text(r2)} {cmp.reference_text(r2)} Same table with figures: `{cmd2}`.",
+        "",
+        *cmp.table_markdown(r2),
+        "",
+        cmp.COLUMN_NOTES,
+        "",
+    ]
+    ctx["compare_md"] = md
+    return []
+
+
+def section_compare_text(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
+    """The text of :func:`section_compare`, at the end of the report."""
+    return ctx.pop("compare_md", [])
+
+
 def findings(summary: dict) -> list[str]:
     """The paper's claims, with the numbers of this run."""
     hist, s1 = summary["bar2d_histories"], summary["bar1d"]
@@ -660,9 +741,11 @@ SECTIONS = (
     section_1d,
     section_2d_histories,
     section_2d_convergence,
+    section_compare,
     section_3d_convergence,
     section_3d_von_mises,
     section_beyond,
+    section_compare_text,
 )
 
 
