@@ -134,8 +134,13 @@ def test_report_has_the_compare_section(tiny_report):
     assert f"at n = {c2['reference']['level']}" in sec and "x finer in h" in sec
     assert s["compare"]["bar1d-impact"]["reference"]["kind"] == "exact"
     for c in s["compare"].values():
-        assert len(c["pairs"]) == 8 and all(p["available"] for p in c["pairs"])
-        assert sorted(p["rank"] for p in c["pairs"])[0] == 1
+        assert len(c["pairs"]) == 8
+        for p in c["pairs"]:  # Paoli-Schatzman refuses massless dofs (docs/schemes.md): n/a with the reason
+            if p["scheme"] == "paoli-schatzman" and p["mass"] == "seed":
+                assert not p["available"]
+            else:
+                assert p["available"], p["label"]
+        assert sorted(p["rank"] for p in c["pairs"] if p["rank"] is not None)[0] == 1
     # same numbers as section 3 for a pair both compute (same runs, same reference)
     row = conv["rows"][-1]
     pair = next(p for p in c2["pairs"] if p["label"] == "crank-nicolson / seed")
