@@ -56,11 +56,12 @@ class MoreauJean(Scheme):
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "index sets")
         if self.theta == 0.5 and np.setdiff1d(ctx.massless, ctx.fixed).size:
+            fix = "a mass without massless dofs" if not self.parameters else "theta > 1/2 (e.g. 1) or a mass without"
             raise InputError(
-                f"scheme moreau-jean with theta = 1/2 and mass {ctx.disc.mass_name!r}: the massless dofs are only "
+                f"scheme {self.name} with theta = 1/2 and mass {ctx.disc.mass_name!r}: the massless dofs are only "
                 "balanced on average, S (U^n + U^{n+1})/2 = ..., which leaves an undamped (-1)^n mode that loses "
-                "the contact (measured: no contact force at all on bar1d); use theta > 1/2 (e.g. 1) or a mass "
-                "without massless dofs"
+                f"the contact (measured: no contact force at all on bar1d); use {fix}"
+                + (" massless dofs" if self.parameters else "")
             )
 
     def operator(self, dt: float) -> Operator:
