@@ -47,7 +47,7 @@ class Newmark(Scheme):
         p = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
         rhs = ctx.M @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
+        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed, **self.contact_law(ctx))
         A = (U - s.U - dt * s.V) / (b * dt * dt) - (0.5 / b - 1.0) * s.A
         V = s.V + dt * ((1 - g) * s.A + g * A)
         ml = ctx.massless
@@ -55,6 +55,10 @@ class Newmark(Scheme):
             V[ml] = (U[ml] - s.U[ml]) / dt
             A[ml] = 0.0
         return State(t, U, V, A, lam, info)
+
+    def contact_law(self, ctx) -> dict:
+        """Extra arguments of ``ctx.solve`` (exact Signorini contact: none; see ``penalty``)."""
+        return {}
 
     def _extra(self, ctx) -> float:
         return 0.5 * ctx.dt**2 * (self.beta - 0.5 * self.gamma)

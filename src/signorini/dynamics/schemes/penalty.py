@@ -24,8 +24,6 @@ import numpy as np
 
 from ...fem.assembly import geometry
 from ...registry import Parameter
-from ..context import Operator
-from .base import State
 from .newmark import CrankNicolson
 
 
@@ -51,18 +49,5 @@ class PenaltyCN(CrankNicolson):
             self._c, self._c_ctx = 1.0 / k, ctx
         return self._c
 
-    def step(self, ctx, s: State) -> State:
-        dt, b, g = ctx.dt, self.beta, self.gamma
-        t = ctx.next_time(s.t)
-        p = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
-        rhs = ctx.M @ p + ctx.load(t)
-        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        op = Operator(1.0 / (b * dt * dt), 1.0)
-        U, lam, info = ctx.solve(op, rhs, ctx.gaps(t), fixed, compliance=self.compliance(ctx))
-        A = (U - s.U - dt * s.V) / (b * dt * dt) - (0.5 / b - 1.0) * s.A
-        V = s.V + dt * ((1 - g) * s.A + g * A)
-        ml = ctx.massless
-        if ml.size:
-            V[ml] = (U[ml] - s.U[ml]) / dt
-            A[ml] = 0.0
-        return State(t, U, V, A, lam, info)
+    def contact_law(self, ctx) -> dict:
+        return {"compliance": self.compliance(ctx)}
