@@ -123,14 +123,18 @@ class CondensedContactSolver(ContactSolver):
         nc, n = self.B.shape
         self.store_Z = n * nc * 8 <= condense_budget
         if nc:
-            # Z = K^-1 B^T in column blocks, to bound the dense temporaries
-            Z = np.empty((n, nc))
+            # Z = K^-1 B^T in column blocks of 64; W = B Z block by block, so that Z (n x nc) is
+            # only allocated when it fits in condense_budget (else a step costs one more solve)
+            Z = np.empty((n, nc)) if self.store_Z else None
+            W = np.empty((nc, nc))
             Bt = self.B.T.tocsc()
             for j in range(0, nc, 64):
-                Z[:, j : j + 64] = self.factor.solve(Bt[:, j : j + 64].toarray()).reshape(n, -1)
-            W = self.B @ Z
+                Zj = self.factor.solve(Bt[:, j : j + 64].toarray()).reshape(n, -1)
+                W[:, j : j + 64] = self.B @ Zj
+                if Z is not None:
+                    Z[:, j : j + 64] = Zj
             self.W = 0.5 * (W + W.T)
-            self.Z = Z if self.store_Z else None
+            self.Z = Z
         else:
             self.W = np.zeros((0, 0))
             self.Z = np.zeros((n, 0))
