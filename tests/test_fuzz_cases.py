@@ -726,8 +726,11 @@ def bad_option(draw, base: Case) -> Case:
         if scheme in BAD_OPTIONS:
             name = draw(st.sampled_from(sorted(BAD_OPTIONS[scheme])))
             value = draw(st.sampled_from(BAD_OPTIONS[scheme][name]))
-        else:  # an option of another scheme
-            name, value = draw(st.sampled_from([("beta", 0.25), ("theta", 1.0), ("restitution", 0.0)]))
+        else:  # an option of another scheme (not one of this scheme's own)
+            own = {p.name for p in SCHEMES.get(scheme).parameters}
+            foreign = [(k, v) for k, v in (("beta", 0.25), ("theta", 1.0), ("restitution", 0.0), ("stiffness", 10.0),
+                                           ("rho_inf", 0.5), ("alpha", 0.1)) if k not in own]  # fmt: skip
+            name, value = draw(st.sampled_from(foreign))
         doc["time"][name] = value
         where = "time"
     else:
