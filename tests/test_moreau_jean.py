@@ -74,20 +74,12 @@ def test_cg_backend_is_refused_before_the_run(scheme):
 
 def test_half_theta_with_massless_dofs_is_refused_and_theta_one_converges():
     """theta = 1/2 leaves an undamped (-1)^n mode on massless rows (docs/schemes.md)."""
+    from exact_bar import exact_bar_runs
     from signorini.errors import InputError
-    from signorini.studies.study import errors_1d
 
     with pytest.raises(InputError, match="theta > 1/2"):
         _run(20, "seed")
-    b = get_benchmark("bar1d")
-    prm = {"L": 2.0, "E": 4.0, "gap": 0.3}
-    errs = []
-    for n in (40, 160):
-        p = b.problem(n, prm)
-        dt = b.h(n, prm) / 2
-        T = dt * round(3.0 / dt)
-        H = simulate(p, "moreau-jean", dt, T, mass="seed", snapshot_every=1, scheme_options={"theta": 1.0})
-        errs.append(errors_1d(H, p, b.exact(b.params(prm), T))["u_H1"])
+    errs = [err["u_H1"] for *_, err in exact_bar_runs("moreau-jean", "seed", (40, 160), {"theta": 1.0})]
     assert errs[1] < 0.8 * errs[0] and errs[1] < 0.3  # measured 0.356 -> 0.246
 
 

@@ -11,29 +11,17 @@ in stress (e = 1 at every step chatters).  About 8 s.
 import numpy as np
 import pytest
 
+from exact_bar import exact_bar_runs
 from signorini.dynamics.schemes import SCHEMES
-from signorini.dynamics.simulate import simulate
-from signorini.studies.benchmarks import get_benchmark
-from signorini.studies.study import errors_1d, observed_rates
+from signorini.studies.study import observed_rates
 
-PARAMS = {"L": 2.0, "E": 4.0, "gap": 0.3}
 LEVELS = (40, 80, 160)
 NOT_CONVERGING_STANDARD = {"crank-nicolson", "newmark", "generalized-alpha", "penalty"}  # default options
 
 
 def _errors(scheme: str, mass: str) -> tuple[np.ndarray, list[float]]:
-    b = get_benchmark("bar1d")
-    rows, hs = [], []
-    for n in LEVELS:
-        p = b.problem(n, PARAMS)
-        h = b.h(n, PARAMS)
-        dt = h / 2
-        T = dt * round(3.0 / dt)
-        H = simulate(p, scheme, dt, T, mass=mass, snapshot_every=1)
-        e = errors_1d(H, p, b.exact(b.params(PARAMS), T))
-        rows.append([e["u_L2"], e["u_H1"], e["stress"]])
-        hs.append(h)
-    return np.array(rows), hs
+    runs = exact_bar_runs(scheme, mass, LEVELS)
+    return np.array([[e["u_L2"], e["u_H1"], e["stress"]] for *_, e in runs]), [h for _, h, _, _ in runs]
 
 
 CASES = [(e.name, m) for e in SCHEMES for m in ("standard", "seed") if m == "standard" or e.obj.massless_dofs_allowed]

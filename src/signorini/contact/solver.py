@@ -53,6 +53,35 @@ def _best_time(op, n: int, repeats: int = 3) -> float:
     return best
 
 
+@dataclass(frozen=True)
+class ContactLaw:
+    """How one contact solve departs from the Signorini condition ``B x <= bound ⊥ lambda <= 0``.
+
+    ``subset`` (bool, nc): only these contact nodes are constrained (the index set of a
+    velocity-level scheme); lambda is zero elsewhere.  None: all of them.
+    ``compliance`` c (nc,) >= 0: the constraint becomes ``B x + c lambda <= bound``, i.e. the
+    penalty lambda_i = -max(0, (B x)_i - bound_i) / c_i.  None: exact contact.
+    Only the condensed (direct) solver supports them; a friction law will be one more field.
+    """
+
+    subset: np.ndarray | None = None
+    compliance: np.ndarray | None = None
+
+    @property
+    def exact(self) -> bool:
+        """Plain Signorini contact on every node."""
+        return (self.subset is None or bool(self.subset.all())) and self.compliance is None
+
+    def scaled(self, s: float) -> ContactLaw:
+        """The same law for the system divided by s (lambda = s mu: compliance times s)."""
+        if self.compliance is None or s == 1.0:
+            return self
+        return ContactLaw(self.subset, np.asarray(self.compliance) * s)
+
+
+SIGNORINI = ContactLaw()
+
+
 @dataclass
 class StepInfo:
     """What one contact solve did: active-set iterations, NNLS fallback, residual."""
@@ -80,19 +109,9 @@ class ContactSolver:
         self.factor_bytes = 0
 
     def solve(
-        self,
-        b: np.ndarray,
-        bound: np.ndarray,
-        subset: np.ndarray | None = None,
-        compliance: np.ndarray | None = None,
+        self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        """(x, lambda, info) for the right-hand side ``b`` and constraint bound ``bound``.
-
-        ``subset`` (bool, nc): only these contact nodes are constrained (an index set of a
-        velocity-level scheme); lambda is zero elsewhere.  None: all of them.
-        ``compliance`` (nc,) >= 0: the constraint becomes B x + c lambda <= bound, i.e. a
-        penalty lambda_i = -max(0, (B x)_i - bound_i) / c_i (regularized contact).
-        """
+        """(x, lambda, info) for the right-hand side ``b``, the bound and the :class:`ContactLaw`."""
         raise NotImplementedError  # pragma: no cover
 
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
@@ -154,14 +173,11 @@ class CondensedContactSolver(ContactSolver):
         return x
 
     def solve(
-        self,
-        b: np.ndarray,
-        bound: np.ndarray,
-        subset: np.ndarray | None = None,
-        compliance: np.ndarray | None = None,
+        self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         U = self.factor.solve(b)
         nc = self.B.shape[0]
+        subset, compliance = law.subset, law.compliance
         if nc == 0 or (subset is not None and not subset.any()):
             self._sync()
             self.active = np.zeros(nc, dtype=bool)
@@ -239,13 +255,9 @@ class ActiveSetCGSolver(ContactSolver):
         return self._cg(b, self.U_prev, lambda x: x)
 
     def solve(
-        self,
-        b: np.ndarray,
-        bound: np.ndarray,
-        subset: np.ndarray | None = None,
-        compliance: np.ndarray | None = None,
+        self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-        if (subset is not None and not subset.all()) or compliance is not None:  # schemes check it at set-up
+        if not law.exact:  # the schemes that need it refuse cg at set-up (Scheme.check_context)
             raise InputError(
                 "index sets and penalty compliances need the condensed contact solve of a direct backend "
                 "(superlu or pardiso), not cg"

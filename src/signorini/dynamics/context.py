@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.solver import ContactSolver, StepInfo, make_contact_solver
+from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from .mass import massless_dofs
 from .problem import Discretization
@@ -163,18 +163,14 @@ class Context:
         rhs: np.ndarray,
         bound: np.ndarray,
         fixed_values: np.ndarray | None = None,
-        subset: np.ndarray | None = None,
-        compliance: np.ndarray | None = None,
+        law: ContactLaw = SIGNORINI,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         """Solve ``K x = rhs + B^T lambda`` with contact ``B x <= bound``; x = fixed_values
         on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info.
-        ``subset`` (bool, nc) constrains only those contact nodes (an index set);
-        ``compliance`` c (nc,) relaxes the constraint to B x + c lambda <= bound (penalty)."""
+        ``law`` restricts the constrained nodes or adds a compliance (:class:`ContactLaw`)."""
         sys, s = self._system(op)
         b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
-        if s != 1.0 and compliance is not None:
-            compliance = np.asarray(compliance) * s  # lambda = s mu for the scaled system
-        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, subset, compliance)
+        x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, law.scaled(s))
         return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:

@@ -52,48 +52,25 @@ def _same(v: str) -> dict[int, str]:
 
 
 EXPR = "number or expression string"
+# fmt: off
 SECTIONS: tuple[Section, ...] = (
     Section(
         "mesh",
         "The body: a generated structured mesh, or a mesh file (any format meshio reads; Gmsh physical groups "
         "of facets become tags).  Generated meshes have the side tags `xmin xmax ymin ymax zmin zmax`.",
         (
-            Key(
-                "generator",
-                "string",
-                "`file` if `file` is given, else required",
-                "",
-                "interval | rectangle | box | file",
-                _ex('"interval"', '"rectangle"', '"box"'),
-            ),
-            Key(
-                "cells",
-                "array of 1-3 integers",
-                "",
-                "",
-                "elements per direction (generators)",
-                _ex("[20]", "[4, 40]", "[2, 2, 20]"),
-            ),
-            Key(
-                "size",
-                "array of 1-3 numbers > 0",
-                "",
-                "length",
-                "lengths per direction (generators)",
-                _ex("[1.0]", "[0.1, 1.0]", "[0.1, 0.1, 1.0]"),
-            ),
-            Key(
-                "cell",
-                "string",
-                "line / quad / hexahedron",
-                "",
-                "line (1D); quad | triangle (2D); hexahedron | tetra (3D)",
-                _ex('"line"', '"quad"', '"hexahedron"'),
-            ),
+            Key("generator", "string", "`file` if `file` is given, else required", "",
+                "interval | rectangle | box | file", _ex('"interval"', '"rectangle"', '"box"')),
+            Key("cells", "array of 1-3 integers", "", "", "elements per direction (generators)",
+                _ex("[20]", "[4, 40]", "[2, 2, 20]")),
+            Key("size", "array of 1-3 numbers > 0", "", "length", "lengths per direction (generators)",
+                _ex("[1.0]", "[0.1, 1.0]", "[0.1, 0.1, 1.0]")),
+            Key("cell", "string", "line / quad / hexahedron", "",
+                "line (1D); quad | triangle (2D); hexahedron | tetra (3D)", _ex('"line"', '"quad"', '"hexahedron"')),
             Key("file", "string", "", "", "mesh file, relative to the case file (generator = file)"),
         ),
         required=True,
-    ),  # fmt: skip
+    ),
     Section(
         "material",
         "Isotropic linear elasticity (plane strain in 2D; Young's modulus in 1D): `lam` and `mu`, or `E` "
@@ -107,36 +84,29 @@ SECTIONS: tuple[Section, ...] = (
             Key("nu", "number in (-1, 0.5)", "0", "", "Poisson ratio (with E)"),
         ),
         required=True,
-    ),  # fmt: skip
+    ),
     Section(
         "dirichlet",
         "Prescribed displacements on a tag (any number of blocks).  A value may depend on x, y, z and t "
         "(a moving clamp).",
         (
             Key("tag", "string", "required", "", "boundary tag", _ex('"xmax"', '"ymax"', '"zmax"')),
-            Key(
-                "value",
-                f"array of {EXPR}s",
-                "zeros",
-                "length",
-                "one value per listed component",
-                _ex("[0.2]", "[0.0, 0.2]", "[0.0, 0.0, 0.2]"),
-            ),
+            Key("value", f"array of {EXPR}s", "zeros", "length", "one value per listed component",
+                _ex("[0.2]", "[0.0, 0.2]", "[0.0, 0.0, 0.2]")),
             Key("components", "array of integers", "all", "", "components 0..d-1 the values apply to"),
         ),
         array=True,
-    ),  # fmt: skip
+    ),
     Section(
         "traction",
         "Surface force density on a tag (any number of blocks).",
         (
             Key("tag", "string", "required", "", "boundary tag"),
-            Key(
-                "value", f"array of {EXPR}s", "required", "force / length^(d-1)", "traction vector, may depend on x, t"
-            ),
+            Key("value", f"array of {EXPR}s", "required", "force / length^(d-1)",
+                "traction vector, may depend on x, t"),
         ),
         array=True,
-    ),  # fmt: skip
+    ),
     Section(
         "contact",
         "The contact boundary and the rigid obstacle.  `obstacle` is an inline table with a `type` from the "
@@ -145,43 +115,23 @@ SECTIONS: tuple[Section, ...] = (
         "(a moving obstacle).",
         (
             Key("tag", "string", "required", "", "boundary tag of Gamma_C", _ex('"xmin"', '"ymin"', '"zmin"')),
-            Key(
-                "obstacle",
-                "inline table",
-                "required",
-                "length",
-                "{ type = ..., parameters of the type }",
-                _ex(
-                    '{ type = "plane", point = [0.0], normal = [1.0] }',
+            Key("obstacle", "inline table", "required", "length", "{ type = ..., parameters of the type }",
+                _ex('{ type = "plane", point = [0.0], normal = [1.0] }',
                     '{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }',
-                    '{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }',
-                ),
-            ),
+                    '{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }')),
         ),
         required=True,
-    ),  # fmt: skip
+    ),
     Section(
         "initial",
         "The state at t = 0 (expressions of x, y, z; not of t).  Dirichlet values override it on fixed dofs.",
         (
-            Key(
-                "displacement",
-                f"array of {EXPR}s",
-                "zeros",
-                "length",
-                "u0",
-                _ex("[0.2]", "[0.0, 0.2]", "[0.0, 0.0, 0.2]"),
-            ),
-            Key(
-                "velocity",
-                f"array of {EXPR}s",
-                "zeros",
-                "length / time",
-                "v0",
-                _ex('["-0.5"]', "[0.0, -0.5]", "[0.0, 0.0, -0.5]"),
-            ),
+            Key("displacement", f"array of {EXPR}s", "zeros", "length", "u0",
+                _ex("[0.2]", "[0.0, 0.2]", "[0.0, 0.0, 0.2]")),
+            Key("velocity", f"array of {EXPR}s", "zeros", "length / time", "v0",
+                _ex('["-0.5"]', "[0.0, -0.5]", "[0.0, 0.0, -0.5]")),
         ),
-    ),  # fmt: skip
+    ),
     Section(
         "loads",
         "Volume loads.",
@@ -198,7 +148,7 @@ SECTIONS: tuple[Section, ...] = (
         ),
         required=True,
         open_keys="the parameters of the chosen scheme",
-    ),  # fmt: skip
+    ),
     Section(
         "solver",
         "Mass variant and linear algebra.  The solver options are keys of this section too.",
@@ -212,7 +162,7 @@ SECTIONS: tuple[Section, ...] = (
             Key("directory", "string", "out/<case name>", "", "result directory"),
             Key("snapshot_every", "integer >= 0", "0", "steps", "XDMF fields every k steps and at the end (0: none)"),
         ),
-    ),  # fmt: skip
+    ),
     Section(
         "limits",
         "Guards against runs that would not end or not fit: a larger run is refused with its estimate "
@@ -222,8 +172,9 @@ SECTIONS: tuple[Section, ...] = (
             Key("max_memory", "number > 0", "80% of the machine", "GiB", "largest estimated memory without yes"),
             Key("yes", "boolean", "false", "", "run even if over a limit"),
         ),
-    ),  # fmt: skip
+    ),
 )
+# fmt: on
 REQUIRED = tuple(s.name for s in SECTIONS if s.required)
 
 

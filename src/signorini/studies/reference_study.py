@@ -575,15 +575,31 @@ def table_markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def reference_levels(results) -> list[int]:
+    """Sorted levels of the references of ``results`` and of their checks."""
+    return sorted({blk["reference"]["level"] for r in results for blk in [r, *r.get("checks", [])]})
+
+
+def rate_rows(result: dict, norms, refs, na: str = "n/a") -> list[str]:
+    """Table cells ``norm | n0->n1 | rate (factor x) | ...`` (one per reference in ``refs``)
+    for every norm and level pair of ``result`` and its checks; ``na`` where the
+    reference is not finer than the pair's finer level."""
+    table = {(r["norm"], r["pair"], r["ref_level"]): r for r in pair_rates(result) if r["norm"] in norms}
+    pairs = sorted({k[1] for k in table})
+    rows = []
+    for k in norms:
+        for pr in pairs:
+            cells = [
+                na if (x := table.get((k, pr, r))) is None else f"{_fmt(x['rate'], '.2f')} ({x['factor']:g}x)"
+                for r in refs
+            ]
+            rows.append(f"{k} | {pr[0]}->{pr[1]} | " + " | ".join(cells))
+    return rows
+
+
 def rate_table_markdown(result: dict, norms) -> str:
     """Rates of every level pair against each reference (factor = reference / finer level)."""
-    blocks = [result, *result["checks"]]
-    refs = sorted({blk["reference"]["level"] for blk in blocks})
-    table = {}
-    for r in pair_rates(result):
-        if r["norm"] in norms:
-            table[(r["norm"], r["pair"], r["ref_level"])] = (r["rate"], r["factor"])
-    pairs = sorted({k[1] for k in table})
+    refs = reference_levels([result])
     lines = [
         "Rates against references of different fineness (in brackets: how many times finer the "
         "reference is than the finer level of the pair; n/a: the reference is not finer than that level):",
@@ -591,13 +607,7 @@ def rate_table_markdown(result: dict, norms) -> str:
         "| norm | pair | " + " | ".join(f"ref n = {r}" for r in refs) + " |",
         "|---" * (len(refs) + 2) + "|",
     ]
-    for k in norms:
-        for pr in pairs:
-            cells = []
-            for r in refs:
-                v = table.get((k, pr, r))
-                cells.append("n/a" if v is None else f"{_fmt(v[0], '.2f')} ({v[1]:g}x)")
-            lines.append(f"| {k} | {pr[0]}->{pr[1]} | " + " | ".join(cells) + " |")
+    lines += [f"| {row} |" for row in rate_rows(result, norms, refs)]
     comp = rate_comparison(result, norms)
     if comp:
         lines.append("")

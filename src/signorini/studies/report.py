@@ -38,9 +38,10 @@ from ..studies.benchmarks import get_benchmark
 from ..studies.reference_study import (
     DEFAULT_REFERENCE_FACTOR,
     convergence_study,
-    pair_rates,
     rate_comparison,
+    rate_rows,
     rate_trend,
+    reference_levels,
     reference_run,
 )
 from ..studies.study import errors_1d, observed_rates
@@ -421,24 +422,25 @@ def section_2d_histories(cfg: dict, out: Path, summary: dict, ctx: dict) -> list
     return md
 
 
+def _rates_block(conv: dict, title: str, check_title: str, summary: dict, key: str) -> list[str]:
+    """Observed rates of every study, then the rates-vs-reference table (agreement into summary[key])."""
+    md = ["", title, ""]
+    for k, c in conv.items():
+        md.append(f"- {k}: " + ", ".join(f"{m} {fmt_rates(r)}" for m, r in c["rates"].items()))
+    lines, summary[key] = _rate_check_lines(conv)
+    return md + ["", check_title, ""] + lines + _rate_check_text(summary[key])
+
+
 def _rate_check_lines(conv: dict) -> tuple[list[str], dict]:
     """The rate-vs-reference table and the agreement statements of a set of studies."""
-    refs = sorted({blk["reference"]["level"] for c in conv.values() for blk in [c, *c["checks"]]})
+    refs = reference_levels(conv.values())
     lines = [
         "| scheme / mass | norm | levels | " + " | ".join(f"ref n = {r}" for r in refs) + " |",
         "|---" * (len(refs) + 3) + "|",
     ]
     agreement = {}
     for name, c in conv.items():
-        table = {(x["norm"], x["pair"], x["ref_level"]): x for x in pair_rates(c)}
-        pairs = sorted({x["pair"] for x in table.values()})
-        for k in RATE_CHECK_NORMS:
-            for pr in pairs:
-                cells = []
-                for r in refs:
-                    x = table.get((k, pr, r))
-                    cells.append("n/a (not finer)" if x is None else f"{fmt(x['rate'], '.2f')} ({x['factor']:g}x)")
-                lines.append(f"| {name} | {k} | {pr[0]}->{pr[1]} | " + " | ".join(cells) + " |")
+        lines += [f"| {name} | {row} |" for row in rate_rows(c, RATE_CHECK_NORMS, refs, "n/a (not finer)")]
         agreement[name] = rate_comparison(c, RATE_CHECK_NORMS)
     if len(lines) == 2:
         return ["n/a: a single level has no rate to compare."], agreement
@@ -541,12 +543,8 @@ def section_2d_convergence(cfg: dict, out: Path, summary: dict, ctx: dict) -> li
         "",
     ]
     md += convergence_table(conv, CONV_COLUMNS_2D)
-    md += ["", "Observed rates (successive levels, against the reference above):", ""]
-    for k, c in conv.items():
-        md.append(f"- {k}: " + ", ".join(f"{m} {fmt_rates(r)}" for m, r in c["rates"].items()))
-    lines, agreement = _rate_check_lines(conv)
-    summary["bar2d_rate_agreement"] = agreement
-    md += ["", "### Do the rates depend on the reference?", ""] + lines + _rate_check_text(agreement)
+    md += _rates_block(conv, "Observed rates (successive levels, against the reference above):",
+                       "### Do the rates depend on the reference?", summary, "bar2d_rate_agreement")  # fmt: skip
     md += [*figure_md(2), *figure_md(3), *figure_md(7), *figure_md(8)]
     return md
 
@@ -567,12 +565,8 @@ def section_3d_convergence(cfg: dict, out: Path, summary: dict, ctx: dict) -> li
     first = next(iter(conv3.values()))
     md = [f"## 3b. 3D convergence, T = {T:g}, dt = {ratio:g} h (no paper figure)", "", _reference_intro(first, T), ""]
     md += convergence_table(conv3, CONV_COLUMNS_3D)
-    md += ["", "Observed rates:", ""]
-    for k, c in conv3.items():
-        md.append(f"- {k}: " + ", ".join(f"{m} {fmt_rates(r)}" for m, r in c["rates"].items()))
-    lines, agreement = _rate_check_lines(conv3)
-    summary["bar3d_rate_agreement"] = agreement
-    return md + ["", "Rates against references of different fineness:", ""] + lines + _rate_check_text(agreement)
+    return md + _rates_block(conv3, "Observed rates:", "Rates against references of different fineness:",
+                             summary, "bar3d_rate_agreement")  # fmt: skip
 
 
 def section_3d_von_mises(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:

@@ -120,6 +120,15 @@ class Scheme:
         (``prepared=True``, when ``ctx.solvers`` exist), so that nothing is written.
         """
 
+    def _refuse_massless(self, ctx: Context, why: str, fix: str = "the 'standard' or 'lumped' mass") -> None:
+        """InputError if the mass leaves free dofs massless (``why``: what goes wrong then)."""
+        free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
+        if free_massless.size:
+            raise InputError(
+                f"scheme {self.name}: mass {ctx.disc.mass_name!r} leaves {free_massless.size} free dofs massless, "
+                f"and {why} (docs/schemes.md); use {fix}"
+            )
+
     def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
         if prepared and any(s.name.startswith("cg") for s in ctx.solvers):
             raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "

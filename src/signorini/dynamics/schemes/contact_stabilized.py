@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import InputError
 from ..context import Operator
 from .base import EnergyParts, Scheme, State, load_work
 
@@ -42,13 +41,7 @@ class ContactStabilizedNewmark(Scheme):
     massless_dofs_allowed = False
 
     def check_context(self, ctx, prepared: bool = False) -> None:
-        free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
-        if free_massless.size:
-            raise InputError(
-                f"scheme contact-stabilized-newmark projects the predictor in the mass norm, which mass "
-                f"{ctx.disc.mass_name!r} does not define on {free_massless.size} massless dofs; use the 'standard' "
-                "or 'lumped' mass"
-            )
+        self._refuse_massless(ctx, "the predictor's projection in the mass norm is then undefined")
 
     def operator(self, dt: float) -> Operator:
         return Operator(4.0 / (dt * dt), 1.0)

@@ -43,10 +43,11 @@ from __future__ import annotations
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, load_work, mechanical_energy, reaction_work
+from .base import EnergyParts, State, load_work, reaction_work
+from .newmark import Newmark
 
 
-class GeneralizedAlpha(Scheme):
+class GeneralizedAlpha(Newmark):
     name = "generalized-alpha"
     description = "Chung-Hulbert generalized-alpha, exact contact at t_{n+1}; rho_inf = 1 is CN"
     parameters = (
@@ -62,47 +63,33 @@ class GeneralizedAlpha(Scheme):
         am, af = self.alphas()
         return 0.25 * (1 - am + af) ** 2, 0.5 - am + af
 
+    @property
+    def beta(self) -> float:  # type: ignore[override]
+        return self.newmark()[0]
+
+    @property
+    def gamma(self) -> float:  # type: ignore[override]
+        return self.newmark()[1]
+
     def operator(self, dt: float) -> Operator:
         am, af = self.alphas()
         beta, _ = self.newmark()
         return Operator((1 - am) / ((1 - af) * beta * dt * dt), 1.0)
 
     def step(self, ctx, s: State) -> State:
-        dt = ctx.dt
         am, af = self.alphas()
-        b, g = self.newmark()
         t = ctx.next_time(s.t)
-        pred = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A  # A^{n+1} = U^{n+1}/(b dt^2) - pred
-        F1 = ctx.load(t)
-        rhs = (1 - am) * pred - am * s.A
-        rhs = ctx.M @ rhs
+        pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
+        rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         if af:
-            F0 = ctx.load(s.t)
-            lagged = af * (F0 - s.product("SU", lambda: ctx.S @ s.U) + ctx.B.T @ s.lam)
+            lagged = af * (ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.B.T @ s.lam)
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
             rhs += lagged
-        rhs = rhs / (1 - af) + F1
+        rhs = rhs / (1 - af) + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
-        A = U / (b * dt * dt) - pred
-        V = s.V + dt * ((1 - g) * s.A + g * A)
-        ml = ctx.massless
-        if ml.size:
-            V[ml] = (U[ml] - s.U[ml]) / dt
-            A[ml] = 0.0
-        return State(t, U, V, A, lam, info)
-
-    def _extra(self, ctx) -> float:
-        beta, gamma = self.newmark()
-        return 0.5 * ctx.dt**2 * (beta - 0.5 * gamma)
-
-    def energy(self, ctx, s: State) -> tuple[float, float]:
-        kin, pot = mechanical_energy(ctx, s)
-        c = self._extra(ctx)
-        if c:
-            kin += c * float(s.A @ s.product("MA", lambda: ctx.M @ s.A))
-        return kin, pot
+        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed)
+        return self.update(ctx, s, t, U, lam, info, pred)
 
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         am, af = self.alphas()

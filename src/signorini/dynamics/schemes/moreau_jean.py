@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import InputError
+from ...contact.solver import ContactLaw
 from ...registry import Parameter
 from ..context import Operator
 from .base import EnergyParts, Scheme, State, load_work
@@ -55,13 +55,12 @@ class MoreauJean(Scheme):
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "index sets")
-        if self.theta == 0.5 and np.setdiff1d(ctx.massless, ctx.fixed).size:
-            fix = "a mass without massless dofs" if not self.parameters else "theta > 1/2 (e.g. 1) or a mass without"
-            raise InputError(
-                f"scheme {self.name} with theta = 1/2 and mass {ctx.disc.mass_name!r}: the massless dofs are only "
-                "balanced on average, S (U^n + U^{n+1})/2 = ..., which leaves an undamped (-1)^n mode that loses "
-                f"the contact (measured: no contact force at all on bar1d); use {fix}"
-                + (" massless dofs" if self.parameters else "")
+        if self.theta == 0.5:
+            self._refuse_massless(
+                ctx,
+                "with theta = 1/2 they are only balanced on average, S (U^n + U^{n+1})/2 = ..., an undamped (-1)^n "
+                "mode that loses the contact (measured on bar1d)",
+                "theta > 1/2 (e.g. 1) or a mass without massless dofs" if self.parameters else "another mass",
             )
 
     def operator(self, dt: float) -> Operator:
@@ -83,7 +82,8 @@ class MoreauJean(Scheme):
         if ctx.has_fixed:
             D = ctx.fixed
             fixed = (ctx.dirichlet(t1) - s.U[D]) / (th * dt) - (1 - th) / th * s.V[D]
-        V, P, info = ctx.solve(self.operator(dt), rhs, np.broadcast_to(bound, BV0.shape).copy(), fixed, index)
+        bound = np.broadcast_to(bound, BV0.shape).copy()
+        V, P, info = ctx.solve(self.operator(dt), rhs, bound, fixed, ContactLaw(subset=index))
         U = s.U + dt * (th * V + (1 - th) * s.V)
         return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P})
 

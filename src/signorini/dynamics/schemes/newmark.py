@@ -24,6 +24,9 @@ For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
 
 from __future__ import annotations
 
+import numpy as np
+
+from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
 from .base import EnergyParts, Scheme, State, load_work, mechanical_energy, reaction_work
@@ -42,13 +45,22 @@ class Newmark(Scheme):
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
 
     def step(self, ctx, s: State) -> State:
-        dt, b, g = ctx.dt, self.beta, self.gamma
         t = ctx.next_time(s.t)
-        p = (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
+        p = self.predictor(ctx, s)
         rhs = ctx.M @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed, **self.contact_law(ctx))
-        A = (U - s.U - dt * s.V) / (b * dt * dt) - (0.5 / b - 1.0) * s.A
+        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, self.contact_law(ctx))
+        return self.update(ctx, s, t, U, lam, info, p)
+
+    def predictor(self, ctx, s: State) -> np.ndarray:
+        """p with A^{n+1} = U^{n+1}/(beta dt^2) - p: (U + dt V)/(beta dt^2) + (1/(2 beta) - 1) A."""
+        b, dt = self.beta, ctx.dt
+        return (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
+
+    def update(self, ctx, s: State, t: float, U: np.ndarray, lam: np.ndarray, info, p: np.ndarray) -> State:
+        """The new level from U^{n+1}: Newmark's A and V; V = dU/dt and A = 0 on massless dofs."""
+        dt, g = ctx.dt, self.gamma
+        A = U / (self.beta * dt * dt) - p
         V = s.V + dt * ((1 - g) * s.A + g * A)
         ml = ctx.massless
         if ml.size:
@@ -56,9 +68,9 @@ class Newmark(Scheme):
             A[ml] = 0.0
         return State(t, U, V, A, lam, info)
 
-    def contact_law(self, ctx) -> dict:
-        """Extra arguments of ``ctx.solve`` (exact Signorini contact: none; see ``penalty``)."""
-        return {}
+    def contact_law(self, ctx) -> ContactLaw:
+        """The contact law of the solve: exact Signorini contact (``penalty`` adds a compliance)."""
+        return SIGNORINI
 
     def _extra(self, ctx) -> float:
         return 0.5 * ctx.dt**2 * (self.beta - 0.5 * self.gamma)

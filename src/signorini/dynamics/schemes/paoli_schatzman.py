@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
 from .base import EnergyParts, Scheme, State
@@ -48,14 +47,11 @@ class PaoliSchatzman(Scheme):
     massless_dofs_allowed = False
 
     def check_context(self, ctx, prepared: bool = False) -> None:
-        free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
-        if free_massless.size:
-            raise InputError(
-                f"scheme paoli-schatzman needs mass on every free dof, but mass {ctx.disc.mass_name!r} leaves "
-                f"{free_massless.size} massless: its stiffness average (U^{{n+1}} + 2 U^n + U^{{n-1}})/4 then has "
-                "an undamped growing oscillation on those dofs (docs/schemes.md); use the 'standard' or 'lumped' "
-                "mass, or crank-nicolson with a redistributed mass"
-            )
+        self._refuse_massless(
+            ctx,
+            "the stiffness average (U^{n+1} + 2 U^n + U^{n-1})/4 then leaves an undamped, growing oscillation on them",
+            "the 'standard' or 'lumped' mass, or crank-nicolson with a redistributed mass",
+        )
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / dt**2, 0.25)

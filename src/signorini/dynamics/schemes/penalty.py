@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...contact.solver import ContactLaw
 from ...fem.assembly import geometry
 from ...registry import Parameter
 from .newmark import CrankNicolson
@@ -49,5 +50,5 @@ class PenaltyCN(CrankNicolson):
             self._c, self._c_ctx = 1.0 / k, ctx
         return self._c
 
-    def contact_law(self, ctx) -> dict:
-        return {"compliance": self.compliance(ctx)}
+    def contact_law(self, ctx) -> ContactLaw:
+        return ContactLaw(compliance=self.compliance(ctx))
