@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from ..errors import ConvergenceError, InputError
 from ..linalg import Preconditioner, choose_backend, factorize, projected_cg, solver_options
 from .complementarity import complementarity_residual, solve_lcp
+from .delassus import DelassusColumns
 
 
 def _best_time(op, n: int, repeats: int = 3) -> float:
@@ -120,7 +121,14 @@ class ContactSolver:
 
 
 class CondensedContactSolver(ContactSolver):
-    """Factor ``K`` once, condense the contact problem, solve calls exactly."""
+    """Factor ``K`` once; solve each call exactly on the Delassus columns it needs.
+
+    ``condensation``: ``lazy`` computes the column of W = B K^-1 B^T of a contact node
+    the first time the node is a candidate (violates its bound, or was active), so the
+    set-up is one factorization and a step costs solves only for nodes touching for the
+    first time; ``full`` computes all nc columns at set-up.  Both give the same solution
+    (the LCP with W SPD has a unique solution; see :meth:`solve`).
+    """
 
     def __init__(
         self,
@@ -130,6 +138,7 @@ class CondensedContactSolver(ContactSolver):
         backend: str = "superlu",
         condense_budget: float = 2e9,
         lcp_max_iter: int = 50,
+        condensation: str = "lazy",
     ):
         super().__init__()
         t0 = time.perf_counter()
@@ -140,32 +149,21 @@ class CondensedContactSolver(ContactSolver):
         self.B = sp.csr_matrix(B)
         self.lcp_max_iter = lcp_max_iter
         nc, n = self.B.shape
-        self.store_Z = n * nc * 8 <= condense_budget
-        if nc:
-            # Z = K^-1 B^T in column blocks of 64; W = B Z block by block, so that Z (n x nc) is
-            # only allocated when it fits in condense_budget (else a step costs one more solve)
-            Z = np.empty((n, nc)) if self.store_Z else None
-            W = np.empty((nc, nc))
-            Bt = self.B.T.tocsc()
-            for j in range(0, nc, 64):
-                Zj = self.factor.solve(Bt[:, j : j + 64].toarray()).reshape(n, -1)
-                W[:, j : j + 64] = self.B @ Zj
-                if Z is not None:
-                    Z[:, j : j + 64] = Zj
-            self.W = 0.5 * (W + W.T)
-            self.Z = Z
-        else:
-            self.W = np.zeros((0, 0))
-            self.Z = np.zeros((n, 0))
+        self.delassus = DelassusColumns(self.factor, self.B, condense_budget)
+        if condensation == "full":
+            self.delassus.ensure(np.arange(nc))
         self.active = np.zeros(nc, dtype=bool)
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
         self._setup_solves = self.factor.solves
         self.factor_bytes = self.factor.nbytes
+        self.counters["delassus_columns"] = self.delassus.count
 
     def _sync(self) -> None:
         self.counters["linear_solves"] = self.factor.solves - self._setup_solves
+        self.counters["delassus_columns"] = self.delassus.count
+        self.timings["condensation"] = self.delassus.seconds
 
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
         x = self.factor.solve(b)
@@ -175,6 +173,14 @@ class CondensedContactSolver(ContactSolver):
     def solve(
         self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """Exact solve on a growing candidate set P of contact nodes.
+
+        With x_free = K^-1 b and q = bound - B x_free, P starts as the nodes violated by
+        x_free plus the previous active set; the LCP (W_PP + C_PP, q_P) is solved, and
+        every node outside P with r_i = q_i + W_iP mu_P < 0 joins P, until none does.
+        Then mu (zero outside P) solves the whole LCP: outside P, mu_i = 0 and r_i >= 0.
+        P only grows, so this ends after at most nc rounds (one or two in practice).
+        """
         U = self.factor.solve(b)
         nc = self.B.shape[0]
         subset, compliance = law.subset, law.compliance
@@ -182,28 +188,54 @@ class CondensedContactSolver(ContactSolver):
             self._sync()
             self.active = np.zeros(nc, dtype=bool)
             return U, np.zeros(nc), StepInfo(0, False, 0.0, self.active)
-        q = bound - self.B @ U
+        q_all = bound - self.B @ U
         idx = np.arange(nc) if subset is None else np.flatnonzero(subset)
-        q = q[idx]
+        q = q_all[idx]
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
-        W = self.W if subset is None else self.W[np.ix_(idx, idx)]
-        if compliance is not None:
-            W = W + np.diag(np.asarray(compliance, dtype=float)[idx])
-        res = solve_lcp(W, q, self.active[idx], max_iter=self.lcp_max_iter, scale=scale)
+        cdiag = None if compliance is None else np.asarray(compliance, dtype=float)[idx]
+        warm = self.active[idx]
+        in_P = (q < 0) | warm
+        iterations, fallback = 0, False
+        mu = np.zeros(idx.size)
+        active = np.zeros(idx.size, dtype=bool)
+        residual = 0.0
+        while in_P.any():
+            P = np.flatnonzero(in_P)
+            self.delassus.ensure(idx[P])
+            W = self.delassus.block(idx[P])
+            if cdiag is not None:
+                W[np.diag_indices_from(W)] += cdiag[P]
+            res = solve_lcp(W, q[P], warm[P], max_iter=self.lcp_max_iter, scale=scale)
+            iterations += res.iterations
+            fallback |= res.fallback
+            mu[:] = 0.0
+            mu[P] = res.mu
+            active[:] = False
+            active[P] = res.active
+            warm[P] = res.active
+            residual = res.residual
+            out = np.flatnonzero(~in_P)
+            if out.size == 0:
+                break
+            r_out = q[out] + self.delassus.W(idx[out], idx[P]) @ res.mu
+            joining = out[r_out < 0]
+            if joining.size == 0:
+                break
+            in_P[joining] = True
         lam = np.zeros(nc)
-        lam[idx] = -res.mu
-        A = lam != 0.0
-        if A.any():
-            if self.Z is not None:
-                U = U + self.Z[:, A] @ lam[A]
+        lam[idx] = -mu
+        A = np.flatnonzero(lam != 0.0)
+        if A.size:
+            if self.delassus.keeps_Z:
+                U = U + self.delassus.Z_times(A, lam[A])
             else:
                 U = U + self.factor.solve(self.B.T @ lam)
         self.active = np.zeros(nc, dtype=bool)
-        self.active[idx] = res.active
-        self.counters["contact_iterations"] += res.iterations
-        self.counters["fallbacks"] += int(res.fallback)
+        self.active[idx] = active
+        self.counters["contact_iterations"] += iterations
+        self.counters["fallbacks"] += int(fallback)
         self._sync()
-        return U, lam, StepInfo(res.iterations, res.fallback, res.residual, self.active)
+        return U, lam, StepInfo(iterations, fallback, residual, self.active)
 
 
 class ActiveSetCGSolver(ContactSolver):
@@ -308,4 +340,6 @@ def make_contact_solver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
             opts.get("max_iter", 2000), opts.get("max_newton", 30),
         )  # fmt: skip
-    return CondensedContactSolver(K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"])
+    return CondensedContactSolver(
+        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"]
+    )

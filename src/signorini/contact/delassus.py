@@ -1,0 +1,106 @@
+"""Columns of the Delassus matrix W = B K^-1 B^T, computed when a contact node needs them.
+
+For the factorized operator K (n x n) and the contact matrix B (nc x n, one unit
+normal per row), column j of Z = K^-1 B^T costs one forward/backward substitution and
+gives column j of W = B Z.  :class:`DelassusColumns` computes them in blocks of 64
+for the nodes asked for, keeps the W columns (nc per node) and, while they fit in a
+byte budget, the Z columns (n per node), so that
+
+* set-up costs one factorization, not nc solves;
+* a contact solve costs solves only for nodes that come into contact for the first
+  time, and memory O(n + nc * m) for the m nodes that ever did (at most nc^2 + n nc).
+
+``eager=True`` computes every column at once (the classical full condensation).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+BLOCK = 64
+
+
+class DelassusColumns:
+    """W[:, j] (and Z[:, j] within ``budget`` bytes) for the contact nodes j asked for.
+
+    Parameters
+    ----------
+    factor : a :class:`~signorini.linalg.Factor` of K.
+    B : (nc, n) sparse contact matrix.
+    budget : bytes allowed for the stored Z columns; beyond it Z is dropped and
+        callers recover displacements with one more solve.
+    """
+
+    def __init__(self, factor, B: sp.csr_matrix, budget: float):
+        self.factor = factor
+        self.B = sp.csr_matrix(B)
+        nc, n = self.B.shape
+        self.Bt = self.B.T.tocsc()
+        self.budget = float(budget)
+        self.slot = np.full(nc, -1, dtype=np.intp)  # column slot of each node, -1: not computed
+        self.count = 0
+        self._W = np.empty((nc, 0))
+        self._Z: np.ndarray | None = np.empty((n, 0))
+        self.seconds = 0.0
+
+    @property
+    def keeps_Z(self) -> bool:
+        """Whether the Z columns of every computed node are stored."""
+        return self._Z is not None
+
+    @property
+    def nbytes(self) -> int:
+        return self._W.nbytes + (self._Z.nbytes if self._Z is not None else 0)
+
+    def _grow(self, need: int) -> None:
+        cap = self._W.shape[1]
+        if need <= cap:
+            return
+        nc, n = self.B.shape
+        cap = min(nc, max(need, 2 * cap, BLOCK))
+        W = np.empty((nc, cap))
+        W[:, : self.count] = self._W[:, : self.count]
+        self._W = W
+        if self._Z is not None:
+            if n * cap * 8 > self.budget:
+                self._Z = None  # does not fit: keep W only
+            else:
+                Z = np.empty((n, cap))
+                Z[:, : self.count] = self._Z[:, : self.count]
+                self._Z = Z
+
+    def ensure(self, nodes: np.ndarray) -> None:
+        """Compute the columns of ``nodes`` (indices) that are not known yet."""
+        new = np.asarray(nodes, dtype=np.intp)
+        new = new[self.slot[new] < 0]
+        if new.size == 0:
+            return
+        t0 = time.perf_counter()
+        self._grow(self.count + new.size)
+        n = self.B.shape[1]
+        for k in range(0, new.size, BLOCK):
+            J = new[k : k + BLOCK]
+            Zj = self.factor.solve(self.Bt[:, J].toarray()).reshape(n, -1)
+            s = np.arange(self.count, self.count + J.size)
+            self._W[:, s] = self.B @ Zj
+            if self._Z is not None:
+                self._Z[:, s] = Zj
+            self.slot[J] = s
+            self.count += J.size
+        self.seconds += time.perf_counter() - t0
+
+    def W(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """W[rows][:, cols] (the columns must be known), shape (len(rows), len(cols))."""
+        return self._W[np.asarray(rows)[:, None], self.slot[cols][None, :]]
+
+    def block(self, nodes: np.ndarray) -> np.ndarray:
+        """The symmetric block W[nodes][:, nodes] (symmetrized against round-off)."""
+        Wb = self.W(nodes, nodes)
+        return 0.5 * (Wb + Wb.T)
+
+    def Z_times(self, nodes: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """Z[:, nodes] @ lam (needs :attr:`keeps_Z`), shape (n,)."""
+        return self._Z[:, self.slot[nodes]] @ lam

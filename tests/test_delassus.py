@@ -1,0 +1,108 @@
+"""Lazy Delassus columns: the same histories as the full condensation, fewer solves."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from signorini.contact.delassus import DelassusColumns
+from signorini.contact.obstacles import SphereObstacle
+from signorini.dynamics.simulate import simulate
+from signorini.linalg import factorize, has_pardiso
+from signorini.studies.benchmarks import get_benchmark
+
+BACKENDS = ["superlu"] + (["pardiso"] if has_pardiso() else [])
+
+
+def _curved(dim: int, n: int, R: float = 0.2):
+    """The bar of `bar{dim}d` dropped on a ball (disc in 2D) of radius R touching the
+    middle of its bottom face (width 0.1) first: a contact zone that grows from the centre."""
+    b = get_benchmark(f"bar{dim}d")
+    p = b.problem(n)
+    centre = [0.05] * (dim - 1) + [-R]
+    return dataclasses.replace(p, obstacle=SphereObstacle(centre, R), name="curved"), b.h(n) / 2
+
+
+def _bar(name: str, n: int):
+    b = get_benchmark(name)
+    return b.problem(n), b.h(n) / 2
+
+
+CASES = {
+    "bar1d": lambda: _bar("bar1d", 20),
+    "bar2d": lambda: _bar("bar2d", 2),
+    "bar3d": lambda: _bar("bar3d", 2),
+    "disc-on-bar2d": lambda: _curved(2, 4),
+    "ball-on-bar3d": lambda: _curved(3, 2),
+}
+
+
+def _agree(a, c, what=("lam", "gap", "kinetic_energy", "elastic_energy")):
+    for f in what:
+        x, y = getattr(a, f), getattr(c, f)
+        assert np.abs(x - y).max() <= 1e-10 * max(np.abs(x).max(), 1e-300), f
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_lazy_equals_full_condensation(case, backend):
+    problem, dt = CASES[case]()
+    T = 80 * dt if case != "bar1d" else 2.0
+    runs = {
+        c: simulate(problem, "cn", dt, T, solver_options={"backend": backend, "condensation": c})
+        for c in ("lazy", "full")
+    }
+    lazy, full = runs["lazy"], runs["full"]
+    assert np.abs(full.lam).max() > 0  # there was contact
+    _agree(lazy, full)
+    nc = full.lam.shape[1]
+    assert full.counters["delassus_columns"] == nc
+    assert lazy.counters["delassus_columns"] <= nc
+
+
+@pytest.mark.parametrize("scheme", ["moreau-jean", "penalty", "hht"])
+def test_lazy_equals_full_with_index_sets_and_compliance(scheme):
+    problem, dt = _curved(2, 4)
+    opts = {"theta": 1.0} if scheme == "moreau-jean" else {}
+    runs = [
+        simulate(
+            problem, scheme, dt, 80 * dt, scheme_options=opts, solver_options={"backend": "superlu", "condensation": c}
+        )
+        for c in ("lazy", "full")
+    ]
+    assert np.abs(runs[1].lam).max() > 0
+    _agree(*runs)
+
+
+def test_lazy_computes_only_the_columns_of_nodes_near_contact():
+    """A ball touching the middle of the bottom face: until the contact zone has spread,
+    only the nodes that came near contact have a column (no set-up solves at all)."""
+    problem, dt = _curved(3, 4, R=0.05)  # narrower than the face: the corners never touch
+    H = simulate(problem, "cn", dt, 0.45, solver_options={"backend": "superlu"})
+    nc = H.lam.shape[1]
+    touched = int((H.lam != 0).any(axis=0).sum())
+    assert 0 < touched < nc
+    assert touched <= H.counters["delassus_columns"] < nc
+
+
+def test_columns_equal_the_dense_delassus_matrix_and_budget_drops_Z(rng):
+    n, nc = 40, 7
+    A = sp.random(n, n, density=0.2, random_state=1)
+    K = sp.csr_matrix(A @ A.T + 5 * sp.eye(n))
+    rows = rng.choice(n, nc, replace=False)
+    B = sp.csr_matrix((np.ones(nc), (np.arange(nc), rows)), shape=(nc, n))
+    W_dense = (B @ np.linalg.solve(K.toarray(), B.T.toarray())).astype(float)
+    for budget, keeps in ((1e9, True), (0.0, False)):
+        cols = DelassusColumns(factorize(K, "superlu"), B, budget)
+        cols.ensure(np.array([3, 1]))
+        cols.ensure(np.array([1, 5, 0, 2, 4, 6]))  # known columns are not recomputed
+        assert cols.count == nc and cols.factor.solves == nc
+        assert cols.keeps_Z is keeps
+        P = np.array([6, 0, 3])
+        assert np.allclose(cols.block(P), W_dense[np.ix_(P, P)], rtol=1e-12, atol=0)
+        assert np.allclose(cols.W(np.arange(nc), P), W_dense[:, P], rtol=1e-12, atol=0)
+        if keeps:
+            lam = rng.normal(size=P.size)
+            Zp = np.linalg.solve(K.toarray(), B.T.toarray()[:, P])
+            assert np.allclose(cols.Z_times(P, lam), Zp @ lam, rtol=1e-12, atol=1e-14)
