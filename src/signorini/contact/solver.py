@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
-from ..linalg import Preconditioner, choose_backend, factorize, projected_cg, solver_options
+from ..linalg import choose_backend, factorize, make_preconditioner, projected_cg, solver_options, total_memory
 from .complementarity import complementarity_residual, solve_lcp
 from .delassus import DelassusColumns
 
@@ -258,6 +258,7 @@ class ActiveSetCGSolver(ContactSolver):
         rtol: float = 1e-12,
         max_iter: int = 2000,
         max_newton: int = 30,
+        nodes: np.ndarray | None = None,
     ):
         super().__init__()
         t0 = time.perf_counter()
@@ -265,7 +266,7 @@ class ActiveSetCGSolver(ContactSolver):
         self.B = sp.csr_matrix(B)
         # Jacobi by default: with dt ~ h, K = a M + S is spectrally close to a M and CG
         # needs a mesh-independent number of iterations (AMG was 4x slower per step here)
-        self.precond = Preconditioner(self.K, preconditioner)
+        self.precond = make_preconditioner(preconditioner, self.K, nodes)
         self.name = f"cg+{preconditioner}"
         self.rtol = rtol
         self.max_iter = max_iter
@@ -273,6 +274,7 @@ class ActiveSetCGSolver(ContactSolver):
         self.c = float(np.mean(self.K.diagonal()))
         self.active = np.zeros(self.B.shape[0], dtype=bool)
         self.U_prev = np.zeros(self.K.shape[0])
+        self.U_prev2: np.ndarray | None = None
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(lambda x: self.K @ x, self.K.shape[0])
@@ -296,6 +298,7 @@ class ActiveSetCGSolver(ContactSolver):
             )
         A = self.active.copy()
         B, g = self.B, bound
+        guess = self.U_prev if self.U_prev2 is None else 2.0 * self.U_prev - self.U_prev2
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
@@ -304,7 +307,7 @@ class ActiveSetCGSolver(ContactSolver):
                 return x - BA.T @ (BA @ x) if BA.shape[0] else x
 
             up = BA.T @ g[A] if BA.shape[0] else np.zeros_like(b)
-            U = up + self._cg(b - self.K @ up, self.U_prev - up, project)
+            U = up + self._cg(b - self.K @ up, guess - up, project)
             lam = np.zeros(g.size)
             if A.any():
                 lam[A] = BA @ (self.K @ U - b)
@@ -321,24 +324,33 @@ class ActiveSetCGSolver(ContactSolver):
             raise ConvergenceError(f"active-set iteration did not converge in {self.max_newton} iterations")
         self.counters["contact_iterations"] += it
         self.active = A
-        self.U_prev = U
+        self.U_prev2, self.U_prev = self.U_prev, U
         gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0)
         res = complementarity_residual(-lam, gap, 1.0 / self.c, gap_scale) if g.size else 0.0
         return U, lam, StepInfo(it, False, res, A)
 
 
 def make_contact_solver(
-    K: sp.spmatrix, B: sp.csr_matrix, gap_scale: float, dim: int = 3, options: dict[str, Any] | None = None
+    K: sp.spmatrix,
+    B: sp.csr_matrix,
+    gap_scale: float,
+    dim: int = 3,
+    options: dict[str, Any] | None = None,
+    nodes: np.ndarray | None = None,
 ) -> ContactSolver:
-    """The contact solver for ``options['backend']`` (``auto`` chooses by factor size)."""
+    """The contact solver for ``options['backend']`` (``auto`` chooses by factor size);
+    ``nodes`` (n,) is the mesh node of each row of K (blocks of ``block-jacobi``)."""
     opts = solver_options(options)
     backend = opts["backend"]
     if backend == "auto":
-        backend = choose_backend(K.shape[0], dim, opts["memory_budget"] or None)
+        budget = opts["memory_budget"] or 0.4 * total_memory()
+        nc = B.shape[0]
+        # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
+        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc) if 8.0 * nc * nc < budget else "cg"
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
-            opts.get("max_iter", 2000), opts.get("max_newton", 30),
+            opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes,
         )  # fmt: skip
     return CondensedContactSolver(
         K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"]

@@ -68,7 +68,9 @@ class _System:
         self.op = op
         gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
         try:
-            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, ctx.disc.space.dim, options)
+            dim = ctx.disc.space.dim
+            nodes = (f if D.size else np.arange(K.shape[0])) // dim  # dofs are node-major
+            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes)
         except (InputError, ConvergenceError, MemoryError):
             raise
         except Exception as exc:  # SuperLU's RuntimeError, LinAlgError, Pardiso's errors

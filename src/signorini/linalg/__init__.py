@@ -12,7 +12,7 @@ from .base import (
     solver_options,
     total_memory,
 )
-from .krylov import Preconditioner, has_pyamg, projected_cg
+from .krylov import Preconditioner, has_pyamg, make_preconditioner, projected_cg
 
 __all__ = [
     "BACKENDS",
@@ -20,6 +20,7 @@ __all__ = [
     "SOLVER_OPTIONS",
     "Factor",
     "Preconditioner",
+    "make_preconditioner",
     "choose_backend",
     "estimate_factor_bytes",
     "factorize",

@@ -74,8 +74,17 @@ def total_memory() -> int:
         return 8 * 2**30
 
 
+PRECONDITIONERS = Registry("preconditioner")
+PRECONDITIONERS.register(
+    "jacobi", ".krylov:JacobiPreconditioner", "diagonal scaling (default: K = a M + S is close to a M when dt ~ h)"
+)
+PRECONDITIONERS.register(
+    "block-jacobi", ".krylov:BlockJacobiPreconditioner", "inverse of the d x d diagonal block of each mesh node"
+)
+PRECONDITIONERS.register("amg", ".krylov:AMGPreconditioner", "smoothed-aggregation AMG (pyamg, extra 'amg')")
+
 CG_PARAMETERS = (
-    Parameter("preconditioner", "jacobi", "preconditioner of CG", str, choices=("jacobi", "amg")),
+    Parameter("preconditioner", "jacobi", "preconditioner of CG (a name of PRECONDITIONERS)", str),
     Parameter("rtol", 1e-12, "relative residual tolerance of CG", float, 0.0, 1.0, open_low=True, open_high=True),
     Parameter("max_iter", 2000, "CG iterations per solve", int, 1),
     Parameter("max_newton", 30, "active-set (semismooth Newton) iterations per step", int, 1),
@@ -89,9 +98,6 @@ BACKENDS.register(
 )
 BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
 
-PRECONDITIONERS = Registry("preconditioner")
-PRECONDITIONERS.register("jacobi", None, "diagonal scaling (default: K = a M + S is close to a M when dt ~ h)")
-PRECONDITIONERS.register("amg", None, "smoothed-aggregation AMG (pyamg, extra 'amg')")
 
 SOLVER_OPTIONS = (
     Parameter("backend", "auto", "linear solver backend", str, choices=tuple(BACKENDS.names(aliases=False))),
@@ -123,6 +129,11 @@ def solver_options(given: Mapping[str, Any] | None = None, where: str = "solver"
             allowed = ", ".join(sorted(set(generic) | set(own)))
             raise InputError(f"unknown solver option {k!r} for backend {backend!r}; allowed: {allowed}")
         out[k] = p.convert(v, where)
+    if "preconditioner" in out:
+        try:
+            out["preconditioner"] = PRECONDITIONERS.resolve(out["preconditioner"])
+        except InputError as exc:
+            raise InputError(f"'{where}.preconditioner': {exc}") from None
     out["backend"] = backend
     return out
 

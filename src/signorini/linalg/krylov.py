@@ -16,26 +16,85 @@ def has_pyamg() -> bool:
 
 
 class Preconditioner:
-    """Jacobi (``kind='jacobi'``), or smoothed-aggregation AMG with pyamg (``'amg'``)."""
+    """A symmetric positive definite approximation P^-1 of K^-1, applied as ``P(r)``.
 
-    def __init__(self, K: sp.csr_matrix, kind: str = "jacobi"):
-        self.kind = kind
-        if kind == "amg":
-            if not has_pyamg():
-                raise InputError("preconditioner 'amg' needs pyamg: pip install 'signorini[amg]'")
-            import pyamg
+    Subclasses are entries of :data:`~signorini.linalg.PRECONDITIONERS`; they are built
+    from the matrix K (n x n, CSR) and ``nodes`` (n,), the mesh node of each row (rows of
+    one node form one block of ``block-jacobi``).
+    """
 
-            self._amg = pyamg.smoothed_aggregation_solver(K, symmetry="hermitian", max_coarse=500)
-            self._M = self._amg.aspreconditioner(cycle="V")
-        elif kind == "jacobi":
-            self._dinv = 1.0 / K.diagonal()
-        else:
-            raise InputError(f"unknown preconditioner {kind!r}; allowed: jacobi, amg")
+    def __init__(self, K: sp.csr_matrix, nodes: np.ndarray | None = None):
+        self.K = K
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class JacobiPreconditioner(Preconditioner):
+    """P^-1 r = r / diag(K)."""
+
+    def __init__(self, K: sp.csr_matrix, nodes: np.ndarray | None = None):
+        self._dinv = 1.0 / K.diagonal()
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
-        if self.kind == "amg":
-            return self._M @ r
         return self._dinv * r
+
+
+class BlockJacobiPreconditioner(Preconditioner):
+    """P^-1 r = blockdiag(K_nn)^-1 r with the d x d block K_nn of each mesh node.
+
+    The blocks (nodes with fewer free dofs padded by the identity) are inverted once,
+    batched; applying costs a gather, one batched d x d matrix-vector product and a
+    scatter.
+    """
+
+    def __init__(self, K: sp.csr_matrix, nodes: np.ndarray | None = None):
+        n = K.shape[0]
+        nodes = np.arange(n) if nodes is None else np.asarray(nodes)
+        uniq, group = np.unique(nodes, return_inverse=True)
+        order = np.argsort(group, kind="stable")
+        first = np.searchsorted(group[order], np.arange(uniq.size))
+        local = np.empty(n, dtype=np.intp)
+        local[order] = np.arange(n) - first[group[order]]
+        d = int(local.max()) + 1 if n else 1
+        C = K.tocoo()
+        same = group[C.row] == group[C.col]
+        blocks = np.zeros((uniq.size, d, d))
+        blocks[group[C.row[same]], local[C.row[same]], local[C.col[same]]] = C.data[same]
+        pad = np.ones((uniq.size, d), dtype=bool)
+        pad[group, local] = False
+        blocks[pad.nonzero()[0], pad.nonzero()[1], pad.nonzero()[1]] = 1.0
+        self._inv = np.linalg.inv(blocks)
+        self._group, self._local, self._d = group, local, d
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        R = np.zeros((self._inv.shape[0], self._d))
+        R[self._group, self._local] = r
+        Z = np.einsum("gij,gj->gi", self._inv, R)
+        return Z[self._group, self._local]
+
+
+class AMGPreconditioner(Preconditioner):
+    """One V-cycle of smoothed-aggregation AMG (pyamg, extra ``amg``)."""
+
+    def __init__(self, K: sp.csr_matrix, nodes: np.ndarray | None = None):
+        if not has_pyamg():
+            raise InputError("preconditioner 'amg' needs pyamg: pip install 'signorini[amg]'")
+        import pyamg
+
+        self._M = pyamg.smoothed_aggregation_solver(K, symmetry="hermitian", max_coarse=500).aspreconditioner(cycle="V")
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        return self._M @ r
+
+
+def make_preconditioner(kind: str, K: sp.csr_matrix, nodes: np.ndarray | None = None) -> Preconditioner:
+    """The preconditioner registered as ``kind`` in PRECONDITIONERS, built for K."""
+    from .base import PRECONDITIONERS
+
+    entry = PRECONDITIONERS.get(kind)
+    module, cls = entry.obj.split(":")
+    return getattr(importlib.import_module(module, __package__), cls)(K, nodes)
 
 
 def projected_cg(

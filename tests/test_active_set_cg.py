@@ -1,0 +1,105 @@
+"""The iterative path (backend cg) with many contact nodes on a curved contact surface."""
+
+import numpy as np
+import pytest
+
+from signorini.contact.obstacles import SphereObstacle
+from signorini.dynamics.problem import Problem
+from signorini.dynamics.simulate import simulate
+from signorini.errors import InputError
+from signorini.fem.material import IsotropicElastic
+from signorini.fem.mesh import box
+from signorini.linalg import PRECONDITIONERS, has_pyamg, solver_options
+from signorini.linalg.krylov import JacobiPreconditioner
+
+
+def plate(n: int) -> tuple[Problem, float]:
+    """A plate [0,1]^2 x [0, 0.05] (n x n x 2 hexahedra, (n+1)^2 contact nodes) falling
+    flat at speed 0.5 on a ball of radius 2: the contact zone spreads from the centre
+    over hundreds of nodes, on a curved surface."""
+    R = 2.0
+    p = Problem(
+        mesh=box(n, n, 2, 1.0, 1.0, 0.05),
+        material=IsotropicElastic(0.25, 0.5, 1.0),
+        contact_tag="zmin",
+        obstacle=SphereObstacle([0.5, 0.5, -R - 0.002], R),
+        v0=[0.0, 0.0, -0.5],
+        name="plate",
+    )
+    return p, 0.5 / n
+
+
+def _run(p, dt, steps, **opts):
+    return simulate(p, "cn", dt, steps * dt, solver_options=opts)
+
+
+def _check_many_nodes(n: int, steps: int) -> None:
+    p, dt = plate(n)
+    cg = _run(p, dt, steps, backend="cg")
+    direct = _run(p, dt, steps, backend="superlu")
+    assert cg.status == "finished"
+    touched = (cg.lam != 0).sum(axis=1)
+    assert touched.max() >= 0.3 * (n + 1) ** 2  # hundreds of nodes in contact at once
+    assert len(set(touched[touched > 0])) > steps // 4  # the contact zone keeps changing
+    # no cycling: a few active-set iterations per step (the counter includes the start)
+    assert cg.counters["contact_iterations"] <= 4 * (steps + 1)
+    assert np.abs(cg.lam - direct.lam).max() <= 1e-8 * np.abs(direct.lam).max()
+    assert np.abs(cg.gap - direct.gap).max() <= 1e-8 * np.abs(direct.gap).max()
+    assert cg.residual.max() <= 1e-8
+
+
+def test_active_set_cg_with_hundreds_of_curved_contact_nodes():
+    _check_many_nodes(16, 12)
+
+
+@pytest.mark.slow
+def test_active_set_cg_with_thousands_of_curved_contact_nodes():
+    _check_many_nodes(40, 40)  # 1681 contact nodes, 824 in contact at the peak
+
+
+@pytest.mark.parametrize("pc", [e.name for e in PRECONDITIONERS if e.name != "amg" or has_pyamg()])
+def test_every_preconditioner_gives_the_same_history(pc):
+    p, dt = plate(8)
+    ref = _run(p, dt, 10, backend="cg")
+    H = _run(p, dt, 10, backend="cg", preconditioner=pc)
+    assert np.abs(H.lam).max() > 0
+    assert np.abs(H.lam - ref.lam).max() <= 1e-8 * np.abs(ref.lam).max()
+
+
+def test_block_jacobi_inverts_the_nodal_blocks(rng):
+    import scipy.sparse as sp
+
+    from signorini.linalg.krylov import BlockJacobiPreconditioner
+
+    A = rng.normal(size=(7, 7))
+    K = sp.csr_matrix(A @ A.T + 7 * np.eye(7))
+    nodes = np.array([0, 0, 0, 1, 1, 2, 2])  # a node with 2 free dofs, as after a Dirichlet condition
+    P = BlockJacobiPreconditioner(K, nodes)
+    D = np.zeros((7, 7))
+    for blk in (slice(0, 3), slice(3, 5), slice(5, 7)):
+        D[blk, blk] = K.toarray()[blk, blk]
+    r = rng.normal(size=7)
+    assert np.allclose(P(r), np.linalg.solve(D, r), rtol=1e-12)
+
+
+def test_preconditioner_names_come_from_the_registry():
+    with pytest.raises(InputError, match="allowed: jacobi, block-jacobi, amg"):
+        solver_options({"backend": "cg", "preconditioner": "ilu"})
+    PRECONDITIONERS.register("dummy-pc", ".krylov:JacobiPreconditioner", "test entry")
+    try:
+        assert solver_options({"backend": "cg", "preconditioner": "dummy-pc"})["preconditioner"] == "dummy-pc"
+        p, dt = plate(4)
+        H = _run(p, dt, 3, backend="cg", preconditioner="dummy-pc")
+        assert H.status == "finished"
+    finally:
+        PRECONDITIONERS.unregister("dummy-pc")
+    assert JacobiPreconditioner.__doc__
+
+
+def test_auto_picks_cg_when_the_delassus_matrix_would_not_fit():
+    p, dt = plate(8)  # 81 contact nodes: W is 52 kB; the factor of 1.2k dofs ~ 1 MB
+    nc = 81
+    small = _run(p, dt, 2, backend="auto", memory_budget=0.9 * 8 * nc * nc)
+    large = _run(p, dt, 2, backend="auto", memory_budget=1e9)
+    assert small.meta["backend"].startswith("cg")
+    assert large.meta["backend"] == "superlu"
