@@ -115,6 +115,8 @@ SUMMARY_FIELDS = (
     "penetration_time_integral",
     "oscillation_index",
     "impact_oscillation_indices",
+    "impulse",
+    "impact_impulses",
     "energy_identity_residual",
     "max_complementarity_residual",
     "setup_seconds",
