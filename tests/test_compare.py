@@ -237,3 +237,37 @@ def test_help_lists_the_options(capsys):
         assert flag in text
     assert all(name in text for name in SCHEMES.names())
     assert "moment-preserving-tensor" in text and "n/a" in text
+
+
+def test_too_large_a_matrix_is_refused_with_its_estimate(tmp_path, capsys):
+    out = tmp_path / "deep" / "c"
+    args = ["bar2d", "--schemes", "cn,be", "--masses", "seed,standard", "--levels", "3", "--max-memory", "0.2"]
+    assert _compare(out, *args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "this comparison is large: 13 runs" in err
+    assert "fields held for the errors" in err and "kept fields of all runs" in err and "--max-memory 0.2 GiB" in err
+    assert not (tmp_path / "deep").exists()
+    assert _compare(out, *args[:-2], "--max-steps", "100") == 2  # the finest level has 160 steps, the reference 640
+    assert "more than --max-steps 100 steps" in capsys.readouterr().err
+    assert not (tmp_path / "deep").exists()
+
+
+def test_the_compare_estimate_counts_the_kept_fields():
+    from signorini.dynamics.budget import estimate_run
+
+    pairs = cmp.make_pairs(cmp.parse_schemes("cn,be"), cmp.parse_masses("seed,standard"))
+    plan = cmp.plan_benchmark("bar2d", pairs, 2, T=0.5)
+    est = cmp.estimate_plan(plan, 1)
+    b = plan.target.bench
+    jobs = cmp.make_jobs(plan)
+    fields = [16.0 * b.mesh_counts(j.level)[0] * 2 * (round(j.T / j.dt) + 1) for j in jobs]  # U, V of every level
+    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-12)
+    assert est.held_bytes == est.kept_fields_bytes  # 2D: every run's fields come back for the errors
+    bare = [estimate_run(*b.mesh_counts(j.level), 2, b.contact_count(j.level), round(j.T / j.dt)) for j in jobs]
+    assert est.total_bytes == pytest.approx(max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-12)
+    longer = cmp.estimate_plan(cmp.plan_benchmark("bar2d", pairs, 2, T=1.0), 1)
+    assert longer.kept_fields_bytes == pytest.approx(2 * est.kept_fields_bytes, rel=0.01)  # grows with the levels kept
+    assert longer.total_bytes > est.total_bytes
+    assert cmp.estimate_plan(plan, 2).running_bytes > est.running_bytes  # two runs at once
+    one_d = cmp.estimate_plan(cmp.plan_benchmark("bar1d", pairs, 2, 10, 1.0), 2)
+    assert one_d.held_bytes == 0 and one_d.kept_fields_bytes > 0  # 1D: errors in the worker
