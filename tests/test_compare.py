@@ -237,3 +237,104 @@ def test_help_lists_the_options(capsys):
         assert flag in text
     assert all(name in text for name in SCHEMES.names())
     assert "moment-preserving-tensor" in text and "n/a" in text
+
+
+def test_too_large_a_matrix_is_refused_with_its_estimate(tmp_path, capsys):
+    out = tmp_path / "deep" / "c"
+    args = ["bar2d", "--schemes", "cn,be", "--masses", "seed,standard", "--levels", "3", "--max-memory", "0.2"]
+    assert _compare(out, *args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "this comparison is large: 13 runs" in err
+    assert "fields held for the errors" in err and "kept fields of all runs" in err and "--max-memory 0.2 GiB" in err
+    assert not (tmp_path / "deep").exists()
+    assert _compare(out, *args[:-2], "--max-steps", "100") == 2  # the finest level has 160 steps, the reference 640
+    assert "more than --max-steps 100 steps" in capsys.readouterr().err
+    assert not (tmp_path / "deep").exists()
+
+
+def test_the_compare_estimate_counts_the_kept_fields():
+    from signorini.dynamics.budget import estimate_run
+
+    pairs = cmp.make_pairs(cmp.parse_schemes("cn,be"), cmp.parse_masses("seed,standard"))
+    plan = cmp.plan_benchmark("bar2d", pairs, 2, T=0.5)
+    est = cmp.estimate_plan(plan, 1)
+    b = plan.target.bench
+    jobs = cmp.make_jobs(plan)
+    fields = [16.0 * b.mesh_counts(j.level)[0] * 2 * (round(j.T / j.dt) + 1) for j in jobs]  # U, V of every level
+    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-12)
+    assert est.held_bytes == est.kept_fields_bytes  # 2D: every run's fields come back for the errors
+    bare = [estimate_run(*b.mesh_counts(j.level), 2, b.contact_count(j.level), round(j.T / j.dt)) for j in jobs]
+    assert est.total_bytes == pytest.approx(max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-12)
+    longer = cmp.estimate_plan(cmp.plan_benchmark("bar2d", pairs, 2, T=1.0), 1)
+    assert longer.kept_fields_bytes == pytest.approx(2 * est.kept_fields_bytes, rel=0.01)  # grows with the levels kept
+    assert longer.total_bytes > est.total_bytes
+    assert cmp.estimate_plan(plan, 2).running_bytes > est.running_bytes  # two runs at once
+    one_d = cmp.estimate_plan(cmp.plan_benchmark("bar1d", pairs, 2, 10, 1.0), 2)
+    assert one_d.held_bytes == 0 and one_d.kept_fields_bytes > 0  # 1D: errors in the worker
+
+
+SCHEMES_3D = "crank-nicolson,backward-euler,moreau-jean[theta=1]"
+TINY_3D = ["--levels", "2", "--n0", "1", "--reference", "4", "--T", "0.5"]
+
+
+@pytest.fixture(scope="module")
+def bar3d_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cmp3") / "c"
+    rc = _compare(out, "bar3d", "--schemes", SCHEMES_3D, "--masses", "standard,seed", *TINY_3D, "--jobs", "2")
+    assert rc == 0
+    return out, (out / "compare.md").read_text(), json.loads((out / "compare.json").read_text())
+
+
+def test_compare_bar3d_table_is_the_json_ranking(bar3d_report):
+    out, md, res = bar3d_report
+    assert res["dim"] == 3 and res["levels"] == [1, 2] and res["contact_norm"] == "force"
+    ref = res["reference"]
+    assert (ref["level"], ref["scheme"], ref["mass"], ref["factor_h"]) == (4, "crank-nicolson", "seed", 2)
+    assert "only 2x finer" in md  # the warning is stated
+    rows, ranked = _table(md), cmp.ranked_pairs(res)
+    assert len(rows) == len(ranked) == 6 and all(p["available"] for p in ranked)
+    assert [(r[1], r[2]) for r in rows] == [(p["scheme_label"], p["mass"]) for p in ranked]
+    for r, p in zip(rows, ranked, strict=True):
+        m = p["metrics"]
+        assert r[0] == str(p["rank"])
+        assert r[3] == format(m["error_u"], ".3e") and r[5] == format(m["error_v"], ".3e")
+        assert r[4] == format(p["rates"]["u_H1"], ".2f") and r[7] == format(m["energy_drift"], ".2e")
+        assert r[8] == format(m["oscillation_index"], ".3f") and r[9] == format(m["penetration_max"], ".2e")
+        assert m["energy_drift"] == p["runs"][-1]["summary"]["energy_max_relative_drift"]
+    assert [int(r[0]) for r in rows] == sorted(int(r[0]) for r in rows)
+    # the velocity-level scheme penetrates, the exact-contact ones do not
+    pen = {(p["scheme"], p["mass"]): p["metrics"]["penetration_max"] for p in ranked}
+    assert (
+        pen[("moreau-jean", "standard")] > 1e-3
+        and max(pen[("crank-nicolson", m)] for m in ("standard", "seed")) < 1e-15
+    )
+
+
+@pytest.mark.parametrize(
+    "scheme, options, mass", [("crank-nicolson", [], "standard"), ("moreau-jean", ["theta=1"], "seed")]
+)
+def test_compare_bar3d_numbers_equal_those_of_run(bar3d_report, tmp_path, scheme, options, mass):
+    """Diagnostics equal those of ``signorini run``; errors equal relative_errors of the same runs."""
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies.benchmarks import get_benchmark
+    from signorini.studies.reference_study import Reference, relative_errors
+
+    _, _, res = bar3d_report
+    pair = next(p for p in res["pairs"] if p["scheme"] == scheme and p["mass"] == mass)
+    finest = pair["runs"][-1]
+    args = ["run", "bar3d", "--scheme", scheme, "--mass", mass, "--n", "2", "--dt", repr(finest["dt"]), "--T", "0.5"]
+    args += [a for o in options for a in ("--scheme-option", o)] + ["--out", str(tmp_path / "r"), "--quiet"]
+    assert main(args) == 0
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert finest["summary"]["steps"] == s["steps"] == 20
+    for key in ("energy_final", "energy_max_relative_drift", "penetration_max", "oscillation_index", "impulse"):
+        assert finest["summary"][key] == pytest.approx(s[key], rel=1e-12, abs=1e-300), key
+    b = get_benchmark("bar3d")
+    p_ref, p2 = b.problem(4), b.problem(2)
+    H_ref = simulate(p_ref, "crank-nicolson", b.h(4) / 2, 0.5, mass="seed", snapshot_every=1)
+    ref = Reference("bar3d", 4, "crank-nicolson", "seed", H_ref, p_ref, b.h(4), {})
+    opts = dict(o.split("=") for o in options)
+    H = simulate(p2, scheme, finest["dt"], 0.5, mass=mass, snapshot_every=1, scheme_options=opts)
+    errors = relative_errors(H, p2.mesh, ref, 0.5)
+    for key in ("u_H1", "v_L2", "force"):
+        assert finest["errors"][key] == pytest.approx(errors[key], rel=1e-9), key

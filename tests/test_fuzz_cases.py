@@ -980,9 +980,10 @@ def read_results(o: Outcome) -> None:
 # min_gap and max_lambda without contact nodes, energy_identity_residual when the energy
 # is zero at every level or no step has an identity (History.summary / diagnostics)
 NULLABLE = {"energy_max_relative_drift", "min_gap", "max_lambda", "energy_identity_residual"}
-# nan in history.csv: energy_increment at level 0, predicted_increment at level 0 and
+# nan in history.csv: energy_increment and impulse at level 0, predicted_increment at level 0 and
 # wherever the scheme has no energy identity (History docstring)
 NAN_COLUMNS = {"predicted_increment"}
+LEVEL0_NAN_COLUMNS = {"energy_increment", "impulse"}  # per-step columns: no step ends at level 0
 RESIDUAL_TOL = 1e-6
 
 
@@ -1074,7 +1075,7 @@ def check_finished(case: Case, o: Outcome, info: str) -> None:
     for n, row in enumerate(H):
         for col, text in row.items():
             v = float(text)
-            if math.isnan(v) and (col in NAN_COLUMNS or (col == "energy_increment" and n == 0)):
+            if math.isnan(v) and (col in NAN_COLUMNS or (col in LEVEL0_NAN_COLUMNS and n == 0)):
                 continue
             assert math.isfinite(v), f"history.csv: {col} = {text} at level {n}{info}"
     res = np.array([float(r["complementarity_residual"]) for r in H])

@@ -7,8 +7,20 @@ The estimate is deliberately simple and documented (docs/case-files.md, "Run siz
   3D Q1 n = 8, 12, peak RSS with the CG backend: 24 to 40 bytes per triplet).  The
   sparse factor is not included: the ``auto`` backend keeps it within its own memory
   budget (``memory_budget``);
-* history: ``8 * (levels) * (2 * n_contact + 9)`` bytes (gaps and multipliers of every
-  contact node at every level, plus the scalar series), exact up to the Python overhead.
+* history: ``8 * (levels) * (2 * n_contact + 11)`` bytes (gaps and multipliers of every
+  contact node at every level, plus the 11 scalar series: time, the energy recorder's
+  six, residual, impulse, active-set size and iterations), exact up to the Python
+  overhead;
+* kept fields (``kept_fields=True``, studies and ``compare``, which measure errors from
+  every level): ``16 * levels * dofs`` bytes, U and V of every level in float64, counted
+  twice while the run is in progress (the recorder's list of levels is stacked into one
+  array at the end of the run, a momentary copy).
+
+``compare`` runs a matrix of such runs (:func:`estimate_compare`): its peak is the
+``workers`` largest runs in progress at once (each with set-up, history and kept
+fields) plus the fields the parent holds until the errors against a 2D/3D reference are
+measured (every returned run's, the reference's included).  In a serial compare the run
+in progress is counted in both terms: an upper estimate by one run's fields.
 
 A run whose number of steps or estimated memory exceeds the limits is refused with the
 estimate unless it is confirmed (``--yes`` or ``[limits] yes = true``).
@@ -17,12 +29,15 @@ estimate unless it is confirmed (``--yes`` or ``[limits] yes = true``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from ..errors import InputError
 from ..linalg.base import total_memory
 
 BASE_BYTES = 80e6
 TRIPLET_BYTES = 32.0
+SCALAR_SERIES = 11  # per-level scalar series of a History (see the module docstring)
+FIELD_BYTES = 16.0  # U and V of one dof at one level (float64), kept for error computation
 DEFAULT_MAX_STEPS = 1_000_000
 
 
@@ -40,29 +55,86 @@ class RunEstimate:
     contact_nodes: int
     setup_bytes: float
     history_bytes: float
+    fields_bytes: float = 0.0  # U and V of every level, when kept (studies, compare)
+    what: ClassVar[str] = "run"
 
     @property
     def total_bytes(self) -> float:
-        return self.setup_bytes + self.history_bytes
+        """Peak while the run is in progress (kept fields twice: stacked at the end)."""
+        return self.setup_bytes + self.history_bytes + 2 * self.fields_bytes
 
     def describe(self) -> str:
+        fields = f", kept fields {_gib(self.fields_bytes)} GiB" if self.fields_bytes else ""
         return (
             f"{self.steps:,} steps, {self.dofs:,} dofs, {self.contact_nodes:,} contact nodes, "
-            f"estimated memory {self.total_bytes / 2**30:.3g} GiB "
-            f"(set-up {self.setup_bytes / 2**30:.3g} GiB, history {self.history_bytes / 2**30:.3g} GiB)"
+            f"estimated memory {_gib(self.total_bytes)} GiB "
+            f"(set-up {_gib(self.setup_bytes)} GiB, history {_gib(self.history_bytes)} GiB{fields})"
         )
 
 
-def estimate_run(n_nodes: int, n_cells: int, nodes_per_cell: int, dim: int, n_contact: int, steps: int) -> RunEstimate:
+def _gib(b: float) -> str:
+    return f"{b / 2**30:.3g}"
+
+
+def estimate_run(
+    n_nodes: int, n_cells: int, nodes_per_cell: int, dim: int, n_contact: int, steps: int, kept_fields: bool = False
+) -> RunEstimate:
     """The estimate of the module docstring from mesh counts, without building anything."""
     k = nodes_per_cell * dim
     setup = BASE_BYTES + TRIPLET_BYTES * float(n_cells) * k * k
-    history = 8.0 * (steps + 1) * (2 * n_contact + 9)
-    return RunEstimate(int(steps), int(n_nodes * dim), int(n_contact), setup, history)
+    history = 8.0 * (steps + 1) * (2 * n_contact + SCALAR_SERIES)
+    fields = FIELD_BYTES * (steps + 1) * n_nodes * dim if kept_fields else 0.0
+    return RunEstimate(int(steps), int(n_nodes * dim), int(n_contact), setup, history, fields)
+
+
+@dataclass(frozen=True)
+class CompareEstimate:
+    """Peak memory [bytes] of a matrix of runs (``signorini compare``), see the module docstring.
+
+    ``steps`` is the largest run's number of steps (the per-run step limit applies to it).
+    """
+
+    runs: int
+    workers: int
+    steps: int
+    dofs: int
+    running_bytes: float  # the ``workers`` largest runs in progress at once
+    held_bytes: float  # fields the parent holds for the errors (2D/3D)
+    kept_fields_bytes: float  # all kept fields, of every run (part of the two terms above)
+    what: ClassVar[str] = "comparison"
+
+    @property
+    def total_bytes(self) -> float:
+        return self.running_bytes + self.held_bytes
+
+    def describe(self) -> str:
+        return (
+            f"{self.runs} runs in {self.workers} process(es), the largest {self.steps:,} steps and {self.dofs:,} dofs, "
+            f"estimated memory {_gib(self.total_bytes)} GiB (runs in progress {_gib(self.running_bytes)} GiB, "
+            f"fields held for the errors {_gib(self.held_bytes)} GiB; kept fields of all runs "
+            f"{_gib(self.kept_fields_bytes)} GiB)"
+        )
+
+
+def estimate_compare(runs: list[RunEstimate], returned: list[bool], workers: int) -> CompareEstimate:
+    """Peak of ``runs`` executed ``workers`` at a time; ``returned[i]``: run i's fields go back
+    to the parent and stay there until the errors are measured (2D/3D)."""
+    if not runs:
+        raise InputError("nothing to run")
+    w = max(1, min(int(workers), len(runs)))
+    largest = sorted((r.total_bytes for r in runs), reverse=True)[:w]
+    held = sum(r.fields_bytes for r, back in zip(runs, returned, strict=True) if back)
+    return CompareEstimate(
+        len(runs), w, max(r.steps for r in runs), max(r.dofs for r in runs), float(sum(largest)), float(held),
+        float(sum(r.fields_bytes for r in runs)),
+    )  # fmt: skip
 
 
 def check_run_size(
-    est: RunEstimate, max_steps: int | None = None, max_memory: float | None = None, confirmed: bool = False
+    est: RunEstimate | CompareEstimate,
+    max_steps: int | None = None,
+    max_memory: float | None = None,
+    confirmed: bool = False,
 ) -> None:
     """Raise :class:`InputError` with the estimate when a limit is exceeded and not confirmed."""
     if confirmed:
@@ -76,6 +148,6 @@ def check_run_size(
         over.append(f"more than --max-memory {max_memory / 2**30:.3g} GiB")
     if over:
         raise InputError(
-            f"this run is large: {est.describe()}; that is {' and '.join(over)}. "
+            f"this {est.what} is large: {est.describe()}; that is {' and '.join(over)}. "
             "Pass --yes (case file: [limits] yes = true) to run it anyway, or raise the limit"
         )

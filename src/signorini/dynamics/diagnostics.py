@@ -8,6 +8,8 @@
                       back to 0 has index **1**; every extra swing adds its amplitude
                       relative to the peak (a dip of depth a x peak gives 1 + a); 0 when
                       there is no contact; 0.5 for a monotone rise cut by the end of the run.
+``impact_impulses``   the total contact impulse of every impact (sum of the per-step
+                      impulses over its window) [force x time].
 
 An impact is a cluster of levels with a non-zero force; gaps of at most ``separation``
 force-free levels (the standard mass chatters) belong to the cluster.  The window
@@ -55,3 +57,16 @@ def oscillation_index(t: np.ndarray | None, force: np.ndarray, separation: int =
     """The oscillation index of the first impact (0 without contact); ``t`` is unused."""
     values = oscillation_indices(force, separation)
     return values[0] if values else 0.0
+
+
+def impact_impulses(force: np.ndarray, impulse: np.ndarray, separation: int = 20) -> list[float]:
+    """Sum of the per-step ``impulse`` (levels, nan allowed) over every impact of ``force``.
+
+    The step ending at level k carries ``impulse[k]``; an impact spanning the levels
+    first..last of non-zero force owns the steps ending at first..last+1 (a trapezoidal
+    scheme's step after the last force still carries half of it).
+    """
+    impulse = np.asarray(impulse, dtype=float)
+    if not np.isfinite(impulse).any():
+        return []
+    return [float(np.nansum(impulse[a : b + 2])) for a, b in impact_windows(np.asarray(force, dtype=float), separation)]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import oscillation_index, oscillation_indices, penetration
+from .diagnostics import impact_impulses, oscillation_index, oscillation_indices, penetration
 
 HISTORY_COLUMNS = (
     "t",
@@ -28,6 +28,7 @@ HISTORY_COLUMNS = (
     "contact_work",
     "numerical_dissipation",
     "penetration",
+    "impulse",
 )
 STATUSES = ("finished", "interrupted", "failed")
 
@@ -49,6 +50,9 @@ class History:
     external_work, contact_work, numerical_dissipation : (N+1,) cumulative sums of the
         three parts of ``predicted_increment`` (0 at n = 0): work of time-dependent
         loads and prescribed motion, contact term, the scheme's own dissipation.
+    impulse : (N+1,) total contact impulse sum_i P_i (<= 0) of the step ending at t_n,
+        the P of the scheme's momentum balance M (V^{n+1} - V^n) = ... + B^T P
+        (``Scheme.impulse``; nan at n = 0) [force x time].
     active, iterations, fallbacks, residual : per step active-set size, active-set
         (semismooth Newton) iterations, whether the robust fallback ran, and the
         relative complementarity residual.
@@ -78,6 +82,7 @@ class History:
     external_work: np.ndarray | None = None
     contact_work: np.ndarray | None = None
     numerical_dissipation: np.ndarray | None = None
+    impulse: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
     counters: dict = field(default_factory=dict)
@@ -134,6 +139,7 @@ class History:
             "contact_work": _or_nan(self.contact_work, self.t.size),
             "numerical_dissipation": _or_nan(self.numerical_dissipation, self.t.size),
             "penetration": penetration(self.gap),
+            "impulse": _or_nan(self.impulse, self.t.size),
         }
 
     def write_csv(self, path: str | Path) -> None:
@@ -181,7 +187,10 @@ class History:
     def diagnostics(self) -> dict:
         """Scheme-comparison figures: penetration, oscillation per impact, identity residual.
 
-        ``penetration_max`` [length] and ``penetration_time_integral`` [length x time]
+        ``impulse`` [force x time]: the total contact impulse of the run (sum of the
+        ``impulse`` column, <= 0), and ``impact_impulses`` that of every impact (the
+        same windows as the oscillation indices; for an elastic rebound of a free body
+        about -2 x its momentum); ``penetration_max`` [length] and ``penetration_time_integral`` [length x time]
         (rectangle rule over the levels) of max_i max(0, -gap_i); ``oscillation_index`` of
         the first impact and ``impact_oscillation_indices`` of every impact
         (:mod:`signorini.dynamics.diagnostics`); ``energy_identity_residual`` =
@@ -193,7 +202,10 @@ class History:
         dE = self.energy_increment - self.predicted_increment
         ok = np.isfinite(dE)
         scale = float(np.max(np.abs(self.energy))) if self.energy.size else 0.0
+        imp = _or_nan(self.impulse, self.t.size)
         return {
+            "impulse": float(np.nansum(imp)) if np.isfinite(imp).any() else None,
+            "impact_impulses": impact_impulses(self.lambda_sum, imp),
             "penetration_max": float(pen.max(initial=0.0)),
             "penetration_time_integral": float(pen[1:].sum() * dt),
             "oscillation_index": oscillation_index(self.t, self.lambda_sum),
@@ -218,6 +230,7 @@ def empty_series(levels: int, n_contact: int) -> dict[str, np.ndarray]:
         "iterations": np.zeros(levels, dtype=np.int64),
         "fallbacks": np.zeros(levels, dtype=bool),
         "residual": np.zeros(levels),
+        "impulse": np.full(levels, np.nan),
     }
 
 

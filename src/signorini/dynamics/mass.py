@@ -16,9 +16,10 @@ name                   definition                                               
 tensor``               structured grids (a different matrix in 2D/3D)              of contact nodes
 ``neighbour``          contact rows/columns removed; the mass of each contact      all components
                        node put on the diagonal of its non-contact neighbours      of contact nodes
-                       in proportion to their coupling M_ij (a "weighted
-                       redistribution" in the sense of Dabaghi et al.);
-                       total mass preserved, PSD by construction
+                       in proportion to their coupling M_ij; total mass
+                       preserved, PSD by construction (not Dabaghi et al.'s
+                       weighted choices, which could not be recovered:
+                       docs/literature/competing-schemes.md, section 4b)
 ``mass-free-surface``  cells touching Gamma_C integrate their mass with a nodal   all components
                        rule on their non-contact nodes (equal weights; Hager-      of contact nodes
                        Wohlmuth's mass-free surface elements); total mass kept

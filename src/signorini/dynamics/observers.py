@@ -52,13 +52,15 @@ class Observer:
 
 
 class HistoryRecorder(Observer):
-    """Per-level gaps, multipliers, active set size, iterations, fallbacks, residuals."""
+    """Per-level gaps, multipliers, active set size, iterations, fallbacks, residuals, and
+    the total contact impulse of each step (``Scheme.impulse``)."""
 
     def start(self, run: Run) -> None:
         nc = run.ctx.disc.contact.size
         self.series = empty_series(run.n_steps + 1, nc)
         for k in ("kinetic_energy", "elastic_energy"):
             del self.series[k]
+        self._prev = run.initial
         self._put(run, 0, run.initial)
 
     def _put(self, run: Run, n: int, s: State) -> None:
@@ -73,9 +75,12 @@ class HistoryRecorder(Observer):
 
     def record(self, run: Run, n: int, state: State) -> None:
         self._put(run, n, state)
+        self.series["impulse"][n] = float(np.sum(run.scheme.impulse(run.ctx, self._prev, state)))
+        self._prev = state
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
+        self._prev = None
 
 
 def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:

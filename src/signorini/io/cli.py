@@ -335,7 +335,7 @@ def compare_plan(args: argparse.Namespace):
     pairs = cmp.make_pairs(cmp.parse_schemes(args.schemes), cmp.parse_masses(args.masses))
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be a positive integer, got {args.jobs}")
-    limits = {"yes": True} if args.yes else {}
+    limits = _limits(args, {})
     if args.target.endswith(".toml"):
         from .config import case_problem, load_case
 
@@ -345,24 +345,35 @@ def compare_plan(args: argparse.Namespace):
         if args.set:
             raise InputError("--set does not apply to a case file; edit the file")
         case = load_case(args.target, limits, check_size)
-        check_size(mesh_counts(case.problem), case.dt, case.T, {**case.limits, **limits})
         load = functools.partial(case_problem, str(args.target))
         target = cmp.CaseTarget(
             Path(args.target).name, load, case.dt, case.T, tuple(sorted(case.solver_options.items()))
         )
-        return cmp.plan_case(target, pairs, case.problem)
+        plan = cmp.plan_case(target, pairs, case.problem)
+        check_compare_size(plan, args.jobs, _limits(args, case.limits))
+        return plan
     overrides = parse_assignments(args.set, "--set")
     ref = cmp.parse_reference(args.reference) if args.reference is not None else None
     levels = cmp.DEFAULT_LEVELS if args.levels is None else args.levels
     ratio = cmp.DEFAULT_RATIO if args.ratio is None else args.ratio
     plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref)
-    bench = plan.target.bench
-    sizes = list(zip(plan.levels, plan.dts, strict=True))
-    if isinstance(plan.reference, tuple):
-        sizes.append((plan.reference[2], plan.ratio * bench.h(plan.reference[2], overrides)))
-    for n, dt in sizes:
-        check_size((*bench.mesh_counts(n), bench.dim, bench.contact_count(n)), dt, plan.T, limits)
+    check_compare_size(plan, args.jobs, _limits(args, {}))
     return plan
+
+
+def check_compare_size(plan, jobs: int | None, limits: dict) -> None:
+    """Refuse (exit 2, with the estimate) a matrix over the step or memory limit unless --yes.
+
+    The estimate counts every run with the fields it keeps for the errors, the runs in
+    progress at once and the fields held for a 2D/3D reference
+    (:func:`signorini.studies.compare.estimate_plan`).
+    """
+    from ..dynamics.budget import check_run_size
+    from ..studies.compare import estimate_plan
+
+    mem = limits.get("max_memory")
+    est = estimate_plan(plan, jobs)
+    check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -623,7 +634,19 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="parallel processes (default: min(available cores, number of runs)); results do not depend on it",
     )
-    cpo.add_argument("--yes", action="store_true", help="run even if a level exceeds the step or memory limits")
+    cpo.add_argument(
+        "--max-steps", type=int, default=None, help="refuse a run with more steps unless --yes (default 1,000,000)"
+    )
+    cpo.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GIB",
+        help="refuse the matrix when its estimated memory exceeds this many GiB unless --yes: every run with the "
+        "fields it keeps for the errors, --jobs runs at once, the fields held for a 2D/3D reference "
+        "(default 80%% of the machine's memory)",
+    )
+    cpo.add_argument("--yes", action="store_true", help="run even if over the step or memory limits")
     add_output_arguments(cpo, "out/compare", "output directory (default out/compare)", "no table on stdout")
     cp.set_defaults(func=cmd_compare)
 

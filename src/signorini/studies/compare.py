@@ -50,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dynamics.budget import CompareEstimate, estimate_compare, estimate_run
 from ..dynamics.history import _json_default, finite_json
 from ..dynamics.mass import MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES, make_scheme
@@ -115,6 +116,8 @@ SUMMARY_FIELDS = (
     "penetration_time_integral",
     "oscillation_index",
     "impact_oscillation_indices",
+    "impulse",
+    "impact_impulses",
     "energy_identity_residual",
     "max_complementarity_residual",
     "setup_seconds",
@@ -433,6 +436,7 @@ class Plan:
     reference: Any = None  # (SchemeSpec, mass, level) to run, or a Reference to reuse, or None (exact / case)
     solver_options: tuple[tuple[str, Any], ...] = ()
     length_scale: float = 1.0
+    counts: tuple[int, int, int, int, int] | None = None  # case file: (nodes, cells, per cell, dim, contact)
 
     @property
     def kind(self) -> str:
@@ -507,8 +511,10 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
         raise InputError("nothing to compare: give at least one scheme and one mass")
     _steps(target.dt, target.T, f"case file {target.label}")
     problem = problem if problem is not None else target.load()
+    m = problem.mesh
+    counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size)
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
-                length_scale=_length_scale(problem))  # fmt: skip
+                length_scale=_length_scale(problem), counts=counts)  # fmt: skip
 
 
 def _length_scale(problem) -> float:
@@ -542,6 +548,24 @@ def make_jobs(plan: Plan) -> list[Job]:
         jobs.append(Job(("reference",), plan.target, level, scheme, mass, dt, plan.T, plan.solver_options,
                         snapshots=True, return_history=True, cost=_cost(plan.target, level, dt, plan.T)))  # fmt: skip
     return jobs
+
+
+def estimate_plan(plan: Plan, jobs: int | None = None) -> CompareEstimate:
+    """Peak memory of the whole matrix (:func:`~signorini.dynamics.budget.estimate_compare`):
+    every run with the fields it keeps for the errors (every level of every run), the
+    ``jobs`` largest at once, plus the 2D/3D fields held by this process until the errors
+    against the reference are measured.  Built from mesh counts: nothing is meshed."""
+    job_list = make_jobs(plan)
+    workers = default_jobs(len(job_list)) if jobs is None else int(jobs)
+    runs = []
+    for j in job_list:
+        if plan.kind == "benchmark":
+            b = plan.target.bench
+            counts = (*b.mesh_counts(j.level), b.dim, b.contact_count(j.level))
+        else:
+            counts = plan.counts
+        runs.append(estimate_run(*counts, number_of_steps(j.dt, j.T), kept_fields=j.snapshots))
+    return estimate_compare(runs, [j.return_history for j in job_list], workers)
 
 
 # ----------------------------------------------------------------------------- run + collect

@@ -25,6 +25,9 @@ provides, as a subclass of :class:`Scheme`:
    its exact energy identity for the step old -> new, split into the work of
    external loads and prescribed motion, the contact term and the scheme's numerical
    dissipation.  None when the scheme has no identity for that step.
+6. ``impulse(ctx, old, new) -> (nc,)`` (optional): the contact impulse of the step per
+   contact node, i.e. the P of the scheme's discrete momentum balance
+   ``M (V^{n+1} - V^n) = ... + B^T P`` (<= 0).  Default: ``dt lambda^{n+1}``.
 
 A scheme written outside the package only needs these methods; register it with
 ``SCHEMES.register(name, cls, cls.description, aliases, cls.parameters)`` or pass the
@@ -159,6 +162,18 @@ class Scheme:
 
     def energy_increment(self, ctx: Context, old: State, new: State) -> EnergyParts | None:
         return None
+
+    def impulse(self, ctx: Context, old: State, new: State) -> np.ndarray:
+        """Contact impulse of the step old -> new per contact node, shape (nc,) (<= 0) [force x time].
+
+        The P of the scheme's momentum balance ``M (V^{n+1} - V^n) = ... + B^T P``.  This
+        default, ``dt lambda^{n+1}`` (the force of the new level over the step), is exact
+        for schemes whose balance holds the contact force of the new level only (backward
+        Euler; Paoli-Schatzman and contact-stabilized Newmark, whose ``lam`` is the force
+        of their balance); Newmark, theta, generalized-alpha and the velocity-level schemes
+        override it.
+        """
+        return ctx.dt * new.lam
 
 
 # ----------------------------------------------------------------------------- helpers

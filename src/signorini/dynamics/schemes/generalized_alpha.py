@@ -40,6 +40,8 @@ a_m = a_f = 1/2 every numerical term vanishes: the CN identity.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
@@ -90,6 +92,11 @@ class GeneralizedAlpha(Newmark):
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed)
         return self.update(ctx, s, t, U, lam, info, pred)
+
+    def impulse(self, ctx, old: State, new: State) -> np.ndarray:
+        """dt lambda_{a_f}, the contact term of the weighted balance (exact momentum for a_m = a_f)."""
+        af = self.alphas()[1]
+        return ctx.dt * ((1 - af) * new.lam + af * old.lam)
 
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         am, af = self.alphas()

@@ -87,6 +87,10 @@ class MoreauJean(Scheme):
         U = s.U + dt * (th * V + (1 - th) * s.V)
         return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P})
 
+    def impulse(self, ctx, old: State, new: State) -> np.ndarray:
+        """The impulse P of the step, unknown of the velocity-level solve."""
+        return new.extra["impulse"]
+
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         th, dt = self.theta, ctx.dt
         dU, dV = new.U - old.U, new.V - old.V

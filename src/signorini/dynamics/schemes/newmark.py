@@ -68,6 +68,10 @@ class Newmark(Scheme):
             A[ml] = 0.0
         return State(t, U, V, A, lam, info)
 
+    def impulse(self, ctx, old: State, new: State) -> np.ndarray:
+        """dt ((1 - gamma) lambda^n + gamma lambda^{n+1}): M dV = dt ((1 - gamma) M A^n + gamma M A^{n+1})."""
+        return ctx.dt * ((1 - self.gamma) * old.lam + self.gamma * new.lam)
+
     def contact_law(self, ctx) -> ContactLaw:
         """The contact law of the solve: exact Signorini contact (``penalty`` adds a compliance)."""
         return SIGNORINI

@@ -20,6 +20,8 @@ the seed's identity with a plus sign on the contact term).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...registry import Parameter
 from ..context import Operator
 from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
@@ -48,6 +50,10 @@ class Theta(Scheme):
             V[ml] = (U[ml] - s.U[ml]) / dt
             A[ml] = 0.0
         return State(t, U, V, A, lam, info)
+
+    def impulse(self, ctx, old: State, new: State) -> np.ndarray:
+        """dt lambda_theta: M dV = dt (theta M A^{n+1} + (1 - theta) M A^n)."""
+        return ctx.dt * (self.theta * new.lam + (1 - self.theta) * old.lam)
 
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         th = self.theta
