@@ -38,6 +38,18 @@ SERIES = {
 }
 
 
+def step_seconds(H) -> tuple[float, float]:
+    """(time per step without the Delassus columns, seconds spent on columns in the loop).
+
+    Lazy condensation computes a node's column inside the loop when the node first nears
+    contact: that is set-up work (the full condensation does it before the loop), so it
+    is counted with the set-up, not the steps."""
+    m = H.meta
+    lazy = m["solver_options"].get("condensation") == "lazy"
+    in_loop = m.get("condensation_seconds", 0.0) if lazy else 0.0
+    return m["step_seconds"] - in_loop / max(H.steps, 1), in_loop
+
+
 def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -> dict:
     from signorini.dynamics.problem import discretize
     from signorini.dynamics.simulate import simulate
@@ -53,6 +65,7 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -
     H = simulate(disc, "cn", dt, steps * dt, backend=backend, energy=energy)
     m = H.meta
     ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
+    step, in_loop = step_seconds(H)
     return {
         "benchmark": bench,
         "n": n,
@@ -64,11 +77,11 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -
         "assembly_s": m["assembly_seconds"] + m["reduction_seconds"],
         "factorization_s": m["factorization_seconds"],
         "condensation_s": m["condensation_seconds"],
-        "setup_s": t_mesh + m["assembly_seconds"] + m["reduction_seconds"] + m["setup_seconds"],
-        "step_s": m["step_seconds"],
+        "setup_s": t_mesh + m["assembly_seconds"] + m["reduction_seconds"] + m["setup_seconds"] + in_loop,
+        "step_s": step,
         "reference_op": "solve" if "bare_solve_seconds" in m else "spmv",
         "reference_s": ref,
-        "step_over_reference": m["step_seconds"] / ref,
+        "step_over_reference": step / ref,
         "factor_MB": m["factor_bytes"] / 1e6,
         "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
         "impacts": H.impacts,
@@ -92,11 +105,12 @@ def measure_schemes(bench: str, n: int, steps: int, backend: str) -> list[dict]:
         H = simulate(disc, entry.name, dt, steps * dt, backend=backend)
         m = H.meta
         ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
+        step, _ = step_seconds(H)
         rows.append({
             "scheme": entry.name,
             "status": H.status,
-            "step_ms": 1e3 * m["step_seconds"],
-            "step_over_reference": m["step_seconds"] / ref,
+            "step_ms": 1e3 * step,
+            "step_over_reference": step / ref,
             "factorizations": H.counters["factorizations"],
             "solves_per_step": H.counters["linear_solves"] / max(H.steps, 1),
         })  # fmt: skip
