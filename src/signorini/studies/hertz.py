@@ -144,8 +144,14 @@ def hertz_prediction(dim: int, R: float, E: float, nu: float, rho: float, v: flo
         F = float(sphere_force(d, R, Es))
         return HertzPrediction(d, F, SPHERE_DURATION_FACTOR * d / v, math.sqrt(R * d), m, Es, "sphere")
     m = rho * math.pi * R**2
-    d, F, tc = impact_ode(lambda x: cylinder_force(x, R, Es), m, v)
-    return HertzPrediction(d, F, tc, math.sqrt(4 * F * R / (math.pi * Es)), m, Es, "cylinder (Johnson)")
+    try:
+        d, F, tc = impact_ode(lambda x: cylinder_force(x, R, Es), m, v)
+    except ValueError:
+        raise InputError(
+            f"velocity {v:g} is too large for Hertz's line-contact law (the contact strip would exceed "
+            f"{8 / math.e**2:.2f} R); Hertz's theory needs a contact much narrower than R: lower the velocity"
+        ) from None
+    return HertzPrediction(d, F, tc, math.sqrt(4 * F * R / (math.pi * Es)), m, Es, "disc: Johnson's line contact")
 
 
 def p_wave_speed(E: float, nu: float, rho: float) -> float:
@@ -213,9 +219,13 @@ class HertzMeasure:
             rows.append(f"    {label:17s} {h['predicted'][key]:.5g}  computed {ctext}  {dtext}")
         v = h["validity"]
         rows.append(
-            f"    restitution {h['computed']['restitution']:.4g}; v/c_p {v['velocity_over_wave_speed']:.2g}, "
-            f"a/R {v['contact_radius_over_R']:.2g}, 2R/(c_p t_c) {v['wave_transit_over_duration']:.2g}; "
-            f"contact cap {h['cap_angle_degrees']:.3g} deg"
+            f"    Hertz assumes << 1: v/c_p {v['velocity_over_wave_speed']:.2g}, "
+            f"a*/R {v['contact_radius_over_R']:.2g}, "
+            f"wave transit 2R/c_p over t_c {v['wave_transit_over_duration']:.2g}"
+        )
+        rows.append(
+            f"    restitution {h['computed']['restitution']:.4g}; contact candidates: cap of "
+            f"{h['cap_angle_degrees']:.3g} deg around the pole"
         )
         return "\n".join(rows)
 
@@ -271,8 +281,18 @@ def check_params(p: dict) -> None:
         raise InputError(f"parameter 'cap' (cap radius / Hertz contact radius) must be > 1, got {p['cap']}")
 
 
+MAX_CONTACT_RATIO = 0.5
+
+
 def _prediction(dim: int, p: dict) -> HertzPrediction:
-    return hertz_prediction(dim, p["R"], p["E"], p["nu"], p["rho"], p["velocity"])
+    """Hertz's figures of the parameters; an InputError when a*/R > 0.5 (far outside the theory)."""
+    pred = hertz_prediction(dim, p["R"], p["E"], p["nu"], p["rho"], p["velocity"])
+    if pred.contact_radius > MAX_CONTACT_RATIO * p["R"]:
+        raise InputError(
+            f"velocity {p['velocity']:g}: Hertz's contact radius would be {pred.contact_radius / p['R']:.2f} R "
+            f"(> {MAX_CONTACT_RATIO} R); Hertz's theory needs a contact much smaller than R: lower the velocity"
+        )
+    return pred
 
 
 def cap_angle(dim: int, p: dict) -> float:
