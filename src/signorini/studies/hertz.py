@@ -135,6 +135,21 @@ def impact_ode(force: Callable[[float], float], m: float, v: float) -> tuple[flo
     return d_max, float(force(d_max)), 2 * t_max
 
 
+def force_curve(dim: int, p: dict, t: np.ndarray) -> np.ndarray:
+    """F(t) of the 1-dof Hertz impact (sphere or Johnson's disc law) at times t; 0 after t_c."""
+    pred = _prediction(dim, p)
+    R, Es, m, v = p["R"], pred.E_star, pred.mass, p["velocity"]
+    law = (lambda x: float(sphere_force(x, R, Es))) if dim == 3 else (lambda x: cylinder_force(x, R, Es))
+    half = pred.duration / 2
+    sol = solve_ivp(lambda s, y: [y[1], -law(y[0]) / m], (0.0, half), [0.0, v], rtol=1e-10, atol=1e-14 * v,
+                    dense_output=True)  # fmt: skip
+    tt = np.asarray(t, dtype=float)
+    mirrored = np.where(tt <= half, tt, pred.duration - tt)  # symmetric about the turning point
+    out = np.array([law(max(float(sol.sol(min(max(s, 0.0), half))[0]), 0.0)) for s in mirrored])
+    out[(tt < 0) | (tt > pred.duration)] = 0.0
+    return out
+
+
 def hertz_prediction(dim: int, R: float, E: float, nu: float, rho: float, v: float) -> HertzPrediction:
     """Hertz's quasi-static impact figures (see the module docstring for the formulas)."""
     Es = effective_modulus(E, nu)
