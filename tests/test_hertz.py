@@ -140,3 +140,15 @@ def test_cli_run_reports_hertz(tmp_path, capsys):
     assert set(h["predicted"]) >= {"duration", "peak_force", "max_approach"}
     assert h["predicted"]["duration"] == pytest.approx(hertz.hertz_prediction(2, 1, 1, 0.3, 1, 0.002).duration)
     assert s["steps"] == math.ceil(1.5 * 25 * 4)
+
+
+REFUSED = [["compare", "hertz2d", "--schemes", "cn", "--masses", "seed"], ["study", "hertz3d"]]
+
+
+@pytest.mark.parametrize("command", REFUSED)
+def test_compare_and_study_refuse_hertz(command, tmp_path, capsys):
+    from signorini.io.cli import main
+
+    assert main([*command, "--out", str(tmp_path / "o")]) == 2
+    assert "signorini run hertz" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -300,6 +300,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR, check_levels, study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
+    bench.require_nested("signorini study")
     overrides = parse_assignments(args.set, "--set")
     bench.params(overrides)
     if args.levels < 2:

@@ -99,6 +99,19 @@ class Benchmark:
             self.check(p)
         return p
 
+    @property
+    def nested(self) -> bool:
+        """Whether levels are nested structured meshes (what reference studies and compare need)."""
+        return self.sizes is None
+
+    def require_nested(self, command: str) -> None:
+        """InputError for a command that measures errors against a finer nested level."""
+        if not self.nested:
+            raise InputError(
+                f"{command} needs nested structured levels (the bars); {self.name!r} is meshed by gmsh and "
+                f"compared with Hertz's theory by: signorini run {self.name} [--n N] [--set NAME=VALUE]"
+            )
+
     def n_default(self) -> int:
         """Level of ``signorini run`` without --n."""
         return self.default_n if self.default_n is not None else (40 if self.dim == 1 else 4)
