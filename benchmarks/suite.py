@@ -1,5 +1,7 @@
 """Benchmark suite: bar3d (n = 4, 8, 16, 32) and bar2d series, CN with the seed mass,
-and the per-step cost of every registered scheme on bar3d n = 8.
+the Hertz ball and disc series when gmsh is installed (``pip install ".[mesh]"``; hertz3d
+n = 9 is a ball of about 36k dofs with about 1.3k contact nodes), and the per-step cost
+of every registered scheme on bar3d n = 8.
 
 Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
 
@@ -36,6 +38,21 @@ SERIES = {
     ],
     "quick": [("bar3d", 4), ("bar3d", 8), ("bar2d", 8), ("bar2d", 16), ("bar2d", 32)],
 }
+HERTZ_SERIES = {
+    "full": [("hertz3d", 3), ("hertz3d", 6), ("hertz3d", 9), ("hertz2d", 16), ("hertz2d", 32)],
+    "quick": [("hertz3d", 3), ("hertz3d", 6), ("hertz2d", 16)],
+}
+SERIES_NAMES = ("bar2d", "bar3d", "hertz2d", "hertz3d")
+
+
+def series(size: str) -> list[tuple[str, int]]:
+    """The bars, and the Hertz ball and disc when gmsh is importable."""
+    import importlib.util
+
+    has_gmsh = importlib.util.find_spec("gmsh") is not None
+    if not has_gmsh:
+        print('gmsh not installed (pip install ".[mesh]"): the hertz series is skipped', flush=True)
+    return SERIES[size] + (HERTZ_SERIES[size] if has_gmsh else [])
 
 
 def step_seconds(H) -> tuple[float, float]:
@@ -61,7 +78,7 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -
     problem.mesh.check_cells()
     t_mesh = time.perf_counter() - t0
     disc = discretize(problem, "seed")
-    dt = b.h(n) / 2
+    dt = b.run_times(n)[0]  # h/2 for the bars, t_c/(25 n) for the Hertz impacts
     H = simulate(disc, "cn", dt, steps * dt, backend=backend, energy=energy)
     m = H.meta
     ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
@@ -158,7 +175,7 @@ def run_series(series: list[tuple[str, int]], steps: int, backend: str, energy: 
 def exponents(rows: list[dict]) -> dict:
     """Fitted exponents p of time ~ dofs^p for set-up and step, per benchmark."""
     exps = {}
-    for bench in ("bar2d", "bar3d"):
+    for bench in SERIES_NAMES:
         sel = [r for r in rows if r["benchmark"] == bench]
         if len(sel) > 1:
             exps[bench] = {
@@ -197,7 +214,7 @@ def plot(rows: list[dict], exps: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for bench, mk in (("bar2d", "o"), ("bar3d", "s")):
+    for bench, mk in zip(SERIES_NAMES, "osd^", strict=True):
         sel = [r for r in rows if r["benchmark"] == bench]
         if sel:
             d = [r["dofs"] for r in sel]
@@ -218,7 +235,9 @@ def plot(rows: list[dict], exps: dict, path: Path) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="skip bar3d n = 16, 32 and bar2d n = 64")
+    ap.add_argument(
+        "--quick", action="store_true", help="skip bar3d n = 16, 32, bar2d n = 64, hertz3d n = 9 and hertz2d n = 32"
+    )
     ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
     ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cg (default auto)")
     ap.add_argument("--no-energy", action="store_true", help="switch the energy bookkeeping observer off")
@@ -237,7 +256,7 @@ def main(argv=None) -> int:
         return 0
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = run_series(SERIES["quick" if a.quick else "full"], a.steps, a.backend, not a.no_energy)
+    rows = run_series(series("quick" if a.quick else "full"), a.steps, a.backend, not a.no_energy)
     exps = exponents(rows)
     md = markdown(rows, exps)
     sbench, sn = a.schemes_on[0], int(a.schemes_on[1])

@@ -145,3 +145,17 @@ def test_report_has_the_compare_section(tiny_report):
     row = conv["rows"][-1]
     pair = next(p for p in c2["pairs"] if p["label"] == "crank-nicolson / seed")
     assert pair["runs"][-1]["errors"]["u_H1"] == pytest.approx(row["u_H1"], rel=1e-12)
+
+
+def test_report_has_the_hertz_section(tiny_report):
+    import importlib.util
+
+    out, text, s = tiny_report
+    assert "## 7. Hertz impact" in text
+    if importlib.util.find_spec("gmsh") is None:
+        assert s["hertz"] is None and 'pip install ".[mesh]"' in text
+        return
+    assert (out / "hertz_impact.png").is_file() and (out / "hertz_impact.csv").is_file()
+    assert {r["benchmark"] for r in s["hertz"]} == {"hertz2d", "hertz3d"}
+    for r in s["hertz"]:
+        assert abs(r["deviation"]["duration"]) < 0.1 and abs(r["deviation"]["peak_force"]) < 0.1

@@ -167,3 +167,36 @@ class ProgressCallback(Observer):
 
     def record(self, run: Run, n: int, state: State) -> None:
         self.callback(n, run.n_steps)
+
+
+class CentreOfMassRecorder(Observer):
+    """Position and velocity of the centre of mass along a direction, per level.
+
+    With E the rigid translation along the unit vector ``direction`` (E_{d i + k} =
+    direction_k) and M the run's mass matrix, x_G = (E^T M U)/(E^T M E) and v_G =
+    (E^T M V)/(E^T M E) [length, length/time]: the mean displacement weighted by the
+    discrete mass, whose motion obeys m x_G'' = E^T (forces) exactly when the mass
+    matrix is the one the scheme integrates.  One dot product per level.
+    """
+
+    def __init__(self, direction):
+        self.direction = np.asarray(direction, dtype=float)
+
+    def start(self, run: Run) -> None:
+        n_nodes = run.ctx.M.shape[0] // self.direction.size
+        E = np.tile(self.direction, n_nodes)
+        w = run.ctx.M @ E
+        self.weights = w / float(w @ E)
+        self.position = np.full(run.n_steps + 1, np.nan)
+        self.velocity = np.full(run.n_steps + 1, np.nan)
+        self._put(0, run.initial)
+
+    def _put(self, n: int, s: State) -> None:
+        self.position[n] = self.weights @ s.U
+        self.velocity[n] = self.weights @ s.V
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        self._put(n, state)
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        self.position, self.velocity = self.position[: n_last + 1], self.velocity[: n_last + 1]

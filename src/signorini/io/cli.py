@@ -39,6 +39,7 @@ EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --o
   signorini run bar2d --scheme newmark --scheme-option beta=0.3 --scheme-option gamma=0.6 --out out/nm
   signorini run bar1d-impact --set gap=0.3 --set velocity=1 --n 80 --out out/impact
   signorini run bar3d --n 8 --solver-option backend=cg --solver-option preconditioner=amg --out out/b3
+  signorini run hertz2d --n 16 --set velocity=0.02 --out out/hertz2d   # vs Hertz (needs pip install ".[mesh]")
   signorini run examples/bar2d.toml --out out/case
   signorini run bar2d --scheme mypackage.schemes:MyScheme --out out/mine   # a scheme by import path
 """
@@ -122,6 +123,7 @@ class RunSpec:
     meta: dict = field(default_factory=dict)
     case_file: Path | None = None
     limits: dict = field(default_factory=dict)
+    measure: Any = None  # a benchmark's extra figures (observers, summary fields, text)
 
 
 def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
@@ -172,20 +174,23 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
 
     bench = get_benchmark(args.target)
     overrides = parse_assignments(args.set, "--set")
-    n = args.n if args.n is not None else (40 if bench.dim == 1 else 4)
+    n = args.n if args.n is not None else bench.n_default()
     if n < 1:
         raise InputError(f"--n must be a positive integer, got {n}")
-    dt = args.dt if args.dt is not None else bench.h(n, overrides) / 2
-    T = args.T if args.T is not None else (6.0 if bench.dim == 1 else 1.0)
+    dt_default, T_default = bench.run_times(n, overrides)
+    dt = args.dt if args.dt is not None else dt_default
+    T = args.T if args.T is not None else T_default
     limits = _limits(args, {})
-    nodes, cells, per_cell = bench.mesh_counts(n)
-    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n)), dt, T, limits)
+    nodes, cells, per_cell = bench.mesh_counts(n, overrides)
+    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits)
     problem = bench.problem(n, overrides)
     sch, sol = _options(args, {}, {})
-    meta = {"benchmark": args.target, "n": n, "parameters": bench.params(overrides)}
+    params = bench.params(overrides)
+    meta = {"benchmark": args.target, "n": n, "parameters": params}
     scheme = load_scheme(args.scheme or "cn")
+    measure = bench.measure(params) if bench.measure is not None else None
     return RunSpec(problem, scheme, dt, T, args.mass or "seed", Path(args.out or "out/run"), args.target,
-                   sch, sol, args.snapshot_every or 0, meta, limits=limits)  # fmt: skip
+                   sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure)  # fmt: skip
 
 
 def case_spec(args: argparse.Namespace) -> RunSpec:
@@ -245,6 +250,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
 
     with ResultDirectory(spec.out, args.overwrite) as rd:
         observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
+        if spec.measure is not None:
+            observers += spec.measure.observers()
         try:
             H = simulate(
                 spec.problem,
@@ -262,6 +269,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             print(f"signorini: failed: {exc} (summary in {spec.out})", file=sys.stderr)
             return EXIT_CODES["failed"]
         H.meta.update(spec.meta)
+        if spec.measure is not None:
+            H.meta.update(spec.measure.summary(H))
         tmp = rd.create()
         if spec.case_file is not None:
             shutil.copy(spec.case_file, tmp / "case.toml")
@@ -269,6 +278,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
         rd.commit()
     if not args.quiet:
         print(one_screen_summary(H))
+        if spec.measure is not None:
+            print(spec.measure.text(H.meta))
         print(f"  results in {spec.out}")
     if not H.success:
         print(f"signorini: {H.status}: {H.message} (partial results in {spec.out})", file=sys.stderr)
@@ -289,6 +300,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR, check_levels, study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
+    bench.require_nested("signorini study")
     overrides = parse_assignments(args.set, "--set")
     bench.params(overrides)
     if args.levels < 2:
@@ -504,10 +516,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--n",
         type=int,
         default=None,
-        help="elements across the width (2D/3D, 10n along) or along the bar (1D); default 40 in 1D, 4 in 2D/3D",
+        help="elements across the width (2D/3D, 10n along) or along the bar (1D); default 40 in 1D, 4 in 2D/3D; "
+        "hertz: elements across the Hertz contact radius, default 8 (2D), 3 (3D)",
     )
-    bench.add_argument("--dt", type=float, default=None, help="time step (default h/2); T must be a multiple of it")
-    bench.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D)")
+    bench.add_argument(
+        "--dt", type=float, default=None, help="time step (default h/2; hertz: t_c/(25n)); T must be a multiple of it"
+    )
+    bench.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D; hertz: 1.5 t_c)")
     bench.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     out = r.add_argument_group("output and limits (benchmarks and case files; override the file's)")
     out.add_argument(

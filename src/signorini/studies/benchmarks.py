@@ -20,12 +20,24 @@ solutions cover both (docs/exact_solutions.md).
 2D/3D parameters: ``rho``=1, ``lam``=0.25, ``mu``=0.5, ``gap``=0.2, ``velocity``=0.5,
 ``width``=0.1, ``length``=1.  Mesh: ``n`` elements across the width and 10 n along
 the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/2.
+
+``hertz3d``     an elastic ball (P1 tetrahedra) of radius ``R`` on the rigid plane z = 0,
+                touching it at t = 0 with speed ``velocity``; compared with Hertz's
+                quasi-static impact (:mod:`signorini.studies.hertz`).
+``hertz2d``     the same with a disc (P1 triangles, plane strain, per unit thickness).
+
+Hertz parameters: ``R``=1, ``E``=1, ``nu``=0.3, ``rho``=1, ``velocity``=0.002, mesh
+controls ``cap``=2 (radius of the contact cap / Hertz contact radius a*), ``far``=0.25
+(element size far from the pole / R), ``grading``=0.5; level ``n``: element size a*/n
+on the cap (gmsh, ``pip install ".[mesh]"``), default dt = t_c/(25 n) and T = 1.5 t_c
+(t_c the Hertz contact duration).  Default n: 8 (2D), 3 (3D).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,17 +48,32 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
+from ..studies import hertz
 from ..studies.exact import ExactBar1D
 
 
 @dataclass(frozen=True)
 class Benchmark:
+    """A named problem family: ``build(n, params)`` makes level n.
+
+    Optional hooks of benchmarks that are not bars: ``sizes(n, params)`` -> (h, nodes,
+    cells, nodes per cell, contact nodes) estimated without meshing; ``times(n, params)``
+    -> default (dt, T) of ``signorini run``; ``measure(params)`` -> an object with
+    ``observers()``, ``summary(history)`` (extra summary.json fields) and ``text(summary)``
+    (lines of the run's summary); ``check(params)`` validates the parameters.
+    """
+
     name: str
     dim: int
     defaults: dict[str, float]
     build: Callable[[int, dict], Problem]
     exact: Callable[[dict, float], ExactBar1D] | None = None
     description: str = ""
+    default_n: int | None = None
+    sizes: Callable[[int, dict], tuple[float, int, int, int, int]] | None = None
+    times: Callable[[int, dict], tuple[float, float]] | None = None
+    measure: Callable[[dict], Any] | None = None
+    check: Callable[[dict], None] | None = None
 
     def params(self, overrides: dict | None = None) -> dict[str, float]:
         """Defaults updated with ``overrides``; unknown names and bad values are errors."""
@@ -62,24 +89,53 @@ class Benchmark:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be a number, got {v!r}") from None
             if not np.isfinite(p[k]):
                 raise InputError(f"parameter {k!r} of {self.name!r} must be finite, got {v!r}")
-        for k in ("L", "E", "rho", "width", "length", "mu"):
+        for k in ("L", "E", "rho", "width", "length", "mu", "R", "far", "grading"):
             if k in p and p[k] <= 0:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be > 0, got {p[k]}")
         for k in ("gap", "velocity"):
             if k in p and p[k] < 0:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be >= 0, got {p[k]}")
+        if self.check is not None:
+            self.check(p)
         return p
 
-    def mesh_counts(self, n: int) -> tuple[int, int, int]:
+    @property
+    def nested(self) -> bool:
+        """Whether levels are nested structured meshes (what reference studies and compare need)."""
+        return self.sizes is None
+
+    def require_nested(self, command: str) -> None:
+        """InputError for a command that measures errors against a finer nested level."""
+        if not self.nested:
+            raise InputError(
+                f"{command} needs nested structured levels (the bars); {self.name!r} is meshed by gmsh and "
+                f"compared with Hertz's theory by: signorini run {self.name} [--n N] [--set NAME=VALUE]"
+            )
+
+    def n_default(self) -> int:
+        """Level of ``signorini run`` without --n."""
+        return self.default_n if self.default_n is not None else (40 if self.dim == 1 else 4)
+
+    def run_times(self, n: int, overrides: dict | None = None) -> tuple[float, float]:
+        """Default (dt, T) of ``signorini run``: h/2 and 6 (1D) or 1 (2D/3D) for the bars."""
+        if self.times is not None:
+            return self.times(n, self.params(overrides))
+        return self.h(n, overrides) / 2, (6.0 if self.dim == 1 else 1.0)
+
+    def mesh_counts(self, n: int, overrides: dict | None = None) -> tuple[int, int, int]:
         """(nodes, cells, nodes per cell) of level n, without building the mesh."""
+        if self.sizes is not None:
+            return self.sizes(n, self.params(overrides))[1:4]
         if self.dim == 1:
             return n + 1, n, 2
         if self.dim == 2:
             return (n + 1) * (10 * n + 1), 10 * n * n, 4
         return (n + 1) ** 2 * (10 * n + 1), 10 * n**3, 8
 
-    def contact_count(self, n: int) -> int:
+    def contact_count(self, n: int, overrides: dict | None = None) -> int:
         """Number of contact nodes of level n (one end or side of the bar)."""
+        if self.sizes is not None:
+            return self.sizes(n, self.params(overrides))[4]
         return (n + 1) ** (self.dim - 1)
 
     def problem(self, n: int, overrides: dict | None = None) -> Problem:
@@ -88,14 +144,18 @@ class Benchmark:
         return self.build(int(n), self.params(overrides))
 
     def h(self, n: int, overrides: dict | None = None) -> float:
-        """Mesh size of level n."""
+        """Mesh size of level n (near the contact for the Hertz benchmarks)."""
         p = self.params(overrides)
+        if self.sizes is not None:
+            return self.sizes(n, p)[0]
         return (p["L"] if self.dim == 1 else p["width"]) / n
 
     def wave_speed(self, overrides: dict | None = None) -> float:
         p = self.params(overrides)
         if self.dim == 1:
             return float(np.sqrt(p["E"] / p["rho"]))
+        if "nu" in p:
+            return float(np.sqrt(p["E"] * (1 - p["nu"]) / ((1 + p["nu"]) * (1 - 2 * p["nu"]) * p["rho"])))
         return float(np.sqrt((p["lam"] + 2 * p["mu"]) / p["rho"]))
 
 
@@ -200,6 +260,10 @@ for _b in (
               _bar1d_impact, _exact_impact, "1D clamped bar moving towards the obstacle (exact solution)"),
     Benchmark("bar2d", 2, dict(_BAR), _bar(2), None, "the seed's 2D bar (plane strain, Q1)"),
     Benchmark("bar3d", 3, dict(_BAR), _bar(3), None, "the seed's 3D bar (Q1 hexahedra)"),
+    *(Benchmark(f"hertz{d}d", d, dict(hertz.HERTZ_DEFAULTS), hertz.builder(d), None,
+                f"elastic {'ball' if d == 3 else 'disc (plane strain)'} hitting a rigid plane vs Hertz's impact theory",
+                hertz.DEFAULT_LEVEL[d], hertz.sizes(d), hertz.run_times(d), hertz.measure(d), hertz.check_params)
+      for d in (2, 3)),
 ):  # fmt: skip
     _register(_b)
 

@@ -471,6 +471,7 @@ def plan_benchmark(
     """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + seed
     ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level).  Raises InputError."""
     b = get_benchmark(name)
+    b.require_nested("signorini compare")
     params = b.params(overrides)
     target = BenchmarkTarget(b.name, tuple(sorted((k, float(v)) for k, v in (overrides or {}).items())))
     if not pairs:

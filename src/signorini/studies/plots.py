@@ -556,3 +556,25 @@ def compare_figures(result: dict, series: dict, out: Path) -> list[tuple[str, st
         figs.append(("errors.png", compare_error_figure(result, out / "errors.png", out / "errors.csv")))
     figs.append(("cost.png", compare_cost_figure(result, out / "cost.png", out / "cost.csv")))
     return figs
+
+
+def hertz_figure(curves: list[dict], png: Path, csv_path: Path) -> None:
+    """Contact force against time of the Hertz runs, scaled by Hertz's t_c and F*, beside
+    the 1-dof Hertz curve; ``curves``: label, t, force, t_c, F, hertz (force of the model)."""
+    fig, ax = _fig(1, 1, size=(7, 4.2))
+    a = ax[0, 0]
+    cols, header = [], []
+    for i, c in enumerate(curves):
+        s = np.asarray(c["t"]) / c["t_c"]
+        a.plot(s, np.asarray(c["force"]) / c["F"], color=f"C{i}", label=c["label"])
+        a.plot(s, np.asarray(c["hertz"]) / c["F"], ":", color=f"C{i}", lw=1.5)
+        cols += [s, np.asarray(c["force"]) / c["F"], np.asarray(c["hertz"]) / c["F"]]
+        header += [f"{c['label']} t/t_c", f"{c['label']} F/F*", f"{c['label']} Hertz F/F*"]
+    a.plot([], [], "k:", label="Hertz, quasi-static (dotted)")
+    a.set_xlabel("t / t_c (Hertz)")
+    a.set_ylabel("total contact force / F* (Hertz)")
+    a.set_xlim(0, 1.3)
+    a.legend(fontsize=8)
+    _save(fig, png, "Hertz impact: computed contact force (solid) vs Hertz's 1-dof model (dotted)")
+    n = max(len(x) for x in cols)
+    _write_csv(csv_path, header, [np.pad(np.asarray(x, float), (0, n - len(x)), constant_values=np.nan) for x in cols])

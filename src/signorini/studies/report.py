@@ -59,6 +59,8 @@ PAIRS = [
 # Tcmp1d: horizon of the bar1d-impact comparison (first impact and release).
 SIZES = {
     "tiny": {
+        "hertz2d": [4],
+        "hertz3d": [2],
         "levels1d": [10, 20, 40],
         "n2d": 2,
         "T2d": 4.0,
@@ -75,6 +77,8 @@ SIZES = {
         "Tcmp1d": 1.2,
     },
     "quick": {
+        "hertz2d": [4, 8],
+        "hertz3d": [2],
         "levels1d": [20, 40, 80, 160],
         "n2d": 8,
         "T2d": 4.0,
@@ -91,6 +95,8 @@ SIZES = {
         "Tcmp1d": 1.2,
     },
     "full": {
+        "hertz2d": [4, 8, 16],
+        "hertz3d": [2, 3, 4],
         "levels1d": [20, 40, 80, 160, 320, 640],
         "n2d": 16,
         "T2d": 4.0,
@@ -629,6 +635,50 @@ def section_beyond(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
     return md + [""]
 
 
+def section_hertz(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
+    """7. Hertz impact of a disc and a ball on a rigid plane (gmsh meshes; skipped without gmsh)."""
+    import importlib.util
+
+    from . import hertz
+    from .plots import hertz_figure
+
+    title = "## 7. Hertz impact: disc and ball on a rigid plane (no paper figure)"
+    if importlib.util.find_spec("gmsh") is None:
+        summary["hertz"] = None
+        return [title, "", 'Skipped: gmsh is not installed (`pip install ".[mesh]"`).', ""]
+    md = [title, "", "CN + seed, default parameters (R = E = rho = 1, nu = 0.3, v = 0.002), dt = t_c/(25 n); "
+          "deviation = computed / Hertz - 1 (docs/verification.md discusses what limits it).", "",
+          "| benchmark | n | dofs | contact nodes | duration | dev | peak force | dev | max approach | dev |",
+          "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    rows, curves = [], []
+    for name in ("hertz2d", "hertz3d"):
+        b = get_benchmark(name)
+        p = b.params()
+        for n in cfg[name]:
+            dt, T = b.run_times(n)
+            measure = b.measure(p)
+            H = simulate(b.problem(n), "cn", dt, T, mass="seed", observers=measure.observers())
+            h = measure.summary(H)["hertz"]
+            c, d = h["computed"], h["relative_deviation"]
+            rows.append({"benchmark": name, "n": n, "dofs": H.meta["dofs"], "computed": c, "deviation": d})
+            md.append(
+                f"| {name} | {n} | {H.meta['dofs']} | {H.meta['contact_nodes']} | {c['duration']:.4g} | "
+                f"{100 * d['duration']:+.1f}% | {c['peak_force']:.4g} | {100 * d['peak_force']:+.1f}% | "
+                f"{c['max_approach']:.4g} | {100 * d['max_approach']:+.1f}% |"
+            )
+        pred = h["predicted"]
+        curves.append({"label": f"{name} n = {n}", "t": H.t, "force": -H.lambda_sum, "t_c": pred["duration"],
+                       "F": pred["peak_force"], "hertz": hertz.force_curve(b.dim, p, H.t)})  # fmt: skip
+        md.append(f"| {name} Hertz | | | | {pred['duration']:.4g} | | {pred['peak_force']:.4g} | | "
+                  f"{pred['max_approach']:.4g} | |")  # fmt: skip
+    summary["hertz"] = rows
+    hertz_figure(curves, out / "hertz_impact.png", out / "hertz_impact.csv")
+    md += ["", "![Hertz impact](hertz_impact.png)", "",
+           "*Hertz impact* (`hertz_impact.png`): total contact force of the finest runs against time, "
+           "scaled by Hertz's duration and peak force, with Hertz's quasi-static 1-dof model dotted.", ""]  # fmt: skip
+    return md
+
+
 COMPARE_SCHEMES = "crank-nicolson,backward-euler,generalized-alpha[rho_inf=0.5],paoli-schatzman"
 COMPARE_MASSES = "standard,seed"
 
@@ -739,6 +789,7 @@ SECTIONS = (
     section_3d_convergence,
     section_3d_von_mises,
     section_beyond,
+    section_hertz,
     section_compare_text,
 )
 
