@@ -72,12 +72,21 @@ class DelassusColumns:
                 Z[:, : self.count] = self._Z[:, : self.count]
                 self._Z = Z
 
-    def ensure(self, nodes: np.ndarray) -> None:
-        """Compute the columns of ``nodes`` (indices) that are not known yet."""
+    def ensure(self, nodes: np.ndarray, fill: np.ndarray | None = None) -> None:
+        """Compute the columns of ``nodes`` (indices) that are not known yet.
+
+        ``fill``: nodes in order of priority (e.g. nearest to contact first) used to top
+        the last block up to 64 columns: a block of right-hand sides costs little more
+        than one, so the nodes likely to be asked for next come almost for free.
+        """
         new = np.asarray(nodes, dtype=np.intp)
-        new = new[self.slot[new] < 0]
+        new = np.unique(new[self.slot[new] < 0])
         if new.size == 0:
             return
+        if fill is not None and new.size % BLOCK:
+            extra = np.asarray(fill, dtype=np.intp)
+            extra = extra[(self.slot[extra] < 0) & ~np.isin(extra, new)]
+            new = np.concatenate([new, extra[: BLOCK - new.size % BLOCK]])
         t0 = time.perf_counter()
         self._grow(self.count + new.size)
         n = self.B.shape[1]

@@ -201,7 +201,7 @@ class CondensedContactSolver(ContactSolver):
         residual = 0.0
         while in_P.any():
             P = np.flatnonzero(in_P)
-            self.delassus.ensure(idx[P])
+            self.delassus.ensure(idx[P], fill=idx[np.argsort(q)])  # top up with the nearest nodes
             W = self.delassus.block(idx[P])
             if cdiag is not None:
                 W[np.diag_indices_from(W)] += cdiag[P]
