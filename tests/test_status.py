@@ -132,7 +132,7 @@ def test_streaming_fields_do_not_grow_memory():
     """bar3d n = 8, 120 levels: fields streamed every step stay within 10% of no fields,
     and the same fields buffered in memory (``snapshot_every=1``, u and v only) do not.
 
-    The cg backend keeps the set-up peak small: with SuperLU the factor (about 400 MB)
+    The cg backend keeps the set-up peak small: with SuperLU the factor (225 MB)
     sets the peak and 160 buffered levels add only 7% (docs/performance.md).
     """
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
