@@ -1,3 +1,5 @@
+import json
+
 import numpy as np
 import pytest
 
@@ -64,3 +66,19 @@ def test_restitution_range():
     b = get_benchmark("bar1d")
     with pytest.raises(InputError, match="restitution"):
         simulate(b.problem(4), "ps", 0.1, 1.0, scheme_options={"restitution": 1.5})
+
+
+def test_paoli_schatzman_fallbacks_are_counted_in_summary(tmp_path):
+    """lcp_max_iter = 1 sends the contact solves that need two active-set iterations to
+    the NNLS fallback: counted per step, in the counters and in summary.json; same history."""
+    b = get_benchmark("bar2d")
+    p, dt = b.problem(2), b.h(2) / 2
+    H = simulate(p, "ps", dt, 1.2, mass="standard", solver_options={"lcp_max_iter": 1})
+    ref = simulate(p, "ps", dt, 1.2, mass="standard")
+    assert H.status == "finished" and H.fallbacks.sum() > 0 and ref.fallbacks.sum() == 0
+    assert H.counters["fallbacks"] == H.fallbacks.sum() and H.counters["factorizations"] == 1
+    assert np.abs(H.lam - ref.lam).max() <= 1e-12 * np.abs(ref.lam).max()
+    H.save(tmp_path)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["counters"]["fallbacks"] == s["fallbacks"] == int(H.fallbacks.sum())
+    assert s["solver_options"]["lcp_max_iter"] == 1

@@ -80,6 +80,28 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     ]
 
 
+def test_sigterm_stops_cli_with_status_interrupted(tmp_path):
+    """SIGTERM during the loop: exit 130 (README, io/cli.py), summary.json status
+    interrupted naming SIGTERM, the levels computed written."""
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "signorini.io.cli", "run", "bar1d", "--n", "400", "--T", "500", "--quiet"]
+    cmd += ["--snapshot-every", "1000", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    deadline = time.perf_counter() + 60
+    # the hidden result directory appears when the time loop starts (the field writer's start)
+    while not any(p.name.startswith(".o.") for p in tmp_path.iterdir()) and time.perf_counter() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=20)[1]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and "interrupted" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and "SIGTERM" in s["message"] and not s["success"]
+    rows = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
+    assert 0 < s["steps"] == s["counters"]["steps"] == rows.shape[0] - 1 < 400000
+
+
 def test_failed_run_exit_code_3(tmp_path):
     case = tmp_path / "c.toml"
     case.write_text(

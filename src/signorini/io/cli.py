@@ -283,10 +283,13 @@ class LazyFieldWriter:
 
 
 def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
-    """summary.json of a run that failed before its first step (status failed, no levels)."""
+    """summary.json of a run that failed before its first step (status failed, no levels,
+    every counter of :data:`~signorini.dynamics.history.COUNTER_KEYS` zero)."""
+    from ..dynamics.history import COUNTER_KEYS
+
     tmp = rd.create()
     summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
-               "steps": 0, "counters": {"steps": 0}, **spec.meta}  # fmt: skip
+               "steps": 0, "counters": dict.fromkeys(COUNTER_KEYS, 0), **spec.meta}  # fmt: skip
     (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     rd.commit()
 
