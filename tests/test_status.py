@@ -145,8 +145,9 @@ mode, steps = sys.argv[1], int(sys.argv[2])
 b = get_benchmark("bar3d")
 dt = b.h(8) / 2
 stream = [FieldWriter(Path(tempfile.mkdtemp()) / "f.xdmf", 1)] if mode == "stream" else []
-H = simulate(b.problem(8), "cn", dt, steps * dt, observers=stream, backend="cg",
-             snapshot_every=1 if mode == "buffer" else 0)
+# cg to a loose tolerance and no energy bookkeeping: only the memory matters here
+H = simulate(b.problem(8), "cn", dt, steps * dt, observers=stream, backend="cg", solver_options={"rtol": 1e-6},
+             energy=False, snapshot_every=1 if mode == "buffer" else 0)
 assert H.status == "finished"
 # VmHWM: the peak of this process's own memory (ru_maxrss would include the parent's
 # peak at fork, kept across exec by Linux)
@@ -155,7 +156,7 @@ print(next(int(x.split()[1]) for x in open("/proc/self/status") if x.startswith(
 
 
 def test_streaming_fields_do_not_grow_memory():
-    """bar3d n = 8, 120 levels: fields streamed every step stay within 10% of no fields,
+    """bar3d n = 8, 100 levels: fields streamed every step stay within 10% of no fields,
     and the same fields buffered in memory (``snapshot_every=1``, u and v only) do not.
 
     The cg backend keeps the set-up peak small: with SuperLU the factor (225 MB)
@@ -165,7 +166,7 @@ def test_streaming_fields_do_not_grow_memory():
         pytest.skip("needs Linux's /proc/self/status (VmHWM)")
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     modes = ("none", "stream", "buffer")
-    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, "120"], env=env, stdout=subprocess.PIPE, text=True)
+    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, "100"], env=env, stdout=subprocess.PIPE, text=True)
              for m in modes]  # fmt: skip
     peak = dict(zip(modes, (int(p.communicate(timeout=300)[0].split()[-1]) for p in procs), strict=True))
     assert all(p.returncode == 0 for p in procs)
