@@ -115,3 +115,37 @@ def test_study_command_1d_and_2d(tmp_path, capsys):
     assert main(["study", "bar2d", "--levels", "1", "--out", str(tmp_path / "s3")]) == 2
     assert main(["study", "bar2d", "--ref-level", "3", "--out", str(tmp_path / "s3")]) == 2
     assert not (tmp_path / "s3").exists()
+
+
+def test_run_fields_last_level_and_summary_counters(tmp_path):
+    """24 steps with --snapshot-every 7: levels 0, 7, 14, 21 and the last one, 24, are in
+    fields.xdmf (read back, equal to the API run's fields); summary.json has every
+    counter key and the scheme's energy definition."""
+    import meshio
+
+    from signorini.dynamics.history import COUNTER_KEYS
+    from signorini.dynamics.schemes import SCHEMES
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies.benchmarks import get_benchmark
+
+    out = tmp_path / "r"
+    args = ["run", "bar2d", "--n", "2", "--T", "0.6", "--snapshot-every", "7", "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    b = get_benchmark("bar2d")
+    H = simulate(b.problem(2), "cn", b.h(2) / 2, 0.6, snapshot_every=7)
+    assert H.steps == 24
+    with meshio.xdmf.TimeSeriesReader(str(out / "fields.xdmf")) as r:
+        r.read_points_cells()
+        levels = [r.read_data(k) for k in range(r.num_steps)]
+    t = np.array([lv[0] for lv in levels])
+    assert np.allclose(t, np.array([0, 7, 14, 21, 24]) * H.t[1]) and np.allclose(H.snapshots["t"], t)
+    for (_, pd, _), u, v in zip(levels, H.snapshots["u"], H.snapshots["v"], strict=True):
+        assert np.allclose(pd["displacement"][:, :2], u.reshape(-1, 2), rtol=1e-12, atol=1e-15)
+        assert np.allclose(pd["velocity"][:, :2], v.reshape(-1, 2), rtol=1e-12, atol=1e-15)
+    assert np.allclose(levels[-1][1]["displacement"][:, :2], H.snapshots["u"][-1].reshape(-1, 2))
+    s = json.loads((out / "summary.json").read_text())
+    assert set(COUNTER_KEYS) <= set(s["counters"])
+    assert s["counters"]["steps"] == s["steps"] == 24 and s["counters"]["factorizations"] == 1
+    assert s["counters"]["linear_solves"] >= 24 and s["counters"]["fallbacks"] == 0
+    assert s["counters"]["contact_iterations"] > 0  # there was contact
+    assert s["energy_definition"] == SCHEMES.get("cn").obj.energy_definition == "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"

@@ -5,6 +5,7 @@ import json
 
 import pytest
 
+from signorini.dynamics.history import COUNTER_KEYS
 from signorini.io.cli import main
 
 BAR1D = (
@@ -92,6 +93,7 @@ def test_non_finite_operators_fail_with_status_and_exit_3(tmp_path, capsys):
     _one_line(err, "signorini: failed:")
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["status"] == "failed" and not s["success"] and "non-finite entries" in s["message"]
+    assert s["counters"] == dict.fromkeys(COUNTER_KEYS, 0) and s["steps"] == 0
 
 
 @pytest.mark.parametrize(

@@ -12,24 +12,63 @@ def layer_of(path: Path) -> str:
     return rel[0] if len(rel) > 1 else "core"
 
 
-def imported_layers(path: Path):
-    tree = ast.parse(path.read_text())
-    pkg_parts = list(path.relative_to(PKG).parent.parts)
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level:
-            base = pkg_parts[: len(pkg_parts) - (node.level - 1)] if node.level > 1 else pkg_parts
-            target = base + (node.module.split(".") if node.module else [])
-            yield (target[0] if target and target[0] in LAYERS else "core"), node.lineno
-        elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("signorini."):
-            part = node.module.split(".")[1]
-            yield (part if part in LAYERS else "core"), node.lineno
+def _layer(parts: list[str]) -> str:
+    """The layer of a module path inside the package (``['dynamics', 'mass']`` -> dynamics)."""
+    return parts[0] if parts and parts[0] in LAYERS else "core"
+
+
+def imported_layers(source: str, pkg_parts: list[str]):
+    """(layer, line) of every import of the package in ``source``, a module of the
+    subpackage ``pkg_parts``: ``from .x import``, ``from ..x import``, ``from .. import x``,
+    ``from signorini.x import``, ``from signorini import x``, ``import signorini.x``."""
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg_parts[: len(pkg_parts) - (node.level - 1)] if node.level > 1 else list(pkg_parts)
+            elif node.module and (node.module == "signorini" or node.module.startswith("signorini.")):
+                base = []
+            else:
+                continue
+            module = node.module.split(".") if node.module else []
+            if node.level == 0:
+                module = module[1:]  # drop "signorini"
+            if module:
+                yield _layer(base + module), node.lineno
+            else:  # from .. import x / from signorini import x: x is a subpackage or module
+                for alias in node.names:
+                    yield _layer(base + [alias.name]), node.lineno
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                if parts[0] == "signorini":
+                    yield _layer(parts[1:]), node.lineno
+
+
+def test_the_checker_sees_every_import_form():
+    src = (
+        "import numpy\nimport signorini.io.cli\nimport signorini.studies.report as r\n"
+        "from signorini import io\nfrom signorini.studies import compare\nfrom .. import studies\n"
+        "from ..io.cli import main\nfrom . import mass\nfrom .schemes import base\nimport signorini\n"
+    )
+    got = list(imported_layers(src, ["dynamics"]))
+    assert got == [
+        ("io", 2),
+        ("studies", 3),
+        ("io", 4),
+        ("studies", 5),
+        ("studies", 6),
+        ("io", 7),
+        ("dynamics", 8),
+        ("dynamics", 9),
+        ("core", 10),
+    ]
 
 
 def test_no_module_imports_from_a_layer_above():
     bad = []
     for path in sorted(PKG.rglob("*.py")):
         mine = LAYERS.index(layer_of(path))
-        for layer, line in imported_layers(path):
+        for layer, line in imported_layers(path.read_text(), list(path.relative_to(PKG).parent.parts)):
             if LAYERS.index(layer) > mine:
                 bad.append(f"{path.relative_to(PKG)}:{line} imports from {layer}")
     assert not bad, "\n".join(bad)

@@ -31,6 +31,8 @@ HISTORY_COLUMNS = (
     "impulse",
 )
 STATUSES = ("finished", "interrupted", "failed")
+#: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
+COUNTER_KEYS = ("steps", "factorizations", "linear_solves", "contact_iterations", "fallbacks")
 
 
 @dataclass

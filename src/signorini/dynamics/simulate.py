@@ -1,8 +1,10 @@
 """The time loop: ``simulate(problem, scheme, dt, T, mass=...) -> History``.
 
-The only loop of the package.  It builds the :class:`~.context.Context`, factorizes
-the scheme's operator (and its starter's, unless proportional), computes the initial
-state, and advances the scheme level by level, calling the observers.  Every exit
+The only loop of the package.  :func:`simulate` is set-up + loop + result:
+:func:`set_up` validates the options, discretizes, builds the :class:`~.context.Context`
+and factorizes the scheme's operator (and its starter's, unless proportional), computes
+the initial state and lists the observers; :func:`advance` runs the loop, calling the
+observers; :func:`assemble_history` makes the result.  Every exit
 returns a :class:`~.history.History` with a status:
 
 ``finished``     the final time was reached;
@@ -22,6 +24,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,7 +33,7 @@ import scipy.sparse.linalg as spla
 from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
 from .context import Context
-from .history import History
+from .history import COUNTER_KEYS, History
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .problem import Discretization, Problem, discretize
 from .schemes import Scheme, State, make_scheme
@@ -159,6 +162,86 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
     }
 
 
+@dataclass
+class RunSetup:
+    """A run ready to advance: the :class:`Run` (context factorized, initial state), the
+    starter of a two-step scheme, and the observers of the loop."""
+
+    run: Run
+    starter: Scheme | None
+    recorder: HistoryRecorder
+    energies: EnergyRecorder | None
+    snapshots: SnapshotRecorder | None
+    observers: list[Observer]
+    setup_seconds: float
+
+
+def run_options(
+    snapshot_every: int, backend: str | None, memory_budget: float | None, solver_options: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """The validated solver options, with the ``backend``/``memory_budget`` shortcuts."""
+    if not isinstance(snapshot_every, int) or isinstance(snapshot_every, bool) or snapshot_every < 0:
+        raise InputError(f"snapshot_every must be a non-negative integer, got {snapshot_every!r}")
+    opts = dict(solver_options or {})
+    if backend is not None:
+        opts["backend"] = backend
+    if memory_budget is not None:
+        opts["memory_budget"] = memory_budget
+    return validate_solver_options(opts)
+
+
+def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterable[Scheme | None]) -> Context:
+    """The run's Context with the operators of ``schemes`` factorized (each scheme's
+    ``check_context`` called before and after, so a refusal comes before any output)."""
+    ctx = Context(disc, dt, opts)
+    schemes = [s for s in schemes if s is not None]
+    for s in schemes:
+        s.check_context(ctx)
+    for s in schemes:
+        op = s.operator(dt)
+        if op is not None:
+            ctx.prepare(op)
+            s.check_context(ctx, prepared=True)
+    return ctx
+
+
+def set_up(
+    problem: Problem | Discretization,
+    scheme: str | type[Scheme] | Scheme,
+    dt: float,
+    T: float,
+    mass: str,
+    snapshot_every: int = 0,
+    backend: str | None = None,
+    memory_budget: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    *,
+    scheme_options: Mapping[str, Any] | None = None,
+    solver_options: Mapping[str, Any] | None = None,
+    observers: Iterable[Observer] = (),
+    energy: bool = True,
+) -> RunSetup:
+    """Everything before the loop: options, discretization, factorization, level 0 and
+    the observers (parameters as in :func:`simulate`)."""
+    sch = make_scheme(scheme, scheme_options)
+    starter = make_scheme(sch.starter) if sch.starter else None
+    N = number_of_steps(dt, T)
+    opts = run_options(snapshot_every, backend, memory_budget, solver_options)
+    t0 = time.perf_counter()
+    disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
+    ctx = prepare_context(disc, dt, opts, (sch, starter))
+    state = initial_state(ctx)
+    setup = time.perf_counter() - t0
+
+    recorder, energies = HistoryRecorder(), EnergyRecorder() if energy else None
+    snaps = SnapshotRecorder(snapshot_every) if snapshot_every else None
+    obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(observers)
+    if progress is not None:
+        obs.append(ProgressCallback(progress))
+    run = Run(ctx, sch, N, float(dt), state, disc.problem)
+    return RunSetup(run, starter, recorder, energies, snaps, obs, setup)
+
+
 def simulate(
     problem: Problem | Discretization,
     scheme: str | type[Scheme] | Scheme = "crank-nicolson",
@@ -203,42 +286,14 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
-    sch = make_scheme(scheme, scheme_options)
-    starter = make_scheme(sch.starter) if sch.starter else None
-    N = number_of_steps(dt, T)
-    if not isinstance(snapshot_every, int) or isinstance(snapshot_every, bool) or snapshot_every < 0:
-        raise InputError(f"snapshot_every must be a non-negative integer, got {snapshot_every!r}")
-    opts = dict(solver_options or {})
-    if backend is not None:
-        opts["backend"] = backend
-    if memory_budget is not None:
-        opts["memory_budget"] = memory_budget
-    opts = validate_solver_options(opts)
-    t0 = time.perf_counter()
-    disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
-    ctx = Context(disc, dt, opts)
-    for s in (sch, starter):
-        if s is not None:
-            s.check_context(ctx)
-    for s in (sch, starter):
-        op = s.operator(dt) if s is not None else None
-        if op is not None:
-            ctx.prepare(op)
-            s.check_context(ctx, prepared=True)
-    state = initial_state(ctx)
-    setup = time.perf_counter() - t0
-
-    recorder, energies = HistoryRecorder(), EnergyRecorder() if energy else None
-    snaps = SnapshotRecorder(snapshot_every) if snapshot_every else None
-    obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(observers)
-    if progress is not None:
-        obs.append(ProgressCallback(progress))
-    run = Run(ctx, sch, N, float(dt), state, disc.problem)
+    setup = set_up(problem, scheme, dt, T, mass, snapshot_every, backend, memory_budget, progress,
+                   scheme_options=scheme_options, solver_options=solver_options, observers=observers,
+                   energy=energy)  # fmt: skip
     t_loop = time.perf_counter()
-    status, message, n_last = advance(run, starter, obs, handle_signals)
+    status, message, n_last = advance(setup.run, setup.starter, setup.observers, handle_signals)
     loop = time.perf_counter() - t_loop
-    timings = {"setup_seconds": setup, "loop_seconds": loop, "step_seconds": loop / max(n_last, 1)}
-    H = assemble_history(run, n_last, recorder, energies, snaps, timings)
+    timings = {"setup_seconds": setup.setup_seconds, "loop_seconds": loop, "step_seconds": loop / max(n_last, 1)}
+    H = assemble_history(setup.run, n_last, setup.recorder, setup.energies, setup.snapshots, timings)
     H.status, H.message = status, message
     return H
 
@@ -315,5 +370,5 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         weights=disc.contact.weights,
         snapshots=snaps.snapshots() if snaps is not None else {},
         meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),
-        counters={"steps": n_last, **ctx.counters()},
+        counters={**dict.fromkeys(COUNTER_KEYS, 0), **ctx.counters(), "steps": n_last},
     )

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import json
 import os
 import shutil
@@ -20,8 +21,10 @@ import sys
 import time
 import traceback
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -41,7 +44,8 @@ EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --o
   signorini run bar3d --n 8 --solver-option backend=cg --solver-option preconditioner=amg --out out/b3
   signorini run hertz2d --n 16 --set velocity=0.02 --out out/hertz2d   # vs Hertz (needs pip install ".[mesh]")
   signorini run examples/bar2d.toml --out out/case
-  signorini run bar2d --scheme mypackage.schemes:MyScheme --out out/mine   # a scheme by import path
+  signorini run bar2d --scheme my_schemes:MyScheme --out out/mine   # ./my_schemes.py (import path)
+  signorini run bar2d --scheme path/to/my_schemes.py:MyScheme --out out/mine   # a scheme file
 """
 
 
@@ -87,18 +91,66 @@ def one_screen_summary(H) -> str:
     )
 
 
+@contextmanager
+def _first_on_sys_path(directory: str):
+    """``directory`` first on ``sys.path`` for the duration of one import (then removed)."""
+    sys.path.insert(0, directory)
+    try:
+        yield
+    finally:
+        try:
+            sys.path.remove(directory)
+        except ValueError:  # the imported code removed it itself
+            pass
+
+
+def _import_scheme_source(source: str) -> ModuleType:
+    """The module of ``--scheme SOURCE:Class``: a file ``path/to/file.py`` or a dotted module.
+
+    A dotted module is imported with the current working directory first on
+    ``sys.path`` (as ``python -m`` does), so ``--scheme my_schemes:MyScheme`` finds
+    ``./my_schemes.py`` whichever way ``signorini`` was started.  A file is loaded
+    under its stem with its own directory first on ``sys.path`` (as ``python file.py``
+    does), so it can import its neighbours.
+    """
+    if source.endswith(".py") or "/" in source or os.sep in source:
+        path = Path(source).expanduser().resolve()
+        if not path.is_file():
+            raise ImportError(f"no file {source}")
+        name = f"_signorini_scheme_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"{source} is not a Python file")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        with _first_on_sys_path(str(path.parent)):
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[name]
+                raise
+        return module
+    with _first_on_sys_path(os.getcwd()):
+        return importlib.import_module(source)
+
+
 def load_scheme(name: str):
-    """A registered scheme name, or ``module:Class`` / ``module.Class`` (import path)."""
+    """A registered scheme name, or a Scheme subclass by import path.
+
+    ``module:Class`` or ``module.Class`` (``module`` importable from the current
+    working directory or ``sys.path``), or ``path/to/file.py:Class``.
+    """
     from ..dynamics.schemes import SCHEMES, Scheme
 
     if name in SCHEMES or (":" not in name and "." not in name):
         return SCHEMES.resolve(name)
-    module, _, cls = name.replace(":", ".").rpartition(".")
+    source, _, cls = name.rpartition(":") if ":" in name else name.rpartition(".")
     try:
-        obj = getattr(importlib.import_module(module), cls)
-    except (ImportError, AttributeError) as exc:
+        obj = getattr(_import_scheme_source(source), cls)
+    except (ImportError, AttributeError, SyntaxError) as exc:
         raise InputError(
-            f"--scheme {name!r}: cannot import it ({exc}); allowed: {', '.join(SCHEMES.names())}"
+            f"--scheme {name!r}: cannot import it ({exc}); allowed: {', '.join(SCHEMES.names())}, "
+            "module:Class (module importable from the working directory) or path/to/file.py:Class"
         ) from None
     if not (isinstance(obj, type) and issubclass(obj, Scheme)):
         raise InputError(f"--scheme {name!r} is not a subclass of signorini.dynamics.schemes.Scheme")
@@ -236,10 +288,13 @@ class LazyFieldWriter:
 
 
 def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
-    """summary.json of a run that failed before its first step (status failed, no levels)."""
+    """summary.json of a run that failed before its first step (status failed, no levels,
+    every counter of :data:`~signorini.dynamics.history.COUNTER_KEYS` zero)."""
+    from ..dynamics.history import COUNTER_KEYS
+
     tmp = rd.create()
     summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
-               "steps": 0, "counters": {"steps": 0}, **spec.meta}  # fmt: skip
+               "steps": 0, "counters": dict.fromkeys(COUNTER_KEYS, 0), **spec.meta}  # fmt: skip
     (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     rd.commit()
 
@@ -486,7 +541,8 @@ def build_parser() -> argparse.ArgumentParser:
     both.add_argument(
         "--scheme",
         default=None,
-        help=f"time scheme: {SCHEMES.help_text()}; or module:Class of a Scheme subclass "
+        help=f"time scheme: {SCHEMES.help_text()}; or a Scheme subclass as module:Class (module "
+        "importable from the working directory, as with python -m) or path/to/file.py:Class "
         "(default cn, or the case file's)",
     )
     both.add_argument(

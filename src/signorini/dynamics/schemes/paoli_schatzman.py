@@ -15,14 +15,23 @@ Discrete energy: the half-step energy of the pair (U^{n-1}, U^n), recorded at le
     E^{n-1/2} = 1/2 D.MD + 1/2 Ubar.S Ubar - Ubar.Fbar,
     D = (U^n - U^{n-1})/dt,  Ubar = (U^n + U^{n-1})/2,  Fbar = (F^n + F^{n-1})/2;
 
-at level 0 the same formula with the virtual level U^{-1} = U^0 - dt V^0 + dt^2/2 A^0.
-Energy identity (multiply the step by (U^{n+1} - U^{n-1})/2, exact):
+at level 0 the same formula with the virtual level U^{-1} that makes the starter's
+Crank-Nicolson step a Paoli-Schatzman step from (U^{-1}, U^0):
+
+    (M/dt^2 + S/4) U^{-1} = M (U^0 - dt V^0)/dt^2 - M A^0/4 - S U^0/2 + F^0 - F^1/4
+
+on the free rows (one solve with the run's factor, only when the energy is recorded;
+U^{-1} = U^0 - dt V^0 + dt^2/2 A^0 on the Dirichlet dofs).  Then the CN step
+(4 M/dt^2 + S) U^1 = 4 M (U^0 + dt V^0)/dt^2 + M A^0 + F^1 + B^T lambda_CN is, divided
+by 4, the step below at n = 0 with lambda^0 = lambda_CN/4.  Energy identity (multiply
+the step by (U^{n+1} - U^{n-1})/2, exact, for every step from n = 0 on):
 
     E^{n+1/2} - E^{n-1/2} = 1/2 (B (U^{n+1} - U^{n-1})).lambda^n
         + 1/2 (U^{n+1} - U^{n-1}).F^n - Delta(Ubar.Fbar) + 1/2 (U^{n+1} - U^{n-1})_D.R_D^n
 
-(no identity for the starter step: ``predicted_increment`` is nan there).  The
-velocity stored at level n is D = (U^n - U^{n-1})/dt.
+The velocity stored at level n is D = (U^n - U^{n-1})/dt.  Because of the virtual
+level, E^{-1/2} is not the physical energy at t = 0 but differs from it by O(dt^2)
+(docs/schemes.md gives the measured differences).
 """
 
 from __future__ import annotations
@@ -41,7 +50,8 @@ class PaoliSchatzman(Scheme):
     starter = "crank-nicolson"
     energy_definition = (
         "E^{n-1/2} = 1/2 D.MD + 1/2 Ubar.S Ubar - Ubar.Fbar with D = (U^n - U^{n-1})/dt, "
-        "Ubar = (U^n + U^{n-1})/2, Fbar = (F^n + F^{n-1})/2 (U^{-1} = U^0 - dt V^0 + dt^2/2 A^0)"
+        "Ubar = (U^n + U^{n-1})/2, Fbar = (F^n + F^{n-1})/2 (at level 0 the virtual U^{-1} that makes the "
+        "Crank-Nicolson starter a Paoli-Schatzman step)"
     )
 
     massless_dofs_allowed = False
@@ -95,11 +105,32 @@ class PaoliSchatzman(Scheme):
     def _previous(self, ctx, s: State) -> np.ndarray:
         """U^{n-1} (the virtual level U^{-1} at n = 0); fills MU_prev/SU_prev."""
         if "U_prev" not in s.extra:
-            s.extra["U_prev"] = s.U - ctx.dt * s.V + 0.5 * ctx.dt**2 * s.A
+            s.extra["U_prev"] = self._virtual_level(ctx, s)
         Up = s.extra["U_prev"]
         if "MU_prev" not in s.extra:
             s.extra["MU_prev"], s.extra["SU_prev"] = ctx.M @ Up, ctx.S @ Up
         return Up
+
+    def _virtual_level(self, ctx, s: State) -> np.ndarray:
+        """U^{-1} of level 0: the CN starter step (U^0, V^0, A^0) -> U^1 is then exactly
+        this scheme's step from (U^{-1}, U^0) with lambda^0 = lambda_CN/4 (module doc)."""
+        dt = ctx.dt
+        rhs = (
+            ctx.M @ ((s.U - dt * s.V) / dt**2 - 0.25 * s.A)
+            - 0.5 * self._SU(ctx, s)
+            + ctx.load(s.t)
+            - 0.25 * ctx.load(ctx.next_time(s.t))
+        )
+        fixed = (s.U - dt * s.V + 0.5 * dt**2 * s.A)[ctx.fixed] if ctx.has_fixed else None
+        return ctx.solve_linear(self.operator(dt), rhs, fixed)
+
+    @staticmethod
+    def _reaction(ctx, Up: np.ndarray, old: State, new: State, lam: np.ndarray) -> np.ndarray:
+        """R_D^n of the step (U^{n-1}, U^n) -> U^{n+1} with the contact forces ``lam``."""
+        D, dt = ctx.fixed, ctx.dt
+        R = ctx.M[D] @ (new.U - 2 * old.U + Up) / dt**2 + 0.25 * (ctx.S[D] @ (new.U + 2 * old.U + Up))
+        R = R - ctx.load(old.t)[D]
+        return R - ctx.B[:, D].T @ lam if ctx.BD is not None else R
 
     def energy(self, ctx, s: State) -> tuple[float, float]:
         Up = self._previous(ctx, s)
@@ -111,18 +142,20 @@ class PaoliSchatzman(Scheme):
         Fbar = 0.5 * (ctx.load(s.t) + ctx.load(s.t - dt))
         return 0.5 * float(D @ MD), 0.5 * float(Ubar @ SUbar) - float(Ubar @ Fbar)
 
-    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts | None:
-        if new.extra.get("starter"):
-            return None
+    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         dt = ctx.dt
         Up = self._previous(ctx, old)
         W = 0.5 * (new.U - Up)
-        parts = EnergyParts(contact=float((ctx.B @ W) @ new.lam))
+        starter = bool(new.extra.get("starter"))
+        lam = 0.25 * new.lam if starter else new.lam  # the CN starter as a step from (U^{-1}, U^0)
+        parts = EnergyParts(contact=float((ctx.B @ W) @ lam))
         F0, F1 = ctx.load(old.t), ctx.load(new.t)
         if F1 is not F0:
             Fm = ctx.load(old.t - dt)
             ubar0, ubar1 = 0.5 * (old.U + Up), 0.5 * (new.U + old.U)
             parts.external = float(W @ F0 - (ubar1 @ (0.5 * (F1 + F0)) - ubar0 @ (0.5 * (F0 + Fm))))
-        if "R_D" in new.extra:
+        if starter and ctx.has_fixed and ctx.disc.dirichlet_varies:
+            parts.external += float(W[ctx.fixed] @ self._reaction(ctx, Up, old, new, lam))
+        elif "R_D" in new.extra:
             parts.external += float(W[ctx.fixed] @ new.extra["R_D"])
         return parts
