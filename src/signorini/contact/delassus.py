@@ -43,17 +43,19 @@ class DelassusColumns:
         self.slot = np.full(nc, -1, dtype=np.intp)  # column slot of each node, -1: not computed
         self.count = 0
         self._W = np.empty((nc, 0))
-        self._Z: np.ndarray | None = np.empty((n, 0))
+        # Z stored transposed, one row per computed column: gathering the active columns
+        # then reads contiguous memory
+        self._Zt: np.ndarray | None = np.empty((0, n))
         self.seconds = 0.0
 
     @property
     def keeps_Z(self) -> bool:
         """Whether the Z columns of every computed node are stored."""
-        return self._Z is not None
+        return self._Zt is not None
 
     @property
     def nbytes(self) -> int:
-        return self._W.nbytes + (self._Z.nbytes if self._Z is not None else 0)
+        return self._W.nbytes + (self._Zt.nbytes if self._Zt is not None else 0)
 
     def _grow(self, need: int) -> None:
         cap = self._W.shape[1]
@@ -64,13 +66,13 @@ class DelassusColumns:
         W = np.empty((nc, cap))
         W[:, : self.count] = self._W[:, : self.count]
         self._W = W
-        if self._Z is not None:
+        if self._Zt is not None:
             if n * cap * 8 > self.budget:
-                self._Z = None  # does not fit: keep W only
+                self._Zt = None  # does not fit: keep W only
             else:
-                Z = np.empty((n, cap))
-                Z[:, : self.count] = self._Z[:, : self.count]
-                self._Z = Z
+                Zt = np.empty((cap, n))
+                Zt[: self.count] = self._Zt[: self.count]
+                self._Zt = Zt
 
     def ensure(self, nodes: np.ndarray, fill: np.ndarray | None = None) -> None:
         """Compute the columns of ``nodes`` (indices) that are not known yet.
@@ -95,8 +97,8 @@ class DelassusColumns:
             Zj = self.factor.solve(self.Bt[:, J].toarray()).reshape(n, -1)
             s = np.arange(self.count, self.count + J.size)
             self._W[:, s] = self.B @ Zj
-            if self._Z is not None:
-                self._Z[:, s] = Zj
+            if self._Zt is not None:
+                self._Zt[s] = Zj.T
             self.slot[J] = s
             self.count += J.size
         self.seconds += time.perf_counter() - t0
@@ -112,4 +114,4 @@ class DelassusColumns:
 
     def Z_times(self, nodes: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """Z[:, nodes] @ lam (needs :attr:`keeps_Z`), shape (n,)."""
-        return self._Z[:, self.slot[nodes]] @ lam
+        return lam @ self._Zt[self.slot[nodes]]
