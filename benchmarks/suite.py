@@ -239,7 +239,7 @@ def main(argv=None) -> int:
         "--quick", action="store_true", help="skip bar3d n = 16, 32, bar2d n = 64, hertz3d n = 9 and hertz2d n = 32"
     )
     ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
-    ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cg (default auto)")
+    ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cholmod|cg (default auto)")
     ap.add_argument("--no-energy", action="store_true", help="switch the energy bookkeeping observer off")
     ap.add_argument("--out", default="out/bench", help="output directory")
     ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)

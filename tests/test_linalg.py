@@ -4,13 +4,16 @@ import numpy as np
 import pytest
 
 from signorini.dynamics.simulate import simulate
-from signorini.linalg import choose_backend, estimate_factor_bytes, has_pardiso, has_pyamg
+from signorini.linalg import choose_backend, estimate_factor_bytes, has_cholmod, has_metis, has_pardiso, has_pyamg
 from signorini.studies.benchmarks import get_benchmark
 
 BACKENDS = [
     "superlu",
     pytest.param(
         "pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed (extra 'pardiso')")
+    ),
+    pytest.param(
+        "cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
     ),
     "cg",
 ]
@@ -71,3 +74,101 @@ def test_unknown_backend_is_an_error():
     b = get_benchmark("bar1d")
     with pytest.raises(InputError, match="unknown solver.backend 'mumps'"):
         simulate(b.problem(4), "cn", 0.1, 1.0, backend="mumps")
+
+
+@pytest.fixture(scope="module")
+def bar3d_operator():
+    """K = 4/dt^2 M + S on the free dofs of bar3d n = 8 (seed mass, dt = h/2): 19,440 dofs."""
+    import scipy.sparse as sp
+
+    from signorini.dynamics.problem import discretize
+
+    b = get_benchmark("bar3d")
+    d = discretize(b.problem(8), "seed")
+    dt = b.h(8) / 2
+    return sp.csc_matrix((4 / dt**2 * d.M + d.S).tocsr()[d.free][:, d.free])
+
+
+ORDERINGS = [
+    "nd",
+    pytest.param("metis", marks=pytest.mark.skipif(not has_metis(), reason="pymetis not installed (extra 'metis')")),
+]
+
+
+@pytest.mark.parametrize("ordering", ORDERINGS)
+def test_nested_dissection_is_a_nodal_permutation_that_fills_less(bar3d_operator, ordering):
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from signorini.linalg.ordering import metis_nested_dissection, nested_dissection, supervariables
+
+    K = bar3d_operator
+    n = K.shape[0]
+    assert np.array_equal(supervariables(K), np.arange(n) // 3)  # node-major dof triplets found
+    p = nested_dissection(K) if ordering == "nd" else metis_nested_dissection(K)
+    assert np.array_equal(np.sort(p), np.arange(n))
+    assert np.array_equal(p.reshape(-1, 3) % 3, np.tile([0, 1, 2], (n // 3, 1)))  # nodes stay together
+    opts = dict(diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    mmd = spla.splu(K, permc_spec="MMD_AT_PLUS_A", **opts)
+    nd = spla.splu(sp.csc_matrix(K[p][:, p]), permc_spec="NATURAL", **opts)
+    assert nd.nnz < 0.9 * mmd.nnz
+
+
+def test_supervariables_without_node_blocks():
+    import scipy.sparse as sp
+
+    from signorini.linalg.ordering import nested_dissection, supervariables
+
+    # a path graph of 7 vertices with 2x2 blocks except the last vertex: groups by pattern
+    path = np.array([[4.0, 1, 0], [1, 4, 1], [0, 1, 4]])
+    A = sp.lil_matrix(np.kron(path, np.ones((2, 2))))
+    A.resize((7, 7))
+    A[6, 6] = 1.0
+    A[5, 6] = A[6, 5] = 1.0
+    g = supervariables(A)
+    assert g[0] == g[1] and g[2] == g[3] and g[4] != g[5] != g[6]
+    assert np.array_equal(np.sort(nested_dissection(A, leaf=1)), np.arange(7))
+
+
+DIRECT = [
+    "superlu",
+    pytest.param(
+        "pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed (extra 'pardiso')")
+    ),
+    pytest.param(
+        "cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
+    ),
+]
+
+
+@pytest.mark.parametrize("backend", DIRECT)
+def test_direct_factors_agree_in_3d(bar3d_operator, backend):
+    """Each backend (SuperLU in nested-dissection order here) against SuperLU with MMD."""
+    import scipy.sparse.linalg as spla
+
+    from signorini.linalg import factorize
+    from signorini.linalg.superlu import use_nested_dissection
+
+    K = bar3d_operator
+    assert use_nested_dissection(K)
+    ref = spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    rng = np.random.default_rng(3)
+    b = rng.standard_normal((K.shape[0], 5))
+    F = factorize(K, backend)
+    X, Y = F.solve(b), ref.solve(b)
+    assert np.abs(X - Y).max() <= 1e-10 * np.abs(Y).max()
+    x = F.solve(b[:, 0])
+    assert x.shape == (K.shape[0],) and np.abs(x - Y[:, 0]).max() <= 1e-10 * np.abs(Y[:, 0]).max()
+    assert F.solves == 6 and F.nbytes >= 0
+
+
+def test_superlu_keeps_minimum_degree_in_2d():
+    import scipy.sparse as sp
+
+    from signorini.dynamics.problem import discretize
+    from signorini.linalg.superlu import use_nested_dissection
+
+    b = get_benchmark("bar2d")
+    d = discretize(b.problem(32), "seed")
+    K = sp.csc_matrix((d.M + d.S).tocsr()[d.free][:, d.free])
+    assert K.shape[0] > 15_000 and not use_nested_dissection(K)

@@ -1,4 +1,4 @@
-"""Linear algebra: direct factorizations (SuperLU, Pardiso) and Krylov solvers."""
+"""Linear algebra: direct factorizations (SuperLU, Pardiso, CHOLMOD), orderings and Krylov solvers."""
 
 from .base import (
     BACKENDS,
@@ -8,11 +8,13 @@ from .base import (
     choose_backend,
     estimate_factor_bytes,
     factorize,
+    has_cholmod,
     has_pardiso,
     solver_options,
     total_memory,
 )
 from .krylov import Preconditioner, has_pyamg, make_preconditioner, projected_cg
+from .ordering import fill_reducing_order, has_metis, nested_dissection
 
 __all__ = [
     "BACKENDS",
@@ -24,8 +26,12 @@ __all__ = [
     "choose_backend",
     "estimate_factor_bytes",
     "factorize",
+    "has_cholmod",
     "has_pardiso",
+    "has_metis",
     "has_pyamg",
+    "fill_reducing_order",
+    "nested_dissection",
     "projected_cg",
     "solver_options",
     "total_memory",

@@ -66,6 +66,18 @@ def has_pardiso() -> bool:
     return True
 
 
+@functools.cache
+def has_cholmod() -> bool:
+    """Whether cvxopt (with its CHOLMOD module) is installed and loads."""
+    if importlib.util.find_spec("cvxopt") is None:
+        return False
+    try:
+        import cvxopt.cholmod  # noqa: F401
+    except Exception:  # a broken install: behave as if absent
+        return False
+    return True
+
+
 def total_memory() -> int:
     """Physical memory of the machine [bytes]."""
     try:
@@ -91,10 +103,25 @@ CG_PARAMETERS = (
 )
 
 BACKENDS = Registry("linear solver backend")
-BACKENDS.register("auto", None, "direct factor if its estimated size fits in memory_budget, else cg", (), CG_PARAMETERS)
-BACKENDS.register("superlu", ".superlu:SuperLUFactor", "scipy SuperLU, symmetric mode (always available)")
+BACKENDS.register(
+    "auto",
+    None,
+    "direct factor if its estimated size fits in memory_budget (pardiso, else cholmod, else superlu), else cg",
+    (),
+    CG_PARAMETERS,
+)
+BACKENDS.register(
+    "superlu",
+    ".superlu:SuperLUFactor",
+    "scipy SuperLU, symmetric mode, nested dissection on large 3D systems (always available)",
+)
 BACKENDS.register(
     "pardiso", ".pardiso:PardisoFactor", "MKL Pardiso via pypardiso (extra 'pardiso'), nested dissection, SPD"
+)
+BACKENDS.register(
+    "cholmod",
+    ".cholmod:CholmodFactor",
+    "supernodal Cholesky, CHOLMOD via cvxopt (extra 'cholmod'), nested dissection (METIS with extra 'metis')",
 )
 BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
 
@@ -141,33 +168,39 @@ def solver_options(given: Mapping[str, Any] | None = None, where: str = "solver"
 def estimate_factor_bytes(n: int, dim: int, backend: str) -> float:
     """Rough size of a sparse factor of a P1/Q1 elasticity matrix with n dofs [bytes].
 
-    Fitted on this project's bars (values + indices, 12 bytes per entry):
-    SuperLU/MMD grows like n^1.9 in 3D (0.59e6 entries at 3e3 dofs, 19.7e6 at 1.9e4);
-    Pardiso/nested dissection like 16 n^(4/3) in 3D; both like ~40 n log n in 2D.
+    Fitted on this project's bars (values + indices, 12 bytes per entry): in 3D, the
+    Cholesky factors in nested-dissection order (Pardiso, CHOLMOD) like 16 n^(4/3)
+    entries; SuperLU (L and U) below 15k dofs with MMD like n^1.9 (0.59e6 entries at
+    3e3 dofs), above with its nested dissection like n^1.46 (16.4e6 at 1.9e4 dofs,
+    290e6 at 1.4e5 dofs, built-in ordering; METIS fills less); all like ~40 n log n in 2D.
     """
     if dim <= 1:
         return 12.0 * 3 * n
     if dim == 2:
         return 12.0 * 40 * n * max(np.log2(n), 1.0)
-    if backend == "pardiso":
+    if backend in ("pardiso", "cholmod"):
         return 12.0 * 16 * n ** (4 / 3)
-    return 12.0 * 0.5925e6 * (n / 3000.0) ** 1.875
+    if n < 15_000:
+        return 12.0 * 0.5925e6 * (n / 3000.0) ** 1.875
+    return 12.0 * 16.4e6 * (n / 19440.0) ** 1.46
 
 
-SMALL = 30_000  # below this many dofs SuperLU factors faster than Pardiso starts
+SMALL = 30_000  # below this many dofs SuperLU factors about as fast as the others start
 
 
 def choose_backend(n: int, dim: int, budget: float | None = None) -> str:
     """Direct solver when its estimated factor fits in ``budget`` bytes, else ``cg``.
 
     SuperLU for small systems (< 30k dofs, where Pardiso's start-up dominates), then
-    Pardiso when installed, SuperLU otherwise, and CG when no factor fits.
+    Pardiso when installed, CHOLMOD (cvxopt) when installed, SuperLU otherwise, and CG
+    when no factor fits.
     """
     budget = 0.4 * total_memory() if not budget else budget
     if n < SMALL and estimate_factor_bytes(n, dim, "superlu") <= budget:
         return "superlu"
-    if has_pardiso() and estimate_factor_bytes(n, dim, "pardiso") <= budget:
-        return "pardiso"
+    for name, present in (("pardiso", has_pardiso), ("cholmod", has_cholmod)):
+        if present() and estimate_factor_bytes(n, dim, name) <= budget:
+            return name
     if estimate_factor_bytes(n, dim, "superlu") <= budget:
         return "superlu"
     return "cg"

@@ -1,0 +1,61 @@
+"""Supernodal sparse Cholesky (CHOLMOD inside ``cvxopt``, optional extra ``cholmod``).
+
+K = P^T L L^T P with P the nested-dissection order of :func:`~.ordering.fill_reducing_order`
+(METIS when pymetis is installed): cvxopt's CHOLMOD is built without METIS and its own
+AMD ordering fills 3D factors like SuperLU's MMD (``docs/performance.md``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+from .base import Factor
+from .ordering import fill_reducing_order
+
+
+def _resident_bytes() -> int:
+    """Current resident memory of the process [bytes] (Linux; 0 elsewhere)."""
+    try:
+        import resource
+
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * resource.getpagesize()
+    except (OSError, ImportError, ValueError, IndexError):
+        return 0
+
+
+class CholmodFactor(Factor):
+    """CHOLMOD supernodal L L^T of the lower triangle of K in a nested-dissection order."""
+
+    name = "cholmod"
+
+    def __init__(self, K: sp.spmatrix):
+        super().__init__()
+        try:
+            import cvxopt
+            import cvxopt.cholmod
+        except ImportError:  # pragma: no cover - depends on the machine
+            raise InputError("backend 'cholmod' needs cvxopt: pip install 'signorini[cholmod]'") from None
+        self._cvxopt = cvxopt
+        K = sp.csc_matrix(K)
+        perm, self.ordering = fill_reducing_order(K)
+        low = sp.tril(K, format="coo")
+        A = cvxopt.spmatrix(low.data, low.row.astype(int), low.col.astype(int), K.shape)
+        before = _resident_bytes()
+        self._F = cvxopt.cholmod.symbolic(A, p=cvxopt.matrix(perm.astype(int)), uplo="L")
+        cvxopt.cholmod.numeric(A, self._F)
+        self._held = max(_resident_bytes() - before, 0)
+
+    @property
+    def nbytes(self) -> int:
+        """Resident memory the factorization added (cvxopt does not report the factor's
+        size; Linux only, else 0) [bytes]."""
+        return int(self._held)
+
+    def _solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=float)
+        B = self._cvxopt.matrix(b.reshape(b.shape[0], -1))
+        self._cvxopt.cholmod.solve(self._F, B)
+        return np.array(B).reshape(b.shape)
