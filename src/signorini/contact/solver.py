@@ -274,7 +274,6 @@ class ActiveSetCGSolver(ContactSolver):
         self.c = float(np.mean(self.K.diagonal()))
         self.active = np.zeros(self.B.shape[0], dtype=bool)
         self.U_prev = np.zeros(self.K.shape[0])
-        self.U_prev2: np.ndarray | None = None
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(lambda x: self.K @ x, self.K.shape[0])
@@ -298,7 +297,6 @@ class ActiveSetCGSolver(ContactSolver):
             )
         A = self.active.copy()
         B, g = self.B, bound
-        guess = self.U_prev if self.U_prev2 is None else 2.0 * self.U_prev - self.U_prev2
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
@@ -307,7 +305,7 @@ class ActiveSetCGSolver(ContactSolver):
                 return x - BA.T @ (BA @ x) if BA.shape[0] else x
 
             up = BA.T @ g[A] if BA.shape[0] else np.zeros_like(b)
-            U = up + self._cg(b - self.K @ up, guess - up, project)
+            U = up + self._cg(b - self.K @ up, self.U_prev - up, project)
             lam = np.zeros(g.size)
             if A.any():
                 lam[A] = BA @ (self.K @ U - b)
@@ -324,7 +322,7 @@ class ActiveSetCGSolver(ContactSolver):
             raise ConvergenceError(f"active-set iteration did not converge in {self.max_newton} iterations")
         self.counters["contact_iterations"] += it
         self.active = A
-        self.U_prev2, self.U_prev = self.U_prev, U
+        self.U_prev = U
         gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0)
         res = complementarity_residual(-lam, gap, 1.0 / self.c, gap_scale) if g.size else 0.0
         return U, lam, StepInfo(it, False, res, A)
