@@ -9,10 +9,14 @@ import scipy.sparse as sp
 from signorini.contact.delassus import DelassusColumns
 from signorini.contact.obstacles import SphereObstacle
 from signorini.dynamics.simulate import simulate
-from signorini.linalg import factorize, has_pardiso
+from signorini.linalg import factorize, has_cholmod, has_pardiso
 from signorini.studies.benchmarks import get_benchmark
 
-BACKENDS = ["superlu"] + (["pardiso"] if has_pardiso() else [])
+BACKENDS = [
+    "superlu",
+    pytest.param("pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed")),
+    pytest.param("cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed")),
+]
 
 
 def _curved(dim: int, n: int, R: float = 0.2):
