@@ -149,3 +149,18 @@ def test_run_fields_last_level_and_summary_counters(tmp_path):
     assert s["counters"]["linear_solves"] >= 24 and s["counters"]["fallbacks"] == 0
     assert s["counters"]["contact_iterations"] > 0  # there was contact
     assert s["energy_definition"] == SCHEMES.get("cn").obj.energy_definition == "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
+
+
+def test_factorization_tip_only_for_large_3d_superlu_runs(monkeypatch):
+    from signorini import linalg
+    from signorini.io.cli import factorization_tip
+
+    monkeypatch.setattr(linalg, "has_cholmod", lambda: False)
+    monkeypatch.setattr(linalg, "has_pardiso", lambda: False)
+    big = {"dim": 3, "dofs": 140_000, "free_dofs": 139_000, "backend": "superlu"}
+    assert "signorini[cholmod,metis]" in factorization_tip(big)
+    assert factorization_tip({**big, "dim": 2}) == ""
+    assert factorization_tip({**big, "free_dofs": 20_000}) == ""
+    assert factorization_tip({**big, "backend": "cg+jacobi"}) == ""
+    monkeypatch.setattr(linalg, "has_cholmod", lambda: True)
+    assert factorization_tip(big) == ""

@@ -150,6 +150,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "mass": disc.mass_name,
         "dt": dt,
         "T": N * dt,
+        "dim": int(disc.space.dim),
         "dofs": int(disc.space.n_dofs),
         "free_dofs": int(disc.free.size),
         "contact_nodes": int(disc.contact.size),
