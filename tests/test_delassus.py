@@ -6,17 +6,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from backends import DIRECT
 from signorini.contact.delassus import DelassusColumns
 from signorini.contact.obstacles import SphereObstacle
 from signorini.dynamics.simulate import simulate
-from signorini.linalg import factorize, has_cholmod, has_pardiso
+from signorini.linalg import factorize
 from signorini.studies.benchmarks import get_benchmark
 
-BACKENDS = [
-    "superlu",
-    pytest.param("pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed")),
-    pytest.param("cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed")),
-]
+BACKENDS = DIRECT
 
 
 def _curved(dim: int, n: int, R: float = 0.2):

@@ -3,20 +3,12 @@
 import numpy as np
 import pytest
 
+from backends import DIRECT
 from signorini.dynamics.simulate import simulate
-from signorini.linalg import choose_backend, estimate_factor_bytes, has_cholmod, has_metis, has_pardiso, has_pyamg
+from signorini.linalg import choose_backend, estimate_factor_bytes, has_metis, has_pyamg
 from signorini.studies.benchmarks import get_benchmark
 
-BACKENDS = [
-    "superlu",
-    pytest.param(
-        "pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed (extra 'pardiso')")
-    ),
-    pytest.param(
-        "cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
-    ),
-    "cg",
-]
+BACKENDS = [*DIRECT, "cg"]
 
 
 @pytest.fixture(scope="module")
@@ -128,17 +120,6 @@ def test_supervariables_without_node_blocks():
     g = supervariables(A)
     assert g[0] == g[1] and g[2] == g[3] and g[4] != g[5] != g[6]
     assert np.array_equal(np.sort(nested_dissection(A, leaf=1)), np.arange(7))
-
-
-DIRECT = [
-    "superlu",
-    pytest.param(
-        "pardiso", marks=pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed (extra 'pardiso')")
-    ),
-    pytest.param(
-        "cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
-    ),
-]
 
 
 @pytest.mark.parametrize("backend", DIRECT)

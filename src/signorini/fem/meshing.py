@@ -26,10 +26,10 @@ import math
 import numpy as np
 
 from ..errors import InputError, MeshError
+from ..optional import optional_import
 from .mesh import Mesh
 
-INSTALL_HINT = (
-    'the hertz benchmarks mesh with gmsh, an optional dependency: pip install ".[mesh]" '
+APT_HINT = (
     "(on a bare Debian gmsh also needs: apt-get install libglu1-mesa libgl1 libxrender1 libxcursor1 "
     "libxfixes3 libxext6 libxft2 libfontconfig1 libxinerama1 libx11-6 libgomp1)"
 )
@@ -37,13 +37,7 @@ INSTALL_HINT = (
 
 def import_gmsh():
     """The gmsh module, or an :class:`InputError` saying how to install it."""
-    try:
-        import gmsh
-    except ImportError as exc:  # missing wheel, or a missing shared library (OSError subclasses differ)
-        raise InputError(f"{INSTALL_HINT} [{exc}]") from None
-    except OSError as exc:
-        raise InputError(f"{INSTALL_HINT} [{exc}]") from None
-    return gmsh
+    return optional_import("gmsh", "the hertz benchmarks' meshes", "mesh", APT_HINT)
 
 
 def size_at(distance: np.ndarray, h_contact: float, h_far: float, r_fine: float, grading: float) -> np.ndarray:

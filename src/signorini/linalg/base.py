@@ -55,27 +55,26 @@ class Factor:
 
 
 @functools.cache
+def module_loads(name: str) -> bool:
+    """Whether the optional module ``name`` is installed and imports (a broken install,
+    e.g. MKL libraries not found, counts as absent)."""
+    if importlib.util.find_spec(name.split(".")[0]) is None:
+        return False
+    try:
+        importlib.import_module(name)
+    except Exception:
+        return False
+    return True
+
+
 def has_pardiso() -> bool:
     """Whether pypardiso is installed and loads (its MKL libraries found)."""
-    if importlib.util.find_spec("pypardiso") is None:
-        return False
-    try:
-        import pypardiso  # noqa: F401
-    except Exception:  # a broken MKL install: behave as if absent
-        return False
-    return True
+    return module_loads("pypardiso")
 
 
-@functools.cache
 def has_cholmod() -> bool:
     """Whether cvxopt (with its CHOLMOD module) is installed and loads."""
-    if importlib.util.find_spec("cvxopt") is None:
-        return False
-    try:
-        import cvxopt.cholmod  # noqa: F401
-    except Exception:  # a broken install: behave as if absent
-        return False
-    return True
+    return module_loads("cvxopt.cholmod")
 
 
 def total_memory() -> int:

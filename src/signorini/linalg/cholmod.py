@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InputError
+from ..optional import optional_import
 from .base import Factor
 from .ordering import fill_reducing_order
 
@@ -33,12 +33,8 @@ class CholmodFactor(Factor):
 
     def __init__(self, K: sp.spmatrix):
         super().__init__()
-        try:
-            import cvxopt
-            import cvxopt.cholmod
-        except ImportError:  # pragma: no cover - depends on the machine
-            raise InputError("backend 'cholmod' needs cvxopt: pip install 'signorini[cholmod]'") from None
-        self._cvxopt = cvxopt
+        optional_import("cvxopt.cholmod", "backend 'cholmod'", "cholmod")
+        self._cvxopt = cvxopt = optional_import("cvxopt", "backend 'cholmod'", "cholmod")
         K = sp.csc_matrix(K)
         perm, self.ordering = fill_reducing_order(K)
         low = sp.tril(K, format="coo")

@@ -8,7 +8,8 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError
+from ..optional import optional_import
 
 
 def has_pyamg() -> bool:
@@ -78,10 +79,7 @@ class AMGPreconditioner(Preconditioner):
     """One V-cycle of smoothed-aggregation AMG (pyamg, extra ``amg``)."""
 
     def __init__(self, K: sp.csr_matrix, nodes: np.ndarray | None = None):
-        if not has_pyamg():
-            raise InputError("preconditioner 'amg' needs pyamg: pip install 'signorini[amg]'")
-        import pyamg
-
+        pyamg = optional_import("pyamg", "preconditioner 'amg'", "amg")
         self._M = pyamg.smoothed_aggregation_solver(K, symmetry="hermitian", max_coarse=500).aspreconditioner(cycle="V")
 
     def __call__(self, r: np.ndarray) -> np.ndarray:

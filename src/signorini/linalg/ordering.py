@@ -20,12 +20,11 @@ when it is installed, this ordering otherwise (see ``docs/performance.md``).
 
 from __future__ import annotations
 
-import functools
-import importlib.util
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
+
+from .base import module_loads
 
 
 def supervariables(A: sp.spmatrix) -> np.ndarray:
@@ -138,16 +137,9 @@ def nested_dissection(A: sp.spmatrix, leaf: int = 32) -> np.ndarray:
     return np.argsort(rank[groups], kind="stable")
 
 
-@functools.cache
 def has_metis() -> bool:
     """Whether pymetis is installed and loads."""
-    if importlib.util.find_spec("pymetis") is None:
-        return False
-    try:
-        import pymetis  # noqa: F401
-    except Exception:  # a broken install: behave as if absent
-        return False
-    return True
+    return module_loads("pymetis")
 
 
 def metis_nested_dissection(A: sp.spmatrix) -> np.ndarray:

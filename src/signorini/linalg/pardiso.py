@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InputError
+from ..optional import optional_import
 from .base import Factor
 
 
@@ -16,10 +16,7 @@ class PardisoFactor(Factor):
 
     def __init__(self, K: sp.spmatrix):
         super().__init__()
-        try:
-            import pypardiso
-        except ImportError:  # pragma: no cover - depends on the machine
-            raise InputError("backend 'pardiso' needs pypardiso: pip install 'signorini[pardiso]'") from None
+        pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
         self._A = sp.triu(K, format="csr")
         self._A.sort_indices()
         self._solver = pypardiso.PyPardisoSolver(mtype=2)
