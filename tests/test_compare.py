@@ -23,12 +23,17 @@ def _compare(out, *args):
     return main(["compare", *args, "--out", str(out), "--quiet"])
 
 
-@pytest.fixture(scope="module")
-def bar1d_report(tmp_path_factory):
+def _report(tmp_path_factory, bench: str, schemes: str, tiny: list):
+    """(out, compare.md text, compare.json) of a standard x seed comparison on 2 processes."""
     out = tmp_path_factory.mktemp("cmp") / "c"
-    rc = _compare(out, "bar1d", "--schemes", SCHEMES_1D, "--masses", "standard,seed", *TINY_1D, "--jobs", "2")
+    rc = _compare(out, bench, "--schemes", schemes, "--masses", "standard,seed", *tiny, "--jobs", "2")
     assert rc == 0
     return out, (out / "compare.md").read_text(), json.loads((out / "compare.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def bar1d_report(tmp_path_factory):
+    return _report(tmp_path_factory, "bar1d", SCHEMES_1D, TINY_1D)
 
 
 def _table(md: str) -> list[list[str]]:
@@ -279,10 +284,7 @@ TINY_3D = ["--levels", "2", "--n0", "1", "--reference", "4", "--T", "0.5"]
 
 @pytest.fixture(scope="module")
 def bar3d_report(tmp_path_factory):
-    out = tmp_path_factory.mktemp("cmp3") / "c"
-    rc = _compare(out, "bar3d", "--schemes", SCHEMES_3D, "--masses", "standard,seed", *TINY_3D, "--jobs", "2")
-    assert rc == 0
-    return out, (out / "compare.md").read_text(), json.loads((out / "compare.json").read_text())
+    return _report(tmp_path_factory, "bar3d", SCHEMES_3D, TINY_3D)
 
 
 def test_compare_bar3d_table_is_the_json_ranking(bar3d_report):
