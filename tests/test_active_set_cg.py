@@ -85,14 +85,16 @@ def test_block_jacobi_inverts_the_nodal_blocks(rng):
 def test_preconditioner_names_come_from_the_registry():
     with pytest.raises(InputError, match="allowed: jacobi, block-jacobi, amg"):
         solver_options({"backend": "cg", "preconditioner": "ilu"})
-    PRECONDITIONERS.register("dummy-pc", ".krylov:JacobiPreconditioner", "test entry")
+    PRECONDITIONERS.register("dummy-pc", ".krylov:JacobiPreconditioner", "test entry (import path)")
+    PRECONDITIONERS.register("dummy-class", JacobiPreconditioner, "test entry (a class)")
     try:
         assert solver_options({"backend": "cg", "preconditioner": "dummy-pc"})["preconditioner"] == "dummy-pc"
         p, dt = plate(4)
-        H = _run(p, dt, 3, backend="cg", preconditioner="dummy-pc")
-        assert H.status == "finished"
+        for name in ("dummy-pc", "dummy-class"):
+            assert _run(p, dt, 3, backend="cg", preconditioner=name).status == "finished"
     finally:
         PRECONDITIONERS.unregister("dummy-pc")
+        PRECONDITIONERS.unregister("dummy-class")
     assert JacobiPreconditioner.__doc__
 
 

@@ -158,7 +158,7 @@ def test_factorization_tip_only_for_large_3d_superlu_runs(monkeypatch):
     monkeypatch.setattr(linalg, "has_cholmod", lambda: False)
     monkeypatch.setattr(linalg, "has_pardiso", lambda: False)
     big = {"dim": 3, "dofs": 140_000, "free_dofs": 139_000, "backend": "superlu"}
-    assert "signorini[cholmod,metis]" in factorization_tip(big)
+    assert ".[cholmod,metis]" in factorization_tip(big)
     assert factorization_tip({**big, "dim": 2}) == ""
     assert factorization_tip({**big, "free_dofs": 20_000}) == ""
     assert factorization_tip({**big, "backend": "cg+jacobi"}) == ""

@@ -47,6 +47,7 @@ BASE = (Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text()
         ("[solver]", "[solvr]", "unknown section [solvr]"),
         ("velocity = [0.0, -0.5]", 'velocity = [0.0, "-0.5 * q"]', "unknown name(s) ['q']"),
         ("cells = [4, 40]", "cells = [4]", "'mesh.cells' must be a list of 2 positive integers"),
+        ("cells = [4, 40]", "cells = [4, " + "9" * 400 + "]", "'mesh.cells[1]' = 9999"),
         ("value = [0.0, 0.2]", "value = [0.0]", "'dirichlet[0].value' must be a list of 2 numbers"),
     ],
 )

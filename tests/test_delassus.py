@@ -9,6 +9,7 @@ import scipy.sparse as sp
 from backends import DIRECT
 from signorini.contact.delassus import DelassusColumns
 from signorini.contact.obstacles import SphereObstacle
+from signorini.dynamics.problem import discretize
 from signorini.dynamics.simulate import simulate
 from signorini.linalg import factorize
 from signorini.studies.benchmarks import get_benchmark
@@ -118,3 +119,27 @@ def test_a_block_is_topped_up_with_the_nearest_nodes():
     cols.ensure(np.array([2]), fill=np.array([4, 2, 0, 1, 3]))
     assert cols.count == nc and cols.factor.solves == nc  # one block of right-hand sides
     assert np.allclose(cols.block(np.arange(nc)), 0.5 * np.eye(nc))
+
+
+def test_Z_dropped_mid_run_when_the_budget_is_reached():
+    """A budget for 100 Z columns: the first block (64) is stored, the second does not
+    fit, so Z is dropped and contact steps make one more solve; same history."""
+    from test_active_set_cg import plate
+
+    p, dt = plate(12)  # 169 contact nodes
+    free = discretize(p, "seed").free.size
+    full = simulate(p, "cn", dt, 16 * dt, solver_options={"backend": "superlu", "condensation": "full"})
+    lazy = simulate(p, "cn", dt, 16 * dt, solver_options={"backend": "superlu", "condense_budget": 8.0 * free * 100})
+    assert lazy.counters["delassus_columns"] > 100
+    assert lazy.counters["linear_solves"] > full.counters["linear_solves"]  # the extra solves without Z
+    _agree(lazy, full)
+
+
+def test_lazy_columns_are_not_counted_as_step_solves_or_step_time():
+    problem, dt = _curved(3, 2)
+    H = simulate(problem, "cn", dt, 80 * dt, solver_options={"backend": "superlu"})
+    assert H.counters["linear_solves"] == H.steps  # one solve per CN step, Z kept
+    assert H.counters["delassus_columns"] > 0
+    m = H.meta
+    assert m["in_loop_condensation_seconds"] > 0
+    assert abs(m["step_seconds"] * H.steps + m["in_loop_condensation_seconds"] - m["loop_seconds"]) < 1e-9

@@ -42,7 +42,7 @@ def test_disc_law_inverts_and_conserves_energy():
 
 def test_missing_gmsh_is_an_input_error_naming_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh -> ImportError
-    with pytest.raises(InputError, match=r"pip install 'signorini\[mesh\]'"):
+    with pytest.raises(InputError, match=r'pip install "\.\[mesh\]"'):
         get_benchmark("hertz2d").problem(2)
 
 

@@ -16,5 +16,6 @@ def optional_import(module: str, feature: str, extra: str, hint: str = "") -> Mo
     except (ImportError, OSError) as exc:
         more = f" {hint}" if hint else ""
         raise InputError(
-            f"{feature} needs {module.split('.')[0]}: pip install 'signorini[{extra}]'{more} [{exc}]"
+            f"{feature} needs {module.split('.')[0]}, the extra '{extra}': pip install \".[{extra}]\" in the "
+            f"signorini source directory{more} [{exc}]"
         ) from None

@@ -8,7 +8,8 @@ byte budget, the Z columns (n per node), so that
 
 * set-up costs one factorization, not nc solves;
 * a contact solve costs solves only for nodes that come into contact for the first
-  time, and memory O(n + nc * m) for the m nodes that ever did (at most nc^2 + n nc).
+  time, and memory O((nc + n) m) for the m nodes that ever did (nc m for W, n m for Z
+  while it fits in the budget).
 
 ``eager=True`` computes every column at once (the classical full condensation).
 """
@@ -58,21 +59,25 @@ class DelassusColumns:
         return self._W.nbytes + (self._Zt.nbytes if self._Zt is not None else 0)
 
     def _grow(self, need: int) -> None:
-        cap = self._W.shape[1]
-        if need <= cap:
-            return
+        """Room for ``need`` columns: W grows by doubling (at most nc); Z gets its own
+        capacity, at most the columns that fit in the budget, and is dropped (W kept)
+        when ``need`` exceeds that."""
         nc, n = self.B.shape
-        cap = min(nc, max(need, 2 * cap, BLOCK))
-        W = np.empty((nc, cap))
-        W[:, : self.count] = self._W[:, : self.count]
-        self._W = W
-        if self._Zt is not None:
-            if n * cap * 8 > self.budget:
-                self._Zt = None  # does not fit: keep W only
-            else:
-                Zt = np.empty((cap, n))
-                Zt[: self.count] = self._Zt[: self.count]
-                self._Zt = Zt
+        cap = self._W.shape[1]
+        if need > cap:
+            cap = min(nc, max(need, 2 * cap, BLOCK))
+            W = np.empty((nc, cap))
+            W[:, : self.count] = self._W[:, : self.count]
+            self._W = W
+        if self._Zt is None or need <= self._Zt.shape[0]:
+            return
+        z_max = int(self.budget // (8 * max(n, 1)))
+        if need > z_max:
+            self._Zt = None  # does not fit: keep W only, one more solve per contact step
+            return
+        Zt = np.empty((min(z_max, max(need, 2 * self._Zt.shape[0], BLOCK), nc), n))
+        Zt[: self.count] = self._Zt[: self.count]
+        self._Zt = Zt
 
     def ensure(self, nodes: np.ndarray, fill: np.ndarray | None = None) -> None:
         """Compute the columns of ``nodes`` (indices) that are not known yet.

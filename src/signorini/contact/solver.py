@@ -9,16 +9,18 @@ schemes, velocities for velocity-level ones) and the bound c is given per call
 (gaps at t_{n+1}, a moving obstacle, a two-step scheme's combination of levels).
 
 :class:`CondensedContactSolver` (direct backends): condensation onto the contact
-dofs with Z = K^-1 B^T (n x nc, one solve per contact node at set-up) and the
-Delassus matrix W = B Z,
+dofs with the Delassus matrix W = B K^-1 B^T and Z = K^-1 B^T,
 
     x = x_free + Z lambda,     x_free = K^-1 b,
 
 and mu = -lambda solves the LCP  r = (c - B x_free) + W mu >= 0, mu >= 0, r.mu = 0
-(:mod:`signorini.contact.complementarity`).  A call costs one forward/backward
-substitution, a small dense LCP warm-started from the previous active set, and one
-product with the active columns of Z.  If Z does not fit in ``condense_budget``
-bytes it is not stored and a second solve is made on calls with contact.
+(:mod:`signorini.contact.complementarity`).  The columns of W and Z are computed by
+:mod:`signorini.contact.delassus`: lazily by default (a node's column when the node
+first nears contact, so the set-up is one factorization), or all at set-up
+(``condensation = full``).  A call costs one forward/backward substitution, a small
+dense LCP on the candidate nodes warm-started from the previous active set, and one
+product with the active columns of Z (one more solve instead when Z does not fit in
+``condense_budget`` bytes).
 
 :class:`ActiveSetCGSolver` (backend ``cg``): semismooth Newton on the active set
 with projected preconditioned CG, no factor and no Z.
@@ -157,13 +159,19 @@ class CondensedContactSolver(ContactSolver):
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
         self._setup_solves = self.factor.solves
+        self._setup_columns, self._setup_seconds = self.delassus.count, self.delassus.seconds
         self.factor_bytes = self.factor.nbytes
         self.counters["delassus_columns"] = self.delassus.count
 
     def _sync(self) -> None:
-        self.counters["linear_solves"] = self.factor.solves - self._setup_solves
+        """Counters and timings: ``linear_solves`` are the solves of the steps (the columns
+        computed lazily are counted in ``delassus_columns``, their time in ``condensation``
+        and, for the part inside the loop, ``condensation_in_loop``)."""
+        in_loop = self.delassus.count - self._setup_columns
+        self.counters["linear_solves"] = self.factor.solves - self._setup_solves - in_loop
         self.counters["delassus_columns"] = self.delassus.count
         self.timings["condensation"] = self.delassus.seconds
+        self.timings["condensation_in_loop"] = self.delassus.seconds - self._setup_seconds
 
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
         x = self.factor.solve(b)
@@ -293,7 +301,7 @@ class ActiveSetCGSolver(ContactSolver):
         if not law.exact:  # the schemes that need it refuse cg at set-up (Scheme.check_context)
             raise InputError(
                 "index sets and penalty compliances need the condensed contact solve of a direct backend "
-                "(superlu or pardiso), not cg"
+                "(superlu, pardiso or cholmod), not cg"
             )
         A = self.active.copy()
         B, g = self.B, bound

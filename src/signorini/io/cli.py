@@ -99,8 +99,8 @@ def factorization_tip(s: dict) -> str:
     if s["backend"] != "superlu" or not big_3d or has_cholmod() or has_pardiso():
         return ""
     return (
-        "\n  tip: pip install 'signorini[cholmod,metis]' (or '[pardiso]' on x86-64) factors 3D systems"
-        " like this one several times faster with a fraction of the memory (docs/performance.md)"
+        '\n  tip: the extras cholmod and metis (pip install ".[cholmod,metis]"; or pardiso on x86-64) factor'
+        " 3D systems like this one several times faster with a fraction of the memory (docs/performance.md)"
     )
 
 

@@ -154,6 +154,10 @@ def _mesh(m: dict, base: Path, guard=None) -> Mesh:
         or not all(isinstance(c, int) and not isinstance(c, bool) and c > 0 for c in cells)
     ):
         raise InputError(f"'mesh.cells' must be a list of {dim} positive integers, got {cells!r}")
+    for i, c in enumerate(cells):
+        if c > 10**15:  # beyond any run-size limit, and beyond exact float arithmetic
+            text = str(c) if len(str(c)) <= 20 else f"{str(c)[:6]}... ({len(str(c))} digits)"
+            raise InputError(f"'mesh.cells[{i}]' = {text} is too large: at most 1e15 cells per direction")
     size = [check_positive(f"mesh.size[{i}]", s) for i, s in enumerate(_vector("mesh.size", m.get("size"), dim))]
     for i, (s, c) in enumerate(zip(size, cells, strict=True)):
         if not (1e-100 <= s / c and s <= 1e100):

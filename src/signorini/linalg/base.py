@@ -128,12 +128,18 @@ BACKENDS.register("cg", None, "no factor: projected CG with an active-set contac
 SOLVER_OPTIONS = (
     Parameter("backend", "auto", "linear solver backend", str, choices=tuple(BACKENDS.names(aliases=False))),
     Parameter("memory_budget", 0.0, "bytes allowed for a factor (0: 40% of the RAM)", float, 0.0),
-    Parameter("lcp_max_iter", 50, "primal-dual active-set iterations per contact solve", int, 1),
-    Parameter("condense_budget", 2e9, "bytes allowed to store the computed columns of Z = K^-1 B^T", float, 0.0),
+    Parameter("lcp_max_iter", 50, "primal-dual active-set iterations per contact solve (direct backends)", int, 1),
+    Parameter(
+        "condense_budget",
+        2e9,
+        "bytes allowed to store the computed columns of Z = K^-1 B^T (direct backends)",
+        float,
+        0.0,
+    ),
     Parameter(
         "condensation",
         "lazy",
-        "Delassus columns: lazy (when a node first nears contact) or full (at set-up)",
+        "Delassus columns (direct backends): lazy (when a node first nears contact) or full (at set-up)",
         str,
         choices=("lazy", "full"),
     ),

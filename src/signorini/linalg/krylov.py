@@ -90,9 +90,11 @@ def make_preconditioner(kind: str, K: sp.csr_matrix, nodes: np.ndarray | None = 
     """The preconditioner registered as ``kind`` in PRECONDITIONERS, built for K."""
     from .base import PRECONDITIONERS
 
-    entry = PRECONDITIONERS.get(kind)
-    module, cls = entry.obj.split(":")
-    return getattr(importlib.import_module(module, __package__), cls)(K, nodes)
+    obj = PRECONDITIONERS.get(kind).obj
+    if isinstance(obj, str):  # "module:Class", imported only when chosen
+        module, cls = obj.split(":")
+        obj = getattr(importlib.import_module(module, __package__), cls)
+    return obj(K, nodes)
 
 
 def projected_cg(

@@ -789,8 +789,8 @@ SECTIONS = (
     section_3d_convergence,
     section_3d_von_mises,
     section_beyond,
-    section_hertz,
     section_compare_text,
+    section_hertz,
 )
 
 

@@ -128,14 +128,15 @@ class Scheme:
         free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
         if free_massless.size:
             raise InputError(
-                f"scheme {self.name}: mass {ctx.disc.mass_name!r} leaves {free_massless.size} free dofs massless, "
+                f"scheme {self.name}: mass {ctx.disc.mass_name!r} leaves {free_massless.size} free "
+                f"dof{'s' if free_massless.size != 1 else ''} massless, "
                 f"and {why} (docs/schemes.md); use {fix}"
             )
 
     def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
         if prepared and any(s.name.startswith("cg") for s in ctx.solvers):
             raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
-                             "(superlu or pardiso), not cg")  # fmt: skip
+                             "(superlu, pardiso or cholmod), not cg")  # fmt: skip
 
     @property
     def label(self) -> str:

@@ -58,8 +58,8 @@ class MoreauJean(Scheme):
         if self.theta == 0.5:
             self._refuse_massless(
                 ctx,
-                "with theta = 1/2 they are only balanced on average, S (U^n + U^{n+1})/2 = ..., an undamped (-1)^n "
-                "mode that loses the contact (measured on bar1d)",
+                "with the midpoint rule (theta = 1/2) they are only balanced on average, "
+                "S (U^n + U^{n+1})/2 = ..., an undamped (-1)^n mode that loses the contact (measured on bar1d)",
                 "theta > 1/2 (e.g. 1) or a mass without massless dofs" if self.parameters else "another mass",
             )
 
