@@ -67,7 +67,7 @@ def main(argv=None) -> int:
         print(json.dumps(one(a.one[0], int(a.one[1]), a.backend, a.one[2], a.steps)))
         return 0
     print("| case | n | dofs | contact nodes | touched | condensation | columns | set-up [s] | "
-          "columns [s] | step [ms] | total [s] | peak [MB] | same lambda |")  # fmt: skip
+          "columns [s] | step [ms] | total [s] | peak [MB] | same lambda (1e-10) |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n in a.n:
         for case in ("bar3d", "ball"):
