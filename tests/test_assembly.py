@@ -162,3 +162,12 @@ def test_surface_load_and_weights():
     assert np.isclose(w.sum(), 2.0)
     F = assembly.surface_load(mesh, "xmax", [0.0, 0.0, -1.5])
     assert np.isclose(F[2::3].sum(), -1.5 * 6.0)
+
+
+@pytest.mark.parametrize("cell", ["hexahedron", "tetra"])
+def test_strain_of_an_affine_displacement_is_exact(cell, rng):
+    mesh = box(2, 3, 2, 1.0, 0.7, 1.3, cell=cell)
+    A = rng.normal(size=(3, 3))
+    u = mesh.points @ A.T  # u_i = A_ij x_j
+    eps = assembly.strain(mesh, u.ravel())
+    assert np.allclose(eps, 0.5 * (A + A.T), rtol=0, atol=1e-13)
