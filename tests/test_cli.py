@@ -164,3 +164,11 @@ def test_factorization_tip_only_for_large_3d_superlu_runs(monkeypatch):
     assert factorization_tip({**big, "backend": "cg+jacobi"}) == ""
     monkeypatch.setattr(linalg, "has_cholmod", lambda: True)
     assert factorization_tip(big) == ""
+
+
+def test_backend_given_twice_must_agree(tmp_path, capsys):
+    out = tmp_path / "o"
+    args = ["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--backend", "superlu"]
+    assert main([*args, "--solver-option", "backend=cg"]) == 2
+    assert "disagree" in capsys.readouterr().err and not out.exists()
+    assert main([*args, "--solver-option", "backend=superlu"]) == 0

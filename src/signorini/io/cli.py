@@ -228,8 +228,13 @@ def mesh_counts(problem) -> tuple[int, int, int, int, int]:
 
 def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:
     sch = {**scheme_options, **parse_assignments(args.scheme_option, "--scheme-option")}
-    sol = {**solver_options, **parse_assignments(args.solver_option, "--solver-option")}
+    given = parse_assignments(args.solver_option, "--solver-option")
+    sol = {**solver_options, **given}
     if args.backend is not None:
+        if "backend" in given and str(given["backend"]) != args.backend:
+            raise InputError(
+                f"--backend {args.backend} and --solver-option backend={given['backend']} disagree; give one of them"
+            )
         sol["backend"] = args.backend
     return sch, sol
 
