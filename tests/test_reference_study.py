@@ -38,24 +38,21 @@ def test_reference_too_short_in_time():
         convergence_study("bar2d", "cn", "seed", [1], T=1.0, reference=ref)
 
 
-def test_levels_not_nested_in_the_reference():
-    with pytest.raises(InputError, match="not nested"):
-        convergence_study("bar2d", "cn", "seed", [2, 3], ref_level=8, T=0.2)
-    ref = reference_run("bar2d", 4, "cn", "seed", T=0.2)
-    with pytest.raises(InputError, match="not nested"):
-        convergence_study("bar2d", "cn", "seed", [1, 3], T=0.2, reference=ref)
-
-
-def test_reference_not_finer_than_the_finest_level():
-    with pytest.raises(InputError, match="not finer"):
-        convergence_study("bar2d", "cn", "seed", [1, 2], ref_level=2, T=0.2)
-    ref = reference_run("bar2d", 2, "cn", "seed", T=0.2)
-    with pytest.raises(InputError, match="not finer"):
-        convergence_study("bar2d", "cn", "seed", [1, 2], T=0.2, reference=ref)
-    # same mesh as the finest level but a coarser time step: not finer in dt
-    ref = reference_run("bar2d", 4, "cn", "seed", T=0.2, ratio=2.0)
-    with pytest.raises(InputError, match="time step"):
-        convergence_study("bar2d", "cn", "seed", [1, 2], T=0.2, reference=ref)
+@pytest.mark.parametrize(
+    "match, levels, ref_level, ref_args",
+    [
+        ("not nested", [2, 3], 8, None),  # a reference level the study levels do not divide
+        ("not nested", [1, 3], None, (4, 0.5)),  # a reference run, same defect
+        ("not finer", [1, 2], 2, None),  # the reference is the finest level itself
+        ("not finer", [1, 2], None, (2, 0.5)),
+        ("time step", [1, 2], None, (4, 2.0)),  # finer mesh but a coarser time step
+    ],
+)
+def test_reference_must_be_nested_and_finer(match, levels, ref_level, ref_args):
+    """By --ref-level or by a reference run (level, dt/h): a clear InputError."""
+    ref = None if ref_args is None else reference_run("bar2d", ref_args[0], "cn", "seed", T=0.2, ratio=ref_args[1])
+    with pytest.raises(InputError, match=match):
+        convergence_study("bar2d", "cn", "seed", levels, ref_level=ref_level, T=0.2, reference=ref)
 
 
 def test_reference_history_without_snapshots_is_refused():
