@@ -1,10 +1,11 @@
 """The time loop: ``simulate(problem, scheme, dt, T, mass=...) -> History``.
 
 The only loop of the package.  :func:`simulate` is set-up + loop + result:
-:func:`set_up` validates the options, discretizes, builds the :class:`~.context.Context`
-and factorizes the scheme's operator (and its starter's, unless proportional), computes
-the initial state and lists the observers; :func:`advance` runs the loop, calling the
-observers; :func:`assemble_history` makes the result.  Every exit
+the options are validated (:func:`run_options`), :func:`set_up` discretizes, builds the
+:class:`~.context.Context`, factorizes the scheme's operator (and its starter's, unless
+proportional) and computes the initial state; :func:`make_observers` lists the
+observers; :func:`advance` runs the loop, calling them; :func:`assemble_history` makes
+the result.  Every exit
 returns a :class:`~.history.History` with a status:
 
 ``finished``     the final time was reached;
@@ -24,7 +25,6 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -163,20 +163,6 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
     }
 
 
-@dataclass
-class RunSetup:
-    """A run ready to advance: the :class:`Run` (context factorized, initial state), the
-    starter of a two-step scheme, and the observers of the loop."""
-
-    run: Run
-    starter: Scheme | None
-    recorder: HistoryRecorder
-    energies: EnergyRecorder | None
-    snapshots: SnapshotRecorder | None
-    observers: list[Observer]
-    setup_seconds: float
-
-
 def run_options(
     snapshot_every: int, backend: str | None, memory_budget: float | None, solver_options: Mapping[str, Any] | None
 ) -> dict[str, Any]:
@@ -207,40 +193,28 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
 
 
 def set_up(
-    problem: Problem | Discretization,
-    scheme: str | type[Scheme] | Scheme,
-    dt: float,
-    T: float,
-    mass: str,
-    snapshot_every: int = 0,
-    backend: str | None = None,
-    memory_budget: float | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    *,
-    scheme_options: Mapping[str, Any] | None = None,
-    solver_options: Mapping[str, Any] | None = None,
-    observers: Iterable[Observer] = (),
-    energy: bool = True,
-) -> RunSetup:
-    """Everything before the loop: options, discretization, factorization, level 0 and
-    the observers (parameters as in :func:`simulate`)."""
-    sch = make_scheme(scheme, scheme_options)
-    starter = make_scheme(sch.starter) if sch.starter else None
+    problem: Problem | Discretization, mass: str, scheme: Scheme, dt: float, T: float, opts: dict
+) -> tuple[Run, Scheme | None]:
+    """Everything before the loop that costs time: discretization, factorization and
+    level 0 (``opts`` from :func:`run_options`).  Returns the run and the starter of a
+    two-step scheme (None for one-step schemes)."""
+    starter = make_scheme(scheme.starter) if scheme.starter else None
     N = number_of_steps(dt, T)
-    opts = run_options(snapshot_every, backend, memory_budget, solver_options)
-    t0 = time.perf_counter()
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
-    ctx = prepare_context(disc, dt, opts, (sch, starter))
-    state = initial_state(ctx)
-    setup = time.perf_counter() - t0
+    ctx = prepare_context(disc, dt, opts, (scheme, starter))
+    return Run(ctx, scheme, N, float(dt), initial_state(ctx), disc.problem), starter
 
+
+def make_observers(
+    snapshot_every: int, energy: bool, progress: Callable[[int, int], None] | None, extra: Iterable[Observer]
+) -> tuple[HistoryRecorder, EnergyRecorder | None, SnapshotRecorder | None, list[Observer]]:
+    """The recorders of the history, the energies and the snapshots, then ``extra``."""
     recorder, energies = HistoryRecorder(), EnergyRecorder() if energy else None
     snaps = SnapshotRecorder(snapshot_every) if snapshot_every else None
-    obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(observers)
+    obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(extra)
     if progress is not None:
         obs.append(ProgressCallback(progress))
-    run = Run(ctx, sch, N, float(dt), state, disc.problem)
-    return RunSetup(run, starter, recorder, energies, snaps, obs, setup)
+    return recorder, energies, snaps, obs
 
 
 def simulate(
@@ -287,22 +261,25 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
-    setup = set_up(problem, scheme, dt, T, mass, snapshot_every, backend, memory_budget, progress,
-                   scheme_options=scheme_options, solver_options=solver_options, observers=observers,
-                   energy=energy)  # fmt: skip
+    sch = make_scheme(scheme, scheme_options)
+    opts = run_options(snapshot_every, backend, memory_budget, solver_options)
+    t0 = time.perf_counter()
+    run, starter = set_up(problem, mass, sch, dt, T, opts)
+    setup_seconds = time.perf_counter() - t0
+    recorder, energies, snaps, obs = make_observers(snapshot_every, energy, progress, observers)
     t_loop = time.perf_counter()
-    status, message, n_last = advance(setup.run, setup.starter, setup.observers, handle_signals)
+    status, message, n_last = advance(run, starter, obs, handle_signals)
     loop = time.perf_counter() - t_loop
     # contact columns computed inside the loop (lazy condensation) are set-up work: reported
     # apart (in_loop_condensation_seconds), not in the time per step
-    columns = sum(s.timings.get("condensation_in_loop", 0.0) for s in setup.run.ctx.solvers)
+    columns = sum(s.timings.get("condensation_in_loop", 0.0) for s in run.ctx.solvers)
     timings = {
-        "setup_seconds": setup.setup_seconds,
+        "setup_seconds": setup_seconds,
         "loop_seconds": loop,
         "step_seconds": (loop - columns) / max(n_last, 1),
         "in_loop_condensation_seconds": columns,
     }
-    H = assemble_history(setup.run, n_last, setup.recorder, setup.energies, setup.snapshots, timings)
+    H = assemble_history(run, n_last, recorder, energies, snaps, timings)
     H.status, H.message = status, message
     return H
 
