@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
+from ..linalg.threads import blas_threads
 from .context import Context
 from .history import COUNTER_KEYS, History
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
@@ -299,7 +300,8 @@ def advance(run: Run, starter: Scheme | None, observers: list[Observer], handle_
         for o in observers:
             o.start(run)
             started.append(o)
-        with _catch_signals(handle_signals) as interrupts:
+        threads = run.ctx.solver_options.get("loop_blas_threads", 1)
+        with _catch_signals(handle_signals) as interrupts, blas_threads(threads):
             for n in range(1, N + 1):
                 if interrupts.signal_name:
                     status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"

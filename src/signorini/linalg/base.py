@@ -143,6 +143,14 @@ SOLVER_OPTIONS = (
         str,
         choices=("lazy", "full"),
     ),
+    Parameter(
+        "loop_blas_threads",
+        1,
+        "threads of the dense BLAS inside the time loop (0: the library's default); one is fastest for the "
+        "small dense contact blocks of a step (docs/performance.md)",
+        int,
+        0,
+    ),
 )
 
 
