@@ -60,6 +60,57 @@ def test_automatic_choice_uses_budget():
     assert H.meta["backend"].startswith("cg")
 
 
+def test_auto_prefers_cg_for_large_mass_dominated_3d_without_a_cholesky(monkeypatch):
+    import signorini.linalg.base as base
+
+    n, big = 140_000, 1e15
+    monkeypatch.setattr(base, "has_pardiso", lambda: False)
+    monkeypatch.setattr(base, "has_cholmod", lambda: False)
+    assert choose_backend(n, 3, big, cg_friendly=True) == "cg"
+    assert choose_backend(n, 3, big, cg_friendly=False) == "superlu"
+    assert choose_backend(n, 2, big, cg_friendly=True) == "superlu"  # SuperLU is fine in 2D
+    assert choose_backend(20_000, 3, big, cg_friendly=True) == "superlu"  # small: SuperLU first
+    monkeypatch.setattr(base, "has_cholmod", lambda: True)
+    assert choose_backend(n, 3, big, cg_friendly=True) == "cholmod"  # a Cholesky beats both
+
+
+def test_stiffness_to_mass_ratio_scales_with_dt_squared():
+    from signorini.dynamics.context import Context, stiffness_to_mass_ratio
+    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.schemes import make_scheme
+    from signorini.linalg.base import CG_FRIENDLY_RATIO
+
+    b = get_benchmark("bar3d")
+    disc = discretize(b.problem(2), "seed")
+    ctx = Context(disc, b.h(2) / 2)
+    cn = make_scheme("cn")
+    r = stiffness_to_mass_ratio(cn.operator(b.h(2) / 2), ctx)
+    assert 0 < r <= CG_FRIENDLY_RATIO  # the bars with dt = h/2 are mass-dominated
+    assert stiffness_to_mass_ratio(cn.operator(b.h(2)), ctx) == pytest.approx(4 * r, rel=1e-12)
+    assert stiffness_to_mass_ratio(cn.operator(10 * b.h(2)), ctx) > CG_FRIENDLY_RATIO
+
+
+@pytest.mark.parametrize(("scheme", "dt_factor", "friendly"), [("cn", 0.5, True), ("cn", 10.0, False),
+                                                                ("moreau-jean", 0.5, False), ("penalty", 0.5, False)])  # fmt: skip
+def test_auto_is_told_whether_cg_suits_the_run(monkeypatch, scheme, dt_factor, friendly):
+    """The run passes cg_friendly = mass-dominated operator and a scheme that can use cg."""
+    import signorini.contact.solver as solver
+
+    seen = []
+    real = solver.choose_backend
+
+    def spy(n, dim, budget=None, cg_friendly=False):
+        seen.append(cg_friendly)
+        return real(n, dim, budget, cg_friendly)
+
+    monkeypatch.setattr(solver, "choose_backend", spy)
+    b = get_benchmark("bar3d")
+    dt = dt_factor * b.h(2)
+    mass = "standard" if scheme == "moreau-jean" else "seed"
+    H = simulate(b.problem(2), scheme, dt, 4 * dt, mass=mass)
+    assert H.status == "finished" and seen and all(f == friendly for f in seen)
+
+
 def test_unknown_backend_is_an_error():
     from signorini.errors import InputError
 

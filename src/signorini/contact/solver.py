@@ -343,16 +343,18 @@ def make_contact_solver(
     dim: int = 3,
     options: dict[str, Any] | None = None,
     nodes: np.ndarray | None = None,
+    cg_friendly: bool = False,
 ) -> ContactSolver:
-    """The contact solver for ``options['backend']`` (``auto`` chooses by factor size);
-    ``nodes`` (n,) is the mesh node of each row of K (blocks of ``block-jacobi``)."""
+    """The contact solver for ``options['backend']`` (``auto``: :func:`choose_backend`);
+    ``nodes`` (n,) is the mesh node of each row of K (blocks of ``block-jacobi``);
+    ``cg_friendly``: K is mass-dominated and the scheme can use the CG contact solve."""
     opts = solver_options(options)
     backend = opts["backend"]
     if backend == "auto":
         budget = opts["memory_budget"] or 0.4 * total_memory()
         nc = B.shape[0]
         # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
-        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc) if 8.0 * nc * nc < budget else "cg"
+        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if 8.0 * nc * nc < budget else "cg"
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),

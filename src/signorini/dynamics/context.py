@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
+from ..linalg.base import CG_FRIENDLY_RATIO
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -53,6 +54,22 @@ class Operator:
         return float(s) if ok and s > 0 else None
 
 
+def stiffness_to_mass_ratio(op: Operator, ctx: Context) -> float:
+    """max over the free dofs with mass of c_S S_ii / (c_M M_ii) (inf without mass).
+
+    How far K = c_M M + c_S S is from its mass part: about (omega_max dt)^2 / 4 for the
+    highest frequency resolved by the mesh.  Small (<= 1) when dt is about the time a
+    wave takes to cross the smallest cell, and then Jacobi-CG converges in a few tens of
+    iterations.  Massless dofs (redistributed masses) are a few rows and are left out.
+    """
+    m = ctx.M.diagonal()[ctx.free]
+    s = ctx.S.diagonal()[ctx.free]
+    has_mass = m > 0
+    if op.mass == 0 or not has_mass.any():
+        return float("inf")
+    return float(np.max(op.stiffness * s[has_mass] / (op.mass * m[has_mass])))
+
+
 class _System:
     """A factorized operator restricted to the free dofs, with its lifting block."""
 
@@ -70,7 +87,8 @@ class _System:
         try:
             dim = ctx.disc.space.dim
             nodes = (f if D.size else np.arange(K.shape[0])) // dim  # dofs are node-major
-            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes)
+            cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
+            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes, cg_friendly)
         except (InputError, ConvergenceError, MemoryError):
             raise
         except Exception as exc:  # SuperLU's RuntimeError, LinAlgError, Pardiso's errors
@@ -111,6 +129,8 @@ class Context:
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
         self.BD = BD if BD is not None and BD.nnz else None
         self.solver_options = dict(solver_options or {})
+        #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it)
+        self.iterative_ok = True
         self._systems: list[_System] = []
         self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)

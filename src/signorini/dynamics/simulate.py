@@ -183,6 +183,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     ``check_context`` called before and after, so a refusal comes before any output)."""
     ctx = Context(disc, dt, opts)
     schemes = [s for s in schemes if s is not None]
+    ctx.iterative_ok = not any(s.needs_condensed_solve for s in schemes)
     for s in schemes:
         s.check_context(ctx)
     for s in schemes:

@@ -105,7 +105,8 @@ BACKENDS = Registry("linear solver backend")
 BACKENDS.register(
     "auto",
     None,
-    "direct factor if its estimated size fits in memory_budget (pardiso, else cholmod, else superlu), else cg",
+    "superlu below 30k dofs; else pardiso, else cholmod; else, in 3D, cg when the operator is mass-dominated "
+    "(and the scheme allows it), else superlu; cg when no factor fits memory_budget",
     (),
     CG_PARAMETERS,
 )
@@ -199,14 +200,23 @@ def estimate_factor_bytes(n: int, dim: int, backend: str) -> float:
 
 
 SMALL = 30_000  # below this many dofs SuperLU factors about as fast as the others start
+#: ``auto`` counts K = c_M M + c_S S as mass-dominated when c_S S_ii <= CG_FRIENDLY_RATIO
+#: c_M M_ii on every free dof with mass: Jacobi-CG then needs 20-30 iterations per solve
+#: (the bars with dt = h/2: ratio <= 0.85); the Hertz ball, with small cells at the pole
+#: and dt = t_c/(25 n), has ratios up to 2,500 and needs about 290 (docs/design.md)
+CG_FRIENDLY_RATIO = 4.0
 
 
-def choose_backend(n: int, dim: int, budget: float | None = None) -> str:
+def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: bool = False) -> str:
     """Direct solver when its estimated factor fits in ``budget`` bytes, else ``cg``.
 
     SuperLU for small systems (< 30k dofs, where Pardiso's start-up dominates), then
-    Pardiso when installed, CHOLMOD (cvxopt) when installed, SuperLU otherwise, and CG
-    when no factor fits.
+    Pardiso when installed, CHOLMOD (cvxopt) when installed.  Without either, a large 3D
+    system goes to CG when ``cg_friendly`` (the operator is mass-dominated, see
+    :data:`CG_FRIENDLY_RATIO`, and the scheme can use the CG contact solve): SuperLU's
+    LU of a 3D operator is slow and large (bar3d n = 16: 52 s, 3.5 GB, against 1.5 s of
+    set-up and 0.6 GB for CG, whose steps are also faster; docs/performance.md).  Then
+    SuperLU, and CG when no factor fits.
     """
     budget = 0.4 * total_memory() if not budget else budget
     if n < SMALL and estimate_factor_bytes(n, dim, "superlu") <= budget:
@@ -214,6 +224,8 @@ def choose_backend(n: int, dim: int, budget: float | None = None) -> str:
     for name, present in (("pardiso", has_pardiso), ("cholmod", has_cholmod)):
         if present() and estimate_factor_bytes(n, dim, name) <= budget:
             return name
+    if cg_friendly and dim == 3:
+        return "cg"
     if estimate_factor_bytes(n, dim, "superlu") <= budget:
         return "superlu"
     return "cg"

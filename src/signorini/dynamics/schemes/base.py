@@ -105,6 +105,9 @@ class Scheme:
     exact_contact: ClassVar[bool] = True
     #: works with massless free dofs (redistributed masses); False: refused in check_context
     massless_dofs_allowed: ClassVar[bool] = True
+    #: needs the condensed (Delassus) contact solve of a direct backend: ``auto`` never
+    #: picks cg for it, an explicit cg is refused (index sets, penalty compliances)
+    needs_condensed_solve: ClassVar[bool] = False
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
@@ -134,7 +137,7 @@ class Scheme:
             )
 
     def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
-        if prepared and any(s.name.startswith("cg") for s in ctx.solvers):
+        if self.needs_condensed_solve and prepared and any(s.name.startswith("cg") for s in ctx.solvers):
             raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
                              "(superlu, pardiso or cholmod), not cg")  # fmt: skip
 

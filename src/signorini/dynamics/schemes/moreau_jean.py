@@ -51,6 +51,7 @@ class MoreauJean(Scheme):
     )
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     exact_contact = False  # velocity-level: penetration O(dt)
+    needs_condensed_solve = True
     massless_dofs_allowed = False  # with the default theta = 1/2 (theta > 1/2 accepts them)
 
     def check_context(self, ctx, prepared: bool = False) -> None:

@@ -35,6 +35,7 @@ class PenaltyCN(CrankNicolson):
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) (penalty springs' energy not included)"
     exact_contact = False
     beta, gamma = 0.25, 0.5
+    needs_condensed_solve = True
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "penalty compliances")
