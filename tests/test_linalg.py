@@ -90,8 +90,10 @@ def test_stiffness_to_mass_ratio_scales_with_dt_squared():
     assert stiffness_to_mass_ratio(cn.operator(10 * b.h(2)), ctx) > CG_FRIENDLY_RATIO
 
 
-@pytest.mark.parametrize(("scheme", "dt_factor", "friendly"), [("cn", 0.5, True), ("cn", 10.0, False),
-                                                                ("moreau-jean", 0.5, False), ("penalty", 0.5, False)])  # fmt: skip
+RUNS = [("cn", 0.5, True), ("cn", 10.0, False), ("moreau-jean", 0.5, False), ("penalty", 0.5, False)]
+
+
+@pytest.mark.parametrize(("scheme", "dt_factor", "friendly"), RUNS)
 def test_auto_is_told_whether_cg_suits_the_run(monkeypatch, scheme, dt_factor, friendly):
     """The run passes cg_friendly = mass-dominated operator and a scheme that can use cg."""
     import signorini.contact.solver as solver

@@ -354,7 +354,8 @@ def make_contact_solver(
         budget = opts["memory_budget"] or 0.4 * total_memory()
         nc = B.shape[0]
         # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
-        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if 8.0 * nc * nc < budget else "cg"
+        fits = 8.0 * nc * nc < budget
+        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if fits else "cg"
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
