@@ -99,6 +99,7 @@ CG_PARAMETERS = (
     Parameter("rtol", 1e-12, "relative residual tolerance of CG", float, 0.0, 1.0, open_low=True, open_high=True),
     Parameter("max_iter", 2000, "CG iterations per solve", int, 1),
     Parameter("max_newton", 30, "active-set (semismooth Newton) iterations per step", int, 1),
+    Parameter("spmv_threads", 0, "threads of the products K @ x in CG (0: one per usable core; 1: not split)", int, 0),
 )
 
 BACKENDS = Registry("linear solver backend")
