@@ -31,6 +31,7 @@ def test_threaded_product_is_the_plain_product(matrix, threads):
     # blocks cover the rows in order and hold about the same number of non-zeros
     assert [b[0] for b in T.blocks][0] == 0 and T.blocks[-1][1] == matrix.shape[0]
     assert all(T.blocks[k][1] == T.blocks[k + 1][0] for k in range(threads - 1))
+    assert all(np.shares_memory(b[2].data, matrix.data) for b in T.blocks)  # views, no copy
     counts = [b[2].nnz for b in T.blocks]
     assert max(counts) - min(counts) <= 2 * np.diff(matrix.indptr).max()
     T.close()

@@ -27,6 +27,16 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
+def rows_view(A: sp.csr_matrix, a: int, b: int) -> sp.csr_matrix:
+    """Rows a..b-1 of A sharing A's values and column indices (no copy of the non-zeros)."""
+    lo, hi = A.indptr[a], A.indptr[b]
+    view = sp.csr_matrix((b - a, A.shape[1]), dtype=A.dtype)
+    # set after construction: the constructor copies a small slice of a large array
+    view.indptr = (A.indptr[a : b + 1] - lo).astype(A.indices.dtype)
+    view.indices, view.data = A.indices[lo:hi], A.data[lo:hi]
+    return view
+
+
 class ThreadedCSR:
     """``A @ x`` for a CSR matrix A (n x m), its rows split over ``threads`` threads.
 
@@ -43,7 +53,7 @@ class ThreadedCSR:
         parts = max(1, min(parts, A.shape[0])) if A.nnz >= MIN_NNZ else 1
         cuts = np.searchsorted(A.indptr, A.nnz * np.arange(1, parts) / parts)
         edges = [0, *(int(c) for c in cuts), A.shape[0]]
-        self.blocks = [(a, b, A[a:b]) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+        self.blocks = [(a, b, rows_view(A, a, b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
         self._pool = ThreadPoolExecutor(len(self.blocks) - 1) if len(self.blocks) > 1 else None
 
     @property
