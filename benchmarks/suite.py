@@ -65,7 +65,7 @@ def step_seconds(H) -> tuple[float, float]:
     return m["step_seconds"], m.get("in_loop_condensation_seconds", 0.0)
 
 
-def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -> dict:
+def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True, condensation: str = "auto") -> dict:
     from signorini.dynamics.problem import discretize
     from signorini.dynamics.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
@@ -77,7 +77,8 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True) -
     t_mesh = time.perf_counter() - t0
     disc = discretize(problem, "seed")
     dt = b.run_times(n)[0]  # h/2 for the bars, t_c/(25 n) for the Hertz impacts
-    H = simulate(disc, "cn", dt, steps * dt, backend=backend, energy=energy)
+    options = {"backend": backend, "condensation": condensation}
+    H = simulate(disc, "cn", dt, steps * dt, energy=energy, solver_options=options)
     m = H.meta
     ref = m.get("bare_solve_seconds") or m.get("bare_spmv_seconds")
     step, in_loop = step_seconds(H)
@@ -239,6 +240,9 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=100, help="time steps per size (default 100)")
     ap.add_argument("--backend", default="auto", help="auto|superlu|pardiso|cholmod|cg (default auto)")
     ap.add_argument("--no-energy", action="store_true", help="switch the energy bookkeeping observer off")
+    ap.add_argument(
+        "--condensation", default="auto", help="auto|schur|lazy|full: Delassus matrix of direct backends (default auto)"
+    )
     ap.add_argument("--out", default="out/bench", help="output directory")
     ap.add_argument("--one", nargs=2, metavar=("BENCH", "N"), help=argparse.SUPPRESS)
     ap.add_argument(
@@ -250,7 +254,7 @@ def main(argv=None) -> int:
     )
     a = ap.parse_args(argv)
     if a.one:
-        print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend, not a.no_energy)))
+        print(json.dumps(measure(a.one[0], int(a.one[1]), a.steps, a.backend, not a.no_energy, a.condensation)))
         return 0
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -120,3 +120,18 @@ class DelassusColumns:
     def Z_times(self, nodes: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """Z[:, nodes] @ lam (needs :attr:`keeps_Z`), shape (n,)."""
         return lam @ self._Zt[self.slot[nodes]]
+
+    def free(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x_free, B x_free) for x_free = K^-1 b (one solve)."""
+        x = self.factor.solve(b)
+        return x, self.B @ x
+
+    def complete(self, x_free: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """x = x_free + Z lambda: the stored Z columns of the nodes with lambda != 0, or
+        one more solve when Z does not fit in the budget."""
+        A = np.flatnonzero(lam)
+        if A.size == 0:
+            return x_free
+        if self.keeps_Z:
+            return x_free + self.Z_times(A, lam[A])
+        return x_free + self.factor.solve(self.B.T @ lam)

@@ -14,13 +14,20 @@ dofs with the Delassus matrix W = B K^-1 B^T and Z = K^-1 B^T,
     x = x_free + Z lambda,     x_free = K^-1 b,
 
 and mu = -lambda solves the LCP  r = (c - B x_free) + W mu >= 0, mu >= 0, r.mu = 0
-(:mod:`signorini.contact.complementarity`).  The columns of W and Z are computed by
-:mod:`signorini.contact.delassus`: lazily by default (a node's column when the node
-first nears contact, so the set-up is one factorization), or all at set-up
-(``condensation = full``).  A call costs one forward/backward substitution, a small
-dense LCP on the candidate nodes warm-started from the previous active set, and one
-product with the active columns of Z (one more solve instead when Z does not fit in
-``condense_budget`` bytes).
+(:mod:`signorini.contact.complementarity`).  W comes from one of
+
+* :mod:`signorini.contact.schur` (``condensation = schur``, Pardiso): the Schur
+  complement of K on the contact dofs, computed by the factorization itself; a call
+  costs a forward and a backward substitution (one solve), the LCP and dense
+  products with the contact dofs;
+* :mod:`signorini.contact.delassus`: columns of W and Z computed by solves, lazily
+  (a node's column when the node first nears contact; ``lazy``) or all at set-up
+  (``full``); a call costs one solve, the LCP on the candidate nodes warm-started from
+  the previous active set, and one product with the active columns of Z (one more solve
+  instead when Z does not fit in ``condense_budget`` bytes).
+
+``auto`` picks ``schur`` with Pardiso and many contact nodes, else ``lazy``
+(:func:`choose_condensation`).
 
 :class:`ActiveSetCGSolver` (backend ``cg``): semismooth Newton on the active set
 with projected preconditioned CG, no factor and no Z.
@@ -40,10 +47,19 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
-from ..linalg import choose_backend, factorize, make_preconditioner, projected_cg, solver_options, total_memory
+from ..linalg import (
+    choose_backend,
+    factor_class,
+    factorize,
+    make_preconditioner,
+    projected_cg,
+    solver_options,
+    total_memory,
+)
 from ..linalg.spmv import ThreadedCSR
 from .complementarity import complementarity_residual, solve_lcp
 from .delassus import DelassusColumns
+from .schur import SchurDelassus, schur_dofs
 
 
 def _best_time(op, n: int, repeats: int = 3) -> float:
@@ -123,14 +139,44 @@ class ContactSolver:
         raise NotImplementedError  # pragma: no cover
 
 
-class CondensedContactSolver(ContactSolver):
-    """Factor ``K`` once; solve each call exactly on the Delassus columns it needs.
+CONDENSATIONS = ("auto", "lazy", "full", "schur")
+#: ``auto`` takes the Schur condensation from this many contact nodes: below, the lazy
+#: columns (blocks of 64, each about 15 solves) cost less than Schur's slower solves
+#: (MKL runs the forward/backward parts on one thread: 1.5-2x a plain solve on 2 cores)
+SCHUR_MIN_NODES = 512
 
-    ``condensation``: ``lazy`` computes the column of W = B K^-1 B^T of a contact node
-    the first time the node is a candidate (violates its bound, or was active), so the
-    set-up is one factorization and a step costs solves only for nodes touching for the
-    first time; ``full`` computes all nc columns at set-up.  Both give the same solution
-    (the LCP with W SPD has a unique solution; see :meth:`solve`).
+
+def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budget: float) -> str:
+    """The condensation of a run: ``auto`` takes ``schur`` when the backend computes Schur
+    complements (pardiso), there are at least :data:`SCHUR_MIN_NODES` contact nodes, and
+    the dense matrices (S, its Cholesky factor, S^-1 B_C^T and W: about
+    8 (2 |C|^2 + |C| nc + nc^2) bytes) fit in ``budget``; else ``lazy``.  An explicit
+    ``schur`` on another backend is an input error."""
+    if condensation not in CONDENSATIONS:
+        allowed = ", ".join(CONDENSATIONS)
+        raise InputError(f"solver option 'condensation' must be one of {allowed}; got {condensation!r}")
+    supported = factor_class(backend).supports_schur
+    if condensation == "schur" and not supported:
+        raise InputError(f"solver option condensation='schur' needs the pardiso backend, not {backend!r}; "
+                         "use condensation='lazy' or 'full' with this backend")  # fmt: skip
+    if condensation != "auto":
+        return condensation
+    nc, n = B.shape
+    ns = schur_dofs(B).size if supported and nc else 0
+    dense = 8.0 * (2 * ns * ns + ns * nc + nc * nc)
+    return "schur" if nc >= SCHUR_MIN_NODES and 0 < ns < n // 2 and dense <= budget else "lazy"
+
+
+class CondensedContactSolver(ContactSolver):
+    """Factor ``K`` once; solve each call exactly on the Delassus matrix W = B K^-1 B^T.
+
+    ``condensation`` (:func:`choose_condensation`): ``schur`` gets all of W from the
+    Schur complement of K on the contact dofs, computed with the factorization
+    (Pardiso); ``lazy`` computes the column of W of a contact node the first time the
+    node is a candidate (violates its bound, or was active), so the set-up is one
+    factorization and a step costs solves only for nodes touching for the first time;
+    ``full`` computes all nc columns at set-up.  All give the same solution (the LCP
+    with W SPD has a unique solution; see :meth:`solve`).
     """
 
     def __init__(
@@ -141,20 +187,25 @@ class CondensedContactSolver(ContactSolver):
         backend: str = "superlu",
         condense_budget: float = 2e9,
         lcp_max_iter: int = 50,
-        condensation: str = "lazy",
+        condensation: str = "auto",
     ):
         super().__init__()
+        self.B = sp.csr_matrix(B)
+        nc, n = self.B.shape
+        self.condensation = condensation = choose_condensation(condensation, backend, self.B, condense_budget)
         t0 = time.perf_counter()
-        self.factor = factorize(K, backend)
+        dofs = schur_dofs(self.B) if condensation == "schur" else None
+        self.factor = factorize(K, backend, dofs)
         self.counters["factorizations"] = 1
         t1 = time.perf_counter()
         self.name = self.factor.name
-        self.B = sp.csr_matrix(B)
         self.lcp_max_iter = lcp_max_iter
-        nc, n = self.B.shape
-        self.delassus = DelassusColumns(self.factor, self.B, condense_budget)
-        if condensation == "full":
-            self.delassus.ensure(np.arange(nc))
+        if condensation == "schur":
+            self.delassus = SchurDelassus(self.factor, self.B)
+        else:
+            self.delassus = DelassusColumns(self.factor, self.B, condense_budget)
+            if condensation == "full":
+                self.delassus.ensure(np.arange(nc))
         self.active = np.zeros(nc, dtype=bool)
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
@@ -190,14 +241,15 @@ class CondensedContactSolver(ContactSolver):
         Then mu (zero outside P) solves the whole LCP: outside P, mu_i = 0 and r_i >= 0.
         P only grows, so this ends after at most nc rounds (one or two in practice).
         """
-        U = self.factor.solve(b)
+        state, BU = self.delassus.free(b)
         nc = self.B.shape[0]
         subset, compliance = law.subset, law.compliance
         if nc == 0 or (subset is not None and not subset.any()):
+            U = self.delassus.complete(state, np.zeros(nc))
             self._sync()
             self.active = np.zeros(nc, dtype=bool)
             return U, np.zeros(nc), StepInfo(0, False, 0.0, self.active)
-        q_all = bound - self.B @ U
+        q_all = bound - BU
         idx = np.arange(nc) if subset is None else np.flatnonzero(subset)
         q = q_all[idx]
         scale = max(self.gap_scale, float(np.max(np.abs(q))))
@@ -233,12 +285,7 @@ class CondensedContactSolver(ContactSolver):
             in_P[joining] = True
         lam = np.zeros(nc)
         lam[idx] = -mu
-        A = np.flatnonzero(lam != 0.0)
-        if A.size:
-            if self.delassus.keeps_Z:
-                U = U + self.delassus.Z_times(A, lam[A])
-            else:
-                U = U + self.factor.solve(self.B.T @ lam)
+        U = self.delassus.complete(state, lam)
         self.active = np.zeros(nc, dtype=bool)
         self.active[idx] = active
         self.counters["contact_iterations"] += iterations

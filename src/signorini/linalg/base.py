@@ -34,9 +34,15 @@ from ..registry import Parameter, Registry
 
 
 class Factor:
-    """Base class of a direct factorization; subclasses implement ``_solve``."""
+    """Base class of a direct factorization; subclasses implement ``_solve``.
+
+    A backend with ``supports_schur`` also takes ``schur_dofs`` and then provides the
+    dense Schur complement ``schur`` of K on those dofs and a solve split into
+    ``forward`` / ``backward`` (:class:`~.pardiso.PardisoFactor`).
+    """
 
     name = "factor"
+    supports_schur = False
 
     def __init__(self) -> None:
         self.solves = 0
@@ -140,10 +146,12 @@ SOLVER_OPTIONS = (
     ),
     Parameter(
         "condensation",
-        "lazy",
-        "Delassus columns (direct backends): lazy (when a node first nears contact) or full (at set-up)",
+        "auto",
+        "Delassus matrix (direct backends): schur (Schur complement of K on the contact dofs from the "
+        "factorization; pardiso only), lazy (a node's column when it first nears contact), full (every column at "
+        "set-up); auto: schur with pardiso, else lazy",
         str,
-        choices=("lazy", "full"),
+        choices=("auto", "lazy", "full", "schur"),
     ),
     Parameter(
         "loop_blas_threads",
@@ -232,12 +240,22 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
     return "cg"
 
 
-def factorize(K: sp.spmatrix, backend: str = "superlu") -> Factor:
-    """Factorize the SPD matrix ``K`` once with the direct backend ``backend``."""
+def factor_class(backend: str) -> type[Factor]:
+    """The :class:`Factor` subclass of the direct backend ``backend`` (imported now)."""
     entry = BACKENDS.get(backend)
     if not isinstance(entry.obj, str):
         direct = [e.name for e in BACKENDS if isinstance(e.obj, str)]
         raise InputError(f"backend {backend!r} is not a direct solver; allowed: {', '.join(direct)}")
     module, cls = entry.obj.split(":")
-    factor_class = getattr(importlib.import_module(module, __package__), cls)
-    return factor_class(K)
+    return getattr(importlib.import_module(module, __package__), cls)
+
+
+def factorize(K: sp.spmatrix, backend: str = "superlu", schur_dofs: np.ndarray | None = None) -> Factor:
+    """Factorize the SPD matrix ``K`` once with the direct backend ``backend``; with
+    ``schur_dofs`` (a backend with ``supports_schur``) also its Schur complement there."""
+    cls = factor_class(backend)
+    if schur_dofs is None:
+        return cls(K)
+    if not cls.supports_schur:
+        raise InputError(f"backend {backend!r} cannot compute a Schur complement; use pardiso")
+    return cls(K, schur_dofs=schur_dofs)

@@ -1,6 +1,21 @@
-"""MKL Pardiso through ``pypardiso`` (optional extra ``pardiso``), imported lazily."""
+"""MKL Pardiso through ``pypardiso`` (optional extra ``pardiso``), imported lazily.
+
+pypardiso finds MKL's ``mkl_rt`` library and declares the ``pardiso`` entry point; the
+calls are made here (:meth:`PardisoFactor._call`) so that
+
+* the 1-based index arrays of K are built once, not at every solve;
+* the factorization can also return the **Schur complement** of K on a set of dofs C
+  (MKL's ``iparm[35] = 2`` with ``perm`` marking C; C is ordered last), keeping the full
+  factor: ``S = K_CC - K_CI K_II^-1 K_IC`` (dense, |C| x |C|), and a solve can be split
+  into its forward part (phase 331: ``y_C = b_C - K_CI K_II^-1 b_I``, the reduced
+  right-hand side on C) and its backward part (phase 333: from ``y`` with ``y_C``
+  replaced by x_C, the interior x_I = K_II^-1 (b_I - K_IC x_C)).  Together they cost
+  one solve (docs/design.md, "Schur condensation").
+"""
 
 from __future__ import annotations
+
+import ctypes
 
 import numpy as np
 import scipy.sparse as sp
@@ -8,28 +23,96 @@ import scipy.sparse as sp
 from ..optional import optional_import
 from .base import Factor
 
+#: MKL phases: analysis + factorization, solve, forward part, backward part, release
+FACTORIZE, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 33, 331, 333, -1
+
 
 class PardisoFactor(Factor):
-    """Real SPD mode on the upper triangle, nested-dissection ordering, factorized once."""
+    """Real SPD mode on the upper triangle, nested-dissection ordering, factorized once.
+
+    ``schur_dofs`` (indices, optional): also compute the Schur complement of K on these
+    dofs (:attr:`schur`) and allow :meth:`forward` / :meth:`backward`.
+    """
 
     name = "pardiso"
+    supports_schur = True
 
-    def __init__(self, K: sp.spmatrix):
+    def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None):
         super().__init__()
         pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
-        self._A = sp.triu(K, format="csr")
-        self._A.sort_indices()
-        self._solver = pypardiso.PyPardisoSolver(mtype=2)
-        self._solver.set_statistical_info_off()
-        self._solver.set_iparm(18, -1)  # (1-based) ask Pardiso to report the factor's non-zeros
-        self._solver.factorize(self._A)
+        A = sp.triu(K, format="csr")
+        A.sort_indices()
+        self._A = A
+        self._n = A.shape[0]
+        self._ia = (A.indptr + 1).astype(np.int32)
+        self._ja = (A.indices + 1).astype(np.int32)
+        solver = pypardiso.PyPardisoSolver(mtype=2)
+        self._solver = solver
+        iparm = solver.iparm
+        iparm[:] = 0
+        iparm[0] = 1  # the values below, not MKL's defaults
+        iparm[1] = 3  # nested dissection (METIS), its parallel version
+        iparm[9] = 8  # pivot perturbation 1e-8 (MKL's default for symmetric matrices)
+        iparm[17] = -1  # report the factor's non-zeros
+        self._perm = np.zeros(self._n, dtype=np.int32)
+        self.schur: np.ndarray | None = None
+        self.schur_dofs = None
+        buffer = np.zeros(1)
+        if schur_dofs is not None:
+            self.schur_dofs = np.asarray(schur_dofs, dtype=np.intp)
+            ns = self.schur_dofs.size
+            self._perm[self.schur_dofs] = 1
+            iparm[35] = 2  # Schur complement, and keep the whole factor for solves
+            buffer = np.zeros((ns, ns), order="F")
+        self._call(FACTORIZE, np.zeros(self._n), buffer)
+        if schur_dofs is not None:
+            self.schur = buffer
+
+    def _call(self, phase: int, b: np.ndarray, x: np.ndarray) -> None:
+        """One call of MKL's ``pardiso`` (b, x Fortran-ordered float64; x is written)."""
+        s = self._solver
+        i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
+        err = ctypes.c_int32(0)
+        nrhs = 1 if b.ndim == 1 else b.shape[1]
+
+        def ref(v: int):
+            return ctypes.byref(ctypes.c_int32(v))
+
+        s._mkl_pardiso(
+            s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])), ref(1), ref(1), ref(2), ref(phase), ref(self._n),
+            self._A.data.ctypes.data_as(f64), self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
+            self._perm.ctypes.data_as(i32), ref(nrhs), s.iparm.ctypes.data_as(i32), ref(0),
+            b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err),
+        )  # fmt: skip
+        if err.value != 0:
+            raise RuntimeError(f"MKL Pardiso error {err.value} in phase {phase}")
 
     @property
     def nbytes(self) -> int:
         """Factor size from Pardiso's report (non-zeros of L, values + indices) [bytes]."""
-        return int(12 * max(self._solver.get_iparm(18), 0))
+        return int(12 * max(int(self._solver.iparm[17]), 0))
+
+    def _run(self, phase: int, b: np.ndarray) -> np.ndarray:
+        b = np.asfortranarray(np.asarray(b, dtype=float))
+        x = np.zeros_like(b, order="F")
+        self._call(phase, b, x)
+        return np.ascontiguousarray(x)
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
-        b = np.asfortranarray(np.asarray(b, dtype=float))
-        self._solver.set_phase(33)  # solve only: the factor is reused, no re-hashing of A
-        return self._solver._call_pardiso(self._A, b)
+        return self._run(SOLVE, b)
+
+    def forward(self, b: np.ndarray) -> np.ndarray:
+        """The forward part of a solve (needs ``schur_dofs``): y with y_C the reduced
+        right-hand side b_C - K_CI K_II^-1 b_I; counts one solve."""
+        self.solves += 1
+        return self._run(FORWARD, b)
+
+    def backward(self, y: np.ndarray) -> np.ndarray:
+        """The solution x from ``forward``'s y with y_C replaced by x_C."""
+        return self._run(BACKWARD, y)
+
+    def __del__(self) -> None:
+        try:
+            self._call(RELEASE, np.zeros(1), np.zeros(1))
+        except Exception:  # interpreter shutdown, or never factorized
+            pass
