@@ -90,6 +90,7 @@ def test_schur_equals_full_condensation(case):
     }
     assert np.abs(runs["full"].lam).max() > 0  # there was contact
     _agree(runs["schur"], runs["full"])
+    assert runs["schur"].meta["condensation"] == "schur" and runs["full"].meta["condensation"] == "full"
     # one forward/backward pair per step: as many solves as steps
     assert runs["schur"].counters["linear_solves"] == runs["schur"].steps
 
