@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
+from ..linalg.spmv import ThreadedCSR
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -123,6 +124,9 @@ class Context:
         self.disc = disc
         self.dt = float(dt)
         self.M, self.S, self.B = disc.M, disc.S, disc.B
+        #: ``M @ x`` and ``S @ x`` with the rows split over the cores (large matrices only;
+        #: the same bits as ``M @ x``): the products of a step's right-hand side and energy
+        self.Mop, self.Sop = ThreadedCSR(sp.csr_matrix(disc.M)), ThreadedCSR(sp.csr_matrix(disc.S))
         self.free, self.fixed = disc.free, disc.fixed
         self.has_fixed = self.fixed.size > 0
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B

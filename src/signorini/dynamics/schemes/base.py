@@ -183,7 +183,7 @@ class Scheme:
 # ----------------------------------------------------------------------------- helpers
 def products(ctx: Context, s: State) -> tuple[np.ndarray, np.ndarray]:
     """(M V, S U) of a state, computed once."""
-    return s.product("MV", lambda: ctx.M @ s.V), s.product("SU", lambda: ctx.S @ s.U)
+    return s.product("MV", lambda: ctx.Mop @ s.V), s.product("SU", lambda: ctx.Sop @ s.U)
 
 
 def mechanical_energy(ctx: Context, s: State) -> tuple[float, float]:

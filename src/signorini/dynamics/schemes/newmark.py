@@ -47,7 +47,7 @@ class Newmark(Scheme):
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
-        rhs = ctx.M @ p + ctx.load(t)
+        rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, self.contact_law(ctx))
         return self.update(ctx, s, t, U, lam, info, p)

@@ -40,7 +40,7 @@ class Theta(Scheme):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
-        rhs = ctx.M @ p + ctx.load(t)
+        rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed)
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
