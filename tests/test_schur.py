@@ -139,3 +139,22 @@ def test_auto_is_lazy_without_pardiso_and_an_explicit_schur_is_refused():
         choose_condensation("schur", "superlu", B, 2e9)
     with pytest.raises(InputError, match="must be one of auto, lazy, full, schur"):
         choose_condensation("dense", "superlu", B, 2e9)
+
+
+@needs_pardiso
+def test_an_explicit_schur_with_backend_auto_takes_pardiso():
+    problem, dt = CASES["bar2d"]()
+    H = simulate(problem, "cn", dt, 10 * dt, solver_options={"condensation": "schur"})  # small: auto alone -> superlu
+    assert H.meta["backend"] == "pardiso" and H.meta["condensation"] == "schur"
+
+
+@needs_pardiso
+def test_schur_dofs_in_any_order_and_out_of_range(rng):
+    n = 30
+    K = _spd(n, seed=5)
+    C = np.array([7, 2, 19, 2, 11])
+    S = factorize(K, "pardiso", schur_dofs=C).schur
+    F = factorize(K, "pardiso", schur_dofs=np.unique(C))
+    assert np.array_equal(F.schur_dofs, np.unique(C)) and np.allclose(S, F.schur, rtol=1e-13, atol=0)
+    with pytest.raises(ValueError, match="must lie in"):
+        factorize(K, "pardiso", schur_dofs=np.array([-1, 3]))

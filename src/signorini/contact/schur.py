@@ -58,7 +58,9 @@ class SchurDelassus:
         factor.schur = None  # overwritten by its Cholesky factor
         self._G = sla.cho_solve(self._chol, self.Bc.T.toarray(), check_finite=False)  # S^-1 B_C^T (|C|, nc)
         W = np.asarray(self.Bc @ self._G)
-        self._W = 0.5 * (W + W.T)
+        W += W.T  # symmetrized in place (round-off)
+        W *= 0.5
+        self._W = W
         self.count = nc
         self.slot = np.arange(nc)
         self.seconds = time.perf_counter() - t0
@@ -87,7 +89,8 @@ class SchurDelassus:
     def complete(self, state: tuple[np.ndarray, np.ndarray], lam: np.ndarray) -> np.ndarray:
         """x = K^-1 (b + B^T lambda) from :meth:`free`'s state (the backward substitution)."""
         y, xc = state
-        if lam.any():
-            xc = xc + self._G @ lam
+        A = np.flatnonzero(lam)
+        if A.size:
+            xc = xc + self._G[:, A] @ lam[A]
         y[self.dofs] = xc
         return self.factor.backward(y)

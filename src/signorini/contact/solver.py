@@ -51,6 +51,7 @@ from ..linalg import (
     choose_backend,
     factor_class,
     factorize,
+    has_pardiso,
     make_preconditioner,
     projected_cg,
     solver_options,
@@ -149,8 +150,8 @@ SCHUR_MIN_NODES = 512
 def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budget: float) -> str:
     """The condensation of a run: ``auto`` takes ``schur`` when the backend computes Schur
     complements (pardiso), there are at least :data:`SCHUR_MIN_NODES` contact nodes, and
-    the dense matrices (S, its Cholesky factor, S^-1 B_C^T and W: about
-    8 (2 |C|^2 + |C| nc + nc^2) bytes) fit in ``budget``; else ``lazy``.  An explicit
+    the dense matrices (S, its Cholesky factor, S^-1 B_C^T, W and their temporaries: at
+    most 8 (2 |C|^2 + 2 |C| nc + 3 nc^2) bytes) fit in ``budget``; else ``lazy``.  An explicit
     ``schur`` on another backend is an input error."""
     if condensation not in CONDENSATIONS:
         allowed = ", ".join(CONDENSATIONS)
@@ -163,7 +164,7 @@ def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budge
         return condensation
     nc, n = B.shape
     ns = schur_dofs(B).size if supported and nc else 0
-    dense = 8.0 * (2 * ns * ns + ns * nc + nc * nc)
+    dense = 8.0 * (2 * ns * ns + 2 * ns * nc + 3 * nc * nc)
     return "schur" if nc >= SCHUR_MIN_NODES and 0 < ns < n // 2 and dense <= budget else "lazy"
 
 
@@ -407,6 +408,11 @@ def make_contact_solver(
     ``cg_friendly``: K is mass-dominated and the scheme can use the CG contact solve."""
     opts = solver_options(options)
     backend = opts["backend"]
+    if backend == "auto" and opts["condensation"] == "schur":
+        if not has_pardiso():
+            raise InputError("solver option condensation='schur' needs the pardiso backend, which is not installed "
+                             "(pip install '.[pardiso]'); use condensation='lazy' or 'full'")  # fmt: skip
+        backend = "pardiso"  # the only backend that computes the Schur complement
     if backend == "auto":
         budget = opts["memory_budget"] or 0.4 * total_memory()
         nc = B.shape[0]

@@ -140,7 +140,8 @@ SOLVER_OPTIONS = (
     Parameter(
         "condense_budget",
         2e9,
-        "bytes allowed to store the computed columns of Z = K^-1 B^T (direct backends)",
+        "bytes allowed for the dense contact matrices: the computed columns of Z = K^-1 B^T (lazy, full), "
+        "the Schur complement and W (schur)",
         float,
         0.0,
     ),
@@ -149,7 +150,8 @@ SOLVER_OPTIONS = (
         "auto",
         "Delassus matrix (direct backends): schur (Schur complement of K on the contact dofs from the "
         "factorization; pardiso only), lazy (a node's column when it first nears contact), full (every column at "
-        "set-up); auto: schur with pardiso, else lazy",
+        "set-up); auto: schur with pardiso and at least 512 contact nodes when its dense matrices fit in "
+        "condense_budget, else lazy",
         str,
         choices=("auto", "lazy", "full", "schur"),
     ),

@@ -40,13 +40,20 @@ class PardisoFactor(Factor):
     def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None):
         super().__init__()
         pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
-        A = sp.triu(K, format="csr")
+        A = sp.triu(K, format="csr").astype(np.float64, copy=False)
         A.sort_indices()
+        if A.nnz >= 2**31:
+            raise MemoryError(f"K has {A.nnz} non-zeros in its upper triangle: more than MKL's 32-bit indices hold")
         self._A = A
         self._n = A.shape[0]
         self._ia = (A.indptr + 1).astype(np.int32)
         self._ja = (A.indices + 1).astype(np.int32)
         solver = pypardiso.PyPardisoSolver(mtype=2)
+        if not all(hasattr(solver, a) for a in ("_mkl_pardiso", "pt", "iparm", "_pt_type")):
+            raise RuntimeError(
+                f"pypardiso {getattr(pypardiso, '__version__', '?')} does not expose MKL's pardiso handle as the "
+                "versions 0.4.x do; install pypardiso<0.5 or use another backend"
+            )
         self._solver = solver
         iparm = solver.iparm
         iparm[:] = 0
@@ -59,8 +66,11 @@ class PardisoFactor(Factor):
         self.schur_dofs = None
         buffer = np.zeros(1)
         if schur_dofs is not None:
-            self.schur_dofs = np.asarray(schur_dofs, dtype=np.intp)
-            ns = self.schur_dofs.size
+            dofs = np.unique(np.asarray(schur_dofs, dtype=np.intp))  # MKL returns S in increasing dof order
+            if dofs.size and (dofs[0] < 0 or dofs[-1] >= self._n):
+                raise ValueError(f"schur_dofs must lie in [0, {self._n}); got {dofs[0]}..{dofs[-1]}")
+            self.schur_dofs = dofs
+            ns = dofs.size
             self._perm[self.schur_dofs] = 1
             iparm[35] = 2  # Schur complement, and keep the whole factor for solves
             buffer = np.zeros((ns, ns), order="F")
@@ -103,8 +113,8 @@ class PardisoFactor(Factor):
 
     def forward(self, b: np.ndarray) -> np.ndarray:
         """The forward part of a solve (needs ``schur_dofs``): y with y_C the reduced
-        right-hand side b_C - K_CI K_II^-1 b_I; counts one solve."""
-        self.solves += 1
+        right-hand side b_C - K_CI K_II^-1 b_I; counts one solve per right-hand side."""
+        self.solves += 1 if np.ndim(b) == 1 else int(np.shape(b)[1])
         return self._run(FORWARD, b)
 
     def backward(self, y: np.ndarray) -> np.ndarray:
