@@ -158,3 +158,10 @@ def test_schur_dofs_in_any_order_and_out_of_range(rng):
     assert np.array_equal(F.schur_dofs, np.unique(C)) and np.allclose(S, F.schur, rtol=1e-13, atol=0)
     with pytest.raises(ValueError, match="must lie in"):
         factorize(K, "pardiso", schur_dofs=np.array([-1, 3]))
+
+
+def test_summary_names_the_condensation_of_every_backend():
+    problem, dt = CASES["bar2d"]()
+    for backend, expected in (("superlu", "lazy"), ("cg", "none")):
+        H = simulate(problem, "cn", dt, 5 * dt, solver_options={"backend": backend})
+        assert H.meta["condensation"] == expected

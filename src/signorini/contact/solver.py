@@ -327,6 +327,7 @@ class ActiveSetCGSolver(ContactSolver):
         # needs a mesh-independent number of iterations (AMG was 4x slower per step here)
         self.precond = make_preconditioner(preconditioner, self.K, nodes)
         self.name = f"cg+{preconditioner}"
+        self.condensation = "none"  # no Delassus matrix: the active set is imposed inside CG
         self.rtol = rtol
         self.max_iter = max_iter
         self.max_newton = max_newton

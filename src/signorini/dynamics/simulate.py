@@ -157,8 +157,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "contact_nodes": int(disc.contact.size),
         "massless_dofs": int(ctx.massless.size),
         "backend": main.name,
-        # how the Delassus matrix was obtained (direct backends): schur, lazy or full
-        "condensation": getattr(main, "condensation", None),
+        # how the Delassus matrix was obtained: schur, lazy or full (direct backends), none (cg)
+        "condensation": getattr(main, "condensation", "none"),
         "solver_options": dict(ctx.solver_options),
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
