@@ -1,4 +1,5 @@
-"""linalg/spmv.py: products split over threads equal the plain product bit for bit."""
+"""linalg/spmv.py: products split over threads equal the plain product bit for bit; MKL's
+product equals it to round-off and gives the same histories."""
 
 import numpy as np
 import pytest
@@ -6,7 +7,10 @@ import scipy.sparse as sp
 
 import signorini.linalg.spmv as spmv
 from signorini.dynamics.simulate import simulate
-from signorini.linalg.spmv import ThreadedCSR
+from signorini.errors import InputError
+from signorini.linalg import solver_options
+from signorini.linalg.mkl import has_mkl
+from signorini.linalg.spmv import MKLCSR, ThreadedCSR, sparse_product
 from signorini.studies.benchmarks import get_benchmark
 
 
@@ -47,8 +51,74 @@ def test_cg_path_with_split_products_is_bitwise_the_same(monkeypatch):
     monkeypatch.setattr(spmv, "MIN_NNZ", 0)
     b = get_benchmark("bar3d")
     runs = [
-        simulate(b.problem(3), "cn", b.h(3) / 2, 0.6, backend="cg", solver_options={"spmv_threads": t}) for t in (1, 3)
+        simulate(b.problem(3), "cn", b.h(3) / 2, 0.6, backend="cg", solver_options={"spmv_threads": t, "spmv": "scipy"})
+        for t in (1, 3)
     ]
     assert runs[0].counters["contact_iterations"] > runs[0].steps  # the active set changed on the way
     for key in ("lam", "gap", "energy"):
         assert np.array_equal(getattr(runs[0], key), getattr(runs[1], key))
+
+
+needs_mkl = pytest.mark.skipif(not has_mkl(), reason="MKL's runtime (extra 'pardiso') not installed")
+
+
+@needs_mkl
+@pytest.mark.parametrize("threads", [0, 1, 2])
+def test_mkl_product_equals_scipy_to_round_off(matrix, threads):
+    P = MKLCSR(matrix, threads)
+    Sym = MKLCSR(matrix + matrix.T, threads, symmetric=True)
+    x = np.random.default_rng(2).standard_normal(matrix.shape[1])
+    y = matrix @ x
+    assert np.abs(P @ x - y).max() <= 1e-14 * np.abs(y).max()
+    out = np.full(matrix.shape[0], np.nan)
+    assert P.matvec(x, out=out) is out and np.abs(out - y).max() <= 1e-14 * np.abs(y).max()
+    assert np.shares_memory(P._data, matrix.data)  # MKL reads the matrix's own arrays
+    ys = (matrix + matrix.T) @ x
+    assert np.abs(Sym @ x - ys).max() <= 1e-14 * np.abs(ys).max()
+    assert Sym.A.nnz < 0.6 * (matrix + matrix.T).nnz  # the upper triangle only
+    with pytest.raises(ValueError, match="shape"):
+        P @ x[:-1]
+    P.close()
+    P.close()  # twice is harmless
+
+
+@needs_mkl
+def test_mkl_product_of_a_rectangular_integer_matrix():
+    A = sp.csr_matrix(np.array([[1, 0, 2], [0, 0, 0], [0, 3, 0], [4, 0, 5]]))
+    x = np.array([1.0, -2.0, 0.5])
+    assert np.array_equal(MKLCSR(A) @ x, A @ x)
+    with pytest.raises(ValueError, match="square"):
+        MKLCSR(A, symmetric=True)
+
+
+def test_auto_takes_mkl_for_large_matrices_when_present(matrix):
+    small = sp.identity(10, format="csr")
+    assert isinstance(sparse_product(small), ThreadedCSR)
+    assert isinstance(sparse_product(matrix, "scipy"), ThreadedCSR)
+    assert isinstance(sparse_product(matrix), MKLCSR if has_mkl() else ThreadedCSR)
+    with pytest.raises(InputError, match="spmv"):
+        sparse_product(matrix, "cuda")
+    with pytest.raises(InputError, match="allowed: auto, scipy, mkl"):
+        solver_options({"spmv": "cuda"})
+
+
+def test_explicit_mkl_without_mkl_is_an_input_error(monkeypatch):
+    monkeypatch.setattr(spmv, "mkl_runtime", lambda: None)
+    with pytest.raises(InputError, match="extra 'pardiso'"):
+        MKLCSR(sp.identity(3, format="csr"))
+
+
+@needs_mkl
+def test_cg_path_with_mkl_products_gives_the_same_histories(monkeypatch):
+    """MKL's products sum in another order: the histories agree to the CG tolerance."""
+    monkeypatch.setattr(spmv, "MIN_NNZ", 0)
+    b = get_benchmark("bar3d")
+    runs = {
+        kind: simulate(b.problem(3), "cn", b.h(3) / 2, 0.6, backend="cg", solver_options={"spmv": kind})
+        for kind in ("scipy", "mkl")
+    }
+    assert runs["mkl"].meta["solver_options"]["spmv"] == "mkl"
+    assert runs["scipy"].counters["contact_iterations"] > runs["scipy"].steps
+    for key in ("lam", "gap", "energy"):
+        a, c = getattr(runs["scipy"], key), getattr(runs["mkl"], key)
+        assert np.abs(a - c).max() <= 1e-9 * np.abs(a).max()

@@ -40,6 +40,7 @@ Both keep counters (``factorizations``, ``linear_solves``, ``contact_iterations`
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,7 +58,7 @@ from ..linalg import (
     solver_options,
     total_memory,
 )
-from ..linalg.spmv import ThreadedCSR
+from ..linalg.spmv import sparse_product
 from .complementarity import complementarity_residual, solve_lcp
 from .delassus import DelassusColumns
 from .schur import SchurDelassus, schur_dofs
@@ -317,11 +318,13 @@ class ActiveSetCGSolver(ContactSolver):
         max_newton: int = 30,
         nodes: np.ndarray | None = None,
         spmv_threads: int = 0,
+        spmv: str = "auto",
     ):
         super().__init__()
         t0 = time.perf_counter()
         self.K = sp.csr_matrix(K)
-        self.Kop = ThreadedCSR(self.K, spmv_threads)  # the products of CG, split over the cores
+        # the products of CG, on all cores (with MKL, from K's upper triangle: half the bytes)
+        self.Kop = sparse_product(self.K, spmv, spmv_threads, symmetric=True)
         self.B = sp.csr_matrix(B)
         # Jacobi by default: with dt ~ h, K = a M + S is spectrally close to a M and CG
         # needs a mesh-independent number of iterations (AMG was 4x slower per step here)
@@ -345,7 +348,7 @@ class ActiveSetCGSolver(ContactSolver):
         return w
 
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
-        return self._cg(b, self.U_prev, lambda x: x)
+        return self._cg(b, self.U_prev, _identity)
 
     def solve(
         self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
@@ -360,9 +363,7 @@ class ActiveSetCGSolver(ContactSolver):
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
-
-            def project(x, BA=BA):
-                return x - BA.T @ (BA @ x) if BA.shape[0] else x
+            project = _projector(BA)
 
             lam = np.zeros(g.size)
             if A.any():
@@ -395,6 +396,24 @@ class ActiveSetCGSolver(ContactSolver):
         return U, lam, StepInfo(it, False, res, A)
 
 
+def _identity(v: np.ndarray) -> None:
+    """The projector of an empty active set (v is left as it is)."""
+
+
+def _projector(BA: sp.csr_matrix) -> Callable[[np.ndarray], None]:
+    """v <- (I - B_A^T B_A) v in place, on the dofs of the active nodes only."""
+    if BA.shape[0] == 0:
+        return _identity
+    rows = np.unique(BA.indices)
+    Br = BA[:, rows].tocsr()
+    BrT = Br.T.tocsr()
+
+    def project(v: np.ndarray) -> None:
+        v[rows] -= BrT @ (Br @ v[rows])
+
+    return project
+
+
 def make_contact_solver(
     K: sp.spmatrix,
     B: sp.csr_matrix,
@@ -423,7 +442,7 @@ def make_contact_solver(
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
-            opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0),
+            opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0), opts["spmv"],
         )  # fmt: skip
     return CondensedContactSolver(
         K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"]

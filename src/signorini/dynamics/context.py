@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
-from ..linalg.spmv import ThreadedCSR
+from ..linalg.spmv import sparse_product
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -124,15 +124,16 @@ class Context:
         self.disc = disc
         self.dt = float(dt)
         self.M, self.S, self.B = disc.M, disc.S, disc.B
-        #: ``M @ x`` and ``S @ x`` with the rows split over the cores (large matrices only;
-        #: the same bits as ``M @ x``): the products of a step's right-hand side and energy
-        self.Mop, self.Sop = ThreadedCSR(sp.csr_matrix(disc.M)), ThreadedCSR(sp.csr_matrix(disc.S))
         self.free, self.fixed = disc.free, disc.fixed
+        self.solver_options = dict(solver_options or {})
+        #: ``M @ x`` and ``S @ x`` on all cores (large matrices only; solver option ``spmv``):
+        #: the products of a step's right-hand side and energy
+        spmv = self.solver_options.get("spmv", "auto")
+        self.Mop, self.Sop = sparse_product(disc.M, spmv), sparse_product(disc.S, spmv)
         self.has_fixed = self.fixed.size > 0
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
         self.BD = BD if BD is not None and BD.nnz else None
-        self.solver_options = dict(solver_options or {})
         #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it)
         self.iterative_ok = True
         self._systems: list[_System] = []

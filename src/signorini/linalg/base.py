@@ -31,6 +31,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..registry import Parameter, Registry
+from .spmv import SPMV_KINDS
 
 
 class Factor:
@@ -154,6 +155,14 @@ SOLVER_OPTIONS = (
         "condense_budget, else lazy",
         str,
         choices=("auto", "lazy", "full", "schur"),
+    ),
+    Parameter(
+        "spmv",
+        "auto",
+        "sparse matrix-vector products (CG, a step's right-hand side and energies): scipy (rows split over "
+        "threads), mkl (MKL's sparse BLAS, extra 'pardiso'); auto: mkl when present",
+        str,
+        choices=SPMV_KINDS,
     ),
     Parameter(
         "loop_blas_threads",

@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg.blas import daxpy as _daxpy
 
 from ..errors import ConvergenceError
 from ..optional import optional_import
@@ -30,6 +31,11 @@ class Preconditioner:
     def __call__(self, r: np.ndarray) -> np.ndarray:  # pragma: no cover - interface
         raise NotImplementedError
 
+    def apply(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``P(r)`` written into ``out`` (n,) (subclasses may avoid the temporary)."""
+        out[:] = self(r)
+        return out
+
 
 class JacobiPreconditioner(Preconditioner):
     """P^-1 r = r / diag(K)."""
@@ -39,6 +45,9 @@ class JacobiPreconditioner(Preconditioner):
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         return self._dinv * r
+
+    def apply(self, r: np.ndarray, out: np.ndarray) -> np.ndarray:
+        return np.multiply(self._dinv, r, out=out)
 
 
 class BlockJacobiPreconditioner(Preconditioner):
@@ -97,41 +106,70 @@ def make_preconditioner(kind: str, K: sp.csr_matrix, nodes: np.ndarray | None = 
     return obj(K, nodes)
 
 
+def _product(K, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``K @ x`` into ``out`` (through ``K.matvec(x, out)`` when K offers it)."""
+    matvec = getattr(K, "matvec", None)
+    if matvec is not None and not sp.issparse(K):
+        return matvec(x, out=out)
+    out[:] = K @ x
+    return out
+
+
 def projected_cg(
-    K: sp.csr_matrix,
+    K,
     rhs: np.ndarray,
     x0: np.ndarray,
-    project: Callable[[np.ndarray], np.ndarray],
+    project: Callable[[np.ndarray], None],
     precond: Preconditioner,
     rtol: float = 1e-12,
     max_iter: int = 2000,
 ) -> tuple[np.ndarray, int]:
     """Solve P K P x = P rhs on range(P) by preconditioned CG, started from P x0.
 
-    ``project`` applies the orthogonal projector P.  Stops when |P(rhs - K x)| <=
-    rtol |P rhs|.  Raises :class:`ConvergenceError` if it does not converge in
-    ``max_iter`` iterations.
+    ``K`` (n x n) is a sparse matrix or an object with ``matvec(x, out=...)``
+    (:mod:`.spmv`); ``project(v)`` applies the orthogonal projector P to v **in place**.
+    Stops when |P(rhs - K x)| <= rtol |P rhs|.  Raises :class:`ConvergenceError` if it
+    does not converge in ``max_iter`` iterations.
+
+    The iteration works in five preallocated vectors (no temporary of size n inside the
+    loop: on 1M dofs a fresh temporary costs about as much as the arithmetic on it).
     """
-    x = project(x0)
-    r = project(rhs - K @ x)
-    bnorm = np.linalg.norm(project(rhs))
+    x = np.array(x0, dtype=np.float64, copy=True)
+    project(x)
+    r = np.empty_like(x)
+    Pb = np.array(rhs, dtype=np.float64, copy=True)
+    project(Pb)
+    bnorm = np.sqrt(np.dot(Pb, Pb))
     if bnorm == 0.0:
         return np.zeros_like(x), 0
     tol = rtol * bnorm
-    if np.linalg.norm(r) <= tol:
+    _product(K, x, r)
+    np.subtract(rhs, r, out=r)
+    project(r)
+    if np.sqrt(np.dot(r, r)) <= tol:
         return x, 0
-    z = project(precond(r))
+    z, Kp = Pb, np.empty_like(x)  # Pb is not needed any more: its memory serves z
+    precond.apply(r, z)
+    project(z)
     p = z.copy()
-    rz = r @ z
+    rz = np.dot(r, z)
     for it in range(1, max_iter + 1):
-        Kp = project(K @ p)
-        alpha = rz / (p @ Kp)
-        x += alpha * p
-        r -= alpha * Kp
-        if np.linalg.norm(r) <= tol:
+        _product(K, p, Kp)
+        project(Kp)
+        alpha = rz / np.dot(p, Kp)
+        _axpy(alpha, p, x)
+        _axpy(-alpha, Kp, r)
+        if np.sqrt(np.dot(r, r)) <= tol:
             return x, it
-        z = project(precond(r))
-        rz_new = r @ z
-        p = z + (rz_new / rz) * p
+        precond.apply(r, z)
+        project(z)
+        rz_new = np.dot(r, z)
+        p *= rz_new / rz
+        p += z
         rz = rz_new
     raise ConvergenceError(f"conjugate gradients did not converge in {max_iter} iterations (rtol {rtol:g})")
+
+
+def _axpy(a: float, x: np.ndarray, y: np.ndarray) -> None:
+    """y += a x in place (BLAS daxpy, no temporary)."""
+    _daxpy(x, y, a=a)
