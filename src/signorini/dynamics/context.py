@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
+from ..linalg.sparse import linear_combination, principal_blocks
 from ..linalg.spmv import sparse_product
 from .mass import massless_dofs
 from .problem import Discretization
@@ -39,7 +40,7 @@ class Operator:
     stiffness: float
 
     def matrix(self, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
-        return (self.mass * M + self.stiffness * S).tocsr()
+        return linear_combination(self.mass, M, self.stiffness, S)
 
     def ratio_to(self, other: Operator) -> float | None:
         """s with self = s * other, or None when they are not proportional."""
@@ -81,13 +82,13 @@ class _System:
                 f"the operator {op} has non-finite entries (material, mesh or dt at the limits of double precision)"
             )
         f, D = ctx.free, ctx.fixed
-        Kff = K[f][:, f].tocsr() if D.size else K
-        self.KfD = K[f][:, D].tocsr() if D.size else None
+        Kff, self.KfD = principal_blocks(K, f, D) if D.size else (K, None)
+        del K  # only the free block is kept
         self.op = op
         gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
         try:
             dim = ctx.disc.space.dim
-            nodes = (f if D.size else np.arange(K.shape[0])) // dim  # dofs are node-major
+            nodes = (f if D.size else np.arange(Kff.shape[0])) // dim  # dofs are node-major
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
             self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes, cg_friendly)
         except (InputError, ConvergenceError, MemoryError):

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from ..optional import optional_import
 from .base import Factor
+from .sparse import upper_triangle
 
 #: MKL phases: analysis + factorization, solve, forward part, backward part, release
 FACTORIZE, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 33, 331, 333, -1
@@ -40,8 +41,7 @@ class PardisoFactor(Factor):
     def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None):
         super().__init__()
         pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
-        A = sp.triu(K, format="csr").astype(np.float64, copy=False)
-        A.sort_indices()
+        A = upper_triangle(K).astype(np.float64, copy=False)
         if A.nnz >= 2**31:
             raise MemoryError(f"K has {A.nnz} non-zeros in its upper triangle: more than MKL's 32-bit indices hold")
         self._A = A

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from .mkl import has_mkl, mkl_runtime
+from .sparse import upper_triangle
 
 #: the values of the solver option ``spmv``
 SPMV_KINDS = ("auto", "scipy", "mkl")
@@ -140,7 +141,7 @@ class MKLCSR:
         if self.symmetric:
             if A.shape[0] != A.shape[1]:
                 raise ValueError(f"a symmetric matrix is square; got shape {A.shape}")
-            A = sp.triu(A, format="csr")
+            A = upper_triangle(A)
         if A.nnz >= 2**31 or max(A.shape) >= 2**31:
             raise MemoryError(f"A has {A.nnz} non-zeros: more than MKL's 32-bit indices hold")
         self.A = A

@@ -1,0 +1,56 @@
+"""linalg/sparse.py: the set-up operations give the matrices of the scipy expressions."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from signorini.linalg.sparse import linear_combination, principal_blocks, upper_triangle
+
+
+def symmetric(n, density, rng):
+    A = sp.random(n, n, density=density, format="csr", random_state=rng)
+    return (A + A.T).tocsr()
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_against_scipy_on_random_matrices(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    A, B = symmetric(n, rng.uniform(0, 0.5), rng), symmetric(n, 0.2, rng)
+    assert (linear_combination(2.0, A, -3.0, B) != (2 * A - 3 * B)).nnz == 0
+    same = linear_combination(2.0, A, -3.0, A)
+    assert (same != (2 * A - 3 * A)).nnz == 0 and np.shares_memory(same.indices, A.indices)  # shared pattern
+    fixed = np.sort(rng.choice(n, int(rng.integers(0, n + 1)), replace=False))
+    free = np.setdiff1d(np.arange(n), fixed)
+    Kff, KfD = principal_blocks(A, free, fixed)
+    assert Kff.shape == (free.size, free.size) and KfD.shape == (free.size, fixed.size)
+    assert (Kff != A[free][:, free]).nnz == 0 and (KfD != A[free][:, fixed]).nnz == 0
+    assert Kff.has_sorted_indices
+    U = upper_triangle(A)
+    assert (U != sp.triu(A)).nnz == 0 and U.has_sorted_indices
+
+
+def test_rows_without_entries_and_unsorted_input():
+    A = sp.csr_matrix(np.array([[0, 0, 0, 0], [0, 2.0, 1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 0]]))
+    assert (upper_triangle(A) != sp.triu(A)).nnz == 0
+    U = sp.csr_matrix((np.array([1.0, 2.0]), np.array([1, 0]), np.array([0, 2, 2])), shape=(2, 2))  # unsorted
+    assert (upper_triangle(U) != sp.triu(U)).nnz == 0
+    assert (linear_combination(1.0, U, 1.0, sp.identity(2)) != U + sp.identity(2)).nnz == 0
+
+
+@pytest.mark.parametrize(
+    "free, fixed", [([3, 1, 2], [0]), ([0, 2, 4], [1, 3]), ([0, 1], [1, 2, 3, 4]), ([0, 1, 2, 3, 4], [])]
+)
+def test_principal_blocks_of_any_index_sets(free, fixed):
+    """Unsorted or overlapping sets fall back to scipy's indexing: the same result."""
+    A = symmetric(5, 0.6, np.random.default_rng(3))
+    free, fixed = np.array(free, dtype=int), np.array(fixed, dtype=int)
+    Kff, KfD = principal_blocks(A, free, fixed)
+    assert (Kff != A[free][:, free]).nnz == 0 and (KfD != A[free][:, fixed]).nnz == 0
+
+
+def test_errors():
+    with pytest.raises(ValueError, match="shapes"):
+        linear_combination(1.0, sp.identity(2), 1.0, sp.identity(3))
+    with pytest.raises(ValueError, match="square"):
+        upper_triangle(sp.csr_matrix((2, 3)))
