@@ -123,8 +123,9 @@ class MKLCSR:
 
     MKL reads A's own arrays (no copy; A must not change while this object lives).
     ``symmetric``: A is symmetric (not checked); only its upper triangle is kept (a
-    copy) and read, which halves the bytes a product moves.  ``threads = 0``: MKL's thread count (one per physical core by default); else that
-    many threads for these products only (``MKL_Set_Num_Threads_Local``, C interface).
+    copy) and read, which halves the bytes a product moves.  ``threads = 0``: MKL's
+    thread count (one per physical core by default); else that many threads for these
+    products only (``MKL_Set_Num_Threads_Local``, C interface).
     """
 
     def __init__(self, A: sp.csr_matrix, threads: int = 0, symmetric: bool = False):
