@@ -10,7 +10,7 @@ from signorini.dynamics.simulate import simulate
 from signorini.errors import InputError
 from signorini.linalg import solver_options
 from signorini.linalg.mkl import has_mkl
-from signorini.linalg.spmv import MKLCSR, ThreadedCSR, sparse_product
+from signorini.linalg.spmv import MKLProduct, ThreadedCSR, sparse_product
 from signorini.studies.benchmarks import get_benchmark
 
 
@@ -65,8 +65,8 @@ needs_mkl = pytest.mark.skipif(not has_mkl(), reason="MKL's runtime (extra 'pard
 @needs_mkl
 @pytest.mark.parametrize("threads", [0, 1, 2])
 def test_mkl_product_equals_scipy_to_round_off(matrix, threads):
-    P = MKLCSR(matrix, threads)
-    Sym = MKLCSR(matrix + matrix.T, threads, symmetric=True)
+    P = MKLProduct(matrix, threads)
+    Sym = MKLProduct(matrix + matrix.T, threads, symmetric=True)
     x = np.random.default_rng(2).standard_normal(matrix.shape[1])
     y = matrix @ x
     assert np.abs(P @ x - y).max() <= 1e-14 * np.abs(y).max()
@@ -86,16 +86,16 @@ def test_mkl_product_equals_scipy_to_round_off(matrix, threads):
 def test_mkl_product_of_a_rectangular_integer_matrix():
     A = sp.csr_matrix(np.array([[1, 0, 2], [0, 0, 0], [0, 3, 0], [4, 0, 5]]))
     x = np.array([1.0, -2.0, 0.5])
-    assert np.array_equal(MKLCSR(A) @ x, A @ x)
+    assert np.array_equal(MKLProduct(A) @ x, A @ x)
     with pytest.raises(ValueError, match="square"):
-        MKLCSR(A, symmetric=True)
+        MKLProduct(A, symmetric=True)
 
 
 def test_auto_takes_mkl_for_large_matrices_when_present(matrix):
     small = sp.identity(10, format="csr")
     assert isinstance(sparse_product(small), ThreadedCSR)
     assert isinstance(sparse_product(matrix, "scipy"), ThreadedCSR)
-    assert isinstance(sparse_product(matrix), MKLCSR if has_mkl() else ThreadedCSR)
+    assert isinstance(sparse_product(matrix), MKLProduct if has_mkl() else ThreadedCSR)
     with pytest.raises(InputError, match="spmv"):
         sparse_product(matrix, "cuda")
     with pytest.raises(InputError, match="allowed: auto, scipy, mkl"):
@@ -105,7 +105,7 @@ def test_auto_takes_mkl_for_large_matrices_when_present(matrix):
 def test_explicit_mkl_without_mkl_is_an_input_error(monkeypatch):
     monkeypatch.setattr(spmv, "mkl_runtime", lambda: None)
     with pytest.raises(InputError, match="extra 'pardiso'"):
-        MKLCSR(sp.identity(3, format="csr"))
+        MKLProduct(sp.identity(3, format="csr"))
 
 
 @needs_mkl
@@ -122,3 +122,36 @@ def test_cg_path_with_mkl_products_gives_the_same_histories(monkeypatch):
     for key in ("lam", "gap", "energy"):
         a, c = getattr(runs["scipy"], key), getattr(runs["mkl"], key)
         assert np.abs(a - c).max() <= 1e-9 * np.abs(a).max()
+
+
+@needs_mkl
+@pytest.mark.parametrize("b", [2, 3])
+def test_mkl_block_storage_of_a_symmetric_matrix(b):
+    """Nodal blocks (BSR, upper triangle) give the product to round-off; a matrix whose
+    blocks would be mostly explicit zeros keeps the CSR storage."""
+    rng = np.random.default_rng(b)
+    nodes = 400
+    G = sp.random(nodes, nodes, density=0.02, random_state=rng, format="csr")
+    G = (G + G.T + sp.identity(nodes)).tocsr()
+    G.data[:] = 1.0
+    A = sp.kron(G, np.ones((b, b)), format="csr")  # whole b x b blocks
+    A.data = rng.standard_normal(A.nnz)
+    A = (A + A.T).tocsr()
+    x = rng.standard_normal(A.shape[0])
+    P = MKLProduct(A, symmetric=True, block_size=b)
+    assert P.storage == "bsr-upper"
+    assert np.abs(P @ x - A @ x).max() <= 1e-13 * np.abs(A @ x).max()
+    Q = MKLProduct(sp.diags(np.arange(1.0, 3 * b * 10 + 1)).tocsr(), symmetric=True, block_size=b)
+    assert Q.storage == "csr-upper"  # diagonal: blocks b times fuller than the matrix
+    y = np.ones(Q.shape[0])
+    assert np.array_equal(Q @ y, np.arange(1.0, 3 * b * 10 + 1))
+    assert MKLProduct(A, block_size=b).storage == "csr"  # blocks only for symmetric storage
+
+
+def test_nodal_block_size():
+    from signorini.contact.solver import _nodal_block_size
+
+    assert _nodal_block_size(np.repeat(np.arange(5), 3), 15) == 3
+    assert _nodal_block_size(np.repeat(np.arange(5), 2), 10) == 2
+    assert _nodal_block_size(np.array([0, 0, 0, 1, 1, 2]), 6) == 1  # a node with fixed components
+    assert _nodal_block_size(None, 6) == 1

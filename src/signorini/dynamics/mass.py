@@ -53,6 +53,7 @@ import scipy.sparse as sp
 from ..errors import InputError
 from ..fem.assembly import scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
+from ..linalg.sparse import count_per_row
 from ..registry import Registry
 
 
@@ -110,7 +111,7 @@ def mass_matrix(
 def massless_dofs(M: sp.spmatrix) -> np.ndarray:
     """Dofs whose row of ``M`` is identically zero."""
     M = sp.csr_matrix(M)
-    return np.flatnonzero(np.asarray(abs(M).sum(axis=1)).ravel() == 0.0)
+    return np.flatnonzero(count_per_row(M.data != 0.0, M.indptr) == 0)
 
 
 # ----------------------------------------------------------------------------- seed

@@ -93,7 +93,7 @@ def initial_state(ctx: Context) -> State:
     keep[ctx.massless] = False
     keep[ctx.fixed] = False
     idx = np.flatnonzero(keep)
-    smax = float(abs(ctx.S).max()) if ctx.S.nnz else 0.0
+    smax = float(max(ctx.S.data.max(), -ctx.S.data.min())) if ctx.S.nnz else 0.0  # |S|_max, no copy of S
     scale = np.abs(F).max(initial=0.0) + smax * np.abs(U).max(initial=0.0)
     if idx.size and np.abs(r[idx]).max(initial=0.0) > 1e-13 * scale:
         Mrr = ctx.M[idx][:, idx].tocsr()

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from ..optional import optional_import
 from .base import Factor
+from .mkl import mkl_path_hint
 from .sparse import upper_triangle
 
 #: MKL phases: analysis + factorization, solve, forward part, backward part, release
@@ -40,7 +41,8 @@ class PardisoFactor(Factor):
 
     def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None):
         super().__init__()
-        pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
+        with mkl_path_hint():
+            pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
         A = upper_triangle(K).astype(np.float64, copy=False)
         if A.nnz >= 2**31:
             raise MemoryError(f"K has {A.nnz} non-zeros in its upper triangle: more than MKL's 32-bit indices hold")

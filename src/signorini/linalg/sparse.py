@@ -40,7 +40,7 @@ def linear_combination(a: float, A: sp.spmatrix, b: float, B: sp.spmatrix) -> sp
     return (As + Bs).tocsr()
 
 
-def _row_counts(mask: np.ndarray, indptr: np.ndarray) -> np.ndarray:
+def count_per_row(mask: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     """Number of True entries of ``mask`` (nnz,) in each row of a CSR structure."""
     n = indptr.size - 1
     counts = np.zeros(n, dtype=np.int64)
@@ -109,4 +109,28 @@ def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:
     rows = np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
     mask = A.indices >= rows
     del rows
-    return _from_mask(A, mask, _row_counts(mask, A.indptr), A.shape)
+    return _from_mask(A, mask, count_per_row(mask, A.indptr), A.shape)
+
+
+def upper_block_triangle(A: sp.spmatrix, b: int, max_fill: float = 1.25) -> sp.bsr_matrix | None:
+    """The b x b blocks of a square matrix A on and above the block diagonal (BSR), or
+    None when A's size is not a multiple of b or its blocks would store more than
+    ``max_fill`` times A's non-zeros (the explicit zeros that complete the blocks).
+
+    The diagonal blocks are kept whole, as MKL's symmetric block storage expects.
+    """
+    A = _canonical(A)
+    n = A.shape[0]
+    if A.shape[1] != n or b < 1 or n % b:
+        return None
+    Ab = A.tobsr(blocksize=(b, b))
+    if Ab.data.size > max_fill * max(A.nnz, 1):
+        return None
+    block_rows = np.repeat(np.arange(n // b, dtype=Ab.indices.dtype), np.diff(Ab.indptr))
+    keep = Ab.indices >= block_rows
+    del block_rows
+    counts = count_per_row(keep, Ab.indptr)
+    indptr = np.zeros(counts.size + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    idx_type = np.int32 if max(n, indptr[-1]) < 2**31 else np.int64
+    return sp.bsr_matrix((Ab.data[keep], Ab.indices[keep].astype(idx_type), indptr.astype(idx_type)), shape=A.shape)

@@ -6,12 +6,13 @@ Two implementations, chosen by the solver option ``spmv`` (:data:`SPMV_KINDS`):
   core and releases the GIL, so rows split into blocks of equal non-zeros are
   multiplied by threads at once.  bar3d n = 24 (450k dofs, 37M non-zeros) on 2 cores:
   one product 21.5-22.2 ms -> 11.8-12.0 ms.
-* :class:`MKLCSR` (``mkl``, with the extra ``pardiso``): MKL's sparse BLAS
-  (``mkl_sparse_d_mv``) on the same arrays, threaded by MKL.  bar3d n = 32 (1.05M
-  dofs, 70M non-zeros) on 2 cores: 24 ms as a general matrix, the same as
-  ThreadedCSR, but 15.5 ms from the upper triangle of a symmetric matrix (half the
-  bytes read; ``symmetric=True``, an extra copy of half the matrix).  MKL's
-  ``mkl_sparse_optimize`` made no product faster and is not used.
+* :class:`MKLProduct` (``mkl``, with the extra ``pardiso``): MKL's sparse BLAS
+  (``mkl_sparse_d_mv``), threaded by MKL.  bar3d n = 32 (1.05M dofs, K with 70M
+  non-zeros) on 2 cores, best of 9: 24 ms as a general CSR matrix, the same as
+  ThreadedCSR; 15.5-18 ms from the upper triangle of the symmetric K (half the bytes
+  read); 13.3 ms from its upper triangle of 3 x 3 nodal blocks (one column index per
+  block).  The two symmetric storages are copies of half of K; the CG path uses them.
+  MKL's ``mkl_sparse_optimize`` made no product faster and is not used.
 
 ``auto`` takes ``mkl`` when MKL is present.  Both give ``A @ x`` to round-off; only
 ThreadedCSR gives the same bits as scipy.
@@ -28,7 +29,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from .mkl import has_mkl, mkl_runtime
-from .sparse import upper_triangle
+from .sparse import upper_block_triangle, upper_triangle
 
 #: the values of the solver option ``spmv``
 SPMV_KINDS = ("auto", "scipy", "mkl")
@@ -112,23 +113,32 @@ class ThreadedCSR:
 # MKL's enumerations (mkl_spblas.h)
 _INDEX_BASE_ZERO, _OPERATION_NON_TRANSPOSE = 0, 10
 _MATRIX_TYPE_GENERAL, _MATRIX_TYPE_SYMMETRIC, _FILL_MODE_UPPER, _DIAG_NON_UNIT = 20, 21, 41, 50
+_LAYOUT_COLUMN_MAJOR = 102
 
 
 class _MatrixDescr(ctypes.Structure):
     _fields_ = [("type", ctypes.c_int), ("mode", ctypes.c_int), ("diag", ctypes.c_int)]
 
 
-class MKLCSR:
-    """``A @ x`` for a CSR matrix A (n x m, float64) by MKL's ``mkl_sparse_d_mv``.
+class MKLProduct:
+    """``A @ x`` for a sparse matrix A (n x m, float64) by MKL's ``mkl_sparse_d_mv``.
 
-    MKL reads A's own arrays (no copy; A must not change while this object lives).
-    ``symmetric``: A is symmetric (not checked); only its upper triangle is kept (a
-    copy) and read, which halves the bytes a product moves.  ``threads = 0``: MKL's
-    thread count (one per physical core by default); else that many threads for these
-    products only (``MKL_Set_Num_Threads_Local``, C interface).
+    * general: MKL reads A's own CSR arrays (no copy; A must not change while this
+      object lives);
+    * ``symmetric`` (A symmetric, not checked): only the upper triangle is kept (a copy)
+      and read, which halves the bytes a product moves;
+    * ``symmetric`` and ``block_size = b > 1`` (dofs in nodal blocks of b, such as the
+      components of a displacement): the upper triangle of b x b blocks in MKL's block
+      storage, one column index per block instead of per entry; used when the blocks
+      hold at most 1.25 times A's non-zeros (:func:`~.sparse.upper_block_triangle`),
+      else the symmetric CSR storage.
+
+    ``threads = 0``: MKL's thread count (one per physical core by default); else that
+    many threads for these products only (``MKL_Set_Num_Threads_Local``, C interface).
+    :attr:`storage` says which storage was taken: ``csr``, ``csr-upper`` or ``bsr-upper``.
     """
 
-    def __init__(self, A: sp.csr_matrix, threads: int = 0, symmetric: bool = False):
+    def __init__(self, A: sp.spmatrix, threads: int = 0, symmetric: bool = False, block_size: int = 1):
         lib = mkl_runtime()
         if lib is None:
             raise InputError(
@@ -139,26 +149,42 @@ class MKLCSR:
         if A.dtype != np.float64:
             A = A.astype(np.float64)
         self.symmetric = bool(symmetric)
-        if self.symmetric:
-            if A.shape[0] != A.shape[1]:
-                raise ValueError(f"a symmetric matrix is square; got shape {A.shape}")
-            A = upper_triangle(A)
-        if A.nnz >= 2**31 or max(A.shape) >= 2**31:
-            raise MemoryError(f"A has {A.nnz} non-zeros: more than MKL's 32-bit indices hold")
-        self.A = A
         self.shape = A.shape
-        self._indptr = A.indptr.astype(np.int32, copy=False)
-        self._indices = A.indices.astype(np.int32, copy=False)
-        self._data = np.ascontiguousarray(A.data)
+        if self.symmetric and A.shape[0] != A.shape[1]:
+            raise ValueError(f"a symmetric matrix is square; got shape {A.shape}")
+        blocks = upper_block_triangle(A, block_size) if self.symmetric and block_size > 1 else None
+        if blocks is not None:
+            self.storage, self.A, b = "bsr-upper", blocks, block_size
+            # MKL's column-major blocks: each block's transpose in row-major order
+            self._data = np.ascontiguousarray(blocks.data.transpose(0, 2, 1))
+        else:
+            self.storage = "csr-upper" if self.symmetric else "csr"
+            self.A, b = (upper_triangle(A) if self.symmetric else A), 1
+            self._data = np.ascontiguousarray(self.A.data)
+        if self._data.size >= 2**31 or max(A.shape) >= 2**31:
+            raise MemoryError(f"A has {self._data.size} stored values: more than MKL's 32-bit indices hold")
+        self._indptr = self.A.indptr.astype(np.int32, copy=False)
+        self._indices = self.A.indices.astype(np.int32, copy=False)
         self._lib = lib
         self._threads = int(threads)
         kind = _MATRIX_TYPE_SYMMETRIC if self.symmetric else _MATRIX_TYPE_GENERAL
         self._descr = _MatrixDescr(kind, _FILL_MODE_UPPER, _DIAG_NON_UNIT)
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
+        handle_p = ctypes.POINTER(ctypes.c_void_p)
         lib.mkl_sparse_d_create_csr.argtypes = [
-            ctypes.POINTER(ctypes.c_void_p), ctypes.c_int, ctypes.c_int32, ctypes.c_int32, i32, i32, i32, f64,
+            handle_p,
+            ctypes.c_int,
+            ctypes.c_int32,
+            ctypes.c_int32,
+            i32,
+            i32,
+            i32,
+            f64,
+        ]
+        lib.mkl_sparse_d_create_bsr.argtypes = [
+            handle_p, ctypes.c_int, ctypes.c_int, ctypes.c_int32, ctypes.c_int32, ctypes.c_int32, i32, i32, i32, f64,
         ]  # fmt: skip
-        lib.mkl_sparse_d_create_csr.restype = ctypes.c_int
+        lib.mkl_sparse_d_create_csr.restype = lib.mkl_sparse_d_create_bsr.restype = ctypes.c_int
         lib.mkl_sparse_d_mv.argtypes = [
             ctypes.c_int, ctypes.c_double, ctypes.c_void_p, _MatrixDescr, f64, ctypes.c_double, f64,
         ]  # fmt: skip
@@ -168,14 +194,22 @@ class MKLCSR:
         lib.MKL_Set_Num_Threads_Local.restype = ctypes.c_int
         self._handle = ctypes.c_void_p()
         ptr = self._indptr.ctypes.data
-        status = lib.mkl_sparse_d_create_csr(
-            ctypes.byref(self._handle), _INDEX_BASE_ZERO, A.shape[0], A.shape[1],
-            ctypes.cast(ptr, i32), ctypes.cast(ptr + 4, i32),  # rows_start = indptr[:-1], rows_end = indptr[1:]
-            self._indices.ctypes.data_as(i32), self._data.ctypes.data_as(f64),
-        )  # fmt: skip
+        # rows_start = indptr[:-1], rows_end = indptr[1:] (of rows of blocks for BSR)
+        starts, ends = ctypes.cast(ptr, i32), ctypes.cast(ptr + 4, i32)
+        indices, data = self._indices.ctypes.data_as(i32), self._data.ctypes.data_as(f64)
+        if b > 1:
+            rows, cols = A.shape[0] // b, A.shape[1] // b
+            status = lib.mkl_sparse_d_create_bsr(
+                ctypes.byref(self._handle), _INDEX_BASE_ZERO, _LAYOUT_COLUMN_MAJOR, rows, cols, b, starts, ends,
+                indices, data,
+            )  # fmt: skip
+        else:
+            status = lib.mkl_sparse_d_create_csr(
+                ctypes.byref(self._handle), _INDEX_BASE_ZERO, A.shape[0], A.shape[1], starts, ends, indices, data
+            )
         if status != 0:
             self._handle = None
-            raise RuntimeError(f"mkl_sparse_d_create_csr failed with status {status}")
+            raise RuntimeError(f"MKL could not create its sparse matrix handle (status {status})")
         self._f64 = f64
 
     @property
@@ -215,14 +249,15 @@ class MKLCSR:
 
 
 def sparse_product(
-    A: sp.spmatrix, kind: str = "auto", threads: int = 0, symmetric: bool = False
-) -> ThreadedCSR | MKLCSR:
+    A: sp.spmatrix, kind: str = "auto", threads: int = 0, symmetric: bool = False, block_size: int = 1
+) -> ThreadedCSR | MKLProduct:
     """The object computing ``A @ x`` for ``kind`` (:data:`SPMV_KINDS`; ``auto``: MKL
     when present and A is large enough to gain from threads, else ThreadedCSR).
-    ``symmetric`` (A symmetric, not checked): MKL reads its upper triangle only."""
+    ``symmetric`` (A symmetric, not checked) and ``block_size``: MKL's storage
+    (:class:`MKLProduct`)."""
     if kind not in SPMV_KINDS:
         raise InputError(f"solver option 'spmv' must be one of {', '.join(SPMV_KINDS)}; got {kind!r}")
     A = sp.csr_matrix(A)
     if kind == "mkl" or (kind == "auto" and A.nnz >= MIN_NNZ and has_mkl()):
-        return MKLCSR(A, threads, symmetric)
+        return MKLProduct(A, threads, symmetric, block_size)
     return ThreadedCSR(A, threads)
