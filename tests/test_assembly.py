@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from signorini.fem import assembly
@@ -171,3 +172,21 @@ def test_strain_of_an_affine_displacement_is_exact(cell, rng):
     u = mesh.points @ A.T  # u_i = A_ij x_j
     eps = assembly.strain(mesh, u.ravel())
     assert np.allclose(eps, 0.5 * (A + A.T), rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("kind", ["triangle", "hexahedron", "tetra"])
+def test_vector_assembly_equals_the_block_route(kind, rng):
+    """Entries written straight into CSR equal the BSR assembly converted by scipy."""
+    mesh = MESHES[kind]()
+    d = mesh.dim
+    Ke = rng.standard_normal((mesh.n_cells, mesh.cells.shape[1], mesh.cells.shape[1], d, d))
+    indptr, indices, slot = assembly.node_pattern(mesh)
+    blocks = np.zeros((indices.size, d, d))
+    np.add.at(blocks, slot.ravel(), Ke.reshape(-1, d, d))
+    n = d * mesh.n_nodes
+    expected = sp.bsr_matrix((blocks, indices, indptr), shape=(n, n)).tocsr()
+    got = assembly.assemble_vector(mesh, Ke)
+    same_row = np.diff(np.repeat(np.arange(n), np.diff(got.indptr))) == 0
+    assert got.has_sorted_indices and np.all(np.diff(got.indices)[same_row] > 0)
+    assert np.array_equal(got.indptr, expected.indptr) and np.array_equal(got.indices, expected.indices)
+    assert np.allclose(got.data, expected.data, rtol=0, atol=1e-13)

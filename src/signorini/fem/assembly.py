@@ -122,12 +122,29 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
     indptr, indices, slot = node_pattern(mesh)
     d = Ke.shape[-1]
     flat = slot.ravel()
-    blocks = np.empty((indices.size, d, d))
+    # straight into CSR (no BSR and conversion): dof row (a, i) holds the d * len(a)
+    # columns (b, j) of node row a, so block k = (a, b) entry (i, j) lands at
+    # ptr[d a + i] + d rank(b) + j = ptr[d a] + i d len(a) + d rank(b) + j
+    nn = mesh.n_nodes
+    row_len = np.diff(indptr)
+    itype = indices.dtype
+    ptr = np.zeros(d * nn + 1, dtype=itype)
+    np.cumsum(np.repeat(d * row_len, d), out=ptr[1:])
+    node_row = np.repeat(np.arange(nn, dtype=itype), row_len)
+    base = ptr[:-1:d][node_row] + d * (np.arange(indices.size, dtype=itype) - indptr[node_row])
+    stride = d * row_len[node_row]
+    del node_row
+    data = np.empty(int(ptr[-1]))
+    cols = np.empty(int(ptr[-1]), dtype=itype)
     for i in range(d):
         for j in range(d):
-            blocks[:, i, j] = np.bincount(flat, weights=Ke[..., i, j].ravel(), minlength=indices.size)
-    n = d * mesh.n_nodes
-    return sp.bsr_matrix((blocks, indices, indptr), shape=(n, n)).tocsr()
+            dest = base + (i * stride + j)
+            data[dest] = np.bincount(flat, weights=Ke[..., i, j].ravel(), minlength=indices.size)
+            cols[dest] = d * indices + j
+    out = sp.csr_matrix((d * nn, d * nn))
+    out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
+    out.has_sorted_indices = True
+    return out
 
 
 # ----------------------------------------------------------------------------- operators
