@@ -54,3 +54,32 @@ def test_errors():
         linear_combination(1.0, sp.identity(2), 1.0, sp.identity(3))
     with pytest.raises(ValueError, match="square"):
         upper_triangle(sp.csr_matrix((2, 3)))
+
+
+def test_symmetry_probe():
+    from signorini.linalg.sparse import symmetric_by_probe
+
+    A = sp.random(200, 200, density=0.05, random_state=0, format="csr")
+    assert not symmetric_by_probe(A) and symmetric_by_probe(A + A.T)
+    B = (A + A.T).tolil()
+    B[0, 1] += 1e-9  # a small asymmetry is seen
+    assert not symmetric_by_probe(B.tocsr())
+    assert symmetric_by_probe(sp.csr_matrix((3, 3))) and not symmetric_by_probe(sp.csr_matrix((3, 4)))
+
+
+def test_upper_block_triangle():
+    from signorini.linalg.sparse import upper_block_triangle
+
+    rng = np.random.default_rng(5)
+    G = sp.random(30, 30, density=0.1, random_state=rng, format="csr")
+    A = sp.kron(G + G.T + sp.identity(30), np.ones((3, 3)), format="csr")
+    A.data = rng.standard_normal(A.nnz)
+    A = (A + A.T).tocsr()
+    U = upper_block_triangle(A, 3)
+    assert U.blocksize == (3, 3)
+    dense, blocks = A.toarray(), U.toarray()
+    rows, cols = np.indices(dense.shape)
+    keep = cols // 3 >= rows // 3
+    assert np.array_equal(blocks[keep], dense[keep]) and not blocks[~keep].any()
+    assert upper_block_triangle(A, 4) is None  # 90 is not a multiple of 4
+    assert upper_block_triangle(sp.identity(9, format="csr"), 3) is None  # blocks 3x emptier

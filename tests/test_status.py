@@ -156,19 +156,22 @@ print(next(int(x.split()[1]) for x in open("/proc/self/status") if x.startswith(
 
 
 def test_streaming_fields_do_not_grow_memory():
-    """bar3d n = 8, 100 levels: fields streamed every step stay within 10% of no fields,
-    and the same fields buffered in memory (``snapshot_every=1``, u and v only) do not.
+    """bar3d n = 8: with fields streamed every step the peak memory does not grow from 50
+    to 150 levels, and with the same fields buffered in memory (``snapshot_every=1``, u
+    and v only) it grows by at least half the 100 levels' size (2 x 19,683 dofs x 8 bytes
+    each, 31 MB; measured 63 MB, against 3.4 MB streamed: the history's own columns).
 
-    The cg backend keeps the set-up peak small: with SuperLU the factor (225 MB)
-    sets the peak and 160 buffered levels add only 7% (docs/performance.md).
+    Growth with the levels is compared, not two modes: a mode's fixed cost (h5py's
+    buffers) is not growth, and the set-up peak it hides behind changes with the solver.
     """
     if not Path("/proc/self/status").exists():
         pytest.skip("needs Linux's /proc/self/status (VmHWM)")
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    modes = ("none", "stream", "buffer")
-    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, "100"], env=env, stdout=subprocess.PIPE, text=True)
-             for m in modes]  # fmt: skip
-    peak = dict(zip(modes, (int(p.communicate(timeout=300)[0].split()[-1]) for p in procs), strict=True))
+    runs = [(m, n) for m in ("stream", "buffer") for n in (50, 150)]
+    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, str(n)], env=env, stdout=subprocess.PIPE, text=True)
+             for m, n in runs]  # fmt: skip
+    peak = dict(zip(runs, (int(p.communicate(timeout=300)[0].split()[-1]) for p in procs), strict=True))
     assert all(p.returncode == 0 for p in procs)
-    assert peak["stream"] <= 1.1 * peak["none"], peak
-    assert peak["buffer"] > 1.15 * peak["none"], peak  # the bound tells streaming from buffering
+    level_kb = 2 * 19_683 * 8 / 1024  # u and v of bar3d n = 8, kB
+    assert peak["stream", 150] - peak["stream", 50] <= 0.25 * 100 * level_kb, peak
+    assert peak["buffer", 150] - peak["buffer", 50] >= 0.5 * 100 * level_kb, peak

@@ -17,6 +17,7 @@ multiples of each other (e.g. Paoli-Schatzman's M/dt^2 + S/4 and Crank-Nicolson'
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,8 +26,9 @@ import scipy.sparse as sp
 
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
+from ..linalg import spmv as spmv_module
 from ..linalg.base import CG_FRIENDLY_RATIO
-from ..linalg.sparse import linear_combination, principal_blocks
+from ..linalg.sparse import linear_combination, principal_blocks, symmetric_by_probe
 from ..linalg.spmv import sparse_product
 from .mass import massless_dofs
 from .problem import Discretization
@@ -127,10 +129,6 @@ class Context:
         self.M, self.S, self.B = disc.M, disc.S, disc.B
         self.free, self.fixed = disc.free, disc.fixed
         self.solver_options = dict(solver_options or {})
-        #: ``M @ x`` and ``S @ x`` on all cores (large matrices only; solver option ``spmv``):
-        #: the products of a step's right-hand side and energy
-        spmv = self.solver_options.get("spmv", "auto")
-        self.Mop, self.Sop = sparse_product(disc.M, spmv), sparse_product(disc.S, spmv)
         self.has_fixed = self.fixed.size > 0
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
@@ -145,6 +143,24 @@ class Context:
                 f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "
                 "boundary): refine the mesh across the contact layer or use the 'standard' mass"
             )
+
+    # -- products of a step's right-hand side and energy ------------------------------
+    @functools.cached_property
+    def Mop(self) -> Any:
+        """``M @ x`` on all cores (large matrices; solver option ``spmv``)."""
+        return self._product(self.M)
+
+    @functools.cached_property
+    def Sop(self) -> Any:
+        """``S @ x`` on all cores (large matrices; solver option ``spmv``)."""
+        return self._product(self.S)
+
+    def _product(self, A: sp.spmatrix) -> Any:
+        # with MKL, a symmetric matrix (checked by a probe) is read from its upper triangle,
+        # in nodal blocks when they are whole (half the bytes, docs/performance.md)
+        spmv = self.solver_options.get("spmv", "auto")
+        symmetric = A.nnz >= spmv_module.MIN_NNZ and symmetric_by_probe(A)  # small ones are not split
+        return sparse_product(A, spmv, symmetric=symmetric, block_size=self.disc.space.dim)
 
     # -- data of time t ------------------------------------------------------------
     def next_time(self, t: float) -> float:

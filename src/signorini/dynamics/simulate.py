@@ -193,6 +193,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
         if op is not None:
             ctx.prepare(op)
             s.check_context(ctx, prepared=True)
+    ctx.Mop, ctx.Sop  # noqa: B018 - built now (set-up), after the factors: a lower peak of memory
     return ctx
 
 

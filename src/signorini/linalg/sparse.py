@@ -115,22 +115,37 @@ def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:
 def upper_block_triangle(A: sp.spmatrix, b: int, max_fill: float = 1.25) -> sp.bsr_matrix | None:
     """The b x b blocks of a square matrix A on and above the block diagonal (BSR), or
     None when A's size is not a multiple of b or its blocks would store more than
-    ``max_fill`` times A's non-zeros (the explicit zeros that complete the blocks).
+    ``max_fill`` times the non-zeros they hold (explicit zeros complete the blocks).
 
-    The diagonal blocks are kept whole, as MKL's symmetric block storage expects.
+    The diagonal blocks are kept whole, as MKL's symmetric block storage expects.  Only
+    the entries of those blocks are converted (no block copy of the whole of A).
     """
     A = _canonical(A)
     n = A.shape[0]
     if A.shape[1] != n or b < 1 or n % b:
         return None
-    Ab = A.tobsr(blocksize=(b, b))
-    if Ab.data.size > max_fill * max(A.nnz, 1):
+    block_row = np.repeat(np.arange(n, dtype=A.indices.dtype) // b, np.diff(A.indptr))
+    mask = A.indices // b >= block_row
+    del block_row
+    upper = _from_mask(A, mask, count_per_row(mask, A.indptr), A.shape)
+    del mask
+    blocks = upper.tobsr(blocksize=(b, b))
+    if blocks.data.size > max_fill * max(upper.nnz, 1):
         return None
-    block_rows = np.repeat(np.arange(n // b, dtype=Ab.indices.dtype), np.diff(Ab.indptr))
-    keep = Ab.indices >= block_rows
-    del block_rows
-    counts = count_per_row(keep, Ab.indptr)
-    indptr = np.zeros(counts.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    idx_type = np.int32 if max(n, indptr[-1]) < 2**31 else np.int64
-    return sp.bsr_matrix((Ab.data[keep], Ab.indices[keep].astype(idx_type), indptr.astype(idx_type)), shape=A.shape)
+    return blocks
+
+
+def symmetric_by_probe(A: sp.spmatrix, rtol: float = 1e-13) -> bool:
+    """Whether the square matrix A is symmetric, by two products with random vectors:
+    |x.(A y) - y.(A x)| <= rtol (|x| |A y| + |y| |A x|).  A non-symmetric A passes only
+    when its asymmetry is at round-off level (or by a chance of probability 0); a
+    symmetric A with much cancellation may fail, which only costs the caller speed."""
+    if A.shape[0] != A.shape[1]:
+        return False
+    if A.nnz == 0:
+        return True
+    rng = np.random.default_rng(12345)
+    x, y = rng.standard_normal(A.shape[0]), rng.standard_normal(A.shape[0])
+    Ax, Ay = A @ x, A @ y
+    scale = np.linalg.norm(x) * np.linalg.norm(Ay) + np.linalg.norm(y) * np.linalg.norm(Ax)
+    return bool(abs(x @ Ay - y @ Ax) <= rtol * scale)
