@@ -56,17 +56,6 @@ def test_errors():
         upper_triangle(sp.csr_matrix((2, 3)))
 
 
-def test_symmetry_probe():
-    from signorini.linalg.sparse import symmetric_by_probe
-
-    A = sp.random(200, 200, density=0.05, random_state=0, format="csr")
-    assert not symmetric_by_probe(A) and symmetric_by_probe(A + A.T)
-    B = (A + A.T).tolil()
-    B[0, 1] += 1e-9  # a small asymmetry is seen
-    assert not symmetric_by_probe(B.tocsr())
-    assert symmetric_by_probe(sp.csr_matrix((3, 3))) and not symmetric_by_probe(sp.csr_matrix((3, 4)))
-
-
 def test_upper_block_triangle():
     from signorini.linalg.sparse import upper_block_triangle
 

@@ -155,18 +155,3 @@ def test_nodal_block_size():
     assert _nodal_block_size(np.repeat(np.arange(5), 2), 10) == 2
     assert _nodal_block_size(np.array([0, 0, 0, 1, 1, 2]), 6) == 1  # a node with fixed components
     assert _nodal_block_size(None, 6) == 1
-
-
-@needs_mkl
-def test_step_products_use_the_symmetric_block_storage(monkeypatch):
-    """With MKL, the step's M and S products read the upper triangle (S in nodal blocks)."""
-    from signorini.dynamics.simulate import make_scheme, run_options, set_up
-
-    monkeypatch.setattr(spmv, "MIN_NNZ", 0)
-    b = get_benchmark("bar3d")
-    run, _ = set_up(b.problem(3), "seed", make_scheme("cn", None), b.h(3) / 2, 0.1, run_options(0, None, None, {}))
-    ctx = run.ctx
-    assert ctx.Sop.storage == "bsr-upper" and ctx.Mop.storage in ("csr-upper", "bsr-upper")
-    x = np.random.default_rng(0).standard_normal(ctx.S.shape[0])
-    assert np.abs(ctx.Sop @ x - ctx.S @ x).max() <= 1e-13 * np.abs(ctx.S @ x).max()
-    assert np.abs(ctx.Mop @ x - ctx.M @ x).max() <= 1e-13 * np.abs(ctx.M @ x).max()

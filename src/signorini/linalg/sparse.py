@@ -133,19 +133,3 @@ def upper_block_triangle(A: sp.spmatrix, b: int, max_fill: float = 1.25) -> sp.b
     if blocks.data.size > max_fill * max(upper.nnz, 1):
         return None
     return blocks
-
-
-def symmetric_by_probe(A: sp.spmatrix, rtol: float = 1e-13) -> bool:
-    """Whether the square matrix A is symmetric, by two products with random vectors:
-    |x.(A y) - y.(A x)| <= rtol (|x| |A y| + |y| |A x|).  A non-symmetric A passes only
-    when its asymmetry is at round-off level (or by a chance of probability 0); a
-    symmetric A with much cancellation may fail, which only costs the caller speed."""
-    if A.shape[0] != A.shape[1]:
-        return False
-    if A.nnz == 0:
-        return True
-    rng = np.random.default_rng(12345)
-    x, y = rng.standard_normal(A.shape[0]), rng.standard_normal(A.shape[0])
-    Ax, Ay = A @ x, A @ y
-    scale = np.linalg.norm(x) * np.linalg.norm(Ay) + np.linalg.norm(y) * np.linalg.norm(Ax)
-    return bool(abs(x @ Ay - y @ Ax) <= rtol * scale)
