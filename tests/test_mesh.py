@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from signorini.errors import MeshError
-from signorini.fem.mesh import Mesh, box, interval, read_mesh, rectangle, write_mesh
+from signorini.fem.mesh import Mesh, box, interval, read_mesh, rectangle, uniform_cells, write_mesh
 
 
 @pytest.mark.parametrize(
@@ -58,3 +58,17 @@ def test_clear_errors(tmp_path):
         read_mesh(tmp_path / "nope.msh")
     with pytest.raises(MeshError, match="positive integer"):
         rectangle(0, 2)
+
+
+def test_uniform_meshes_are_checked_through_their_first_cell():
+    """Translates of one cell (the generators' boxes) are checked through that cell: a
+    box whose cells are all inverted reports every one of them."""
+    m = box(2, 2, 2)
+    assert uniform_cells(m)
+    m.check_cells()
+    flipped = Mesh(m.points, m.cells[:, [4, 5, 6, 7, 0, 1, 2, 3]], "hexahedron")
+    with pytest.raises(MeshError, match=r"^8 inverted element\(s\)"):
+        flipped.check_cells()
+    moved = m.points.copy()
+    moved[13] += 0.01  # the centre node: the cells are no longer translates
+    assert not uniform_cells(Mesh(moved, m.cells, "hexahedron"))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from signorini.linalg.sparse import linear_combination, principal_blocks, upper_triangle
+from signorini.linalg.sparse import linear_combination, principal_blocks, subpattern_positions, upper_triangle
 
 
 def symmetric(n, density, rng):
@@ -28,6 +28,31 @@ def test_against_scipy_on_random_matrices(seed):
     assert Kff.has_sorted_indices
     U = upper_triangle(A)
     assert (U != sp.triu(A)).nnz == 0 and U.has_sorted_indices
+
+
+@pytest.mark.parametrize("seed", range(20))
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 22])
+def test_pattern_inside_the_other(seed, chunk):
+    """A pattern inside B's (the vector mass in the stiffness pattern): the positions are
+    B's entries of the same row and column, the sum keeps B's index arrays; a pattern
+    with one entry outside gives None.  Small ``chunk`` values cut the rows in blocks."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 40))
+    B = symmetric(n, rng.uniform(0.05, 0.6), rng) + sp.identity(n, format="csr")
+    C = B.tocoo()
+    keep = rng.random(C.nnz) < 0.5
+    A = sp.csr_matrix((rng.standard_normal(int(keep.sum())), (C.row[keep], C.col[keep])), shape=B.shape)
+    pos = subpattern_positions(A, B, chunk=chunk)
+    rows = np.repeat(np.arange(n), np.diff(A.indptr))
+    assert np.array_equal(B.indices[pos], A.indices)
+    assert np.all((pos >= B.indptr[rows]) & (pos < B.indptr[rows + 1]))
+    for K in (linear_combination(2.0, A, -3.0, B), linear_combination(-3.0, B, 2.0, A)):
+        assert abs(K - (2 * A - 3 * B)).max() == 0 and np.shares_memory(K.indices, B.indices)
+    missing = sp.csr_matrix(np.ones((n, n))) - sp.csr_matrix((np.ones(B.nnz), B.indices, B.indptr), shape=B.shape)
+    if missing.nnz:
+        outside = (A + abs(missing)).tocsr()
+        assert subpattern_positions(outside, B, chunk=chunk) is None
+        assert (linear_combination(1.0, outside, 1.0, B) != outside + B).nnz == 0
 
 
 def test_rows_without_entries_and_unsorted_input():

@@ -17,9 +17,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
-from ..fem.elements import FACET_TYPES, reference_element
+from ..fem.elements import FACET_TYPES, determinants, jacobians, reference_element
 from ..fem.material import IsotropicElastic
-from ..fem.mesh import Mesh
+from ..fem.mesh import Mesh, uniform_cells
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -35,8 +35,8 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
         return mesh._cache["geometry"]
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (ne, nv, d)
-    J = np.einsum("qak,eai->eqik", ref.dN, X)  # J_ik = dx_i / dxi_k
-    det = np.linalg.det(J) if mesh.dim > 1 else J[..., 0, 0]
+    J = jacobians(ref.dN, X)  # J_ik = dx_i / dxi_k
+    det = determinants(J) if mesh.dim > 1 else J[..., 0, 0]
     if not np.all(np.abs(det) > 0) or not np.all(np.isfinite(det)):
         bad = np.flatnonzero(~(np.abs(det) > 0).all(axis=1) | ~np.isfinite(det).all(axis=1))
         raise MeshError(f"{bad.size} degenerate element(s) (det J = 0 or not finite), e.g. cells {bad[:5].tolist()}")
@@ -56,19 +56,6 @@ def quadrature_points(mesh: Mesh) -> np.ndarray:
 def cell_volumes(mesh: Mesh) -> np.ndarray:
     """Measure of every cell, shape (n_cells,)."""
     return geometry(mesh)[0].sum(axis=1)
-
-
-def uniform_cells(mesh: Mesh) -> bool:
-    """True when every element is a translate of the first one (same Jacobians), as on
-    the structured generators' meshes; assembly then computes one element matrix."""
-    if "uniform" in mesh._cache:
-        return mesh._cache["uniform"]
-    X = mesh.points[mesh.cells]
-    rel = X - X[:, :1, :]
-    scale = max(float(np.abs(rel[0]).max()), 1e-300)
-    out = bool(np.abs(rel - rel[:1]).max() <= 1e-12 * scale)
-    mesh._cache["uniform"] = out
-    return out
 
 
 def _element_data(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:

@@ -149,3 +149,32 @@ FACET_TYPES = {
     "hexahedron": "quad",
     "tetra": "triangle",
 }
+
+
+def jacobians(dN: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """J[e, q, i, k] = dx_i / dxi_k = sum_a X[e, a, i] dN[q, a, k] for every element.
+
+    ``dN`` (nq, nv, k) are the reference gradients, ``X`` (ne, nv, d) the element node
+    coordinates.  One matrix product (ne d, nv) x (nv, nq k) instead of a batched
+    ``einsum``: about 3x faster on 300k hexahedra.
+    """
+    ne, nv, d = X.shape
+    nq, _, k = dN.shape
+    prod = X.transpose(0, 2, 1).reshape(ne * d, nv) @ dN.transpose(1, 0, 2).reshape(nv, nq * k)
+    return prod.reshape(ne, d, nq, k).transpose(0, 2, 1, 3)
+
+
+def determinants(J: np.ndarray) -> np.ndarray:
+    """det J over the last two axes (square, size 1, 2 or 3), by the cofactor formulas
+    (faster than batched LU for many small matrices); other sizes through LAPACK."""
+    n = J.shape[-1]
+    if n == 1:
+        return J[..., 0, 0].copy()
+    if n == 2:
+        return J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    if n == 3:
+        a, b, c = J[..., 0, 0], J[..., 0, 1], J[..., 0, 2]
+        d, e, f = J[..., 1, 0], J[..., 1, 1], J[..., 1, 2]
+        g, h, i = J[..., 2, 0], J[..., 2, 1], J[..., 2, 2]
+        return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    return np.linalg.det(J)

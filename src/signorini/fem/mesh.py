@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MeshError
-from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, reference_element
+from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
 
 
 @dataclass
@@ -100,18 +100,43 @@ class Mesh:
     def check_cells(self) -> None:
         """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
         ref = reference_element(self.cell_type)
-        X = self.points[self.cells]
-        J = np.einsum("qad,ead->eqd" if ref.dim == 1 else "qak,eai->eqik", ref.dN, X)
-        det = J[..., 0] if ref.dim == 1 else np.linalg.det(J)
+        # translates of one element (structured generators): checking the first suffices
+        uniform = uniform_cells(self)
+        X = self.points[self.cells[:1] if uniform else self.cells]
+        J = jacobians(ref.dN, X)
+        det = J[..., 0, 0] if ref.dim == 1 else determinants(J)
         scale = np.abs(X - X.mean(axis=1, keepdims=True)).max(axis=(1, 2)) ** ref.dim
         bad = np.where((det <= 1e-12 * scale[:, None]).any(axis=1))[0]
         if bad.size:
             inverted = (det[bad] < -1e-12 * scale[bad, None]).all(axis=1)
             kind = "inverted" if inverted.all() else "degenerate or inverted"
+            if uniform:  # the first cell stands for all
+                bad = np.arange(self.n_cells)
             raise MeshError(
                 f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; "
                 "fix the node ordering or the geometry"
             )
+
+
+def uniform_cells(mesh: Mesh) -> bool:
+    """True when every element is a translate of the first one (same Jacobians), as on
+    the structured generators' meshes; assembly then computes one element matrix."""
+    if "uniform" in mesh._cache:
+        return mesh._cache["uniform"]
+    if mesh.cells.shape[0] == 0:
+        return False
+    first = mesh.points[mesh.cells[0]]
+    scale = max(float(np.abs(first - first[:1]).max()), 1e-300)
+    out = True
+    for k in range(mesh.points.shape[1]):  # one coordinate at a time: small temporaries
+        Xk = mesh.points[mesh.cells, k]
+        Xk -= Xk[:, :1].copy()
+        Xk -= Xk[0].copy()
+        if np.abs(Xk).max() > 1e-12 * scale:
+            out = False
+            break
+    mesh._cache["uniform"] = out
+    return out
 
 
 # ----------------------------------------------------------------------------- boundary

@@ -50,7 +50,8 @@ class PardisoFactor(Factor):
         self._n = A.shape[0]
         self._ia = (A.indptr + 1).astype(np.int32)
         self._ja = (A.indices + 1).astype(np.int32)
-        solver = pypardiso.PyPardisoSolver(mtype=2)
+        with mkl_path_hint():  # a new solver object searches for mkl_rt again
+            solver = pypardiso.PyPardisoSolver(mtype=2)
         if not all(hasattr(solver, a) for a in ("_mkl_pardiso", "pt", "iparm", "_pt_type")):
             raise RuntimeError(
                 f"pypardiso {getattr(pypardiso, '__version__', '?')} does not expose MKL's pardiso handle as the "

@@ -35,9 +35,56 @@ def linear_combination(a: float, A: sp.spmatrix, b: float, B: sp.spmatrix) -> sp
         return sp.csr_matrix(
             (a * A.data.astype(data_type, copy=False) + b * B.data, B.indices, B.indptr), shape=B.shape
         )
+    # a pattern inside the other (a vector mass in the stiffness pattern): add into a copy
+    # of the larger one's values, which keeps its index arrays (scipy's sum merges rows)
+    (big, cb), (small, cs) = ((B, b), (A, a)) if B.nnz >= A.nnz else ((A, a), (B, b))
+    pos = subpattern_positions(small, big)
+    if pos is not None:
+        data = cb * big.data.astype(data_type, copy=False)
+        data[pos] += cs * small.data
+        return _share_pattern(big, data)
     As = sp.csr_matrix((a * A.data.astype(data_type, copy=False), A.indices, A.indptr), shape=A.shape)
     Bs = sp.csr_matrix((b * B.data.astype(data_type, copy=False), B.indices, B.indptr), shape=B.shape)
     return (As + Bs).tocsr()
+
+
+def _share_pattern(A: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
+    """A CSR matrix with A's index arrays (shared, not copied) and the values ``data``."""
+    out = sp.csr_matrix(A.shape, dtype=data.dtype)
+    out.indptr, out.indices, out.data = A.indptr, A.indices, data  # no check of the large arrays
+    out.has_sorted_indices = True
+    return out
+
+
+def subpattern_positions(A: sp.csr_matrix, B: sp.csr_matrix, chunk: int = 1 << 22) -> np.ndarray | None:
+    """Where A's entries sit in B's arrays: ``pos`` (A.nnz,) with B.indices[pos] ==
+    A.indices row by row, or None when some entry of A is not in B's pattern.
+
+    Both canonical, same shape.  A binary search per entry of A in the sorted keys
+    row * n_cols + col of B, built for about ``chunk`` entries of B at a time (bounded
+    memory: the keys of B whole would take 8 bytes per non-zero).
+    """
+    if A.shape != B.shape:
+        return None
+    n, ncol = A.shape
+    pos = np.empty(A.nnz, dtype=np.int64)
+    cuts = np.searchsorted(B.indptr, np.arange(0, B.nnz, chunk), side="right") - 1
+    cuts = np.unique(np.concatenate([[0], cuts, [n]]))
+    for r0, r1 in zip(cuts[:-1], cuts[1:], strict=False):  # a few rows blocks, not entries
+        a0, a1, b0, b1 = A.indptr[r0], A.indptr[r1], B.indptr[r0], B.indptr[r1]
+        if a1 == a0:
+            continue
+        if b1 == b0:
+            return None
+        local = np.arange(r1 - r0, dtype=np.int64)
+        kb = np.repeat(local, np.diff(B.indptr[r0 : r1 + 1])) * ncol + B.indices[b0:b1]
+        ka = np.repeat(local, np.diff(A.indptr[r0 : r1 + 1])) * ncol + A.indices[a0:a1]
+        p = np.searchsorted(kb, ka)
+        np.minimum(p, kb.size - 1, out=p)
+        if not np.array_equal(kb[p], ka):
+            return None
+        pos[a0:a1] = p + b0
+    return pos
 
 
 def count_per_row(mask: np.ndarray, indptr: np.ndarray) -> np.ndarray:
