@@ -190,3 +190,16 @@ def test_vector_assembly_equals_the_block_route(kind, rng):
     assert got.has_sorted_indices and np.all(np.diff(got.indices)[same_row] > 0)
     assert np.array_equal(got.indptr, expected.indptr) and np.array_equal(got.indices, expected.indices)
     assert np.allclose(got.data, expected.data, rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_vectorize_is_the_kronecker_product_with_the_identity(dim):
+    """m (x) I_d with node-major dofs, for a matrix with empty rows and unsorted indices."""
+    rng = np.random.default_rng(dim)
+    m = sp.random(9, 9, density=0.3, format="csr", random_state=rng)
+    order = np.lexsort((-np.arange(m.nnz), np.repeat(np.arange(9), np.diff(m.indptr))))  # each row reversed
+    m = sp.csr_matrix((m.data[order], m.indices[order], m.indptr), shape=m.shape)
+    assert np.diff(np.diff(m.indptr)).any() and not m.has_sorted_indices
+    V = assembly.vectorize(m, dim)
+    ref = sp.kron(m, sp.identity(dim), format="csr")
+    assert V.shape == ref.shape and abs(V - ref).max() == 0 and V.nnz == dim * m.nnz

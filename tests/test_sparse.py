@@ -55,6 +55,27 @@ def test_pattern_inside_the_other(seed, chunk):
         assert (linear_combination(1.0, outside, 1.0, B) != outside + B).nnz == 0
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_vector_mass_in_the_stiffness_pattern(d):
+    """m (x) I_d inside the full d x d blocks of the same node pattern: the positions come
+    without a search (B's entry d k + (r mod d)) and equal the searched ones."""
+    from signorini.linalg.sparse import _block_diagonal_positions
+
+    rng = np.random.default_rng(d)
+    m = symmetric(12, 0.3, rng) + sp.identity(12, format="csr")
+    S = sp.kron(m, rng.random((d, d)), format="csr")
+    M = sp.kron(m, sp.identity(d), format="csr")
+    S.sort_indices()
+    M.sort_indices()
+    pos = _block_diagonal_positions(M, S)
+    assert pos is not None and np.array_equal(pos, subpattern_positions(M, S, chunk=5))
+    assert abs(linear_combination(2.0, M, -1.0, S) - (2 * M - S)).max() < 1e-14
+    part = M.copy()
+    part.data[::2] = 0.0
+    part.eliminate_zeros()  # a smaller pattern: the guess fails, the search finds it
+    assert _block_diagonal_positions(part, S) is None and subpattern_positions(part, S) is not None
+
+
 def test_rows_without_entries_and_unsorted_input():
     A = sp.csr_matrix(np.array([[0, 0, 0, 0], [0, 2.0, 1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 0]]))
     assert (upper_triangle(A) != sp.triu(A)).nnz == 0

@@ -66,6 +66,9 @@ def subpattern_positions(A: sp.csr_matrix, B: sp.csr_matrix, chunk: int = 1 << 2
     """
     if A.shape != B.shape:
         return None
+    pos = _block_diagonal_positions(A, B)
+    if pos is not None:
+        return pos
     n, ncol = A.shape
     pos = np.empty(A.nnz, dtype=np.int64)
     cuts = np.searchsorted(B.indptr, np.arange(0, B.nnz, chunk), side="right") - 1
@@ -85,6 +88,22 @@ def subpattern_positions(A: sp.csr_matrix, B: sp.csr_matrix, chunk: int = 1 << 2
             return None
         pos[a0:a1] = p + b0
     return pos
+
+
+def _block_diagonal_positions(A: sp.csr_matrix, B: sp.csr_matrix) -> np.ndarray | None:
+    """The positions of A in B when A holds the diagonal of B's d x d blocks (a vector
+    mass m (x) I_d in the stiffness pattern of the same mesh, d = B.nnz / A.nnz): entry
+    k of row r is B's entry d k + (r mod d) of that row.  Checked entry by entry; None
+    when the guess fails (then :func:`subpattern_positions` searches)."""
+    if A.nnz == 0 or B.nnz % A.nnz:
+        return None
+    d = B.nnz // A.nnz
+    n = A.shape[0]
+    if d < 2 or n % d or not np.array_equal(B.indptr, d * A.indptr.astype(np.int64)):
+        return None
+    pos = np.arange(0, B.nnz, d, dtype=np.int64)
+    pos += np.repeat(np.arange(n, dtype=np.int64) % d, np.diff(A.indptr))
+    return pos if np.array_equal(B.indices[pos], A.indices) else None
 
 
 def count_per_row(mask: np.ndarray, indptr: np.ndarray) -> np.ndarray:
