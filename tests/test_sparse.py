@@ -118,3 +118,35 @@ def test_upper_block_triangle():
     assert np.array_equal(blocks[keep], dense[keep]) and not blocks[~keep].any()
     assert upper_block_triangle(A, 4) is None  # 90 is not a multiple of 4
     assert upper_block_triangle(sp.identity(9, format="csr"), 3) is None  # blocks 3x emptier
+
+
+def _dense_upper_blocks(A, b):
+    dense = A.toarray()
+    rows, cols = np.indices(dense.shape)
+    return np.where(cols // b >= rows // b, dense, 0.0)
+
+
+def test_upper_block_triangle_of_whole_and_partial_blocks():
+    """Whole blocks (the vector assembly's pattern) go through run gathers; patterns that
+    are not made of whole blocks (an entry missing, rows of a block row listing other
+    block columns) through the mask route: both give A's upper block triangle."""
+    from signorini.linalg.sparse import _upper_of_whole_blocks, upper_block_triangle
+
+    rng = np.random.default_rng(8)
+    G = sp.random(20, 20, density=0.15, random_state=rng, format="csr")
+    A = sp.kron(G + G.T + sp.identity(20), np.ones((2, 2)), format="csr")
+    A.data = rng.standard_normal(A.nnz)
+    A.sort_indices()
+    whole = _upper_of_whole_blocks(A, 2)
+    assert whole is not None and np.array_equal(whole.toarray(), _dense_upper_blocks(A, 2))
+    partial = A.tolil()
+    partial[0, 1] = 0.0
+    partial = partial.tocsr()
+    partial.eliminate_zeros()
+    assert _upper_of_whole_blocks(partial, 2) is None
+    assert np.array_equal(upper_block_triangle(partial, 2).toarray(), _dense_upper_blocks(partial, 2))
+    # rows 0 and 1 of block row 0 list different block columns (1 and 2)
+    P = sp.csr_matrix(np.kron(np.eye(3), np.ones((2, 2))))
+    P = (P + sp.csr_matrix(([1.0] * 4, ([0, 0, 1, 1], [2, 3, 4, 5])), shape=(6, 6))).tocsr()
+    assert _upper_of_whole_blocks(P, 2) is None
+    assert np.array_equal(upper_block_triangle(P, 2, max_fill=2.0).toarray(), _dense_upper_blocks(P, 2))

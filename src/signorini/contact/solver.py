@@ -322,7 +322,7 @@ class ActiveSetCGSolver(ContactSolver):
     ):
         super().__init__()
         t0 = time.perf_counter()
-        self.K = sp.csr_matrix(K)
+        self.K = K.tocsr() if sp.issparse(K) else sp.csr_matrix(K)  # same object: keeps its format flags
         # the products of CG, on all cores (with MKL, from K's upper triangle, in blocks of a
         # node's dofs when they are whole: about half the bytes)
         block = _nodal_block_size(nodes, self.K.shape[0])

@@ -130,7 +130,7 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
             cols[dest] = d * indices + j
     out = sp.csr_matrix((d * nn, d * nn))
     out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
-    out.has_sorted_indices = True
+    out.has_canonical_format = True  # sorted, one entry per pair of nodes: saves scipy's scans
     return out
 
 
@@ -189,6 +189,7 @@ def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
     if dim == 1:
         return m
     m.sort_indices()
+    canonical = m.has_canonical_format  # duplicates, if any, are kept as they are
     nn, nnz = m.shape[0], m.nnz
     itype = np.int32 if dim * max(nnz, m.shape[1]) < 2**31 else np.int64
     length = np.diff(m.indptr).astype(itype)
@@ -208,6 +209,7 @@ def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
             col += 1
     out = sp.csr_matrix((dim * nn, dim * nn), dtype=data.dtype)
     out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
+    out.has_canonical_format = canonical
     out.has_sorted_indices = True
     return out
 

@@ -15,7 +15,9 @@ import scipy.sparse as sp
 
 
 def _canonical(A: sp.spmatrix) -> sp.csr_matrix:
-    A = sp.csr_matrix(A)
+    # tocsr() keeps a CSR object (and its cached format flags: a new object would scan
+    # its 81M entries again at bar3d n = 32)
+    A = A.tocsr() if sp.issparse(A) else sp.csr_matrix(A)
     if not A.has_canonical_format:
         A = A.copy()
         A.sum_duplicates()
@@ -52,7 +54,7 @@ def _share_pattern(A: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
     """A CSR matrix with A's index arrays (shared, not copied) and the values ``data``."""
     out = sp.csr_matrix(A.shape, dtype=data.dtype)
     out.indptr, out.indices, out.data = A.indptr, A.indices, data  # no check of the large arrays
-    out.has_sorted_indices = True
+    out.has_canonical_format = True  # A is canonical
     return out
 
 
@@ -127,7 +129,7 @@ def _from_mask(A: sp.csr_matrix, mask: np.ndarray, counts: np.ndarray, shape, co
     out = sp.csr_matrix(shape, dtype=A.dtype)
     # set after construction: the constructor would check (and may copy) the large arrays
     out.indptr, out.indices, out.data = indptr.astype(idx_type), indices.astype(idx_type, copy=False), A.data[mask]
-    out.has_sorted_indices = True
+    out.has_canonical_format = True  # a subset of canonical A's entries, in order
     return out
 
 
@@ -190,6 +192,9 @@ def upper_block_triangle(A: sp.spmatrix, b: int, max_fill: float = 1.25) -> sp.b
     n = A.shape[0]
     if A.shape[1] != n or b < 1 or n % b:
         return None
+    whole = _upper_of_whole_blocks(A, b)
+    if whole is not None:
+        return whole
     block_row = np.repeat(np.arange(n, dtype=A.indices.dtype) // b, np.diff(A.indptr))
     mask = A.indices // b >= block_row
     del block_row
@@ -199,3 +204,43 @@ def upper_block_triangle(A: sp.spmatrix, b: int, max_fill: float = 1.25) -> sp.b
     if blocks.data.size > max_fill * max(upper.nnz, 1):
         return None
     return blocks
+
+
+def _upper_of_whole_blocks(A: sp.csr_matrix, b: int) -> sp.bsr_matrix | None:
+    """:func:`upper_block_triangle` when A is made of whole b x b blocks (the vector
+    assembly's pattern: the b rows of a block row list the same block columns, each as b
+    consecutive columns).  Then the values of a block row i are runs of b consecutive
+    entries, gathered run by run: no mask over A's entries, no intermediate CSR.  None
+    when A is not made of whole blocks.
+    """
+    nb = A.shape[0] // b
+    length = np.diff(A.indptr)
+    if np.any(length % b):
+        return None
+    L = length.reshape(nb, b)
+    if np.any(L != L[:, :1]):
+        return None
+    runs = A.indices.reshape(-1, b)  # rows start at multiples of b: runs never straddle rows
+    first = runs[:, 0]
+    if np.any(first % b) or not all(np.array_equal(runs[:, j], first + j) for j in range(1, b)):
+        return None
+    per_row = L[:, 0] // b  # blocks per block row
+    row_of = np.repeat(np.arange(nb, dtype=np.int64), per_row)
+    offset = np.zeros(nb + 1, dtype=np.int64)
+    np.cumsum(per_row, out=offset[1:])
+    # run of block k of row (a, i): indptr[b a] / b + i per_row[a] + k
+    run = np.arange(offset[-1], dtype=np.int64) - offset[row_of] + A.indptr[:-1:b][row_of] // b
+    step = per_row[row_of]
+    block_col = first[run] // b
+    if not all(np.array_equal(first[run + i * step], first[run]) for i in range(1, b)):
+        return None
+    upper = block_col >= row_of
+    run, step = run[upper], step[upper]
+    indptr = np.zeros(nb + 1, dtype=np.int64)
+    np.cumsum(np.bincount(row_of[upper], minlength=nb), out=indptr[1:])
+    values = A.data.reshape(-1, b)
+    data = np.empty((run.size, b, b), dtype=A.dtype)
+    for i in range(b):  # the b rows of a block
+        data[:, i, :] = values[run + i * step]
+    itype = np.int32 if max(nb, run.size) < 2**31 else np.int64
+    return sp.bsr_matrix((data, block_col[upper].astype(itype), indptr.astype(itype)), shape=A.shape)

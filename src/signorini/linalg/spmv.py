@@ -145,7 +145,7 @@ class MKLProduct:
                 "solver option spmv='mkl' needs MKL's runtime, from the extra 'pardiso' (pip install '.[pardiso]'); "
                 "use spmv='scipy' or 'auto'"
             )
-        A = sp.csr_matrix(A)
+        A = A.tocsr() if sp.issparse(A) else sp.csr_matrix(A)
         if A.dtype != np.float64:
             A = A.astype(np.float64)
         self.symmetric = bool(symmetric)
@@ -257,7 +257,7 @@ def sparse_product(
     (:class:`MKLProduct`)."""
     if kind not in SPMV_KINDS:
         raise InputError(f"solver option 'spmv' must be one of {', '.join(SPMV_KINDS)}; got {kind!r}")
-    A = sp.csr_matrix(A)
+    A = A.tocsr() if sp.issparse(A) else sp.csr_matrix(A)
     if kind == "mkl" or (kind == "auto" and A.nnz >= MIN_NNZ and has_mkl()):
         return MKLProduct(A, threads, symmetric, block_size)
     return ThreadedCSR(A, threads)
