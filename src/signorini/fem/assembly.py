@@ -90,7 +90,7 @@ def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows = np.repeat(np.arange(nn, dtype=np.int64), np.diff(indptr))
     pattern_keys = rows * nn + indices
     del rows
-    slot = np.searchsorted(pattern_keys, (c[:, :, None] * nn + c[:, None, :]).ravel())
+    slot = np.searchsorted(pattern_keys, (c[:, :, None] * nn + c[:, None, :]).ravel())  # intp: bincount takes it as is
     out = (indptr, indices, slot.reshape(c.shape[0], c.shape[1], c.shape[1]))
     mesh._cache["pattern"] = out
     return out

@@ -43,7 +43,9 @@ def linear_combination(a: float, A: sp.spmatrix, b: float, B: sp.spmatrix) -> sp
     pos = subpattern_positions(small, big)
     if pos is not None:
         data = cb * big.data.astype(data_type, copy=False)
-        data[pos] += cs * small.data
+        for k in range(0, pos.size, 1 << 22):  # in blocks of entries: small temporaries
+            part = slice(k, k + (1 << 22))
+            data[pos[part]] += cs * small.data[part]
         return _share_pattern(big, data)
     As = sp.csr_matrix((a * A.data.astype(data_type, copy=False), A.indices, A.indptr), shape=A.shape)
     Bs = sp.csr_matrix((b * B.data.astype(data_type, copy=False), B.indices, B.indptr), shape=B.shape)
@@ -103,8 +105,9 @@ def _block_diagonal_positions(A: sp.csr_matrix, B: sp.csr_matrix) -> np.ndarray 
     n = A.shape[0]
     if d < 2 or n % d or not np.array_equal(B.indptr, d * A.indptr.astype(np.int64)):
         return None
-    pos = np.arange(0, B.nnz, d, dtype=np.int64)
-    pos += np.repeat(np.arange(n, dtype=np.int64) % d, np.diff(A.indptr))
+    itype = np.int32 if B.nnz < 2**31 else np.int64  # 4 bytes an entry where they suffice
+    pos = np.repeat((np.arange(n) % d).astype(itype), np.diff(A.indptr))
+    pos += np.arange(0, B.nnz, d, dtype=itype)
     return pos if np.array_equal(B.indices[pos], A.indices) else None
 
 
@@ -124,7 +127,10 @@ def _from_mask(A: sp.csr_matrix, mask: np.ndarray, counts: np.ndarray, shape, co
     np.cumsum(counts, out=indptr[1:])
     indices = A.indices[mask]
     if colmap is not None:
-        indices = colmap[indices]
+        if colmap.dtype == indices.dtype:  # renumbered in place: no second index array
+            np.take(colmap, indices, out=indices, mode="clip")
+        else:
+            indices = colmap[indices]
     idx_type = np.int32 if max(shape[1], indptr[-1]) < 2**31 else np.int64
     out = sp.csr_matrix(shape, dtype=A.dtype)
     # set after construction: the constructor would check (and may copy) the large arrays
