@@ -150,3 +150,29 @@ def test_upper_block_triangle_of_whole_and_partial_blocks():
     P = (P + sp.csr_matrix(([1.0] * 4, ([0, 0, 1, 1], [2, 3, 4, 5])), shape=(6, 6))).tocsr()
     assert _upper_of_whole_blocks(P, 2) is None
     assert np.array_equal(upper_block_triangle(P, 2, max_fill=2.0).toarray(), _dense_upper_blocks(P, 2))
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_principal_combination_is_the_blocks_of_the_combination(seed):
+    """The free and coupling blocks of a A + b B, formed from the blocks of A and B (the
+    vector mass inside the stiffness pattern, and random patterns), leave A and B as
+    they were."""
+    from signorini.linalg.sparse import principal_combination
+
+    rng = np.random.default_rng(seed)
+    m = symmetric(10, 0.3, rng) + sp.identity(10, format="csr")
+    pairs = [
+        (sp.kron(m, sp.identity(3), format="csr"), sp.kron(m, np.ones((3, 3)), format="csr")),
+        (symmetric(30, 0.2, rng), symmetric(30, 0.3, rng)),
+    ]
+    for A, B in pairs:
+        A.sort_indices()
+        B.sort_indices()
+        B.data = rng.standard_normal(B.nnz)
+        A0, B0 = A.copy(), B.copy()
+        fixed = np.sort(rng.choice(30, 6, replace=False))
+        free = np.setdiff1d(np.arange(30), fixed)
+        Kff, KfD = principal_combination(2.0, A, -0.5, B, free, fixed)
+        K = (2.0 * A - 0.5 * B).tocsr()
+        assert abs(Kff - K[free][:, free]).max() < 1e-14 and abs(KfD - K[free][:, fixed]).max() < 1e-14
+        assert (A != A0).nnz == 0 and (B != B0).nnz == 0

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
-from ..linalg.sparse import linear_combination, principal_blocks
+from ..linalg.sparse import linear_combination, principal_combination
 from ..linalg.spmv import sparse_product
 from .mass import massless_dofs
 from .problem import Discretization
@@ -77,14 +77,16 @@ class _System:
     """A factorized operator restricted to the free dofs, with its lifting block."""
 
     def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
-        K = op.matrix(ctx.M, ctx.S)
-        if not np.all(np.isfinite(K.data)):
+        f, D = ctx.free, ctx.fixed
+        # only the free block and its coupling to the fixed dofs are formed
+        if D.size:
+            Kff, self.KfD = principal_combination(op.mass, ctx.M, op.stiffness, ctx.S, f, D)
+        else:
+            Kff, self.KfD = op.matrix(ctx.M, ctx.S), None
+        if not (np.all(np.isfinite(Kff.data)) and (self.KfD is None or np.all(np.isfinite(self.KfD.data)))):
             raise NonFiniteError(
                 f"the operator {op} has non-finite entries (material, mesh or dt at the limits of double precision)"
             )
-        f, D = ctx.free, ctx.fixed
-        Kff, self.KfD = principal_blocks(K, f, D) if D.size else (K, None)
-        del K  # only the free block is kept
         self.op = op
         gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
         try:

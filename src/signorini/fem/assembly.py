@@ -110,24 +110,29 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
     d = Ke.shape[-1]
     flat = slot.ravel()
     # straight into CSR (no BSR and conversion): dof row (a, i) holds the d * len(a)
-    # columns (b, j) of node row a, so block k = (a, b) entry (i, j) lands at
-    # ptr[d a + i] + d rank(b) + j = ptr[d a] + i d len(a) + d rank(b) + j
+    # columns (b, j) of node row a, so entry (i, j) of node entry s (row a) lands at
+    # ptr[d a + i] + d (s - indptr[a]) + j = d s + d (d - 1) indptr[a] + i d len(a) + j
     nn = mesh.n_nodes
     row_len = np.diff(indptr)
     itype = indices.dtype
     ptr = np.zeros(d * nn + 1, dtype=itype)
     np.cumsum(np.repeat(d * row_len, d), out=ptr[1:])
-    node_row = np.repeat(np.arange(nn, dtype=itype), row_len)
-    base = ptr[:-1:d][node_row] + d * (np.arange(indices.size, dtype=itype) - indptr[node_row])
-    stride = d * row_len[node_row]
-    del node_row
+    dest = np.arange(0, d * indices.size, d, dtype=itype)
+    dest += np.repeat(d * (d - 1) * indptr[:-1], row_len)
+    step = np.repeat(d * row_len, row_len)
+    col = d * indices
     data = np.empty(int(ptr[-1]))
     cols = np.empty(int(ptr[-1]), dtype=itype)
+    weights = np.empty(Ke.shape[:3])  # one buffer for the d^2 components (no copy of each)
     for i in range(d):
         for j in range(d):
-            dest = base + (i * stride + j)
-            data[dest] = np.bincount(flat, weights=Ke[..., i, j].ravel(), minlength=indices.size)
-            cols[dest] = d * indices + j
+            np.copyto(weights, Ke[..., i, j])
+            data[dest] = np.bincount(flat, weights=weights.ravel(), minlength=indices.size)
+            cols[dest] = col
+            dest += 1
+            col += 1
+        dest += step - d
+        col -= d
     out = sp.csr_matrix((d * nn, d * nn))
     out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
     out.has_canonical_format = True  # sorted, one entry per pair of nodes: saves scipy's scans
