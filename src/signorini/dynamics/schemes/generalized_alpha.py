@@ -90,7 +90,7 @@ class GeneralizedAlpha(Newmark):
             rhs += lagged
         rhs = rhs / (1 - af) + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed)
+        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, guess=self.taylor_guess(ctx, s))
         return self.update(ctx, s, t, U, lam, info, pred)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:

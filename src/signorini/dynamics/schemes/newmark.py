@@ -49,7 +49,9 @@ class Newmark(Scheme):
         p = self.predictor(ctx, s)
         rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, self.contact_law(ctx))
+        U, lam, info = ctx.solve(
+            self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, self.contact_law(ctx), self.taylor_guess(ctx, s)
+        )
         return self.update(ctx, s, t, U, lam, info, p)
 
     def predictor(self, ctx, s: State) -> np.ndarray:
