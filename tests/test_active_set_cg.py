@@ -130,3 +130,14 @@ def test_a_guess_of_the_wrong_size_is_refused():
     solver = ActiveSetCGSolver(K, np.zeros((0, 3)), 1.0)
     with pytest.raises(ValueError, match="shape"):
         solver.set_guess(np.zeros(2))
+
+
+def test_a_direct_solve_does_not_compute_the_guess(monkeypatch):
+    from signorini.dynamics.schemes.base import Scheme
+
+    def refuse(ctx, s):
+        raise AssertionError("the guess was computed for a direct solve")
+
+    monkeypatch.setattr(Scheme, "taylor_guess", staticmethod(refuse))
+    p, dt = plate(4)
+    assert _run(p, dt, 3, backend="superlu").status == "finished"

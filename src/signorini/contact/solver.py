@@ -118,6 +118,8 @@ class ContactSolver:
     """Common counters and interface; see the module docstring."""
 
     name = "contact-solver"
+    #: whether :meth:`set_guess` is of use (iterative solves)
+    uses_guess = False
 
     def __init__(self) -> None:
         self.counters = {
@@ -309,6 +311,8 @@ class ActiveSetCGSolver(ContactSolver):
     are checked and A is updated by the rule A = {i : -lambda_i - c gap_i > 0} until it
     no longer changes.
     """
+
+    uses_guess = True
 
     def __init__(
         self,

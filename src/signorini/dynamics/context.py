@@ -18,6 +18,7 @@ multiples of each other (e.g. Paoli-Schatzman's M/dt^2 + S/4 and Crank-Nicolson'
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -207,17 +208,18 @@ class Context:
         bound: np.ndarray,
         fixed_values: np.ndarray | None = None,
         law: ContactLaw = SIGNORINI,
-        guess: np.ndarray | None = None,
+        guess: np.ndarray | Callable[[], np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
         """Solve ``K x = rhs + B^T lambda`` with contact ``B x <= bound``; x = fixed_values
         on the Dirichlet dofs.  Returns the full x (n,), lambda (nc,) and the step info.
         ``law`` restricts the constrained nodes or adds a compliance (:class:`ContactLaw`).
         ``guess`` (n,): an estimate of x (a scheme's predictor) that an iterative solve
-        starts from; direct solves ignore it.  The answer does not depend on it beyond
-        the solver's tolerance."""
+        starts from, or a function returning it (called only by such a solve); direct
+        solves ignore it.  The answer does not depend on it beyond the solver's tolerance."""
         sys, s = self._system(op)
-        if guess is not None:
-            sys.solver.set_guess(guess[self.free] if self.has_fixed else guess)
+        if guess is not None and sys.solver.uses_guess:
+            x0 = guess() if callable(guess) else guess
+            sys.solver.set_guess(x0[self.free] if self.has_fixed else x0)
         b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
         x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, law.scaled(s))
         return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info

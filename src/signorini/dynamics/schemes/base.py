@@ -20,8 +20,9 @@ provides, as a subclass of :class:`Scheme`:
    ``dirichlet(t)``, ``gaps(t)``, ``solve(op, rhs, bound, fixed_values, law, guess)``)
    to the state at t_{n+1} with the contact forces ``lam`` and the solver's ``info``.
    Vectors are full-space (all dofs, prescribed values on the Dirichlet dofs).  A
-   ``guess`` of the unknown (e.g. :meth:`Scheme.taylor_guess`) lets the iterative
-   solve start close to it; it changes nothing beyond the solver's tolerance.
+   ``guess`` of the unknown (e.g. :meth:`Scheme.taylor_guess`, or a function returning
+   it, called only when the solve is iterative) lets CG start close to it; it changes
+   nothing beyond the solver's tolerance.
 5. ``energy(ctx, state) -> (kinetic, potential)``: the scheme's discrete energy, and
    ``energy_increment(ctx, old, new) -> EnergyParts | None``: the right-hand side of
    its exact energy identity for the step old -> new, split into the work of

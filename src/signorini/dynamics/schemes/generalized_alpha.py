@@ -40,6 +40,8 @@ a_m = a_f = 1/2 every numerical term vanishes: the CN identity.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ...errors import InputError
@@ -90,7 +92,9 @@ class GeneralizedAlpha(Newmark):
             rhs += lagged
         rhs = rhs / (1 - af) + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, guess=self.taylor_guess(ctx, s))
+        U, lam, info = ctx.solve(
+            self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, guess=functools.partial(self.taylor_guess, ctx, s)
+        )
         return self.update(ctx, s, t, U, lam, info, pred)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:

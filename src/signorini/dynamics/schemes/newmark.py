@@ -24,6 +24,8 @@ For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ...contact.solver import SIGNORINI, ContactLaw
@@ -50,7 +52,12 @@ class Newmark(Scheme):
         rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, self.contact_law(ctx), self.taylor_guess(ctx, s)
+            self.operator(ctx.dt),
+            rhs,
+            ctx.gaps(t),
+            fixed,
+            self.contact_law(ctx),
+            functools.partial(self.taylor_guess, ctx, s),
         )
         return self.update(ctx, s, t, U, lam, info, p)
 

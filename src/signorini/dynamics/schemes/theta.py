@@ -20,6 +20,8 @@ the seed's identity with a plus sign on the contact term).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ...registry import Parameter
@@ -42,7 +44,9 @@ class Theta(Scheme):
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
         rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(self.operator(dt), rhs, ctx.gaps(t), fixed, guess=self.taylor_guess(ctx, s))
+        U, lam, info = ctx.solve(
+            self.operator(dt), rhs, ctx.gaps(t), fixed, guess=functools.partial(self.taylor_guess, ctx, s)
+        )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
         ml = ctx.massless
