@@ -101,6 +101,7 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True, c
         "factor_MB": m["factor_bytes"] / 1e6,
         "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
         "impacts": H.impacts,
+        "krylov_iterations": H.counters.get("krylov_iterations", 0),
         "max_residual": float(H.residual.max()),
     }
 
