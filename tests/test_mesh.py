@@ -72,3 +72,11 @@ def test_uniform_meshes_are_checked_through_their_first_cell():
     moved = m.points.copy()
     moved[13] += 0.01  # the centre node: the cells are no longer translates
     assert not uniform_cells(Mesh(moved, m.cells, "hexahedron"))
+
+
+def test_check_cells_sees_points_moved_after_a_first_check():
+    m = box(2, 2, 2)
+    m.check_cells()  # caches that the cells are translates
+    m.points[13, 2] = 5.0  # the centre node pulled out of the box: cells inverted
+    with pytest.raises(MeshError, match="inverted"):
+        m.check_cells()

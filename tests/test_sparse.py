@@ -176,3 +176,15 @@ def test_principal_combination_is_the_blocks_of_the_combination(seed):
         K = (2.0 * A - 0.5 * B).tocsr()
         assert abs(Kff - K[free][:, free]).max() < 1e-14 and abs(KfD - K[free][:, fixed]).max() < 1e-14
         assert (A != A0).nnz == 0 and (B != B0).nnz == 0
+
+
+def test_a_zero_coefficient_keeps_the_other_pattern_and_complex_coefficients_work():
+    """A mass-only operator 1 M + 0 S keeps M's pattern (not S's zeros); complex
+    coefficients give complex matrices."""
+    m = sp.csr_matrix(np.array([[2.0, 1.0], [1.0, 2.0]]))
+    M = sp.kron(m, sp.identity(3), format="csr")
+    S = sp.kron(m, np.ones((3, 3)), format="csr")
+    for K in (linear_combination(1.0, M, 0.0, S), linear_combination(0.0, S, 1.0, M)):
+        assert K.nnz == M.nnz and abs(K - M).max() == 0
+    C = linear_combination(1j, M, 1.0, S)
+    assert C.dtype == np.complex128 and abs(C - (1j * M + S)).max() < 1e-15

@@ -101,7 +101,7 @@ class Mesh:
         """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
         ref = reference_element(self.cell_type)
         # translates of one element (structured generators): checking the first suffices
-        uniform = uniform_cells(self)
+        uniform = uniform_cells(self, cached=False)  # points may have moved since it was cached
         X = self.points[self.cells[:1] if uniform else self.cells]
         J = jacobians(ref.dN, X)
         det = J[..., 0, 0] if ref.dim == 1 else determinants(J)
@@ -118,10 +118,11 @@ class Mesh:
             )
 
 
-def uniform_cells(mesh: Mesh) -> bool:
+def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
     """True when every element is a translate of the first one (same Jacobians), as on
-    the structured generators' meshes; assembly then computes one element matrix."""
-    if "uniform" in mesh._cache:
+    the structured generators' meshes; assembly then computes one element matrix.
+    ``cached=False`` recomputes it (and refreshes the cache)."""
+    if cached and "uniform" in mesh._cache:
         return mesh._cache["uniform"]
     if mesh.cells.shape[0] == 0:
         return False

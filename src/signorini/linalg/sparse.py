@@ -34,7 +34,10 @@ def linear_combination(a: float, A: sp.spmatrix, b: float, B: sp.spmatrix, overw
     A, B = _canonical(A), _canonical(B)
     if A.shape != B.shape:
         raise ValueError(f"shapes differ: {A.shape} and {B.shape}")
-    data_type = np.result_type(A.dtype, B.dtype, np.float64)
+    data_type = np.result_type(A.dtype, B.dtype, np.float64, np.asarray(a).dtype, np.asarray(b).dtype)
+    if a == 0 or b == 0:  # one operand (a mass-only operator): its own pattern, no zeros of the other's
+        keep, c = (B, b) if a == 0 else (A, a)
+        return _share_pattern(keep, c * keep.data.astype(data_type, copy=False))
     if A.indices is B.indices or (
         A.nnz == B.nnz and np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices)
     ):
