@@ -11,7 +11,7 @@ import pytest
 
 from signorini.errors import InputError
 from signorini.io.cli import main
-from signorini.io.results_dir import ResultDirectory, check_output_path
+from signorini.io.results_dir import MARKER, ResultDirectory, check_output_path, is_result_directory, write_marker
 
 
 def _tree(root):
@@ -63,12 +63,13 @@ def test_abort_removes_temporary_and_created_parents(tmp_path):
 def test_commit_replaces_only_at_the_end(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
+    write_marker(out)
     (out / "old").write_text("old")
     with ResultDirectory(out, overwrite=True) as rd:
         (rd.create() / "new").write_text("new")
         assert (out / "old").exists()  # the old results stay until the commit
         rd.commit()
-    assert _tree(tmp_path) == ["out", "out/new"]
+    assert _tree(tmp_path) == ["out", "out/.signorini", "out/new"]
 
 
 def test_sigkilled_run_leaves_no_temporary_directory(tmp_path):
@@ -80,9 +81,9 @@ def test_sigkilled_run_leaves_no_temporary_directory(tmp_path):
     )
     proc = subprocess.Popen([sys.executable, "-c", code])
     deadline = time.time() + 60
-    while time.time() < deadline and not any((tmp_path / "new").glob(".out.*")):
+    while time.time() < deadline and not any((tmp_path / "new").glob(".signorini-new.*")):
         time.sleep(0.05)
-    assert any((tmp_path / "new").glob(".out.*")), "the run did not start"
+    assert any((tmp_path / "new").glob(".signorini-new.*")), "the run did not start"
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     deadline = time.time() + 10
@@ -99,3 +100,198 @@ def test_zero_initial_energy_run(tmp_path, capsys):
     assert "E0 = 0: no relative drift" in capsys.readouterr().out
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["energy_initial"] == 0.0 and s["energy_max_relative_drift"] is None
+
+
+# --- never delete what is not ours (issue 20, item 1) ---------------------------------------
+
+
+def _run_quiet(out, *extra, cwd=None):
+    args = ["run", "bar1d", "--n", "4", "--T", "0.5", "--out", str(out), "--quiet", *extra]
+    return main(args)
+
+
+def test_every_result_directory_carries_the_marker(tmp_path):
+    assert _run_quiet(tmp_path / "o") == 0
+    assert is_result_directory(tmp_path / "o")
+    assert json.loads((tmp_path / "o" / MARKER).read_text())["written_by"] == "signorini"
+
+
+def test_overwrite_refuses_a_directory_the_tool_did_not_write(tmp_path, capsys):
+    victim = tmp_path / "project"
+    victim.mkdir()
+    (victim / "thesis.tex").write_text("precious")
+    before = _tree(tmp_path)
+    assert _run_quiet(victim, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not written by signorini" in err and MARKER in err
+    assert _tree(tmp_path) == before
+
+
+def test_a_forged_or_symlinked_marker_is_not_ours(tmp_path):
+    d = tmp_path / "d"
+    d.mkdir()
+    (d / MARKER).write_text("not json")
+    assert not is_result_directory(d)
+    (d / MARKER).unlink()
+    (tmp_path / "real").write_text(json.dumps({"written_by": "signorini"}))
+    (d / MARKER).symlink_to(tmp_path / "real")
+    assert not is_result_directory(d)
+
+
+@pytest.mark.parametrize("target", [".", "..", "../..", "/"])
+def test_overwrite_never_touches_the_working_directory_or_its_parents(tmp_path, monkeypatch, capsys, target):
+    work = tmp_path / "a" / "b"
+    work.mkdir(parents=True)
+    write_marker(work)  # even a directory that looks like ours
+    write_marker(tmp_path / "a")
+    (work / "case.toml").write_text(REST)
+    monkeypatch.chdir(work)
+    before = _tree(tmp_path)
+    assert _run_quiet(target, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert "working directory" in err and err.count("\n") == 1
+    assert _tree(tmp_path) == before
+
+
+def test_case_file_output_directory_dotdot_with_overwrite_deletes_nothing(tmp_path, monkeypatch, capsys):
+    work = tmp_path / "w"
+    work.mkdir()
+    (tmp_path / "unrelated.txt").write_text("keep me")
+    (work / "case.toml").write_text(REST + '[output]\ndirectory = ".."\n')
+    monkeypatch.chdir(work)
+    before = _tree(tmp_path)
+    assert main(["run", "case.toml", "--overwrite", "--quiet"]) == 2
+    assert _tree(tmp_path) == before
+
+
+def test_overwrite_replaces_an_empty_directory_not_marked(tmp_path):
+    (tmp_path / "o").mkdir()
+    assert _run_quiet(tmp_path / "o", "--overwrite") == 0
+    assert (tmp_path / "o" / "summary.json").exists()
+
+
+@pytest.mark.parametrize("kind", ["dangling", "loop"])
+def test_broken_symlinked_out_is_refused_before_computing(tmp_path, capsys, kind):
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / ("nowhere" if kind == "dangling" else "link"))
+    assert _run_quiet(link) == 2
+    err = capsys.readouterr().err
+    assert "symbolic link" in err and err.count("\n") == 1
+    assert _tree(tmp_path) == ["link"]
+
+
+def test_symlinked_out_to_an_empty_directory_writes_into_the_target(tmp_path):
+    (tmp_path / "target").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "target")
+    assert _run_quiet(tmp_path / "link") == 0
+    assert (tmp_path / "link").is_symlink() and (tmp_path / "target" / "summary.json").exists()
+
+
+def test_symlink_to_a_full_directory_not_ours_is_refused_with_overwrite(tmp_path, capsys):
+    (tmp_path / "target").mkdir()
+    (tmp_path / "target" / "data").write_text("x")
+    (tmp_path / "link").symlink_to(tmp_path / "target")
+    assert _run_quiet(tmp_path / "link", "--overwrite") == 2
+    assert (tmp_path / "target" / "data").read_text() == "x"
+
+
+@pytest.mark.parametrize("length", [250, 255, 256, 300])
+def test_path_length_limits_are_checked_before_computing(tmp_path, capsys, length):
+    """A name the file system cannot hold is exit 2 whatever its length; one it can is written."""
+    out = tmp_path / ("x" * length)
+    rc = _run_quiet(out)
+    err = capsys.readouterr().err
+    if length <= 255:
+        assert rc == 0 and out.is_dir()
+    else:
+        assert rc == 2 and "longer than" in err
+        assert list(tmp_path.iterdir()) == []
+
+
+def test_nul_byte_in_out_is_an_input_error(tmp_path, capsys):
+    assert _run_quiet(str(tmp_path / "a\0b")) == 2
+    assert "NUL" in capsys.readouterr().err
+
+
+def _marked_result(path, files):
+    path.mkdir()
+    write_marker(path)
+    for i in range(files):
+        (path / f"f{i}").write_text("old")
+
+
+def test_kill_during_commit_leaves_one_complete_result(tmp_path):
+    """SIGKILL after the old result was moved aside: the watchdog puts the new one in place."""
+    out = tmp_path / "out"
+    _marked_result(out, 3)
+    code = (
+        "import os, signal, sys\n"
+        "from pathlib import Path\n"
+        "from signorini.io.results_dir import ResultDirectory\n"
+        f"rd = ResultDirectory(Path({str(out)!r}), overwrite=True)\n"
+        "(rd.create() / 'new').write_text('new')\n"
+        "real_rename = os.rename\n"
+        "def rename(a, b):\n"
+        "    real_rename(a, b)\n"
+        "    if '.signorini-old.' in str(b):\n"
+        "        os.kill(os.getpid(), signal.SIGKILL)\n"
+        "os.rename = rename\n"
+        "rd.commit()\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code])
+    assert proc.returncode == -signal.SIGKILL
+    deadline = time.time() + 10
+    while time.time() < deadline and len(list(tmp_path.iterdir())) > 1:
+        time.sleep(0.05)
+    assert _tree(tmp_path) == ["out", "out/.signorini", "out/new"]
+
+
+def test_commit_moves_the_old_result_aside_before_deleting_it(tmp_path, monkeypatch):
+    """The old directory is renamed, the new one renamed in, and only then the old one removed."""
+    import shutil
+
+    out = tmp_path / "out"
+    _marked_result(out, 2)
+    seen = []
+    real_rmtree = shutil.rmtree
+
+    def rmtree(p, *a, **k):
+        seen.append((str(p), (out / "new").exists()))
+        real_rmtree(p, *a, **k)
+
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    with ResultDirectory(out, overwrite=True) as rd:
+        (rd.create() / "new").write_text("new")
+        rd.commit()
+    assert seen and all(".signorini-old." in p and new_in_place for p, new_in_place in seen)
+    assert _tree(tmp_path) == ["out", "out/.signorini", "out/new"]
+
+
+# --- concurrent runs (issue 20, item 2) -----------------------------------------------------
+
+
+def test_second_run_to_finish_does_not_replace_the_first(tmp_path):
+    """Both started on an empty --out without --overwrite: the later commit keeps its results beside."""
+    out = tmp_path / "out"
+    first = ResultDirectory(out, overwrite=False)
+    second = ResultDirectory(out, overwrite=False)
+    (first.create() / "who").write_text("first")
+    (second.create() / "who").write_text("second")
+    first.commit()
+    from signorini.io.results_dir import ResultConflict
+
+    with pytest.raises(ResultConflict, match="written by another run meanwhile") as info:
+        second.commit()
+    assert (out / "who").read_text() == "first"
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("out.kept-")]
+    assert len(kept) == 1 and (kept[0] / "who").read_text() == "second" and str(kept[0]) in str(info.value)
+
+
+def test_concurrent_cli_runs_exit_0_and_4(tmp_path):
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "signorini.io.cli", "run", "bar2d", "--n", "4", "--T", "4", "--out", str(out)]
+    procs = [subprocess.Popen([*cmd, "--quiet"], stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = sorted((p.wait(), p.stderr.read()) for p in procs)
+    assert [rc for rc, _ in results] == [0, 4]
+    assert "this run's results are in" in results[1][1] and results[1][1].count("\n") == 1
+    assert is_result_directory(out) and sum(p.name.startswith("out.kept-") for p in tmp_path.iterdir()) == 1

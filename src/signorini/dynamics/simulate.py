@@ -272,9 +272,18 @@ def simulate(
     run, starter = set_up(problem, mass, sch, dt, T, opts)
     setup_seconds = time.perf_counter() - t0
     recorder, energies, snaps, obs = make_observers(snapshot_every, energy, progress, observers)
-    t_loop = time.perf_counter()
-    status, message, n_last = advance(run, starter, obs, handle_signals)
-    loop = time.perf_counter() - t_loop
+    with _catch_signals(handle_signals) as interrupts:
+        t_loop = time.perf_counter()
+        status, message, n_last = advance(run, starter, obs, interrupts)
+        loop = time.perf_counter() - t_loop
+        H = _finish(run, n_last, recorder, energies, snaps, setup_seconds, loop)
+        if interrupts.signal_name and status == "finished":  # after the last step: every step kept
+            status, message = "interrupted", f"{interrupts.signal_name} after the time loop (all {n_last} steps kept)"
+    H.status, H.message = status, message
+    return H
+
+
+def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: float, loop: float) -> History:
     # contact columns computed inside the loop (lazy condensation) are set-up work: reported
     # apart (in_loop_condensation_seconds), not in the time per step
     columns = sum(s.timings.get("condensation_in_loop", 0.0) for s in run.ctx.solvers)
@@ -284,9 +293,7 @@ def simulate(
         "step_seconds": (loop - columns) / max(n_last, 1),
         "in_loop_condensation_seconds": columns,
     }
-    H = assemble_history(run, n_last, recorder, energies, snaps, timings)
-    H.status, H.message = status, message
-    return H
+    return assemble_history(run, n_last, recorder, energies, snaps, timings)
 
 
 def _one_step(run: Run, starter: Scheme | None, state: State, n: int) -> State:
@@ -295,8 +302,12 @@ def _one_step(run: Run, starter: Scheme | None, state: State, n: int) -> State:
     return run.scheme.step(run.ctx, state)
 
 
-def advance(run: Run, starter: Scheme | None, observers: list[Observer], handle_signals: bool) -> tuple[str, str, int]:
-    """The time loop: (status, message, last level reached); observers closed on any exit."""
+def advance(run: Run, starter: Scheme | None, observers: list[Observer], interrupts: _Interrupts) -> tuple[str, str, int]:
+    """The time loop: (status, message, last level reached); observers closed on any exit.
+
+    ``interrupts`` is the flag set by SIGINT/SIGTERM (:func:`_catch_signals`): the loop
+    stops after the step in progress.
+    """
     status, message, n_last = "finished", "", 0
     state, N, dt = run.initial, run.n_steps, run.dt
     started = []
@@ -305,7 +316,7 @@ def advance(run: Run, starter: Scheme | None, observers: list[Observer], handle_
             o.start(run)
             started.append(o)
         threads = run.ctx.solver_options.get("loop_blas_threads", 1)
-        with _catch_signals(handle_signals) as interrupts, blas_threads(threads):
+        with blas_threads(threads):
             for n in range(1, N + 1):
                 if interrupts.signal_name:
                     status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"

@@ -32,7 +32,8 @@ import numpy as np
 from .. import __version__
 from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
-from .results_dir import ResultDirectory, run_into
+from .results_dir import ResultConflict, ResultDirectory, run_into
+from .streams import deferred_signals, guarded_stdio
 
 EXIT_CODES = {"finished": 0, "failed": 3, "interrupted": 130}
 EXIT_ENVIRONMENT = 4
@@ -341,14 +342,18 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             write_setup_failure(rd, spec, exc)
             print(f"signorini: failed: {exc} (summary in {spec.out})", file=sys.stderr)
             return EXIT_CODES["failed"]
-        H.meta.update(spec.meta)
-        if spec.measure is not None:
-            H.meta.update(spec.measure.summary(H))
-        tmp = rd.create()
-        if spec.case_file is not None:
-            shutil.copy(spec.case_file, tmp / "case.toml")
-        H.save(tmp)
-        rd.commit()
+        with deferred_signals() as late:  # a signal now would lose every computed step: record it
+            H.meta.update(spec.meta)
+            if spec.measure is not None:
+                H.meta.update(spec.measure.summary(H))
+            tmp = rd.create()
+            if spec.case_file is not None:
+                shutil.copy(spec.case_file, tmp / "case.toml")
+            H.save(tmp)
+            if late.name and H.status == "finished":
+                H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
+                H.save(tmp)
+            rd.commit()
     if not args.quiet:
         print(one_screen_summary(H))
         if spec.measure is not None:
@@ -767,11 +772,17 @@ def _sigterm(signum, frame):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "command", None):
-        parser.print_help()
-        return 2
+    with guarded_stdio():
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not getattr(args, "command", None):
+            parser.print_help()
+            return 2
+        return _dispatch(args)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    """Run the command; map every exception to its exit code and a one-line message."""
     old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" else None
     try:
         # every quantity is checked for finiteness where it matters; numpy's floating-point
@@ -785,9 +796,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("signorini: interrupted before the time loop; nothing written", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
+    except ResultConflict as exc:
+        print(f"signorini: error: {exc.strerror}", file=sys.stderr)
+        return EXIT_ENVIRONMENT
     except ConvergenceError as exc:
         print(f"signorini: failed: {exc}", file=sys.stderr)
         return EXIT_CODES["failed"]

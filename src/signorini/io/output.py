@@ -8,11 +8,21 @@ interrupted or fails; the XDMF index is written when the observer is closed.
 Point data per time: ``displacement`` and ``velocity`` (n_nodes, 3, padded with zeros
 below 3D), ``von_mises`` (n_nodes,), ``contact_pressure`` (n_nodes,, zero off Gamma_C,
 positive in compression, -lambda_i / w_i).
+
+A full disk must not reach the HDF5 library: once a write has failed inside it, its
+metadata cache keeps retrying and closing the file crashes the process.  Before every
+snapshot the writer checks that the file system has room for it (twice its size plus
+:data:`HEADROOM`) and keeps a reserve file of :data:`HEADROOM` bytes beside the fields,
+released before the HDF5 file is closed so that the final metadata always fits.  When
+the room is missing it stops with :class:`OSError` (ENOSPC), which the command line
+reports as exit 4 in one line.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +30,18 @@ import numpy as np
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
 from ..fem.assembly import von_mises
+
+#: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
+HEADROOM = 4 * 2**20
+
+
+def _free_bytes(path: Path) -> int:
+    st = os.statvfs(path)
+    return st.f_bavail * st.f_frsize
+
+
+def _no_space() -> OSError:
+    return OSError(errno.ENOSPC, f"No space left on device while streaming fields ({HEADROOM // 2**20} MiB headroom kept)")
 
 
 class FieldWriter(Observer):
@@ -31,6 +53,27 @@ class FieldWriter(Observer):
         self.times: list[float] = []
         self._writer = None
         self._last = -1
+        self._reserve = self.path.with_name(f".{self.path.stem}.reserve")
+        self._snapshot_bytes = 0
+
+    def _hold_reserve(self) -> None:
+        try:
+            with open(self._reserve, "wb") as f:
+                os.posix_fallocate(f.fileno(), 0, HEADROOM)
+        except OSError as exc:
+            self._release_reserve()
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise _no_space() from None
+            if exc.errno not in (errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+
+    def _release_reserve(self) -> None:
+        with contextlib.suppress(OSError):
+            self._reserve.unlink()
+
+    def _check_room(self) -> None:
+        if _free_bytes(self.path.parent) < 2 * self._snapshot_bytes + HEADROOM:
+            raise _no_space()
 
     def start(self, run: Run) -> None:
         import meshio
@@ -41,6 +84,11 @@ class FieldWriter(Observer):
         self._weights = run.ctx.disc.contact.weights
         pts = np.zeros((mesh.n_nodes, 3))
         pts[:, : mesh.dim] = mesh.points
+        # displacement, velocity (n, 3) and two scalars per node, in double precision
+        self._snapshot_bytes = 8 * 8 * mesh.n_nodes
+        self._hold_reserve()
+        self._snapshot_bytes += pts.nbytes + mesh.cells.nbytes
+        self._check_room()
         # meshio names the HDF5 file relative to the working directory: open it from the target's
         with contextlib.chdir(self.path.parent):
             self._writer = meshio.xdmf.TimeSeriesWriter(self.path.name)
@@ -49,6 +97,7 @@ class FieldWriter(Observer):
         self._write(0, run.initial)
 
     def _write(self, n: int, s: State) -> None:
+        self._check_room()
         mesh, d = self._mesh, self._mesh.dim
         u = np.zeros((mesh.n_nodes, 3))
         v = np.zeros((mesh.n_nodes, 3))
@@ -74,6 +123,7 @@ class FieldWriter(Observer):
             if self._last != n_last:
                 self._write(n_last, state)
         finally:
+            self._release_reserve()
             with contextlib.chdir(self.path.parent):
                 self._writer.__exit__(None, None, None)
             self._writer = None

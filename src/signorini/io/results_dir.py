@@ -1,24 +1,40 @@
-"""Result directories that appear whole or not at all.
+"""Result directories that appear whole or not at all, and never replace what is not ours.
 
 A command writes into a hidden temporary directory next to its ``--out`` path and
 renames it into place only at the end (:meth:`ResultDirectory.commit`).  Guarantees:
 
-* **Nothing is created for invalid input**: :func:`check_output_path` validates the
-  path without touching the file system, and the directory is created only when the
-  time loop starts (:meth:`ResultDirectory.create`, called lazily).
+* **Nothing is created for invalid input**: :func:`resolve_output` validates the path
+  without touching the file system (NUL bytes, name and path lengths, symbolic links
+  that dangle or loop, a regular file in the way, write permission), and the directory
+  is created only when the time loop starts (:meth:`ResultDirectory.create`).
+* **Never delete what is not ours.**  Every result directory holds a marker file,
+  :data:`MARKER`.  ``--overwrite`` replaces only an empty directory or a directory that
+  holds the marker, and never the working directory, one of its parents or a
+  filesystem root; anything else is an :class:`~signorini.errors.InputError` (exit 2)
+  before anything is computed or touched.
+* **Atomic replacement.**  The old result is renamed aside (``.signorini-old.*``), the
+  new one renamed in, and only then is the old one deleted: a kill at any moment leaves
+  one complete result under ``--out``.
+* **Concurrent runs.**  Without ``--overwrite`` the final rename succeeds only if
+  ``--out`` is still missing or empty (``rename(2)`` refuses a non-empty target), so a
+  run that finishes after another one wrote the same ``--out`` does not replace it: its
+  own results are kept beside it (``<out>.kept-<time>-<pid>``) and
+  :class:`ResultConflict` reports where (exit 4).  With ``--overwrite`` the last run to
+  finish wins, as asked.
 * **No leftovers**: on any exception the temporary directory and the parent
   directories this run created are removed (:meth:`ResultDirectory.abort`).  A run
   killed with SIGKILL cannot clean up after itself, so a tiny watchdog process holds
   the read end of a pipe whose write end only this process has: when this process
-  ends for any reason the pipe closes and the watchdog removes what is left (after a
-  commit nothing is left).
-* A path that cannot be created (``/proc/x``, a path under a regular file, no write
-  permission) is an :class:`~signorini.errors.InputError` naming it.
+  ends for any reason the pipe closes and the watchdog finishes the job: before the
+  commit it removes the temporary directory; during the commit it puts a complete
+  result (the new one, else the old one) under ``--out`` and removes what is aside.
 """
 
 from __future__ import annotations
 
+import datetime
 import errno
+import json
 import os
 import shutil
 import subprocess
@@ -27,83 +43,209 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from .. import __version__
 from ..errors import InputError
 
-_WATCHDOG = (
-    "import os, shutil, sys\n"
-    "sys.stdin.buffer.read()\n"
-    "shutil.rmtree(sys.argv[1], ignore_errors=True)\n"
-    "for d in sys.argv[2:]:\n"
-    "    try:\n"
-    "        os.rmdir(d)\n"
-    "    except OSError:\n"
-    "        break\n"
-)
+#: name of the marker file written in every result directory
+MARKER = ".signorini"
+_NEW_PREFIX = ".signorini-new."
+_OLD_PREFIX = ".signorini-old."
+
+_WATCHDOG = r"""
+import os, shutil, sys
+tmp, out, created = sys.argv[1], sys.argv[2], sys.argv[3:]
+aside, committing, done = [], False, False
+for line in sys.stdin.buffer:
+    word, _, arg = line.decode("utf-8", "surrogateescape").rstrip("\n").partition(" ")
+    if word == "commit":
+        committing = True
+    elif word == "aside":
+        aside.append(arg)
+    elif word == "done":
+        done = True
+if done:
+    sys.exit(0)
+if committing:
+    if not os.path.lexists(out):
+        for src in [tmp] + aside[::-1]:
+            try:
+                os.rename(src, out)
+                break
+            except OSError:
+                pass
+    for a in aside:
+        shutil.rmtree(a, ignore_errors=True)
+shutil.rmtree(tmp, ignore_errors=True)
+if not committing:
+    for d in created:
+        try:
+            os.rmdir(d)
+        except OSError:
+            break
+"""
+
+
+class ResultConflict(OSError):
+    """The output directory changed under a run (another run wrote it meanwhile).
+
+    The message says where this run's own results were kept; the command line exits 4.
+    """
+
+
+def is_result_directory(path: Path) -> bool:
+    """True when ``path`` is a directory holding this tool's marker (a regular file)."""
+    m = Path(path) / MARKER
+    try:
+        return m.is_file() and not m.is_symlink() and json.loads(m.read_text()).get("written_by") == "signorini"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _is_empty_dir(path: Path) -> bool:
+    try:
+        with os.scandir(path) as it:
+            return next(it, None) is None
+    except OSError:
+        return False
 
 
 def _nearest_existing(path: Path) -> Path:
     p = path
-    while not p.exists() and p != p.parent:
+    while not os.path.exists(p) and p != p.parent:  # os.path.exists: False on any OSError
         p = p.parent
     return p
 
 
+def _limit(base: Path, name: str, default: int) -> int:
+    try:
+        return int(os.pathconf(base, name))
+    except (OSError, ValueError):
+        return default
+
+
+def _resolve_link(out: Path, flag: str) -> Path:
+    """The real path of ``out`` (symbolic links followed); dangling links and loops refused."""
+    if out.is_symlink():
+        try:
+            return out.resolve(strict=True)
+        except FileNotFoundError:
+            raise InputError(
+                f"{flag} {str(out)!r} is a symbolic link to {os.readlink(out)!r}, which does not exist"
+            ) from None
+        except (RuntimeError, OSError):  # a loop (RuntimeError before Python 3.13)
+            raise InputError(f"{flag} {str(out)!r} is a symbolic link that loops") from None
+    try:
+        return out.resolve(strict=False)
+    except (RuntimeError, OSError):
+        raise InputError(f"{flag} {str(out)!r}: a symbolic link on the path loops") from None
+
+
+def resolve_output(out: Path | str, overwrite: bool, flag: str = "--out") -> Path:
+    """The real path where the result directory will be; :class:`InputError` if it cannot be.
+
+    Nothing is created or changed.  Refused: an empty path or a NUL byte, a component
+    longer than the file system allows, a dangling or looping symbolic link, a regular
+    file, a non-empty directory without ``overwrite``, a non-empty directory without
+    :data:`MARKER` (not written by this tool), the working directory, one of its parents,
+    a filesystem root, and a parent where this process cannot write.
+    """
+    text = os.fspath(out)
+    if not text:
+        raise InputError(f"{flag} must be a directory path, got an empty string")
+    if "\0" in text:
+        raise InputError(f"{flag} must not contain a NUL byte")
+    name_max = _limit(_nearest_existing(Path(os.path.abspath(text))), "PC_NAME_MAX", 255)
+    if any(len(os.fsencode(p)) > name_max for p in Path(text).parts):
+        raise InputError(f"{flag} {text[:80]!r}...: a path component is longer than {name_max} bytes")
+    real = _resolve_link(Path(text), flag)
+    shown = repr(text) if str(real) == os.path.abspath(text) else f"{text!r} (= {str(real)!r})"
+    base = _nearest_existing(real.parent)
+    path_max = _limit(base, "PC_PATH_MAX", 4096)
+    if len(os.fsencode(str(real))) + len(_NEW_PREFIX) + 10 >= path_max:
+        raise InputError(f"{flag} {shown} is longer than the {path_max} bytes a path may have here")
+    cwd = Path.cwd().resolve()
+    if real == cwd or real in cwd.parents or real == Path(real.anchor):
+        raise InputError(
+            f"{flag} {shown} is the working directory, one of its parents or a root; choose a new directory"
+        )
+    if real.exists():
+        if not real.is_dir():
+            raise InputError(f"{flag} {shown} exists and is not a directory")
+        if not _is_empty_dir(real):
+            if not overwrite:
+                raise InputError(f"output directory {shown} is not empty; pass --overwrite to replace it")
+            if not is_result_directory(real):
+                raise InputError(
+                    f"--overwrite refused: {shown} was not written by signorini (no {MARKER} marker); "
+                    "remove it yourself or choose another --out"
+                )
+    if not base.is_dir():
+        raise InputError(f"{flag} {shown} cannot be created: {str(base)!r} is a file, not a directory")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {shown} cannot be created: no write permission in {str(base)!r}")
+    return real
+
+
 def check_output_path(out: Path, overwrite: bool, flag: str = "--out") -> None:
     """Raise :class:`InputError` if ``out`` cannot become a result directory (nothing created)."""
-    out = Path(out)
-    if out.exists():
-        if not out.is_dir():
-            raise InputError(f"{flag} {str(out)!r} exists and is not a directory")
-        if any(out.iterdir()) and not overwrite:
-            raise InputError(f"output directory {str(out)!r} is not empty; pass --overwrite to replace it")
-    base = _nearest_existing(out.absolute().parent)
-    if not base.is_dir():
-        raise InputError(f"{flag} {str(out)!r} cannot be created: {str(base)!r} is a file, not a directory")
-    if not os.access(base, os.W_OK | os.X_OK):
-        raise InputError(f"{flag} {str(out)!r} cannot be created: no write permission in {str(base)!r}")
+    resolve_output(out, overwrite, flag)
+
+
+def write_marker(directory: Path) -> None:
+    """Write :data:`MARKER` (who wrote the directory, and when) into ``directory``."""
+    info = {
+        "written_by": "signorini",
+        "version": __version__,
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "pid": os.getpid(),
+    }
+    (Path(directory) / MARKER).write_text(json.dumps(info) + "\n")
 
 
 class ResultDirectory:
     """A temporary directory next to ``out``, published by :meth:`commit`.
 
     Use as a context manager: an exception inside aborts (removes everything this
-    object created) and propagates.
+    object created, never ``out``) and propagates.
     """
 
     def __init__(self, out: Path, overwrite: bool, flag: str = "--out"):
-        self.out = Path(out)
+        self.shown = Path(out)
+        self.out = resolve_output(out, overwrite, flag)
         self.overwrite = overwrite
         self.flag = flag
-        check_output_path(self.out, overwrite, flag)
         self.tmp: Path | None = None
         self.created: list[Path] = []  # parent directories made by this run, deepest first
         self._watchdog: subprocess.Popen | None = None
 
     def create(self) -> Path:
-        """Make the parents and the temporary directory (once); returns the latter."""
+        """Make the parents and the temporary directory with its marker (once); returns the latter."""
         if self.tmp is not None:
             return self.tmp
         try:
             missing = []
-            p = self.out.absolute().parent
+            p = self.out.parent
             while not p.exists():
                 missing.append(p)
                 p = p.parent
             for d in reversed(missing):
                 d.mkdir()
                 self.created.insert(0, d)
-            self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", dir=self.out.absolute().parent))
+            self.tmp = Path(tempfile.mkdtemp(prefix=_NEW_PREFIX, dir=self.out.parent))
             self.tmp.chmod(0o755)
+            write_marker(self.tmp)
         except OSError as exc:
             self.abort()
-            raise InputError(f"{self.flag} {str(self.out)!r} cannot be created: {exc.strerror or exc}") from None
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
+                raise
+            raise InputError(f"{self.flag} {str(self.shown)!r} cannot be created: {exc.strerror or exc}") from None
         self._start_watchdog()
         return self.tmp
 
     def _start_watchdog(self) -> None:
         try:
             self._watchdog = subprocess.Popen(
-                [sys.executable, "-I", "-S", "-c", _WATCHDOG, str(self.tmp), *map(str, self.created)],
+                [sys.executable, "-I", "-S", "-c", _WATCHDOG, str(self.tmp), str(self.out), *map(str, self.created)],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
@@ -112,27 +254,81 @@ class ResultDirectory:
         except OSError:  # no watchdog: cleanup on normal exits still happens
             self._watchdog = None
 
-    def _stop_watchdog(self) -> None:
+    def _tell(self, line: str) -> None:
         if self._watchdog is not None:
-            self._watchdog.stdin.close()
+            try:
+                self._watchdog.stdin.write(os.fsencode(line) + b"\n")
+                self._watchdog.stdin.flush()
+            except OSError:
+                pass
+
+    def _stop_watchdog(self, done: bool) -> None:
+        if self._watchdog is not None:
+            if done:
+                self._tell("done")
+            try:
+                self._watchdog.stdin.close()
+            except OSError:
+                pass
             try:
                 self._watchdog.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 pass
             self._watchdog = None
 
+    def _keep_aside(self, tmp: Path) -> Path:
+        """Rename the finished temporary directory to a visible sibling of ``out``."""
+        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+        name = f"{self.out.name}.kept-{stamp}-{os.getpid()}"
+        if len(os.fsencode(name)) > _limit(self.out.parent, "PC_NAME_MAX", 255):
+            name = f"signorini-kept-{stamp}-{os.getpid()}"
+        kept = self.out.parent / name
+        tmp.rename(kept)
+        return kept
+
     def commit(self) -> None:
-        """Replace ``out`` by the temporary directory (the old one is removed only now)."""
+        """Publish the temporary directory as ``out`` (see the module's guarantees)."""
         tmp = self.create()
-        if self.out.exists():
-            shutil.rmtree(self.out)
-        tmp.rename(self.out)
+        self._tell("commit")
+        asides: list[Path] = []
+        reason = ""
+        for _ in range(8):
+            try:
+                os.rename(tmp, self.out)  # atomic; fails on a non-empty directory or a file
+                break
+            except OSError as exc:
+                if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+                    raise
+            if not self.overwrite:
+                reason = "was written by another run meanwhile (no --overwrite)"
+            elif not is_result_directory(self.out):
+                reason = f"was replaced meanwhile by something signorini did not write (no {MARKER} marker)"
+            if reason:
+                break
+            aside = Path(tempfile.mkdtemp(prefix=_OLD_PREFIX, dir=self.out.parent))
+            self._tell(f"aside {aside}")
+            try:
+                os.rename(self.out, aside)  # replaces the empty placeholder atomically
+            except FileNotFoundError:  # another run moved it first: try again
+                aside.rmdir()
+                continue
+            asides.append(aside)
+        else:
+            reason = "kept changing while this run tried to replace it"
+        if reason:
+            kept = self._keep_aside(tmp)
+            self.tmp = None
+            self.created = []
+            self._stop_watchdog(done=True)
+            raise ResultConflict(errno.EEXIST, f"{str(self.shown)!r} {reason}; this run's results are in {str(kept)!r}")
         self.tmp = None
         self.created = []
-        self._stop_watchdog()
+        for a in asides:
+            shutil.rmtree(a, ignore_errors=True)
+        self._stop_watchdog(done=not any(a.exists() for a in asides))
 
     def abort(self) -> None:
-        """Remove the temporary directory and the parents this run created."""
+        """Remove the temporary directory and the parents this run created (never ``out``)."""
         if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
             self.tmp = None
@@ -142,7 +338,7 @@ class ResultDirectory:
             except OSError:
                 break
         self.created = []
-        self._stop_watchdog()
+        self._stop_watchdog(done=True)
 
     def __enter__(self) -> ResultDirectory:
         return self
@@ -157,8 +353,3 @@ def run_into(out: Path, overwrite: bool, work: Callable[[Path], None]) -> None:
     with ResultDirectory(out, overwrite) as rd:
         work(rd.create())
         rd.commit()
-
-
-def is_environment_error(exc: OSError) -> bool:
-    """Disk full, quota, I/O errors: the machine's fault, not the input's."""
-    return exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS, errno.EMFILE, errno.ENFILE)
