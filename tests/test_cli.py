@@ -94,8 +94,12 @@ def test_unknown_benchmark_and_no_overwrite(tmp_path, capsys):
     (out / "precious.txt").write_text("x")
     assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet"]) == 2
     assert (out / "precious.txt").read_text() == "x"
-    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--overwrite"]) == 0
-    assert not (out / "precious.txt").exists() and (out / "history.csv").exists()
+    # --overwrite replaces only what signorini wrote: a directory without its marker is refused
+    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--overwrite"]) == 2
+    assert (out / "precious.txt").read_text() == "x" and not (out / "history.csv").exists()
+    (out / "precious.txt").unlink()
+    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet"]) == 0  # empty: no flag needed
+    assert main(["run", "bar1d", "--n", "4", "--out", str(out), "--quiet", "--overwrite"]) == 0  # ours now
 
 
 def test_study_command_1d_and_2d(tmp_path, capsys):

@@ -80,3 +80,37 @@ def test_check_cells_sees_points_moved_after_a_first_check():
     m.points[13, 2] = 5.0  # the centre node pulled out of the box: cells inverted
     with pytest.raises(MeshError, match="inverted"):
         m.check_cells()
+
+
+def test_a_facet_in_two_gmsh_physical_groups_carries_both_tags():
+    """cylinder.msh (Gmsh 4.1): the bottom disc is in 'skin' and in 'bottom'."""
+    from pathlib import Path
+
+    from signorini.fem.mesh import read_mesh
+
+    m = read_mesh(Path(__file__).parent.parent / "examples" / "meshes" / "cylinder.msh")
+    assert set(m.tags) == {"skin", "bottom"}
+    bottom = m.nodes_of("bottom")
+    assert bottom.size > 10 and np.abs(m.points[bottom, 2]).max() < 1e-12
+    assert np.isin(bottom, m.nodes_of("skin")).all()
+    assert np.array_equal(m.nodes_of(["skin", "bottom"]), m.nodes_of("skin"))  # a union, each facet once
+    assert len(m.facets_of(["skin", "bottom"])) == len(m.facets_of("skin"))
+
+
+def test_physical_groups_that_hold_no_facet_are_an_error(tmp_path):
+    import meshio
+
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    mesh = meshio.Mesh(
+        pts,
+        [("triangle", np.array([[0, 1, 2]]))],
+        cell_data={"gmsh:physical": [np.array([1])], "gmsh:geometrical": [np.array([1])]},
+        field_data={"domain": np.array([1, 2]), "contact": np.array([2, 1])},
+    )
+    path = tmp_path / "empty_group.msh"
+    meshio.write(path, mesh, file_format="gmsh22", binary=False)
+    with pytest.raises(MeshError, match=r"physical groups \['contact'\].*hold no line facets"):
+        read_mesh(path)

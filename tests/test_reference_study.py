@@ -109,7 +109,7 @@ def test_cli_study_with_check_reference(tmp_path):
     args = ["study", "bar2d", "--scheme", "be", "--levels", "2", "--T", "0.5", "--quiet"]
     assert main([*args, "--check-ref-level", "4", "--out", str(out)]) == 0
     md = (out / "study.md").read_text()
-    assert "Reference: be + seed at n = 8" in md and "4x finer in h" in md
+    assert "Reference: be + moment-preserving at n = 8" in md and "4x finer in h" in md  # the default mass
     assert "ref n = 4" in md and "references 2x vs 4x finer" in md
     import csv
     import json

@@ -74,6 +74,7 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     assert np.isclose(t_last, rows[-1, 0])  # the last level computed was written
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary directory left
     assert sorted(p.name for p in out.iterdir()) == [
+        ".signorini",
         "contact.npz",
         "fields.h5",
         "fields.xdmf",

@@ -5,6 +5,7 @@ Sign conventions: see :mod:`signorini.contact.obstacles`.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,10 +40,29 @@ class ContactSet:
 
     @classmethod
     def from_tag(
-        cls, space: VectorSpace, tag: str, obstacle: RigidObstacle, constraints: Constraints | None = None
+        cls,
+        space: VectorSpace,
+        tag: str | Sequence[str],
+        obstacle: RigidObstacle,
+        constraints: Constraints | None = None,
+        where: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> ContactSet:
+        """The contact set of the nodes of ``tag`` (one tag or several: their union).
+
+        ``where`` (points (m, d) -> (m,) true/false) keeps only the tagged nodes where it
+        is true; their weights stay those of the tagged facets around them.
+        """
         mesh = space.mesh
         nodes = mesh.nodes_of(tag)
+        if where is not None:
+            keep = np.asarray(where(mesh.points[nodes])).reshape(nodes.size) != 0
+            if not keep.any():
+                raise InputError(
+                    f"contact.where selects none of the {nodes.size} node(s) of contact tag {tag!r} "
+                    f"(they span {np.round(mesh.points[nodes].min(axis=0), 6).tolist()} .. "
+                    f"{np.round(mesh.points[nodes].max(axis=0), 6).tolist()})"
+                )
+            nodes = nodes[keep]
         gaps, normals = obstacle.gaps_and_normals(mesh.points[nodes])
         weights = facet_weights(mesh, tag)[nodes]
         dofs = space.dofs(nodes)

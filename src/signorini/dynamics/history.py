@@ -29,6 +29,7 @@ HISTORY_COLUMNS = (
     "numerical_dissipation",
     "penetration",
     "impulse",
+    "untagged_penetration",
 )
 STATUSES = ("finished", "interrupted", "failed")
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
@@ -52,6 +53,9 @@ class History:
     external_work, contact_work, numerical_dissipation : (N+1,) cumulative sums of the
         three parts of ``predicted_increment`` (0 at n = 0): work of time-dependent
         loads and prescribed motion, contact term, the scheme's own dissipation.
+    untagged_penetration : (N+1,) largest penetration into the obstacle of the boundary
+        nodes that are not contact nodes (:mod:`signorini.dynamics.untagged`) [length];
+        its maximum is ``untagged_penetration_max`` in the summary.
     impulse : (N+1,) total contact impulse sum_i P_i (<= 0) of the step ending at t_n,
         the P of the scheme's momentum balance M (V^{n+1} - V^n) = ... + B^T P
         (``Scheme.impulse``; nan at n = 0) [force x time].
@@ -85,6 +89,7 @@ class History:
     contact_work: np.ndarray | None = None
     numerical_dissipation: np.ndarray | None = None
     impulse: np.ndarray | None = None
+    untagged_penetration: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
     counters: dict = field(default_factory=dict)
@@ -142,6 +147,7 @@ class History:
             "numerical_dissipation": _or_nan(self.numerical_dissipation, self.t.size),
             "penetration": penetration(self.gap),
             "impulse": _or_nan(self.impulse, self.t.size),
+            "untagged_penetration": _or_nan(self.untagged_penetration, self.t.size),
         }
 
     def write_csv(self, path: str | Path) -> None:
@@ -209,6 +215,9 @@ class History:
             "impulse": float(np.nansum(imp)) if np.isfinite(imp).any() else None,
             "impact_impulses": impact_impulses(self.lambda_sum, imp),
             "penetration_max": float(pen.max(initial=0.0)),
+            "untagged_penetration_max": (
+                float(np.max(self.untagged_penetration, initial=0.0)) if self.untagged_penetration is not None else None
+            ),
             "penetration_time_integral": float(pen[1:].sum() * dt),
             "oscillation_index": oscillation_index(self.t, self.lambda_sum),
             "impact_oscillation_indices": oscillation_indices(self.lambda_sum),

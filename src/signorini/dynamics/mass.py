@@ -47,6 +47,8 @@ that ``p^T M_red q = p^T M q`` for all p, q in {1, x_1, ..., x_d}:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -55,6 +57,13 @@ from ..fem.assembly import scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
 from ..linalg.sparse import count_per_row
 from ..registry import Registry
+from .extrapolation import extrapolation_operator, nearest_free_nodes
+
+#: the mass variant of a run that names none: it keeps the total mass, the centre of mass
+#: and the inertia of the body exactly, on any mesh (docs/design.md, "The default mass")
+DEFAULT_MASS = "moment-preserving"
+#: the variants written M_red = T^T M T with an affine extrapolation T (loads follow T)
+EXTRAPOLATED = ("moment-preserving",)
 
 
 def _needs_contact(name: str, contact_nodes: np.ndarray | None) -> np.ndarray:
@@ -106,6 +115,56 @@ def mass_matrix(
     normals : (n_contact, d) outward unit normals at the contact nodes (``seed-normal``).
     """
     return MASS_VARIANTS.get(name).obj(mesh, rho, contact_nodes, normals)
+
+
+@dataclass
+class Redistribution:
+    """A mass variant applied to a body: its matrix and how the body forces follow it.
+
+    Attributes
+    ----------
+    name : the variant's registry name.
+    M : (d n, d n) vector mass matrix (node-major dofs).
+    T : (n, n) scalar affine extrapolation of the contact nodes for the variants
+        M = T^T M_consistent T (:data:`EXTRAPOLATED`), else None.
+
+    A body force follows the mass (:meth:`body_load`): a force per unit volume that is
+    the same everywhere, f = rho g, is applied as ``M g`` (a load per unit mass: the
+    body falls rigidly, without stress, with every variant, and its weight is the mass
+    the variant keeps); a force varying in space through ``T^T F`` with the consistent
+    load F (then ``T^T F = M g`` again for a uniform f); the other variants take F as it is.
+    """
+
+    name: str
+    M: sp.csr_matrix
+    T: sp.csr_matrix | None = None
+
+    def body_load(self, F: np.ndarray, uniform: np.ndarray | None, rho: float) -> np.ndarray:
+        """The load applied for the consistent body load ``F`` (d n,) [force].
+
+        ``uniform`` is the force density [force / length^d] when it is the same at every
+        point (then the load is ``M (uniform / rho)``), else None.
+        """
+        if uniform is not None:
+            d = uniform.size
+            return self.M @ np.tile(uniform / rho, self.M.shape[0] // d)
+        if self.T is None:
+            return F
+        d = F.size // self.T.shape[0]
+        return (self.T.T @ F.reshape(-1, d)).ravel()
+
+
+def redistribute(
+    name: str, mesh: Mesh, rho: float, contact_nodes: np.ndarray | None = None, normals: np.ndarray | None = None
+) -> Redistribution:
+    """The :class:`Redistribution` of variant ``name`` (arguments as :func:`mass_matrix`)."""
+    name = MASS_VARIANTS.resolve(name)
+    if name in EXTRAPOLATED:
+        T = extrapolation_operator(mesh, _needs_contact(name, contact_nodes), name)
+        M = (T.T @ scalar_mass_matrix(mesh, rho).tocsr() @ T).tocsr()
+        M.eliminate_zeros()
+        return Redistribution(name, vectorize(M, mesh.dim), T)
+    return Redistribution(name, mass_matrix(name, mesh, rho, contact_nodes, normals))
 
 
 def massless_dofs(M: sp.spmatrix) -> np.ndarray:
@@ -168,11 +227,16 @@ def neighbour_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> 
     m = np.asarray(Mc.sum(axis=1)).ravel()
     toward = (Mc @ keep).tocsr()  # couplings to non-contact nodes only
     denom = np.asarray(toward.sum(axis=1)).ravel()
-    if np.any(denom <= 0):
-        raise InputError("mass 'neighbour': a contact node has no non-contact neighbour")
+    alone = denom <= 0  # no non-contact neighbour (an edge of a body whose skin is all contact)
     # removed mass of node i: its row (m_i) and its column towards non-contact nodes
-    share = sp.diags((m + denom) / denom) @ toward
-    add = np.asarray(share.sum(axis=0)).ravel()
+    scale = np.where(alone, 0.0, (m + denom) / np.where(alone, 1.0, denom))
+    add = np.asarray((sp.diags(scale) @ toward).sum(axis=0)).ravel()
+    if alone.any():  # its mass goes in equal shares to the nearest non-contact nodes
+        seeds = sp.csr_matrix(
+            (np.ones(int(alone.sum())), (np.arange(int(alone.sum())), contact_nodes[alone])), shape=(alone.sum(), n)
+        )
+        near = nearest_free_nodes(mesh, seeds, is_c, "neighbour")
+        add += near.T @ m[alone]
     return (keep @ M @ keep + sp.diags(add)).tocsr()
 
 
@@ -188,10 +252,15 @@ def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     cells = mesh.cells[touch]
     free = ~is_c[cells]
     count = free.sum(axis=1)
-    if np.any(count == 0):
-        raise InputError("mass 'mass-free-surface': a cell has all its nodes on the contact boundary")
-    w = rho * cell_volumes(mesh)[touch] / count
+    vol = rho * cell_volumes(mesh)[touch]
+    w = vol / np.maximum(count, 1)
     diag = np.bincount(cells[free], weights=np.repeat(w, count), minlength=mesh.n_nodes)
+    closed = count == 0  # every node on Gamma_C: its mass goes to the nearest non-contact nodes
+    if closed.any():
+        k = cells.shape[1]
+        c = cells[closed]
+        seeds = sp.csr_matrix((np.ones(c.size), (np.repeat(np.arange(len(c)), k), c.ravel())), shape=(len(c), mesh.n_nodes))
+        diag += nearest_free_nodes(mesh, seeds, is_c, "mass-free-surface").T @ vol[closed]
     return (M + sp.diags(diag)).tocsr()
 
 
@@ -285,52 +354,6 @@ def moment_preserving_tensor_scalar_mass(mesh: Mesh, rho: float, contact_nodes: 
     for f in factors[1:]:
         out = sp.kron(f, out, format="csr")  # node = i + nx (j + ny k)
     return (rho * out).tocsr()
-
-
-def extrapolation_operator(mesh: Mesh, contact_nodes: np.ndarray) -> sp.csr_matrix:
-    """T with (T u)_j = u_j off Gamma_C and (T u)_c = sum_j w_cj u_j on contact nodes.
-
-    The weights w_c (over the non-contact nodes within two layers of c) are the
-    minimum-norm solution of  sum_j w_cj = 1,  sum_j w_cj (x_j - x_c) = 0, i.e. the
-    extrapolation reproduces every affine function exactly.  Batched over contact
-    nodes (candidate lists padded to the longest one).
-    """
-    n, d = mesh.n_nodes, mesh.dim
-    is_c = np.zeros(n, dtype=bool)
-    is_c[contact_nodes] = True
-    adj = scalar_mass_matrix(mesh, 1.0).tocsr()
-    adj.data[:] = 1.0
-    ring = (adj @ adj)[contact_nodes].tocsr()  # nodes within two layers of each contact node
-    ring = (ring @ sp.diags((~is_c).astype(float))).tocsr()
-    ring.eliminate_zeros()
-    ring.sort_indices()
-    counts = np.diff(ring.indptr)
-    if np.any(counts < d + 1):
-        raise InputError("mass 'moment-preserving': a contact node has too few interior neighbours")
-    kmax = int(counts.max())
-    nc = len(contact_nodes)
-    pos = np.arange(kmax)[None, :]
-    valid = pos < counts[:, None]
-    idx = np.where(valid, ring.indptr[:-1, None] + np.minimum(pos, counts[:, None] - 1), 0)
-    cand = ring.indices[idx]  # (nc, kmax)
-    A = np.ones((nc, d + 1, kmax))
-    A[:, 1:, :] = np.moveaxis(mesh.points[cand] - mesh.points[contact_nodes][:, None, :], 2, 1)
-    A *= valid[:, None, :]
-    G = A @ np.swapaxes(A, 1, 2)  # (nc, d+1, d+1)
-    e1 = np.zeros((nc, d + 1))
-    e1[:, 0] = 1.0
-    try:
-        y = np.linalg.solve(G, e1[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        raise InputError(
-            "mass 'moment-preserving': the interior neighbours of a contact node are affinely degenerate"
-        ) from None
-    w = np.einsum("cik,ci->ck", A, y)
-    keep = np.flatnonzero(~is_c)
-    rows = np.concatenate([keep, np.repeat(contact_nodes, kmax)])
-    cols = np.concatenate([keep, cand.ravel()])
-    vals = np.concatenate([np.ones(keep.size), (w * valid).ravel()])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
 def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:

@@ -26,7 +26,8 @@ from ..fem.fields import at_time, is_time_dependent
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
-from .mass import MASS_VARIANTS, mass_matrix
+from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
+from .mass_effect import mass_effect
 
 
 @dataclass
@@ -36,7 +37,9 @@ class Problem:
     Parameters
     ----------
     mesh, material : geometry and isotropic material.
-    contact_tag : boundary tag of Gamma_C.
+    contact_tag : boundary tag of Gamma_C, or a list of tags (their union).
+    contact_where : optional condition on the points (m, d) -> (m,) that restricts the
+        contact nodes to part of the tagged boundary (``[contact] where``).
     obstacle : the rigid obstacle (fixed, or moving: a position that is a function of t).
     dirichlet : Dirichlet conditions; a value may be a function of (x, t).
     u0, v0 : initial displacement and velocity (constant vector or function of x);
@@ -48,7 +51,7 @@ class Problem:
 
     mesh: Mesh
     material: IsotropicElastic
-    contact_tag: str
+    contact_tag: str | Sequence[str]
     obstacle: RigidObstacle
     dirichlet: Sequence[Dirichlet] = ()
     u0: Value = 0.0
@@ -56,6 +59,7 @@ class Problem:
     body_force: Value | Callable | None = None
     tractions: dict[str, Sequence[float] | Callable] = field(default_factory=dict)
     name: str = "problem"
+    contact_where: Callable[[np.ndarray], np.ndarray] | None = None
 
 
 def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -94,6 +98,8 @@ class Discretization:
     timings: dict[str, float] = field(default_factory=dict)
     _F_const: np.ndarray | None = None
     _varying: list = field(default_factory=list)
+    #: the mass variant's effect on mass, centre and inertia (:mod:`~signorini.dynamics.mass_effect`)
+    mass_effect: dict = field(default_factory=dict)
 
     @property
     def free(self) -> np.ndarray:
@@ -136,11 +142,21 @@ class Discretization:
         return self.contact.gaps_at(t)
 
 
-def _load_parts(problem: Problem, mesh: Mesh, n: int) -> tuple[np.ndarray, list]:
-    """Constant part of F and builders of the time-dependent parts."""
+def _uniform(f) -> np.ndarray | None:
+    """The force density when it is one constant vector, else None."""
+    return None if callable(f) else np.asarray(f, dtype=float).ravel()
+
+
+def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tuple[np.ndarray, list]:
+    """Constant part of F and builders of the time-dependent parts; body forces follow the mass."""
     F = np.zeros(n)
     varying = []
-    sources = [(lambda f: body_load(mesh, f), problem.body_force)] if problem.body_force is not None else []
+    rho = problem.material.rho
+
+    def body(f):
+        return red.body_load(body_load(mesh, f), _uniform(f), rho)
+
+    sources = [(body, problem.body_force)] if problem.body_force is not None else []
     for tag, tr in problem.tractions.items():
         sources.append((lambda f, tag=tag: surface_load(mesh, tag, f), tr))
     for assemble, data in sources:
@@ -232,18 +248,19 @@ def check_finite_data(**arrays: np.ndarray) -> None:
             )
 
 
-def discretize(problem: Problem, mass: str = "seed") -> Discretization:
+def discretize(problem: Problem, mass: str = DEFAULT_MASS) -> Discretization:
     """Assemble S, the chosen mass variant, loads, contact set and initial data."""
     mass = MASS_VARIANTS.resolve(mass)
     t0 = time.perf_counter()
     mesh = problem.mesh
     space = VectorSpace(mesh)
     cons = Constraints(space, problem.dirichlet)
-    contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons)
+    contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
     S = stiffness_matrix(mesh, problem.material)
-    M = mass_matrix(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+    red = redistribute(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+    M = red.M
     t1 = time.perf_counter()
-    F, varying = _load_parts(problem, mesh, space.n_dofs)
+    F, varying = _load_parts(problem, mesh, space.n_dofs, red)
     U0 = space.interpolate(problem.u0)
     U0[cons.fixed] = cons.values
     V0 = space.interpolate(problem.v0)
@@ -252,6 +269,7 @@ def discretize(problem: Problem, mass: str = "seed") -> Discretization:
         **{"initial displacement": U0, "initial velocity": V0, "gaps": contact.gaps, "Dirichlet values": cons.values}
     )
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
+    disc.mass_effect = mass_effect(M, mesh, problem.material.rho)
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):

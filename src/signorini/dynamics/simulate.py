@@ -35,6 +35,9 @@ from ..linalg import solver_options as validate_solver_options
 from ..linalg.threads import blas_threads
 from .context import Context
 from .history import COUNTER_KEYS, History
+from .mass import DEFAULT_MASS
+from .mass_effect import effect_warning
+from .untagged import UntaggedContact
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .problem import Discretization, Problem, discretize
 from .schemes import Scheme, State, make_scheme
@@ -140,6 +143,15 @@ def _catch_signals(enabled: bool):
             signal.signal(s, h)
 
 
+def run_warnings(disc: Discretization) -> list[str]:
+    """Warnings about what the run computes: a mass variant that changes the body's inertia."""
+    out = []
+    text = effect_warning(disc.mass_effect) if disc.mass_effect else None
+    if text:
+        out.append(f"mass {disc.mass_name!r} {text}: the run does not simulate the body's own inertia")
+    return out
+
+
 def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: int, timings: dict) -> dict:
     """The inputs, sizes and timings of a run, as stored in ``History.meta`` / summary.json."""
     main = ctx.solvers[0]
@@ -149,6 +161,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "scheme_options": dict(scheme.options),
         "energy_definition": scheme.energy_definition,
         "mass": disc.mass_name,
+        "mass_effect": dict(disc.mass_effect),
+        "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
         "dim": int(disc.space.dim),
@@ -227,7 +241,7 @@ def simulate(
     scheme: str | type[Scheme] | Scheme = "crank-nicolson",
     dt: float = 0.01,
     T: float = 1.0,
-    mass: str = "seed",
+    mass: str = DEFAULT_MASS,
     snapshot_every: int = 0,
     backend: str | None = None,
     memory_budget: float | None = None,
@@ -272,11 +286,17 @@ def simulate(
     run, starter = set_up(problem, mass, sch, dt, T, opts)
     setup_seconds = time.perf_counter() - t0
     recorder, energies, snaps, obs = make_observers(snapshot_every, energy, progress, observers)
+    untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
+    obs.insert(1, untagged)
     with _catch_signals(handle_signals) as interrupts:
         t_loop = time.perf_counter()
         status, message, n_last = advance(run, starter, obs, interrupts)
         loop = time.perf_counter() - t_loop
         H = _finish(run, n_last, recorder, energies, snaps, setup_seconds, loop)
+        H.untagged_penetration = untagged.series
+        H.meta["untagged_boundary_nodes"] = int(untagged.nodes.size)
+        if untagged.exceeded():
+            H.meta["warnings"].append(untagged.message())
         if interrupts.signal_name and status == "finished":  # after the last step: every step kept
             status, message = "interrupted", f"{interrupts.signal_name} after the time loop (all {n_last} steps kept)"
     H.status, H.message = status, message

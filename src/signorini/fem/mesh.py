@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -84,8 +85,16 @@ class Mesh:
     def tags(self) -> list[str]:
         return sorted(self.facets)
 
-    def facets_of(self, tag: str) -> np.ndarray:
-        """Facets of a tag; clear error for unknown or empty tags."""
+    def facets_of(self, tag: str | Sequence[str]) -> np.ndarray:
+        """Facets of a tag, or the union of the facets of several tags (each facet once);
+        clear error for unknown or empty tags."""
+        if not isinstance(tag, str):
+            tags = list(tag)
+            if not tags:
+                raise MeshError("an empty list of boundary tags")
+            f = np.vstack([self.facets_of(t) for t in tags])
+            _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+            return f[np.sort(first)]
         if tag not in self.facets:
             raise MeshError(f"unknown boundary tag {tag!r}; this mesh has: {', '.join(self.tags) or 'none'}")
         f = self.facets[tag]
@@ -93,7 +102,7 @@ class Mesh:
             raise MeshError(f"boundary tag {tag!r} is empty")
         return f
 
-    def nodes_of(self, tag: str) -> np.ndarray:
+    def nodes_of(self, tag: str | Sequence[str]) -> np.ndarray:
         """Sorted unique node indices of the facets of ``tag``."""
         return np.unique(self.facets_of(tag))
 
@@ -273,12 +282,38 @@ def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
 _DIM_OF = {"line": 1, "triangle": 2, "quad": 2, "tetra": 3, "hexahedron": 3}
 
 
+def _tagged_facets(m, ftype: str, names: dict[int, str]) -> dict[str, list[np.ndarray]]:
+    """Facet arrays per physical group: every group of a facet, not only the first.
+
+    ``gmsh:physical`` holds one group per element; a Gmsh 4 file attaches groups to
+    entities, and meshio lists every group's elements per block in ``cell_sets``.
+    """
+    facets: dict[str, list[np.ndarray]] = {}
+    phys = m.cell_data.get("gmsh:physical")
+    if phys is not None:
+        for block, tags in zip(m.cells, phys, strict=True):
+            if block.type != ftype:
+                continue
+            for tag_id in np.unique(tags):
+                name = names.get(int(tag_id), str(int(tag_id)))
+                facets.setdefault(name, []).append(block.data[tags == tag_id])
+    for name, per_block in (m.cell_sets or {}).items():
+        if name.startswith("gmsh:") or name not in (m.field_data or {}):
+            continue
+        for block, idx in zip(m.cells, per_block, strict=False):
+            if block.type == ftype and idx is not None and len(idx):
+                facets.setdefault(name, []).append(block.data[np.asarray(idx, dtype=np.int64)])
+    return facets
+
+
 def read_mesh(path: str | Path) -> Mesh:
     """Read a mesh with meshio; Gmsh physical groups of facets become tags.
 
     The cells of highest dimension form the mesh (mixed cell types are refused).
     Facets listed under a physical group named ``NAME`` (``gmsh:physical`` cell data
-    plus ``field_data``) become the tag ``NAME``; unnamed groups become ``"<id>"``.
+    plus ``field_data``, and meshio's ``cell_sets`` of Gmsh 4 files) become the tag
+    ``NAME``, a facet in several groups carries every one; unnamed groups become
+    ``"<id>"``.  Physical groups of facets that hold no facet are an error.
     Points are truncated to the mesh dimension (Gmsh always writes 3D points).
     """
     import meshio
@@ -311,21 +346,19 @@ def read_mesh(path: str | Path) -> Mesh:
     cells = np.vstack([b.data for b in m.cells if b.type == cell_type])
     ftype = FACET_TYPES[cell_type]
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
-    phys = m.cell_data.get("gmsh:physical")
-    facets: dict[str, list[np.ndarray]] = {}
-    if phys is not None:
-        for block, tags in zip(m.cells, phys, strict=True):
-            if block.type != ftype:
-                continue
-            for tag_id in np.unique(tags):
-                name = names.get(int(tag_id), str(int(tag_id)))
-                facets.setdefault(name, []).append(block.data[tags == tag_id])
+    facets = _tagged_facets(m, ftype, names)
+    declared = sorted(k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1)
+    if declared and not facets:
+        raise MeshError(
+            f"{p.name}: the physical groups {declared} of dimension {dim - 1} hold no {ftype} facets "
+            "(no mesh entity is attached to them); add the surfaces to the groups in gmsh and mesh again"
+        )
     # drop unused points (gmsh keeps geometry points)
     used = np.unique(cells)
     renum = -np.ones(len(m.points), dtype=np.int64)
     renum[used] = np.arange(used.size)
     pts = m.points[used, :dim]
-    tagged = {k: renum[np.vstack(v)] for k, v in facets.items()}
+    tagged = {k: renum[np.unique(np.vstack(v), axis=0)] for k, v in facets.items()}
     for k, v in tagged.items():
         if (v < 0).any():
             raise MeshError(f"{p.name}: facets of tag {k!r} use nodes that belong to no cell")

@@ -31,6 +31,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import ConvergenceError, InputError
+from ..dynamics.mass import DEFAULT_MASS
 from ..registry import parse_assignments
 from .results_dir import ResultConflict, ResultDirectory, run_into
 from .streams import deferred_signals, guarded_stdio
@@ -75,6 +76,18 @@ class Progress:
         sys.stderr.flush()
 
 
+def mass_effect_line(s: dict) -> str:
+    """One line: the mass variant (and whether it is the default) and what it keeps."""
+    e = s.get("mass_effect") or {}
+    if not e:
+        return ""
+    how = "" if s.get("mass_named", True) else " (the default)"
+    return (
+        f"  mass {s['mass']}{how}: keeps {100 * e['mass_ratio']:.6g}% of the mass, centre of mass moved by "
+        f"{100 * e['centre_shift']:.2g}% of the body's size, inertia changed by {100 * e['inertia_change']:.2g}%\n"
+    )
+
+
 def one_screen_summary(H) -> str:
     s = H.summary()
     drift = s["energy_max_relative_drift"]
@@ -87,6 +100,7 @@ def one_screen_summary(H) -> str:
         f"fallbacks {s['fallbacks']}\n"
         f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} ({drift_text})\n"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
+        f"{mass_effect_line(s)}"
         f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
         f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves" + factorization_tip(s)
     )
@@ -257,10 +271,12 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     problem = bench.problem(n, overrides)
     sch, sol = _options(args, {}, {})
     params = bench.params(overrides)
-    meta = {"benchmark": args.target, "n": n, "parameters": params}
+    meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
+    if args.snapshot_every is not None and args.snapshot_every < 0:
+        raise InputError(f"--snapshot-every must be >= 0, got {args.snapshot_every}")
     scheme = load_scheme(args.scheme or "cn")
     measure = bench.measure(params) if bench.measure is not None else None
-    return RunSpec(problem, scheme, dt, T, args.mass or "seed", Path(args.out or "out/run"), args.target,
+    return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
                    sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure)  # fmt: skip
 
 
@@ -281,8 +297,9 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         raise InputError(f"--snapshot-every must be >= 0, got {every}")
     limits = _limits(args, case.limits)
     check_size(mesh_counts(case.problem), case.dt, case.T, limits)
+    meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
     return RunSpec(case.problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
-                   sch, sol, every, {"case_file": str(args.target)}, Path(args.target), limits)  # fmt: skip
+                   sch, sol, every, meta, Path(args.target), limits)  # fmt: skip
 
 
 class LazyFieldWriter:
@@ -354,6 +371,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
                 H.save(tmp)
             rd.commit()
+    for w in H.meta.get("warnings", []):
+        print(f"signorini: warning: {w}", file=sys.stderr)
     if not args.quiet:
         print(one_screen_summary(H))
         if spec.measure is not None:
@@ -383,6 +402,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     bench.params(overrides)
     if args.levels < 2:
         raise InputError(f"--levels must be >= 2 to measure a rate, got {args.levels}")
+    if args.n0 is None:
+        args.n0 = 20 if bench.dim == 1 else 1
     if args.n0 < 1:
         raise InputError(f"--n0 must be a positive integer, got {args.n0}")
     check_positive("--ratio", args.ratio)
@@ -577,7 +598,8 @@ def build_parser() -> argparse.ArgumentParser:
     both.add_argument(
         "--mass",
         default=None,
-        help=f"mass variant: {', '.join(MASS_VARIANTS.names())} (default seed, or the case file's)",
+        help=f"mass variant: {', '.join(MASS_VARIANTS.names())} (default {DEFAULT_MASS}, which keeps the "
+        "mass, centre of mass and inertia; or the case file's)",
     )
     both.add_argument(
         "--backend",
@@ -641,8 +663,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     st.add_argument("benchmark", help=benchmarks)
     st.add_argument("--scheme", default="cn", help=f"time scheme: {', '.join(SCHEMES.names())} (default cn)")
-    st.add_argument("--mass", default="seed", help="mass variant, as for run (default seed)")
-    st.add_argument("--n0", type=int, default=1, help="coarsest level (default 1)")
+    st.add_argument("--mass", default=DEFAULT_MASS, help=f"mass variant, as for run (default {DEFAULT_MASS})")
+    st.add_argument("--n0", type=int, default=None, help="coarsest level (default 20 in 1D, 1 in 2D/3D)")
     st.add_argument("--levels", type=int, default=3, help="number of levels (default 3)")
     st.add_argument(
         "--ref-level",

@@ -47,7 +47,7 @@ errors that name the key and the allowed values)::
     # beta = 0.3                # the scheme's own options (newmark: beta, gamma; ...)
 
     [solver]
-    mass = "seed"               # any name of the mass registry
+    mass = "moment-preserving"  # any name of the mass registry (this is the default)
     # backend = "auto"          # and the solver options: memory_budget, lcp_max_iter,
     # preconditioner = "jacobi" # condense_budget, the backend's own (cg: preconditioner,
                                 # rtol, max_iter, max_newton)
@@ -71,7 +71,7 @@ from pathlib import Path
 from typing import Any
 
 from ..contact.obstacles import OBSTACLES, RigidObstacle
-from ..dynamics.mass import MASS_VARIANTS
+from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
 from ..errors import InputError, check_choice, check_positive
@@ -80,7 +80,7 @@ from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
 from ..registry import Motion, Vector
-from .expressions import vector_field
+from .expressions import Expression, _short, vector_field
 from .schema import REQUIRED, section_keys
 
 TIME_KEYS = {"scheme", "dt", "T"}
@@ -99,6 +99,8 @@ class Case:
     scheme_options: dict[str, Any] = field(default_factory=dict)
     solver_options: dict[str, Any] = field(default_factory=dict)
     limits: dict[str, Any] = field(default_factory=dict)
+    #: whether the file names its mass variant ([solver] mass) or takes the default
+    mass_named: bool = False
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -134,6 +136,30 @@ def _tag(mesh: Mesh, key: str, table: dict) -> str:
         raise InputError(f"'{key}.tag' must be a string, got {table['tag']!r}")
     mesh.nodes_of(table["tag"])
     return table["tag"]
+
+
+def _contact_tags(mesh: Mesh, table: dict) -> str | tuple[str, ...]:
+    """``[contact] tag``: one tag or a list of tags (their union)."""
+    tags = table.get("tag")
+    if isinstance(tags, list):
+        if not tags or not all(isinstance(t, str) for t in tags):
+            raise InputError(f"'contact.tag' must be a tag or a non-empty list of tags, got {_short(tags)}")
+        mesh.nodes_of(tags)
+        return tuple(tags)
+    return _tag(mesh, "contact", table)
+
+
+def _where(table: dict):
+    """``[contact] where``: a condition on x, y, z restricting the contact nodes, or None."""
+    if "where" not in table:
+        return None
+    text = table["where"]
+    if not isinstance(text, str):
+        raise InputError(f"'contact.where' must be an expression string such as \"z < 0.2\", got {_short(text)}")
+    ex = Expression("contact.where", text)
+    if "t" in ex.variables:
+        raise InputError("'contact.where' may use x, y and z only (the contact nodes do not change in time)")
+    return lambda p: ex(p) != 0
 
 
 def _mesh(m: dict, base: Path, guard=None) -> Mesh:
@@ -266,7 +292,7 @@ def _solver(sol: Any) -> tuple[str, dict]:
         raise InputError("[solver] must be a table")
     options = {p.name for p in SOLVER_OPTIONS} | {p.name for e in BACKENDS for p in e.parameters}
     _keys("solver", sol, SECTIONS["solver"] | options)
-    mass = sol.get("mass", "seed")
+    mass = sol.get("mass", DEFAULT_MASS)
     if not isinstance(mass, str) or mass not in MASS_VARIANTS:
         raise InputError(f"unknown solver.mass {mass!r}; allowed: {', '.join(MASS_VARIANTS.names())}")
     given = {k: v for k, v in sol.items() if k != "mass"}
@@ -343,7 +369,8 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     tractions = _tractions(data.get("traction", []), mesh)
     c = data["contact"]
     _keys("contact", c, SECTIONS["contact"])
-    tag = _tag(mesh, "contact", c)
+    tag = _contact_tags(mesh, c)
+    where = _where(c)
     obstacle = _obstacle(c.get("obstacle"), dim)
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])
@@ -357,8 +384,11 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every = _output(data.get("output", {}))
-    problem = Problem(mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem)
-    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits)
+    problem = Problem(
+        mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where
+    )
+    named = "mass" in data.get("solver", {})
+    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)
 
 
 def case_problem(path: str | Path) -> Problem:

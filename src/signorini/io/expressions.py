@@ -2,8 +2,9 @@
 
 An expression is parsed with :mod:`ast` and only these nodes are accepted: numbers,
 the names :data:`VARIABLES` and :data:`CONSTANTS`, the operators ``+ - * / ** %`` and
-unary ``+ -``, and calls of the functions in :data:`FUNCTIONS` with positional
-arguments.  Anything else (attributes, subscripts, lambdas, comprehensions, strings,
+unary ``+ -``, calls of the functions in :data:`FUNCTIONS` with positional
+arguments, and for conditions the comparisons ``< <= > >=`` (chained as in
+``0 < x < 1``) and ``and``, ``or``, ``not`` (true is 1.0, false 0.0).  Anything else (attributes, subscripts, lambdas, comprehensions, strings,
 keywords, other names) is an error naming the key, so a case file cannot run code.
 
 Bounds, checked before anything is evaluated: at most :data:`MAX_LENGTH` characters,
@@ -60,6 +61,9 @@ _BINARY = {
     ast.Mod: operator.mod,
 }
 _UNARY = {ast.UAdd: operator.pos, ast.USub: operator.neg}
+# conditions (``[contact] where``): comparisons and and/or/not give 1.0 (true) or 0.0 (false)
+_COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater, ast.GtE: np.greater_equal}
+_BOOL = {ast.And: np.logical_and, ast.Or: np.logical_or}
 
 
 def allowed_names() -> str:
@@ -135,6 +139,31 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
         op, arg = _UNARY[type(node.op)], _compile(node.operand, key, text, used)
         return lambda env: op(arg(env))
+    if isinstance(node, ast.Compare) and all(type(o) in _COMPARE for o in node.ops):
+        terms = [_compile(t, key, text, used) for t in (node.left, *node.comparators)]
+        ops = [_COMPARE[type(o)] for o in node.ops]
+
+        def compare(env):
+            vals = [t(env) for t in terms]
+            out = np.ones(np.broadcast(*vals).shape, dtype=bool)
+            for op, a, b in zip(ops, vals[:-1], vals[1:], strict=True):
+                out &= op(a, b)
+            return out.astype(float)
+
+        return compare
+    if isinstance(node, ast.BoolOp) and type(node.op) in _BOOL:
+        fn, parts = _BOOL[type(node.op)], [_compile(v, key, text, used) for v in node.values]
+
+        def combine(env):
+            out = parts[0](env) != 0
+            for p in parts[1:]:
+                out = fn(out, p(env) != 0)
+            return np.asarray(out, dtype=float)
+
+        return combine
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+        arg = _compile(node.operand, key, text, used)
+        return lambda env: np.asarray(arg(env) == 0, dtype=float)
     if isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS or node.keywords:
             raise bad("this call")

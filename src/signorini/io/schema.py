@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..contact.obstacles import OBSTACLES
-from ..dynamics.mass import MASS_VARIANTS
+from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
 from ..linalg import BACKENDS, SOLVER_OPTIONS
 from .expressions import CONSTANTS, FUNCTIONS, MAX_DEPTH, MAX_EXPONENT, MAX_LENGTH, MAX_NODES, VARIABLES
@@ -114,7 +114,10 @@ SECTIONS: tuple[Section, ...] = (
         "obstacle, towards the body; the body stays outside a sphere.  Positions may be expressions of t "
         "(a moving obstacle).",
         (
-            Key("tag", "string", "required", "", "boundary tag of Gamma_C", _ex('"xmin"', '"ymin"', '"zmin"')),
+            Key("tag", "string or list of strings", "required", "",
+                "boundary tag(s) of Gamma_C (a list: their union)", _ex('"xmin"', '"ymin"', '"zmin"')),
+            Key("where", "string", "all tagged nodes", "",
+                "condition on x, y, z that restricts the contact nodes, e.g. \"z < 0.2\" (< <= > >=, and, or, not)"),
             Key("obstacle", "inline table", "required", "length", "{ type = ..., parameters of the type }",
                 _ex('{ type = "plane", point = [0.0], normal = [1.0] }',
                     '{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }',
@@ -152,7 +155,7 @@ SECTIONS: tuple[Section, ...] = (
     Section(
         "solver",
         "Mass variant and linear algebra.  The solver options are keys of this section too.",
-        (Key("mass", "string", "seed", "", "a name of the mass registry", _same('"seed"')),),
+        (Key("mass", "string", DEFAULT_MASS, "", "a name of the mass registry", _same(f'"{DEFAULT_MASS}"')),),
         open_keys="the solver options and the backend's parameters",
     ),
     Section(

@@ -168,6 +168,14 @@ SOLVER_OPTIONS = (
         choices=SPMV_KINDS,
     ),
     Parameter(
+        "untagged_contact",
+        "warn",
+        "boundary nodes outside the contact tag that enter the obstacle: warn (in summary.json and on stderr) or "
+        "fail (the run stops with status failed, exit 3, keeping the levels computed)",
+        str,
+        choices=("warn", "fail"),
+    ),
+    Parameter(
         "loop_blas_threads",
         1,
         "threads of the dense BLAS inside the time loop (0: the library's default); one is fastest for the "

@@ -1,0 +1,197 @@
+"""Affine extrapolation of the contact nodes from the other nodes, on any mesh.
+
+The conserving mass variants remove the inertia of the contact nodes and put it back on
+the others.  ``moment-preserving`` writes this as ``M_red = T^T M T`` where T keeps the
+values of the non-contact nodes and extrapolates those of the contact nodes,
+
+    (T u)_c = sum_j w_cj u_j,   sum_j w_cj = 1,   sum_j w_cj (x_j - x_c) = 0,
+
+so that T reproduces every affine function: then p^T M_red q = p^T M q for p, q in
+{1, x_1, ..., x_d} (total mass, first and second moments exact), M_red is symmetric
+positive semi-definite and its kernel is the contact dofs.  The weights of node c are the
+minimum-norm solution over a neighbourhood N(c) of non-contact nodes,
+w_c = A_c^+ e_1 = A_c^T (A_c A_c^T)^{-1} e_1 with A_c = [1; (x_j - x_c) / h_c]_{j in N(c)}
+(the scale h_c = max_j |x_j - x_c| changes the conditioning, not the solution; computed
+by the SVD of A_c, accurate to cond(A_c) x machine precision).
+
+**The neighbourhood grows until the fit is well posed** (:func:`neighbourhoods`):
+
+1. the non-contact nodes within two rings of the node graph (the paper's bar and every
+   node with interior neighbours nearby: the historical choice, unchanged);
+2. further rings, up to :data:`MAX_RING`, for nodes on rims, edges and corners of a
+   body whose whole skin is in contact;
+3. the k nearest non-contact nodes in space (k doubling), for bodies whose interior is
+   several rings away.
+
+A neighbourhood is *well posed* when A_c has rank d+1 with condition number at most
+:data:`MAX_CONDITION` (ratio of its extreme singular values).
+When even all the non-contact nodes do not span d+1 affinely independent points (a
+plate one cell thick with its whole skin in contact) no affine extrapolation exists:
+:class:`~signorini.errors.InputError` says how many contact nodes, where, and what to do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+from ..fem.mesh import Mesh
+
+#: largest number of node-graph rings searched before the nearest nodes in space
+MAX_RING = 6
+#: largest condition number of the scaled affine-fit matrix A_c accepted
+MAX_CONDITION = 1e3
+
+
+def node_graph(mesh: Mesh) -> sp.csr_matrix:
+    """(n, n) boolean adjacency of the nodes (two nodes adjacent when they share a cell), diagonal included."""
+    c = mesh.cells
+    k = c.shape[1]
+    rows = np.repeat(c, k, axis=1).ravel()
+    cols = np.tile(c, (1, k)).ravel()
+    A = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(mesh.n_nodes, mesh.n_nodes))
+    A.data[:] = 1
+    return A
+
+
+def _fit(points: np.ndarray, centres: np.ndarray, cand: np.ndarray, valid: np.ndarray):
+    """Minimum-norm affine weights and conditioning for padded candidate lists.
+
+    points (n, d); centres (m, d); cand, valid (m, k).  Returns (weights (m, k), ok (m,)).
+    """
+    m, k = cand.shape
+    d = points.shape[1]
+    dx = (points[cand] - centres[:, None, :]) * valid[..., None]  # (m, k, d)
+    h = np.sqrt((dx**2).sum(axis=2).max(axis=1))
+    h[h == 0] = 1.0
+    A = np.empty((m, d + 1, k))
+    A[:, 0, :] = valid
+    A[:, 1:, :] = np.moveaxis(dx / h[:, None, None], 2, 1)
+    # minimum-norm solution by the SVD A = U S V^T: w = V S^-1 U^T e_1 (accurate to cond(A) eps,
+    # where the normal equations would lose cond(A)^2 eps)
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    ok = (valid.sum(axis=1) >= d + 1) & (s[:, -1] > s[:, 0] / MAX_CONDITION)
+    w = np.zeros((m, k))
+    if ok.any():
+        w[ok] = np.einsum("cik,ci->ck", Vt[ok], U[ok, 0, :] / s[ok])
+    return w, ok
+
+
+def _padded(R: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """The column indices of each row of R, padded: (cand, valid), each (m, kmax)."""
+    counts = np.diff(R.indptr)
+    kmax = max(int(counts.max(initial=0)), 1)
+    pos = np.arange(kmax)[None, :]
+    valid = pos < counts[:, None]
+    idx = np.where(valid, R.indptr[:-1, None] + np.minimum(pos, np.maximum(counts[:, None] - 1, 0)), 0)
+    cand = R.indices[idx] if R.nnz else np.zeros_like(idx)
+    return np.where(valid, cand, 0), valid
+
+
+def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, n_free: int) -> InputError:
+    pts = mesh.points[nodes]
+    lo, hi = np.round(pts.min(axis=0), 6).tolist(), np.round(pts.max(axis=0), 6).tolist()
+    return InputError(
+        f"mass {name!r}: {nodes.size} contact node(s) in the box {lo} .. {hi} (e.g. node {int(nodes[0])} at "
+        f"{np.round(pts[0], 6).tolist()}) cannot be extrapolated: the body's {n_free} non-contact nodes do not "
+        f"span {mesh.dim + 1} affinely independent points; refine the mesh through the thickness, restrict the "
+        "contact nodes ([contact] where = ...), or choose the mass 'seed' or 'standard'"
+    )
+
+
+def extrapolation_operator(mesh: Mesh, contact_nodes: np.ndarray, name: str = "moment-preserving") -> sp.csr_matrix:
+    """T (n, n): identity on the non-contact nodes, affine extrapolation on the contact nodes.
+
+    Parameters
+    ----------
+    mesh : the mesh; contact_nodes : (nc,) node indices of Gamma_C.
+    name : the mass variant, for the error messages.
+
+    Returns
+    -------
+    T with ``T @ p == p`` for every affine nodal field p (to round-off), zero columns on
+    the contact nodes, and rows ``w_c`` on them (see the module docstring).
+    """
+    n, d = mesh.n_nodes, mesh.dim
+    contact_nodes = np.asarray(contact_nodes, dtype=np.int64)
+    is_c = np.zeros(n, dtype=bool)
+    is_c[contact_nodes] = True
+    keep = np.flatnonzero(~is_c)
+    rows, cols, vals = [keep], [keep], [np.ones(keep.size)]
+    for c, cand, w in neighbourhoods(mesh, contact_nodes, is_c, name):
+        rows.append(np.repeat(c, cand.shape[1]))
+        cols.append(cand.ravel())
+        vals.append(w.ravel())
+    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    T.eliminate_zeros()
+    return T
+
+
+def neighbourhoods(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, name: str):
+    """Yield (nodes (m,), candidates (m, k), weights (m, k)) until every contact node has its fit."""
+    pts, d = mesh.points, mesh.dim
+    todo = np.arange(contact_nodes.size)
+    A = node_graph(mesh)
+    drop = sp.diags((~is_c).astype(float))
+    R = A[contact_nodes]
+    for ring in range(1, MAX_RING + 1):
+        R = (R @ A).tocsr() if ring > 1 else R
+        if ring < 2:  # the historical first choice: two rings
+            continue
+        F = (R @ drop).tocsr()
+        F.eliminate_zeros()
+        F.sort_indices()
+        cand, valid = _padded(F)
+        w, ok = _fit(pts, pts[contact_nodes[todo]], cand, valid)
+        if ok.any():
+            yield contact_nodes[todo[ok]], cand[ok], w[ok]
+        todo, R = todo[~ok], R[~ok]
+        if todo.size == 0:
+            return
+        R.data[:] = 1
+    free = np.flatnonzero(~is_c)
+    if free.size >= d + 1:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(pts[free])
+        k = min(free.size, 4 * (d + 1))
+        while todo.size:
+            _, idx = tree.query(pts[contact_nodes[todo]], k=k)
+            cand = free[np.asarray(idx).reshape(todo.size, -1)]
+            w, ok = _fit(pts, pts[contact_nodes[todo]], cand, np.ones(cand.shape, dtype=bool))
+            if ok.any():
+                yield contact_nodes[todo[ok]], cand[ok], w[ok]
+            todo = todo[~ok]
+            if k == free.size:
+                break
+            k = min(free.size, 2 * k)
+    if todo.size:
+        raise _impossible(name, mesh, contact_nodes[todo], free.size)
+
+
+def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name: str) -> sp.csr_matrix:
+    """Row-stochastic (m, n): for each row of ``seeds`` (a set of nodes), equal shares on
+    the non-contact nodes of the first node-graph ring around the set that has any.
+
+    Used by the ``neighbour`` and ``mass-free-surface`` variants for a contact node (or
+    a cell) with no non-contact node next to it: its mass goes to the nearest ones.
+    """
+    A = node_graph(mesh)
+    drop = sp.diags((~is_c).astype(float))
+    R = sp.csr_matrix(seeds, dtype=float)
+    out = sp.lil_matrix((R.shape[0], mesh.n_nodes))
+    todo = np.arange(R.shape[0])
+    for _ in range(4 * MAX_RING):
+        R = (R @ A).tocsr()
+        R.data[:] = 1.0
+        F = (R @ drop).tocsr()
+        F.eliminate_zeros()
+        counts = np.diff(F.indptr)
+        got = counts > 0
+        if got.any():
+            out[todo[got]] = sp.diags(1.0 / counts[got]) @ F[got]
+        todo, R = todo[~got], R[~got]
+        if todo.size == 0:
+            return out.tocsr()
+    raise InputError(f"mass {name!r}: the body has no non-contact node to carry the contact nodes' mass")

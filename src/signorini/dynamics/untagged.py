@@ -1,0 +1,89 @@
+"""Contact is enforced on the tagged nodes only: watch every other boundary node.
+
+The Signorini condition is imposed at the contact nodes (the nodes of the facets tagged
+``[contact] tag``, restricted by ``where``).  Every *other* node of the mesh boundary is
+free to enter the obstacle, which is a silent wrong answer when the body touches the
+obstacle where the user did not tag it.  :class:`UntaggedContact` measures, at every
+level, the largest penetration of these nodes into the obstacle,
+
+    p_n = max(0, max_j -phi(x_j + u_j^n, t_n))   over untagged boundary nodes j  [length],
+
+(the ``untagged_penetration`` column of ``history.csv``; ``untagged_penetration_max`` in
+``summary.json``).  Above :data:`UNTAGGED_TOLERANCE` x the body's size the run warns, or,
+with the solver option ``untagged_contact = fail``, stops with status ``failed`` (the
+levels computed are kept).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ConvergenceError
+from ..fem.mesh import Mesh, boundary_facets
+from .observers import Observer, Run
+from .schemes import State
+
+#: penetration of an untagged node, relative to the body's size, that is reported as contact
+UNTAGGED_TOLERANCE = 1e-9
+UNTAGGED_MODES = ("warn", "fail")
+
+
+def boundary_nodes(mesh: Mesh) -> np.ndarray:
+    """(nb,) sorted indices of the nodes on the boundary of the mesh."""
+    return np.unique(boundary_facets(mesh.cells, mesh.cell_type))
+
+
+def body_size(mesh: Mesh) -> float:
+    """The diagonal of the body's bounding box [length] (1 for a single point)."""
+    return float(np.linalg.norm(np.ptp(mesh.points, axis=0))) or 1.0
+
+
+class UntaggedContact(Observer):
+    """Penetration of the boundary nodes that are not contact nodes, per level."""
+
+    def __init__(self, mode: str = "warn"):
+        self.mode = mode
+        self.series = np.zeros(0)
+        self.worst: tuple[float, int, float] = (0.0, -1, 0.0)  # (penetration, node, t)
+
+    def start(self, run: Run) -> None:
+        disc = run.ctx.disc
+        mesh = disc.problem.mesh
+        self.nodes = np.setdiff1d(boundary_nodes(mesh), disc.contact.nodes)
+        self.X = mesh.points[self.nodes]
+        self.d = mesh.dim
+        self.tolerance = UNTAGGED_TOLERANCE * body_size(mesh)
+        self.obstacle = disc.problem.obstacle
+        self.series = np.zeros(run.n_steps + 1)
+        self._put(0, run.initial)
+
+    def _put(self, n: int, s: State) -> None:
+        if self.nodes.size == 0:
+            return
+        x = self.X + s.U.reshape(-1, self.d)[self.nodes]
+        phi = self.obstacle.gaps(x, s.t)
+        j = int(np.argmin(phi))
+        p = max(0.0, -float(phi[j]))
+        self.series[n] = p
+        if p > self.worst[0]:
+            self.worst = (p, int(self.nodes[j]), float(s.t))
+        if self.mode == "fail" and p > self.tolerance:
+            raise ConvergenceError(self.message())
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        self._put(n, state)
+
+    def close(self, run: Run, status: str, n_last: int, state: State) -> None:
+        self.series = self.series[: n_last + 1]
+
+    def exceeded(self) -> bool:
+        return self.worst[0] > self.tolerance
+
+    def message(self) -> str:
+        p, node, t = self.worst
+        where = np.round(self.X[np.searchsorted(self.nodes, node)], 6).tolist()
+        return (
+            f"boundary node {node} at {where}, not a contact node, is {p:.3g} inside the obstacle at t = {t:.6g} "
+            f"(tolerance {self.tolerance:.2g}): contact is enforced on the tagged nodes only; tag this part of "
+            "the boundary for contact ([contact] tag, where)"
+        )
