@@ -259,7 +259,9 @@ def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     if closed.any():
         k = cells.shape[1]
         c = cells[closed]
-        seeds = sp.csr_matrix((np.ones(c.size), (np.repeat(np.arange(len(c)), k), c.ravel())), shape=(len(c), mesh.n_nodes))
+        seeds = sp.csr_matrix(
+            (np.ones(c.size), (np.repeat(np.arange(len(c)), k), c.ravel())), shape=(len(c), mesh.n_nodes)
+        )
         diag += nearest_free_nodes(mesh, seeds, is_c, "mass-free-surface").T @ vol[closed]
     return (M + sp.diags(diag)).tocsr()
 

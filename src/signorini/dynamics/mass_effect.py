@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..fem.assembly import scalar_mass_matrix
+from ..fem.assembly import _element_data
+from ..fem.elements import reference_element
 from ..fem.mesh import Mesh
 
 #: relative change of the total mass above which a run warns
@@ -39,15 +40,38 @@ def _monomials(mesh: Mesh) -> np.ndarray:
     return np.hstack([np.ones((mesh.n_nodes, 1)), x])
 
 
-def moments(M: sp.spmatrix, mesh: Mesh) -> np.ndarray:
-    """(d, d+1, d+1) moments Q^k of the vector mass ``M`` (node-major dofs), one per component."""
-    d, n = mesh.dim, mesh.n_nodes
+def consistent_moments(mesh: Mesh, rho: float, chunk: int = 65536) -> np.ndarray:
+    """(d+1, d+1) moments P^T M P of the consistent mass, from the element mass matrices.
+
+    M_e = rho sum_q w_q |det J| N_a N_b (the matrices that assemble M; one shared matrix
+    when the cells are translates of one another), Q = sum_e P_e^T M_e P_e over chunks of
+    cells: no global matrix and no per-cell geometry beyond a chunk.
+    """
+    ref = reference_element(mesh.cell_type)
+    wdet, _ = _element_data(mesh)
+    Me = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
     P = _monomials(mesh)
-    E = np.zeros((n * d, d * (d + 1)))
-    for k in range(d):  # d columns blocks: component k carries the monomials
-        E[k::d, k * (d + 1) : (k + 1) * (d + 1)] = P
-    Y = M @ E
-    return np.stack([P.T @ Y[k::d, k * (d + 1) : (k + 1) * (d + 1)] for k in range(d)])
+    Q = np.zeros((P.shape[1], P.shape[1]))
+    for s in range(0, mesh.n_cells, chunk):
+        Pc = P[mesh.cells[s : s + chunk]]  # (m, nv, d+1)
+        Mc = Me if Me.shape[0] == 1 else Me[s : s + chunk]
+        Y = np.matmul(Mc, Pc)  # (m, nv, d+1), M_e broadcast when shared
+        Q += Pc.reshape(-1, Q.shape[0]).T @ Y.reshape(-1, Q.shape[0])
+    return Q
+
+
+def moments(M: sp.spmatrix, mesh: Mesh) -> np.ndarray:
+    """(d, d+1, d+1) moments Q^k of the vector mass ``M`` (node-major dofs), one per component.
+
+    ``M`` must not couple different components (true of every registered variant).
+    """
+    d = mesh.dim
+    P = _monomials(mesh)
+    # every registered variant is block diagonal in the components (no entry couples
+    # component k of a node with component l != k of another): one product with the
+    # monomials repeated on every component gives Y[k::d] = M_k P for all k at once
+    Y = M @ np.repeat(P, d, axis=0)
+    return np.stack([P.T @ Y[k::d] for k in range(d)])
 
 
 def rigid_body_properties(Q: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -62,23 +86,20 @@ def rigid_body_properties(Q: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]
     return m, c, inertia
 
 
-def mass_effect(M: sp.spmatrix, mesh: Mesh, rho: float, reference: sp.spmatrix | None = None) -> dict:
+def mass_effect(M: sp.spmatrix, mesh: Mesh, rho: float) -> dict:
     """The variant's effect on mass, centre of mass and inertia, against the consistent mass.
 
     Parameters
     ----------
     M : (d n, d n) the variant's vector mass matrix.
     mesh, rho : the body and its density [mass / length^d].
-    reference : the consistent scalar mass (n, n) if already assembled.
 
     Returns
     -------
     dict with ``mass_ratio``, ``centre_shift``, ``inertia_change`` (worst component),
     ``mass``, ``consistent_mass`` [mass] and ``changes_physics`` (bool).
     """
-    ref = scalar_mass_matrix(mesh, rho) if reference is None else reference
-    P = _monomials(mesh)
-    m0, c0, I0 = rigid_body_properties(P.T @ (ref @ P))
+    m0, c0, I0 = rigid_body_properties(consistent_moments(mesh, rho))
     size = float(np.linalg.norm(np.ptp(mesh.points, axis=0))) or 1.0
     scale = float(np.linalg.norm(I0)) or 1.0
     worst = {"mass_ratio": 1.0, "centre_shift": 0.0, "inertia_change": 0.0}

@@ -322,7 +322,9 @@ def _one_step(run: Run, starter: Scheme | None, state: State, n: int) -> State:
     return run.scheme.step(run.ctx, state)
 
 
-def advance(run: Run, starter: Scheme | None, observers: list[Observer], interrupts: _Interrupts) -> tuple[str, str, int]:
+def advance(
+    run: Run, starter: Scheme | None, observers: list[Observer], interrupts: _Interrupts
+) -> tuple[str, str, int]:
     """The time loop: (status, message, last level reached); observers closed on any exit.
 
     ``interrupts`` is the flag set by SIGINT/SIGTERM (:func:`_catch_signals`): the loop

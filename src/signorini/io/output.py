@@ -41,7 +41,9 @@ def _free_bytes(path: Path) -> int:
 
 
 def _no_space() -> OSError:
-    return OSError(errno.ENOSPC, f"No space left on device while streaming fields ({HEADROOM // 2**20} MiB headroom kept)")
+    return OSError(
+        errno.ENOSPC, f"No space left on device while streaming fields ({HEADROOM // 2**20} MiB headroom kept)"
+    )
 
 
 class FieldWriter(Observer):
