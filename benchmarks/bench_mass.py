@@ -51,7 +51,8 @@ def one(n: int) -> list[dict]:
 def main(argv: list[str]) -> int:
     sizes = [int(a) for a in argv] or [7]
     print(
-        "| n | dofs | contact nodes | mass | discretize [s] | vs seed | of which mass_effect [s] | nnz(M) / consistent | mass kept |"
+        "| n | dofs | contact nodes | mass | discretize [s] | vs seed | of which mass_effect [s] "
+        "| nnz(M) / consistent | mass kept |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for n in sizes:

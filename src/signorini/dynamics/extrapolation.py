@@ -113,7 +113,7 @@ def extrapolation_operator(mesh: Mesh, contact_nodes: np.ndarray, name: str = "m
     T with ``T @ p == p`` for every affine nodal field p (to round-off), zero columns on
     the contact nodes, and rows ``w_c`` on them (see the module docstring).
     """
-    n, d = mesh.n_nodes, mesh.dim
+    n = mesh.n_nodes
     contact_nodes = np.asarray(contact_nodes, dtype=np.int64)
     is_c = np.zeros(n, dtype=bool)
     is_c[contact_nodes] = True

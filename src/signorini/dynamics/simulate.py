@@ -37,10 +37,10 @@ from .context import Context
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS
 from .mass_effect import effect_warning
-from .untagged import UntaggedContact
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .problem import Discretization, Problem, discretize
 from .schemes import Scheme, State, make_scheme
+from .untagged import UntaggedContact
 
 DT_RANGE = (1e-150, 1e150)
 MAX_CONTACT_RESIDUAL = 1e-6  # scaled complementarity residual above which a step has failed

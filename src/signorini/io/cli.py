@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..errors import ConvergenceError, InputError
 from ..dynamics.mass import DEFAULT_MASS
+from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
 from .results_dir import ResultConflict, ResultDirectory, run_into
 from .streams import deferred_signals, guarded_stdio

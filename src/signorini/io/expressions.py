@@ -4,8 +4,9 @@ An expression is parsed with :mod:`ast` and only these nodes are accepted: numbe
 the names :data:`VARIABLES` and :data:`CONSTANTS`, the operators ``+ - * / ** %`` and
 unary ``+ -``, calls of the functions in :data:`FUNCTIONS` with positional
 arguments, and for conditions the comparisons ``< <= > >=`` (chained as in
-``0 < x < 1``) and ``and``, ``or``, ``not`` (true is 1.0, false 0.0).  Anything else (attributes, subscripts, lambdas, comprehensions, strings,
-keywords, other names) is an error naming the key, so a case file cannot run code.
+``0 < x < 1``) and ``and``, ``or``, ``not`` (true is 1.0, false 0.0).  Anything else
+(attributes, subscripts, lambdas, comprehensions, strings, keywords, other names) is an
+error naming the key, so a case file cannot run code.
 
 Bounds, checked before anything is evaluated: at most :data:`MAX_LENGTH` characters,
 :data:`MAX_NODES` tree nodes and :data:`MAX_DEPTH` levels of nesting, and a constant

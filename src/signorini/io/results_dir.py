@@ -196,7 +196,7 @@ def write_marker(directory: Path) -> None:
     info = {
         "written_by": "signorini",
         "version": __version__,
-        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "pid": os.getpid(),
     }
     (Path(directory) / MARKER).write_text(json.dumps(info) + "\n")
