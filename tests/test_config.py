@@ -1,8 +1,10 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from signorini.errors import InputError
 from signorini.io.cli import main
 from signorini.io.config import load_case
 
@@ -73,3 +75,66 @@ def test_contact_tag_fixed_by_dirichlet(tmp_path, capsys):
     assert main(["run", str(case), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert "fixed by a Dirichlet condition" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def _case_text(extra: str) -> str:
+    return (
+        '[mesh]\ngenerator = "rectangle"\ncells = [2, 2]\nsize = [1.0, 1.0]\n[material]\nrho = 1.0\nE = 1.0\n'
+        '[contact]\ntag = "ymin"\nobstacle = { type = "plane", point = [0.0, -0.1], normal = [0.0, 1.0] }\n'
+        "[time]\ndt = 0.1\nT = 0.2\n" + extra
+    )
+
+
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (
+            '[[traction]]\ntag = "xmax"\nvalue = [1.0, 0.0]\n[[traction]]\ntag = "xmax"\nvalue = [0.0, 1.0]\n',
+            "repeats tag 'xmax'",
+        ),
+        (
+            '[[dirichlet]]\ntag = "ymax"\nvalue = [0.0, 0.0]\n[[dirichlet]]\ntag = "ymax"\ncomponents = [1]\n'
+            "value = [0.1]\n",
+            "both prescribe component",
+        ),
+        ("", None),
+    ],
+)
+def test_repeated_tractions_and_conflicting_dirichlet_blocks_are_refused(tmp_path, extra, match):
+    from signorini.io.config import load_case
+
+    path = tmp_path / "c.toml"
+    path.write_text(_case_text(extra))
+    if match is None:
+        assert load_case(path).problem.contact_tag == "ymin"
+        return
+    with pytest.raises(InputError, match=match):
+        load_case(path)
+
+
+def test_contact_tag_list_and_where(tmp_path):
+    from signorini.io.config import load_case
+
+    path = tmp_path / "c.toml"
+    text = _case_text("").replace('tag = "ymin"\nobstacle', 'tag = ["ymin", "xmin"]\nwhere = "y < 0.6"\nobstacle')
+    path.write_text(text)
+    p = load_case(path).problem
+    assert p.contact_tag == ("ymin", "xmin")
+    assert p.contact_where(np.array([[0.0, 0.5], [0.0, 1.0]])).tolist() == [True, False]
+    for bad, match in (('where = "t < 1"', "x, y and z only"), ("where = 3", "expression string"),
+                       ('where = "__import__(1)"', "not allowed|unknown name")):  # fmt: skip
+        path.write_text(text.replace('where = "y < 0.6"', bad))
+        with pytest.raises(InputError, match=match):
+            load_case(path)
+    path.write_text(text.replace('tag = ["ymin", "xmin"]', "tag = []"))
+    with pytest.raises(InputError, match="non-empty list"):
+        load_case(path)
+
+
+def test_deeply_nested_toml_is_an_input_error(tmp_path):
+    from signorini.io.config import load_case
+
+    path = tmp_path / "deep.toml"
+    path.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(InputError, match="TOML"):
+        load_case(path)

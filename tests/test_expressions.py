@@ -88,3 +88,18 @@ def test_evaluation_cost_is_bounded_by_the_size_bound():
     t0 = time.perf_counter()
     assert np.all(np.isfinite(e(pts)))
     assert time.perf_counter() - t0 < 2.0
+
+
+def test_conditions_only_where_a_condition_is_expected():
+    import numpy as np
+
+    from signorini.io.expressions import Expression
+
+    p = np.array([[0.0, 0.0, 0.1], [2.0, 0.0, 0.1], [2.0, 0.5, 0.5], [0.0, 2.0, 1.0]])
+    e = Expression("w", "z < 0.2 and not x > 1 or 0 < y <= 1", conditions=True)
+    assert e(p).tolist() == [1.0, 0.0, 1.0, 0.0]
+    for text in ("x < 1", "x and 1", "not x", "x == 1"):
+        with pytest.raises(InputError):
+            Expression("loads.body_force[0]", text)
+    with pytest.raises(InputError):
+        Expression("w", "x == 1", conditions=True)  # equality of floats is not offered

@@ -114,3 +114,74 @@ def test_physical_groups_that_hold_no_facet_are_an_error(tmp_path):
     meshio.write(path, mesh, file_format="gmsh22", binary=False)
     with pytest.raises(MeshError, match=r"physical groups \['contact'\].*hold no line facets"):
         read_mesh(path)
+
+
+def _write_msh22(path, points, cells, facets, phys=None):
+    import meshio
+
+    phys_f = np.full(len(facets), 1) if phys is None else phys
+    mesh = meshio.Mesh(
+        points,
+        [("triangle", np.asarray(cells)), ("line", np.asarray(facets))],
+        cell_data={"gmsh:physical": [np.full(len(cells), 2), phys_f], "gmsh:geometrical": [np.full(len(cells), 2),
+                                                                                              np.full(len(facets), 1)]},
+        field_data={"bottom": np.array([1, 1]), "domain": np.array([2, 2])},
+    )  # fmt: skip
+    meshio.write(path, mesh, file_format="gmsh22", binary=False)
+
+
+SQUARE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+TRIS = [[0, 1, 2], [0, 2, 3]]
+
+
+@pytest.mark.parametrize(
+    "points, facets, phys, match",
+    [
+        (SQUARE, [[0, 1], [0, 1]], None, "more than once"),
+        (SQUARE, [[1, 3]], None, "not a face of any cell"),
+        (SQUARE + np.array([[0, 0, 0], [0, 0, 0.5], [0, 0, 0], [0, 0, 0]]), [[0, 1]], None, "coordinate varies"),
+        (SQUARE, [[0, 7]], None, "outside 0..3|cannot read mesh file"),
+    ],
+)
+def test_corrupt_mesh_files_are_refused_in_one_line(tmp_path, points, facets, phys, match):
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    path = tmp_path / "bad.msh"
+    try:
+        _write_msh22(path, points, TRIS, facets, phys)
+    except (ValueError, IndexError):
+        pytest.skip("meshio cannot write this corruption")  # pragma: no cover
+    with pytest.raises(MeshError, match=match) as info:
+        read_mesh(path)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("bad", [np.nan, 1.5])
+def test_non_integer_physical_tags_are_refused(tmp_path, bad):
+    import meshio
+
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    mesh = meshio.Mesh(
+        SQUARE,
+        [("triangle", np.array(TRIS)), ("line", np.array([[0, 1]]))],
+        cell_data={"gmsh:physical": [np.array([2.0, 2.0]), np.array([bad])]},
+    )
+    path = tmp_path / "bad.vtu"
+    meshio.write(path, mesh)
+    with pytest.raises(MeshError, match="integers"):
+        read_mesh(path)
+
+
+def test_vtu_cell_past_the_last_node_is_a_mesh_error(tmp_path):
+    import meshio
+
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    path = tmp_path / "bad.vtu"
+    meshio.write(path, meshio.Mesh(SQUARE, [("triangle", np.array([[0, 1, 2], [0, 2, 9]]))]))
+    with pytest.raises(MeshError, match="outside 0..3|cannot read mesh file"):
+        read_mesh(path)

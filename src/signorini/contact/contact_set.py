@@ -65,6 +65,12 @@ class ContactSet:
             nodes = nodes[keep]
         gaps, normals = obstacle.gaps_and_normals(mesh.points[nodes])
         weights = facet_weights(mesh, tag)[nodes]
+        if not np.all(weights > 0) or not np.all(np.isfinite(weights)):
+            i = int(np.flatnonzero(~(weights > 0))[0]) if not np.all(weights > 0) else 0
+            raise InputError(
+                f"contact tag {tag!r}: node {int(nodes[i])} at {np.round(mesh.points[nodes[i]], 6).tolist()} has "
+                "zero contact area (its tagged facets are degenerate: zero length or area); fix the mesh"
+            )
         dofs = space.dofs(nodes)
         rows = np.repeat(np.arange(nodes.size), space.dim)
         B = sp.csr_matrix((normals.ravel(), (rows, dofs.ravel())), shape=(nodes.size, space.n_dofs))

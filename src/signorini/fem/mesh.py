@@ -294,15 +294,22 @@ def _tagged_facets(m, ftype: str, names: dict[int, str]) -> dict[str, list[np.nd
         for block, tags in zip(m.cells, phys, strict=True):
             if block.type != ftype:
                 continue
+            t = np.asarray(tags, dtype=float)
+            if t.size and (not np.all(np.isfinite(t)) or np.any(t != np.round(t))):
+                raise MeshError("physical tags of the facets must be integers (found NaN or a fraction)")
             for tag_id in np.unique(tags):
                 name = names.get(int(tag_id), str(int(tag_id)))
                 facets.setdefault(name, []).append(block.data[tags == tag_id])
     for name, per_block in (m.cell_sets or {}).items():
         if name.startswith("gmsh:") or name not in (m.field_data or {}):
             continue
-        for block, idx in zip(m.cells, per_block, strict=False):
-            if block.type == ftype and idx is not None and len(idx):
-                facets.setdefault(name, []).append(block.data[np.asarray(idx, dtype=np.int64)])
+        found = [
+            block.data[np.asarray(idx, dtype=np.int64)]
+            for block, idx in zip(m.cells, per_block, strict=False)
+            if block.type == ftype and idx is not None and len(idx)
+        ]
+        if found:  # the entity-based sets are complete: they replace the first-group-only lists
+            facets[name] = found
     return facets
 
 
@@ -313,7 +320,10 @@ def read_mesh(path: str | Path) -> Mesh:
     Facets listed under a physical group named ``NAME`` (``gmsh:physical`` cell data
     plus ``field_data``, and meshio's ``cell_sets`` of Gmsh 4 files) become the tag
     ``NAME``, a facet in several groups carries every one; unnamed groups become
-    ``"<id>"``.  Physical groups of facets that hold no facet are an error.
+    ``"<id>"``.  Refused with a :class:`MeshError`: physical groups of facets that hold
+    no facet, node references out of range, non-finite coordinates, a 2D (1D) mesh whose
+    dropped coordinates vary, a facet listed twice in a tag, a tagged facet that is not a
+    face of a cell, and non-integer physical tags.
     Points are truncated to the mesh dimension (Gmsh always writes 3D points).
     """
     import meshio
@@ -345,8 +355,12 @@ def read_mesh(path: str | Path) -> Mesh:
     cell_type = top[0]
     cells = np.vstack([b.data for b in m.cells if b.type == cell_type])
     ftype = FACET_TYPES[cell_type]
+    _check_indices(p.name, "cells", cells, len(m.points))
+    _check_points(p.name, m.points, dim)
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
     facets = _tagged_facets(m, ftype, names)
+    for k, v in facets.items():
+        _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))
     declared = sorted(k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1)
     if declared and not facets:
         raise MeshError(
@@ -358,13 +372,54 @@ def read_mesh(path: str | Path) -> Mesh:
     renum = -np.ones(len(m.points), dtype=np.int64)
     renum[used] = np.arange(used.size)
     pts = m.points[used, :dim]
-    tagged = {k: renum[np.unique(np.vstack(v), axis=0)] for k, v in facets.items()}
+    tagged = {k: renum[np.vstack(v)] for k, v in facets.items()}
     for k, v in tagged.items():
         if (v < 0).any():
             raise MeshError(f"{p.name}: facets of tag {k!r} use nodes that belong to no cell")
     mesh = Mesh(pts, renum[cells], cell_type, tagged)
     mesh.check_cells()
+    _check_facets(p.name, mesh)
     return mesh
+
+
+def _check_indices(name: str, what: str, idx: np.ndarray, n_points: int) -> None:
+    """Node references within 0 .. n_points - 1 (a gmsh tag 0 becomes -1 in meshio)."""
+    if idx.size and (idx.min() < 0 or idx.max() >= n_points):
+        bad = int(idx.min()) if idx.min() < 0 else int(idx.max())
+        raise MeshError(f"{name}: {what} reference node {bad}, outside 0..{n_points - 1} (a corrupt mesh file)")
+
+
+def _check_points(name: str, points: np.ndarray, dim: int) -> None:
+    """Finite coordinates, and the dropped coordinates of a lower-dimensional mesh constant."""
+    if not np.all(np.isfinite(points)):
+        raise MeshError(f"{name}: non-finite node coordinates")
+    extra = points[:, dim:]
+    size = float(np.ptp(points[:, :dim], axis=0).max()) if len(points) else 0.0
+    if extra.size and float(np.ptp(extra, axis=0).max()) > 1e-12 * max(size, 1.0):
+        axes = "z" if dim == 2 else "y and z"
+        raise MeshError(
+            f"{name}: a {dim}D mesh ({'triangles or quads' if dim == 2 else 'lines'}) whose {axes} coordinate "
+            f"varies (by {float(np.ptp(extra, axis=0).max()):.3g}): flat meshes only, in the plane {axes} = const"
+        )
+
+
+def _check_facets(name: str, mesh: Mesh) -> None:
+    """Every tagged facet is a face of a cell, not degenerate, and listed once per tag."""
+    ref = reference_element(mesh.cell_type)
+    loc = np.array(ref.facets)
+    faces = np.sort(mesh.cells[:, loc].reshape(-1, loc.shape[1]), axis=1)
+    known = {tuple(f) for f in np.unique(faces, axis=0)} if len(faces) < 2_000_000 else None
+    for tag, f in mesh.facets.items():
+        key = np.sort(f, axis=1)
+        uniq, counts = np.unique(key, axis=0, return_counts=True)
+        if (counts > 1).any():
+            raise MeshError(
+                f"{name}: tag {tag!r} lists {int((counts > 1).sum())} facet(s) more than once "
+                "(they would count twice in the contact weights); remove the duplicates"
+            )
+        if known is not None and any(tuple(r) not in known for r in uniq):
+            bad = next(r for r in uniq if tuple(r) not in known)
+            raise MeshError(f"{name}: tag {tag!r} has a facet {bad.tolist()} that is not a face of any cell")
 
 
 def write_mesh(mesh: Mesh, path: str | Path) -> None:

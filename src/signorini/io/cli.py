@@ -34,6 +34,7 @@ from ..dynamics.mass import DEFAULT_MASS
 from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
 from .results_dir import ResultConflict, ResultDirectory, run_into
+from .messages import OneLineParser, one_line
 from .streams import deferred_signals, guarded_stdio
 
 EXIT_CODES = {"finished": 0, "failed": 3, "interrupted": 130}
@@ -357,7 +358,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             )
         except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
             write_setup_failure(rd, spec, exc)
-            print(f"signorini: failed: {exc} (summary in {spec.out})", file=sys.stderr)
+            print(f"signorini: failed: {one_line(exc)} (summary in {spec.out})", file=sys.stderr)
             return EXIT_CODES["failed"]
         with deferred_signals() as late:  # a signal now would lose every computed step: record it
             H.meta.update(spec.meta)
@@ -379,7 +380,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             print(spec.measure.text(H.meta))
         print(f"  results in {spec.out}")
     if not H.success:
-        print(f"signorini: {H.status}: {H.message} (partial results in {spec.out})", file=sys.stderr)
+        print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out})", file=sys.stderr)
     return EXIT_CODES[H.status]
 
 
@@ -563,7 +564,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     benchmarks = ", ".join(BENCHMARKS.names())
     solver_opts = ", ".join([p.name for p in SOLVER_OPTIONS] + sorted({p.name for e in BACKENDS for p in e.parameters}))
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="signorini",
         description="Dynamic Signorini contact of elastic bodies with the mass redistribution method.",
     )
@@ -813,16 +814,16 @@ def _dispatch(args: argparse.Namespace) -> int:
             warnings.simplefilter("ignore", RuntimeWarning)
             return args.func(args)
     except InputError as exc:
-        print(f"signorini: error: {exc}", file=sys.stderr)
+        print(f"signorini: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("signorini: interrupted before the time loop; nothing written", file=sys.stderr)
         return 130
     except ResultConflict as exc:
-        print(f"signorini: error: {exc.strerror}", file=sys.stderr)
+        print(f"signorini: error: {one_line(exc.strerror)}", file=sys.stderr)
         return EXIT_ENVIRONMENT
     except ConvergenceError as exc:
-        print(f"signorini: failed: {exc}", file=sys.stderr)
+        print(f"signorini: failed: {one_line(exc)}", file=sys.stderr)
         return EXIT_CODES["failed"]
     except MemoryError:
         print(
@@ -831,13 +832,13 @@ def _dispatch(args: argparse.Namespace) -> int:
         return EXIT_ENVIRONMENT
     except OSError as exc:
         where = f" {exc.filename!r}" if exc.filename else ""
-        print(f"signorini: error: file system:{where} {exc.strerror or exc}", file=sys.stderr)
+        print(f"signorini: error: file system:{one_line(where)} {exc.strerror or exc}", file=sys.stderr)
         return EXIT_ENVIRONMENT
     except Exception as exc:  # a bug: one line, the traceback on request
         if os.environ.get("SIGNORINI_TRACEBACK"):
             traceback.print_exc()
         print(
-            f"signorini: internal error: {type(exc).__name__}: {exc} "
+            f"signorini: internal error: {type(exc).__name__}: {one_line(exc)} "
             "(please report it; SIGNORINI_TRACEBACK=1 shows the traceback)",
             file=sys.stderr,
         )

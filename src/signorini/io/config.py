@@ -156,7 +156,7 @@ def _where(table: dict):
     text = table["where"]
     if not isinstance(text, str):
         raise InputError(f"'contact.where' must be an expression string such as \"z < 0.2\", got {_short(text)}")
-    ex = Expression("contact.where", text)
+    ex = Expression("contact.where", text, conditions=True)
     if "t" in ex.variables:
         raise InputError("'contact.where' may use x, y and z only (the contact nodes do not change in time)")
     return lambda p: ex(p) != 0
@@ -233,6 +233,12 @@ def _dirichlet(blocks: Any, mesh: Mesh) -> list[Dirichlet]:
         ):
             raise InputError(f"'{key}.components' must be a list of integers in 0..{dim - 1}")
         value = vector_field(f"{key}.value", d.get("value", [0.0] * len(comps)), len(comps))
+        for j, prev in enumerate(out):
+            if prev.tag == tag and set(prev.components) & set(comps):
+                raise InputError(
+                    f"'{key}' and 'dirichlet[{j}]' both prescribe component(s) "
+                    f"{sorted(set(prev.components) & set(comps))} on tag {tag!r}: give each component once per tag"
+                )
         out.append(Dirichlet(tag, tuple(value) if isinstance(value, list) else value, tuple(comps)))
     return out
 
@@ -244,7 +250,13 @@ def _tractions(blocks: Any, mesh: Mesh) -> dict:
     for i, t in enumerate(blocks):
         key = f"traction[{i}]"
         _keys(key, t, SECTIONS["traction"])
-        out[_tag(mesh, key, t)] = vector_field(f"{key}.value", t.get("value"), mesh.dim)
+        tag = _tag(mesh, key, t)
+        if tag in out:
+            first = next(j for j, b in enumerate(blocks) if isinstance(b, dict) and b.get("tag") == tag)
+            raise InputError(
+                f"'{key}' repeats tag {tag!r} of 'traction[{first}]': give one block per tag (add the values)"
+            )
+        out[tag] = vector_field(f"{key}.value", t.get("value"), mesh.dim)
     return out
 
 
@@ -337,6 +349,8 @@ def _read(path: Path) -> dict:
         raise InputError(f"case file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{path.name}: invalid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path.name}: invalid TOML: nested too deeply") from None
     for k in data:
         if k not in SECTIONS:
             raise InputError(f"unknown section [{k}]; allowed: {', '.join(SECTIONS)}")

@@ -3,8 +3,9 @@
 An expression is parsed with :mod:`ast` and only these nodes are accepted: numbers,
 the names :data:`VARIABLES` and :data:`CONSTANTS`, the operators ``+ - * / ** %`` and
 unary ``+ -``, calls of the functions in :data:`FUNCTIONS` with positional
-arguments, and for conditions the comparisons ``< <= > >=`` (chained as in
-``0 < x < 1``) and ``and``, ``or``, ``not`` (true is 1.0, false 0.0).  Anything else
+arguments; in a *condition* (``Expression(..., conditions=True)``: ``[contact] where``)
+also the comparisons ``< <= > >=`` (chained as in ``0 < x < 1``) and ``and``, ``or``,
+``not`` (true is 1.0, false 0.0).  Anything else
 (attributes, subscripts, lambdas, comprehensions, strings, keywords, other names) is an
 error naming the key, so a case file cannot run code.
 
@@ -98,13 +99,15 @@ def _constant_value(node: ast.AST) -> float | None:
     return None
 
 
-def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[dict], np.ndarray]:
+def _compile(
+    node: ast.AST, key: str, text: str, used: set[str], conditions: bool = False
+) -> Callable[[dict], np.ndarray]:
     def bad(what: str) -> InputError:
         return InputError(f"'{key}': {what} is not allowed in expression {text!r}; allowed: numbers, + - * / ** %, "
                           f"{allowed_names()}")  # fmt: skip
 
     if isinstance(node, ast.Expression):
-        return _compile(node.body, key, text, used)
+        return _compile(node.body, key, text, used, conditions)
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             raise bad(f"the constant {node.value!r}")
@@ -133,15 +136,15 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
                           f"{MAX_EXPONENT:g}; use exp() and log() for other powers)")  # fmt: skip
         op, left, right = (
             _BINARY[type(node.op)],
-            _compile(node.left, key, text, used),
-            _compile(node.right, key, text, used),
+            _compile(node.left, key, text, used, conditions),
+            _compile(node.right, key, text, used, conditions),
         )
         return lambda env: op(left(env), right(env))
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
-        op, arg = _UNARY[type(node.op)], _compile(node.operand, key, text, used)
+        op, arg = _UNARY[type(node.op)], _compile(node.operand, key, text, used, conditions)
         return lambda env: op(arg(env))
-    if isinstance(node, ast.Compare) and all(type(o) in _COMPARE for o in node.ops):
-        terms = [_compile(t, key, text, used) for t in (node.left, *node.comparators)]
+    if conditions and isinstance(node, ast.Compare) and all(type(o) in _COMPARE for o in node.ops):
+        terms = [_compile(t, key, text, used, conditions) for t in (node.left, *node.comparators)]
         ops = [_COMPARE[type(o)] for o in node.ops]
 
         def compare(env):
@@ -152,8 +155,8 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
             return out.astype(float)
 
         return compare
-    if isinstance(node, ast.BoolOp) and type(node.op) in _BOOL:
-        fn, parts = _BOOL[type(node.op)], [_compile(v, key, text, used) for v in node.values]
+    if conditions and isinstance(node, ast.BoolOp) and type(node.op) in _BOOL:
+        fn, parts = _BOOL[type(node.op)], [_compile(v, key, text, used, conditions) for v in node.values]
 
         def combine(env):
             out = parts[0](env) != 0
@@ -162,8 +165,8 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
             return np.asarray(out, dtype=float)
 
         return combine
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
-        arg = _compile(node.operand, key, text, used)
+    if conditions and isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+        arg = _compile(node.operand, key, text, used, conditions)
         return lambda env: np.asarray(arg(env) == 0, dtype=float)
     if isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS or node.keywords:
@@ -175,7 +178,7 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
                 f"'{key}': {node.func.id}() takes {arity} argument{'s' if arity > 1 else ''}, "
                 f"got {len(node.args)} in {text!r}"
             )
-        args = [_compile(a, key, text, used) for a in node.args]
+        args = [_compile(a, key, text, used, conditions) for a in node.args]
         return lambda env: fn(*(a(env) for a in args))
     raise bad(f"'{type(node).__name__}'")
 
@@ -183,7 +186,7 @@ def _compile(node: ast.AST, key: str, text: str, used: set[str]) -> Callable[[di
 class Expression:
     """A parsed expression; ``variables`` lists the names of x, y, z, t it uses."""
 
-    def __init__(self, key: str, text: str):
+    def __init__(self, key: str, text: str, conditions: bool = False):
         self.key, self.text = key, text
         if len(text) > MAX_LENGTH:
             raise InputError(f"'{key}': expression longer than {MAX_LENGTH} characters")
@@ -193,7 +196,7 @@ class Expression:
             raise InputError(f"'{key}': invalid expression {text!r}: {getattr(exc, 'msg', exc)}") from None
         _check_size(tree, key, text)
         used: set[str] = set()
-        self._f = _compile(tree, key, text, used)
+        self._f = _compile(tree, key, text, used, conditions)
         self.variables = used
 
     @property

@@ -104,6 +104,8 @@ SUMMARY_FIELDS = (
     "dt",
     "T",
     "steps",
+    "mass_effect",
+    "untagged_penetration_max",
     "dofs",
     "contact_nodes",
     "backend",
@@ -685,6 +687,8 @@ def _pair_entry(plan: Plan, pair: Pair, runs: list[dict], finest: int, contact_n
         "energy_drift": s["energy_max_relative_drift"],
         "oscillation_index": s["oscillation_index"],
         "penetration_max": s["penetration_max"],
+        "mass_kept": (s.get("mass_effect") or {}).get("mass_ratio"),
+        "changes_physics": bool((s.get("mass_effect") or {}).get("changes_physics")),
         "energy_final": s["energy_final"],
         "step_ms": 1e3 * s["step_seconds"],
         "step_over_bare": s["step_seconds"] / bare if bare else None,
@@ -809,8 +813,8 @@ def table_markdown(result: dict) -> list[str]:
     cols = ["rank", "scheme", "mass"]
     if errors:
         cols += ["u error L2(H1)", "u rate", "v error L2(L2)", "v rate"]
-    cols += ["energy drift", "oscillation index", "max penetration", "ms / step", "step / bare op", "decided by"]
-    cols += ["note"]
+    cols += ["energy drift", "oscillation index", "max penetration", "mass kept", "ms / step", "step / bare op"]
+    cols += ["decided by", "note"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for p in ranked_pairs(result):
         m, r = p["metrics"], p["rates"]
@@ -825,8 +829,12 @@ def table_markdown(result: dict) -> list[str]:
         drift = _f(m["energy_drift"], ".2e") if _finite(m["energy_drift"]) else "n/a (E0 = 0)"
         bare = f"{m['step_over_bare']:.2f} x {m['bare_op']}" if _finite(m["step_over_bare"]) else "n/a (not measured)"
         decided = RANK_LABELS.get(p["decided_by"], p["decided_by"] or "(last)")
-        cells += [drift, _f(m["oscillation_index"], ".3f"), _f(m["penetration_max"], ".2e"), _f(m["step_ms"], ".3g"),
-                  bare, decided, p["reason"] or "-"]  # fmt: skip
+        kept = f"{100 * m['mass_kept']:.4g}%" if _finite(m.get("mass_kept")) else "n/a"
+        note = "; ".join(
+            x for x in (p["reason"], "the mass changes the body's inertia" if m.get("changes_physics") else "") if x
+        )
+        cells += [drift, _f(m["oscillation_index"], ".3f"), _f(m["penetration_max"], ".2e"), kept,
+                  _f(m["step_ms"], ".3g"), bare, decided, note or "-"]  # fmt: skip
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return lines
 
