@@ -42,6 +42,9 @@ from ..fem.mesh import Mesh
 MAX_RING = 6
 #: largest condition number of the scaled affine-fit matrix A_c accepted
 MAX_CONDITION = 1e3
+#: a neighbourhood first tries the COMPACT (d+1) nearest of its candidates (ties kept):
+#: a sparser M = T^T M T (0: every candidate of the ring, the former choice)
+COMPACT = 2
 
 
 def node_graph(mesh: Mesh) -> sp.csr_matrix:
@@ -76,6 +79,19 @@ def _fit(points: np.ndarray, centres: np.ndarray, cand: np.ndarray, valid: np.nd
     if ok.any():
         w[ok] = np.einsum("cik,ci->ck", Vt[ok], U[ok, 0, :] / s[ok])
     return w, ok
+
+
+def _nearest(points, centres, cand, valid, k):
+    """The k nearest of each row's valid candidates, and every candidate as near as the k-th
+    (ties kept, so that a symmetric mesh keeps symmetric weights): (cand, valid), padded."""
+    dist = np.where(valid, np.sqrt(((points[cand] - centres[:, None, :]) ** 2).sum(axis=2)), np.inf)
+    k = min(k, cand.shape[1])
+    kth = np.sort(dist, axis=1)[:, k - 1 : k]
+    keep = valid & (dist <= kth * (1 + 1e-9))
+    order = np.argsort(~keep, axis=1, kind="stable")  # kept candidates first, in their order
+    width = max(int(keep.sum(axis=1).max(initial=1)), 1)
+    order = order[:, :width]
+    return np.take_along_axis(cand, order, axis=1), np.take_along_axis(keep, order, axis=1)
 
 
 def _padded(R: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
@@ -143,9 +159,18 @@ def neighbourhoods(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, name
         F.eliminate_zeros()
         F.sort_indices()
         cand, valid = _padded(F)
-        w, ok = _fit(pts, pts[contact_nodes[todo]], cand, valid)
-        if ok.any():
-            yield contact_nodes[todo[ok]], cand[ok], w[ok]
+        ok = np.zeros(todo.size, dtype=bool)
+        if COMPACT:  # first the COMPACT nearest candidates of the ring: a sparser T^T M T
+            near, nvalid = _nearest(pts, pts[contact_nodes[todo]], cand, valid, COMPACT * (d + 1))
+            w, ok = _fit(pts, pts[contact_nodes[todo]], near, nvalid)
+            if ok.any():
+                yield contact_nodes[todo[ok]], near[ok], w[ok]
+        rest = ~ok
+        if rest.any():
+            w, ok2 = _fit(pts, pts[contact_nodes[todo[rest]]], cand[rest], valid[rest])
+            if ok2.any():
+                yield contact_nodes[todo[rest][ok2]], cand[rest][ok2], w[ok2]
+            ok[np.flatnonzero(rest)[ok2]] = True
         todo, R = todo[~ok], R[~ok]
         if todo.size == 0:
             return
