@@ -61,9 +61,11 @@ def row(name: str, H, extra: list[str]) -> str:
 
 def main(argv: list[str]) -> int:
     level = int(argv[0]) if argv else 3
-    head = "| mass | mass kept | centre shift | inertia change | {} | oscillation index | energy drift | untagged pen. | status |"
+    head = "| mass | mass kept | centre shift | inertia change | {} | oscillation index | energy drift | untagged pen. "
+    head += "| status |"
     for obstacle in ("plane", "ball"):
-        print(f"\nCylinder (365 nodes, whole skin tagged) dropped at 1 m/s on a {obstacle}, CN, dt = 5e-5 s, T = 0.02 s\n")
+        print(f"\nCylinder (365 nodes, whole skin tagged) dropped at 1 m/s on a {obstacle}, CN, dt = 5e-5 s, T = 0.02 s")
+        print()
         print(head.format("free-fall error"))
         print("|" + "---|" * 9)
         for m in VARIANTS:

@@ -33,8 +33,8 @@ from .. import __version__
 from ..dynamics.mass import DEFAULT_MASS
 from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
-from .results_dir import ResultConflict, ResultDirectory, run_into
 from .messages import OneLineParser, one_line
+from .results_dir import ResultConflict, ResultDirectory, run_into
 from .streams import deferred_signals, guarded_stdio
 
 EXIT_CODES = {"finished": 0, "failed": 3, "interrupted": 130}
