@@ -64,7 +64,7 @@ def main(argv: list[str]) -> int:
     head = "| mass | mass kept | centre shift | inertia change | {} | oscillation index | energy drift | untagged pen. "
     head += "| status |"
     for obstacle in ("plane", "ball"):
-        print(f"\nCylinder (365 nodes, whole skin tagged) dropped at 1 m/s on a {obstacle}, CN, dt = 5e-5 s, T = 0.02 s")
+        print(f"\nCylinder (365 nodes, whole skin tagged) dropped at 1 m/s on a {obstacle}, CN, dt = 5e-5 s, T = 0.02")
         print()
         print(head.format("free-fall error"))
         print("|" + "---|" * 9)
