@@ -60,6 +60,7 @@ def solve_lcp(
     A = np.zeros(n, dtype=bool) if active is None else active.copy()
     seen = set()
     mu = np.zeros(n)
+    it = 0
     for it in range(1, max_iter + 1):
         mu = np.zeros(n)
         if A.any():
@@ -87,4 +88,4 @@ def solve_lcp(
     r = q + W @ mu
     A = mu > 0
     res = complementarity_residual(mu, r, c, scale)
-    return LCPResult(mu, r, A, max_iter, True, res)
+    return LCPResult(mu, r, A, it, True, res)  # the active-set iterations actually made before the fallback

@@ -4,9 +4,12 @@ The estimate is deliberately simple and documented (docs/case-files.md, "Run siz
 
 * set-up: ``BASE + TRIPLET_BYTES * n_cells * (nodes_per_cell * dim)^2`` -- the element
   matrices of assembly dominate; fitted on this project's bars (2D Q1 n = 32, 64 and
-  3D Q1 n = 8, 12, peak RSS with the CG backend: 24 to 40 bytes per triplet).  The
-  sparse factor is not included: the ``auto`` backend keeps it within its own memory
-  budget (``memory_budget``);
+  3D Q1 n = 8, 12, peak RSS with the CG backend: 24 to 40 bytes per triplet);
+* factor: the sparse factor the ``auto`` backend would build
+  (:func:`~signorini.linalg.base.estimate_factor_bytes` of the backend
+  :func:`~signorini.linalg.base.choose_backend` picks; 0 when it picks CG, which keeps a
+  few vectors only).  On a 3D box with SuperLU this was the largest term (0.55 GB of a
+  0.67 GB peak);
 * history: ``8 * (levels) * (2 * n_contact + 11)`` bytes (gaps and multipliers of every
   contact node at every level, plus the 11 scalar series: time, the energy recorder's
   six, residual, impulse, active-set size and iterations), exact up to the Python
@@ -32,7 +35,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from ..errors import InputError
-from ..linalg.base import total_memory
+from ..linalg.base import choose_backend, estimate_factor_bytes, total_memory
 
 BASE_BYTES = 80e6
 TRIPLET_BYTES = 32.0
@@ -56,19 +59,20 @@ class RunEstimate:
     setup_bytes: float
     history_bytes: float
     fields_bytes: float = 0.0  # U and V of every level, when kept (studies, compare)
+    factor_bytes: float = 0.0  # the sparse factor of the backend ``auto`` would choose
     what: ClassVar[str] = "run"
 
     @property
     def total_bytes(self) -> float:
         """Peak while the run is in progress (kept fields twice: stacked at the end)."""
-        return self.setup_bytes + self.history_bytes + 2 * self.fields_bytes
+        return self.setup_bytes + self.factor_bytes + self.history_bytes + 2 * self.fields_bytes
 
     def describe(self) -> str:
         fields = f", kept fields {_gib(self.fields_bytes)} GiB" if self.fields_bytes else ""
         return (
             f"{self.steps:,} steps, {self.dofs:,} dofs, {self.contact_nodes:,} contact nodes, "
-            f"estimated memory {_gib(self.total_bytes)} GiB "
-            f"(set-up {_gib(self.setup_bytes)} GiB, history {_gib(self.history_bytes)} GiB{fields})"
+            f"estimated memory {_gib(self.total_bytes)} GiB (set-up {_gib(self.setup_bytes)} GiB, "
+            f"factor {_gib(self.factor_bytes)} GiB, history {_gib(self.history_bytes)} GiB{fields})"
         )
 
 
@@ -84,7 +88,10 @@ def estimate_run(
     setup = BASE_BYTES + TRIPLET_BYTES * float(n_cells) * k * k
     history = 8.0 * (steps + 1) * (2 * n_contact + SCALAR_SERIES)
     fields = FIELD_BYTES * (steps + 1) * n_nodes * dim if kept_fields else 0.0
-    return RunEstimate(int(steps), int(n_nodes * dim), int(n_contact), setup, history, fields)
+    n = int(n_nodes * dim)
+    backend = choose_backend(n, dim)
+    factor = 0.0 if backend == "cg" else estimate_factor_bytes(n, dim, backend)
+    return RunEstimate(int(steps), n, int(n_contact), setup, history, fields, factor)
 
 
 @dataclass(frozen=True)

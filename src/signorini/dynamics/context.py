@@ -26,12 +26,16 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
-from ..errors import ConvergenceError, InputError, NonFiniteError
+from ..errors import InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
 from ..linalg.sparse import linear_combination, principal_combination
 from ..linalg.spmv import sparse_product
 from .mass import massless_dofs
 from .problem import Discretization
+
+#: what a factorization raises for a singular or indefinite operator: SuperLU and MKL
+#: Pardiso RuntimeError, numpy LinAlgError, CHOLMOD (cvxopt) ArithmeticError
+FACTORIZATION_ERRORS = (RuntimeError, np.linalg.LinAlgError, ArithmeticError)
 
 
 @dataclass(frozen=True)
@@ -95,16 +99,14 @@ class _System:
             nodes = (f if D.size else np.arange(Kff.shape[0])) // dim  # dofs are node-major
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
             self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes, cg_friendly)
-        except (InputError, ConvergenceError, MemoryError):
-            raise
-        except Exception as exc:  # SuperLU's RuntimeError, LinAlgError, Pardiso's errors
+        except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
             raise InputError(
                 f"the operator {op} on the free dofs cannot be factorized ({type(exc).__name__}: {exc}): it is "
                 "singular or not positive definite.  Likely cause: rigid-body motions held neither by Dirichlet "
                 "conditions nor by mass (a redistributed mass such as 'seed' on a mesh one cell thick has no mass "
                 "left; add a Dirichlet condition or use the 'standard' mass), or material, mesh or dt values at "
                 "the limits of double precision"
-            ) from None
+            ) from exc
         self._lift_key: np.ndarray | None = None
         self._lift = None
         self._lift_source: np.ndarray | None = None

@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
+from ..linalg.base import memory_info, total_memory
 from ..linalg.threads import blas_threads
 from .context import Context
 from .history import COUNTER_KEYS, History
@@ -74,6 +75,22 @@ def number_of_steps(dt: float, T: float) -> int:
     return int(n)
 
 
+def check_history_fits(steps: int) -> None:
+    """InputError before any set-up when the per-level series alone cannot fit in memory.
+
+    The command line refuses large runs with its estimate (``--max-steps``); this guard
+    is for the Python API: ``dt = 1e-12, T = 1`` must not fail with a MemoryError after
+    the set-up.  Lower bound: the 11 scalar series of a History, 8 bytes per level.
+    """
+    need = 8.0 * (steps + 1) * 11
+    have = total_memory()
+    if need > have:
+        raise InputError(
+            f"T/dt = {steps:,} steps: the history alone needs {need / 2**30:.3g} GiB, more than this machine's "
+            f"{have / 2**30:.3g} GiB; increase dt or shorten T"
+        )
+
+
 def initial_state(ctx: Context) -> State:
     """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 (lambda_0 = 0).
 
@@ -103,8 +120,10 @@ def initial_state(ctx: Context) -> State:
         d = Mrr.diagonal()
         pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
         sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
-        if info != 0:  # fall back to a direct solve
+        ctx.initial_acceleration = "cg"
+        if info != 0:  # fall back to a direct solve (reported in summary.json: initial_acceleration)
             sol = spla.spsolve(Mrr.tocsc(), r[idx])
+            ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
     state = State(0.0, U, V, A, np.zeros(disc.contact.size))
     R0 = np.zeros(n)
@@ -174,6 +193,9 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         # how the Delassus matrix was obtained: schur, lazy or full (direct backends), none (cg)
         "condensation": getattr(main, "condensation", "none"),
         "solver_options": dict(ctx.solver_options),
+        "total_memory_bytes": memory_info()[0],
+        "total_memory_source": memory_info()[1],
+        "initial_acceleration": getattr(ctx, "initial_acceleration", "none"),
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
         **{f"{k}_seconds": v for k, v in {**disc.timings, **main.timings}.items()},
@@ -219,6 +241,7 @@ def set_up(
     two-step scheme (None for one-step schemes)."""
     starter = make_scheme(scheme.starter) if scheme.starter else None
     N = number_of_steps(dt, T)
+    check_history_fits(N)
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
     ctx = prepare_context(disc, dt, opts, (scheme, starter))
     return Run(ctx, scheme, N, float(dt), initial_state(ctx), disc.problem), starter

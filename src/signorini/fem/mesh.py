@@ -334,6 +334,8 @@ def read_mesh(path: str | Path) -> Mesh:
     try:  # meshio raises many types, prints to stdout and may call sys.exit on unknown formats
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             m = meshio.read(p)
+    except MemoryError:
+        raise
     except (Exception, SystemExit) as exc:
         reason = str(exc) if not isinstance(exc, SystemExit) else "not a mesh in a format meshio reads"
         raise MeshError(f"cannot read mesh file {str(p)!r}: {reason}") from None

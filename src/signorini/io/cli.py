@@ -389,6 +389,28 @@ def cmd_run(args: argparse.Namespace) -> int:
     return execute(spec, args)
 
 
+def check_study_size(bench, levels: list[int], args: argparse.Namespace, overrides: dict) -> None:
+    """Refuse (exit 2, with the estimate) a study whose largest run is over the limits, as ``run`` does.
+
+    Every level keeps its fields for the errors; a 2D/3D study also runs its reference.
+    Levels are estimated from their counts, without building anything.
+    """
+    from ..dynamics.budget import check_run_size, estimate_run
+    from ..dynamics.simulate import number_of_steps
+    from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR
+
+    runs = list(levels)
+    if bench.dim > 1:
+        runs.append(args.ref_level or DEFAULT_REFERENCE_FACTOR * levels[-1])
+    limits = _limits(args, {})
+    mem = limits.get("max_memory")
+    for n in sorted(set(runs), reverse=True):
+        nodes, cells, per_cell = bench.mesh_counts(n, overrides)
+        steps = number_of_steps(args.ratio * bench.h(n, overrides), args.T)
+        est = estimate_run(nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides), steps, True)
+        check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
+
+
 def cmd_study(args: argparse.Namespace) -> int:
     import json
 
@@ -417,6 +439,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         )
     if bench.dim > 1:
         check_levels(levels, args.ref_level or DEFAULT_REFERENCE_FACTOR * levels[-1])
+    check_study_size(bench, levels, args, overrides)
     out = Path(args.out)
     holder = {}
 
@@ -684,6 +707,18 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--ratio", type=float, default=0.5, help="time step over mesh size, dt = ratio h (default 0.5)")
     st.add_argument("--T", type=float, default=1.0, help="final time (default 1)")
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
+    st.add_argument(
+        "--max-steps", type=int, default=None, help="refuse a level with more steps unless --yes (default 1,000,000)"
+    )
+    st.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GIB",
+        help="refuse the study when a level's estimated memory (with the fields it keeps for the errors) exceeds "
+        "this many GiB unless --yes (default 80%% of the machine's memory)",
+    )
+    st.add_argument("--yes", action="store_true", help="run even if over the step or memory limits")
     add_output_arguments(st, "out/study", "output directory (default out/study)", "no table on stdout")
     st.set_defaults(func=cmd_study)
 

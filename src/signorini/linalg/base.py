@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.util
+import math
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -87,12 +88,34 @@ def has_cholmod() -> bool:
     return module_loads("cvxopt.cholmod")
 
 
-def total_memory() -> int:
-    """Physical memory of the machine [bytes]."""
+#: assumed when the machine's memory cannot be read (reported as ``total_memory_assumed``)
+ASSUMED_MEMORY = 8 * 2**30
+
+
+def memory_info() -> tuple[int, str]:
+    """(bytes this process may use, where the figure comes from).
+
+    The physical memory (``sysconf``), lowered to the cgroup limit when the process runs
+    in a container with one (``/sys/fs/cgroup/memory.max``, cgroup v2); ``ASSUMED_MEMORY``
+    with the source ``"assumed"`` when neither can be read.
+    """
     try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        phys, source = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"), "sysconf"
     except (ValueError, OSError, AttributeError):
-        return 8 * 2**30
+        phys, source = ASSUMED_MEMORY, "assumed"
+    try:
+        with open("/sys/fs/cgroup/memory.max") as fh:
+            text = fh.read().strip()
+        if text.isdigit() and 0 < int(text) < phys:
+            return int(text), "cgroup"
+    except OSError:
+        pass
+    return phys, source
+
+
+def total_memory() -> int:
+    """Memory this process may use [bytes] (:func:`memory_info`)."""
+    return memory_info()[0]
 
 
 PRECONDITIONERS = Registry("preconditioner")
@@ -222,7 +245,7 @@ def estimate_factor_bytes(n: int, dim: int, backend: str) -> float:
     if dim <= 1:
         return 12.0 * 3 * n
     if dim == 2:
-        return 12.0 * 40 * n * max(np.log2(n), 1.0)
+        return 12.0 * 40 * float(n) * max(math.log2(max(float(n), 1.0)), 1.0)
     if backend in ("pardiso", "cholmod"):
         return 12.0 * 16 * n ** (4 / 3)
     if n < 15_000:

@@ -20,6 +20,7 @@ import ctypes
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import InputError
 from ..optional import optional_import
 from .base import Factor
 from .mkl import mkl_path_hint
@@ -53,7 +54,7 @@ class PardisoFactor(Factor):
         with mkl_path_hint():  # a new solver object searches for mkl_rt again
             solver = pypardiso.PyPardisoSolver(mtype=2)
         if not all(hasattr(solver, a) for a in ("_mkl_pardiso", "pt", "iparm", "_pt_type")):
-            raise RuntimeError(
+            raise InputError(
                 f"pypardiso {getattr(pypardiso, '__version__', '?')} does not expose MKL's pardiso handle as the "
                 "versions 0.4.x do; install pypardiso<0.5 or use another backend"
             )
