@@ -56,7 +56,8 @@ def test_compare_bar1d_writes_a_complete_report(bar1d_report):
         for cell in r:
             assert cell and not re.search(r"\b(nan|None|inf)\b", cell, re.IGNORECASE), r
     assert md.count("\n| rank |") == 1  # one table
-    assert "Rule: Lexicographic" in md and "Errors against the exact solution." in md
+    assert "Rule: First, a run whose contact" in md and "Then lexicographic" in md
+    assert "Errors against the exact solution." in md
     assert res["reference"]["kind"] == "exact" and res["levels"] == [10, 20, 40]
     for p in res["pairs"]:
         assert p["available"] and len(p["runs"]) == 3

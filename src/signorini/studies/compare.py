@@ -69,19 +69,26 @@ CONTACT_NORM = {1: "stress", 2: "force", 3: "force"}  # contact error of errors_
 
 # (metric, relative tolerance, absolute tolerance, where the absolute one is x the length scale)
 RANK_KEYS = (
+    ("violates_contact", 0.0, 0.0, False),
     ("error_u", 0.10, 0.0, False),
     ("energy_drift", 0.10, 1e-9, False),
     ("oscillation_index", 0.0, 0.05, False),
     ("penetration_max", 0.10, 1e-12, True),
 )
+#: a penetration (contact or untagged boundary nodes) above this x the body's size violates
+#: the contact constraint: such a run ranks below every run that respects it
+CONTACT_TOLERANCE = 1e-6
 RANK_LABELS = {
+    "violates_contact": "penetration beyond the contact tolerance",
     "error_u": "error",
     "energy_drift": "energy drift",
     "oscillation_index": "oscillation index",
     "penetration_max": "penetration",
 }
 RANKING_RULE = (
-    "Lexicographic with tolerance bands: sort by the error of u in L2(0,T; H1) at the finest level; pairs within "
+    "First, a run whose contact or untagged boundary nodes penetrate the obstacle by more than 1e-6 x the body's size "
+    "violates the constraint and ranks below every run that respects it. Then lexicographic with tolerance bands: "
+    "sort by the error of u in L2(0,T; H1) at the finest level; pairs within "
     "10% of the best error of their band are tied and ordered by the energy drift max|E - E0|/E0 (tied within 10% "
     "or both below 1e-9), then by the oscillation index of the first impact (tied within 0.05), then by the maximum "
     "penetration (tied within 10% or both below 1e-12 x the body's size); pairs tied on every key share a rank and "
@@ -91,7 +98,8 @@ RANKING_RULE = (
     "shown but not ranked (it depends on the machine and its load, so the ranking would not be reproducible)."
 )
 RANKING_RULE_CASE = (
-    "Case file (one level, no error): the same rule without the error key, i.e. lexicographic with tolerance bands on "
+    "Case file (one level, no error): the same rule without the error key, i.e. runs that penetrate the obstacle "
+    "by more than 1e-6 x the body's size (contact or untagged boundary nodes) last, then lexicographic with tolerance bands on "
     "the energy drift max|E - E0|/E0 (tied within 10% or both below 1e-9), the oscillation index of the first impact "
     "(tied within 0.05) and the maximum penetration (tied within 10% or both below 1e-12 x the body's size); ties "
     "share a rank, n/a sorts last, the time per step is shown but not ranked."
@@ -688,6 +696,7 @@ def _pair_entry(plan: Plan, pair: Pair, runs: list[dict], finest: int, contact_n
         "oscillation_index": s["oscillation_index"],
         "penetration_max": s["penetration_max"],
         "mass_kept": (s.get("mass_effect") or {}).get("mass_ratio"),
+        "untagged_penetration_max": s.get("untagged_penetration_max"),
         "changes_physics": bool((s.get("mass_effect") or {}).get("changes_physics")),
         "energy_final": s["energy_final"],
         "step_ms": 1e3 * s["step_seconds"],
@@ -760,6 +769,10 @@ def rank_result(result: dict) -> dict:
     """Add ``rank``/``decided_by`` to every available pair and the rule to ``result``."""
     keys = RANK_KEYS if result["kind"] == "benchmark" else tuple(k for k in RANK_KEYS if k[0] != "error_u")
     avail = [p for p in result["pairs"] if p["available"]]
+    for p in avail:
+        m = p["metrics"]
+        worst = max(m.get("penetration_max") or 0.0, m.get("untagged_penetration_max") or 0.0)
+        m["violates_contact"] = float(worst > CONTACT_TOLERANCE * result["length_scale"])
     ranking = rank_pairs([p["metrics"] for p in avail], keys, result["length_scale"])
     order = []
     for r in ranking:
