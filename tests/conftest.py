@@ -5,3 +5,23 @@ import pytest
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """With SIGNORINI_NO_SKIPS=1 (CI, where every extra is installed) a skipped test fails the run.
+
+    A failed install must not turn into a green build: every optional backend, gmsh, GetFEM
+    and the tmpfs mount are expected on CI's machine, so any skip is reported and fails.
+    """
+    import os
+
+    if os.environ.get("SIGNORINI_NO_SKIPS") != "1":
+        return
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    skipped = reporter.stats.get("skipped", []) if reporter is not None else []
+    if skipped:
+        for rep in skipped:
+            reason = rep.longrepr[2] if isinstance(rep.longrepr, tuple) else str(rep.longrepr)
+            reporter.write_line(f"SIGNORINI_NO_SKIPS: skipped {rep.nodeid}: {reason}", red=True)
+        reporter.write_line(f"SIGNORINI_NO_SKIPS=1: {len(skipped)} test(s) skipped; expected none", red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
