@@ -392,8 +392,15 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
                 H.save(tmp)
             rd.commit()
+    with deferred_signals() as after:  # the results are in place: a signal only shortens the report
+        report_run(H, spec, args)
+    return EXIT_CODES["interrupted"] if after.name and H.success else EXIT_CODES[H.status]
+
+
+def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:
+    """Warnings and failures on stderr, the one-screen summary on stdout (unless quiet)."""
     for w in H.meta.get("warnings", []):
-        print(f"signorini: warning: {w}", file=sys.stderr)
+        print(f"signorini: warning: {one_line(w)}", file=sys.stderr)
     if not args.quiet:
         print(one_screen_summary(H))
         if spec.measure is not None:
@@ -401,7 +408,6 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
         print(f"  results in {spec.out}")
     if not H.success:
         print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out})", file=sys.stderr)
-    return EXIT_CODES[H.status]
 
 
 def cmd_run(args: argparse.Namespace) -> int:

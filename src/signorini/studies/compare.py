@@ -99,7 +99,8 @@ RANKING_RULE = (
 )
 RANKING_RULE_CASE = (
     "Case file (one level, no error): the same rule without the error key, i.e. runs that penetrate the obstacle "
-    "by more than 1e-6 x the body's size (contact or untagged boundary nodes) last, then lexicographic with tolerance bands on "
+    "by more than 1e-6 x the body's size (contact or untagged boundary nodes) last, then lexicographic with "
+    "tolerance bands on "
     "the energy drift max|E - E0|/E0 (tied within 10% or both below 1e-9), the oscillation index of the first impact "
     "(tied within 0.05) and the maximum penetration (tied within 10% or both below 1e-12 x the body's size); ties "
     "share a rank, n/a sorts last, the time per step is shown but not ranked."

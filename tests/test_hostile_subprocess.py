@@ -1,0 +1,79 @@
+"""The installed command under attack, as a subprocess: signals at random moments.
+
+Whatever the moment (start-up, set-up, time loop, writing, commit) and the signal, the
+output directory is either absent or one complete result (marker, summary.json with its
+status, history.csv with one row per level), no temporary directory is left once the
+watchdog has run, and the exit code says what happened (0, 130, or -9 for SIGKILL).
+A signal in the first milliseconds, while the interpreter imports its ``site`` module
+before any signorini code runs, gets Python's own report; from the entry point on
+(``signorini/__main__.py``) the command handles it.
+The default suite runs a few random moments; ``-m slow`` runs many.
+"""
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from signorini.io.results_dir import MARKER
+
+CMD = [sys.executable, "-m", "signorini", "run", "bar2d", "--n", "8", "--T", "8", "--snapshot-every", "20"]
+
+
+def _settle(parent, timeout=10.0):
+    deadline = time.time() + timeout
+    while time.time() < deadline and any(p.name.startswith(".signorini-") for p in parent.iterdir()):
+        time.sleep(0.05)
+
+
+def _check_outcome(tmp_path, rc, sig):
+    out = tmp_path / "o"
+    _settle(tmp_path)
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".signorini-")]
+    assert not leftovers, leftovers
+    if sig == signal.SIGKILL:
+        assert rc in (0, -signal.SIGKILL)
+    else:
+        assert rc in (0, 130, 2), rc  # 2: interrupted before the output path was even checked is impossible
+    if not out.exists():
+        assert rc != 0
+        return
+    assert (out / MARKER).is_file()
+    s = json.loads((out / "summary.json").read_text())
+    rows = (out / "history.csv").read_text().strip().splitlines()
+    assert len(rows) == s["steps"] + 2  # header + levels 0..steps
+    assert s["status"] == ("finished" if rc == 0 else "interrupted") or (rc == -9 and s["status"] == "finished")
+    if rc == 130:
+        assert not s["success"]
+
+
+def _attack(tmp_path, seed):
+    rnd = random.Random(seed)
+    sig = rnd.choice([signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+    delay = rnd.uniform(0.0, 4.0)
+    proc = subprocess.Popen([*CMD, "--out", str(tmp_path / "o"), "--quiet"], stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    if proc.poll() is None:
+        os.kill(proc.pid, sig)
+    err = proc.communicate(timeout=60)[1]
+    if "init_import_site" in err:  # the interpreter's own start-up, before any signorini code (Python's behaviour)
+        assert not (tmp_path / "o").exists()
+        return
+    assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
+    _check_outcome(tmp_path, proc.returncode, sig)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_signal_at_a_random_moment_leaves_one_result_or_none(tmp_path, seed):
+    _attack(tmp_path, seed)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(4, 40))
+def test_signal_at_a_random_moment_many(tmp_path, seed):
+    _attack(tmp_path, seed)
