@@ -9,6 +9,8 @@ LAYERS = ["core", "fem", "linalg", "contact", "dynamics", "studies", "io"]
 
 def layer_of(path: Path) -> str:
     rel = path.relative_to(PKG).parts
+    if rel == ("__main__.py",):  # ``python -m signorini``: the entry point, above every layer
+        return LAYERS[-1]
     return rel[0] if len(rel) > 1 else "core"
 
 

@@ -1,53 +1,11 @@
-"""``signorini`` and ``python -m signorini``: the command line, with signals handled from the start.
+"""``python -m signorini``: the command line (:mod:`signorini.io.entry`).
 
-A Ctrl-C or SIGTERM that arrives while Python imports numpy, scipy and the package would
-otherwise print a traceback (SIGINT) or kill the process without a word (SIGTERM).  The
-handlers installed here, before any heavy import, end the process with one line and exit
-code 130; nothing has been written at that point.  :func:`signorini.io.cli.main` installs
-its own handlers once it runs.
+The entry point sits above every layer of the package (tests/test_layout.py).
 """
 
-from __future__ import annotations
-
-import os
-import signal
 import sys
 
-
-def _early(signum, frame) -> None:
-    try:
-        os.write(2, b"signorini: interrupted during start-up; nothing written\n")
-    except OSError:
-        pass
-    os._exit(130)
-
-
-def _interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
-def main() -> int:
-    """Install the start-up handlers, import the command line and run it.
-
-    After the imports SIGINT and SIGTERM raise KeyboardInterrupt, which the command line
-    turns into its own status and message; one that escapes it (while the arguments are
-    parsed) ends here with one line and 130.
-    """
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, _early)
-    from .io.cli import main as cli_main
-
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, _interrupt)
-    try:
-        return cli_main()
-    except KeyboardInterrupt:
-        try:
-            os.write(2, b"signorini: interrupted before the time loop; nothing written\n")
-        except OSError:
-            pass
-        return 130
-
+from .io.entry import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,0 +1,53 @@
+"""``signorini`` and ``python -m signorini``: the command line, with signals handled from the start.
+
+A Ctrl-C or SIGTERM that arrives while Python imports numpy, scipy and the package would
+otherwise print a traceback (SIGINT) or kill the process without a word (SIGTERM).  The
+handlers installed here, before any heavy import, end the process with one line and exit
+code 130; nothing has been written at that point.  :func:`signorini.io.cli.main` installs
+its own handlers once it runs.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+
+def _early(signum, frame) -> None:
+    try:
+        os.write(2, b"signorini: interrupted during start-up; nothing written\n")
+    except OSError:
+        pass
+    os._exit(130)
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def main() -> int:
+    """Install the start-up handlers, import the command line and run it.
+
+    After the imports SIGINT and SIGTERM raise KeyboardInterrupt, which the command line
+    turns into its own status and message; one that escapes it (while the arguments are
+    parsed) ends here with one line and 130.
+    """
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, _early)
+    from .cli import main as cli_main
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, _interrupt)
+    try:
+        return cli_main()
+    except KeyboardInterrupt:
+        try:
+            os.write(2, b"signorini: interrupted before the time loop; nothing written\n")
+        except OSError:
+            pass
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
