@@ -16,7 +16,7 @@ class MeshError(InputError):
 
 def check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
     """Return ``float(value)`` or raise :class:`InputError` naming ``name``."""
-    if isinstance(value, bool):
+    if isinstance(value, (bool, str, bytes)):
         raise InputError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)

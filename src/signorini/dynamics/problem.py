@@ -61,6 +61,11 @@ class Problem:
     name: str = "problem"
     contact_where: Callable[[np.ndarray], np.ndarray] | None = None
 
+    def __post_init__(self) -> None:
+        from .validate import check_problem
+
+        check_problem(self)
+
 
 def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
     """(f'(0), f''(0)) by one-sided differences of second order with step h.
@@ -253,6 +258,7 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS) -> Discretization:
     mass = MASS_VARIANTS.resolve(mass)
     t0 = time.perf_counter()
     mesh = problem.mesh
+    mesh.check_cells()  # inverted or bow-tie cells (the command line checks meshes it reads)
     space = VectorSpace(mesh)
     cons = Constraints(space, problem.dirichlet)
     contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)

@@ -303,6 +303,7 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
+    number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
     sch = make_scheme(scheme, scheme_options)
     opts = run_options(snapshot_every, backend, memory_budget, solver_options)
     t0 = time.perf_counter()

@@ -54,6 +54,8 @@ class VectorSpace:
     def interpolate(self, value: Value) -> np.ndarray:
         """Nodal interpolant of a constant vector or of a function (n, d) -> (n, d)."""
         x = self.mesh.points
+        if not callable(value) and np.ndim(value) == 1 and np.size(value) == x.size != x.shape[1]:
+            value = np.asarray(value, dtype=float).reshape(x.shape)  # nodal values, node-major dofs
         v = value(x) if callable(value) else np.broadcast_to(np.asarray(value, dtype=float), x.shape)
         v = np.asarray(v, dtype=float)
         if v.shape != x.shape:

@@ -1,0 +1,103 @@
+"""Arguments of the Python API checked as case files are: one-line InputError naming the field.
+
+:func:`check_problem` runs when a :class:`~signorini.dynamics.problem.Problem` is made:
+every field has the type and shape it needs, so that a wrong argument is an
+:class:`~signorini.errors.InputError` naming it and the allowed values, never a
+TypeError from deep inside the assembly, a silent broadcast (a Dirichlet value shorter
+than its components) or a silent truncation (float cell indices, checked by
+:class:`~signorini.fem.mesh.Mesh`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..contact.obstacles import RigidObstacle
+from ..errors import InputError
+from ..fem.material import IsotropicElastic
+from ..fem.mesh import Mesh
+from ..fem.space import Dirichlet
+
+
+def _short(v: object) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def vector_value(name: str, value: object, dim: int, n_nodes: int | None = None, allow_none: bool = False) -> None:
+    """A number, a vector of ``dim`` numbers, a callable, or (with ``n_nodes``) nodal values
+    of shape (n_nodes, dim) or (n_nodes * dim,)."""
+    if value is None and allow_none:
+        return
+    if callable(value):
+        return
+    if isinstance(value, (str, bytes, bool)) or value is None:
+        raise InputError(f"{name} must be a number, a vector of {dim} numbers or a function of x; got {_short(value)}")
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{name} must be a number, a vector of {dim} numbers or a function of x; got {_short(value)}"
+        ) from None
+    shapes = [(), (dim,)] + ([(n_nodes, dim), (n_nodes * dim,)] if n_nodes is not None else [])
+    if a.shape not in shapes:
+        allowed = ", ".join(str(s) for s in shapes)
+        raise InputError(f"{name} has shape {a.shape}; allowed shapes: {allowed} (dim = {dim})")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name} must be finite, got {_short(value)}")
+
+
+def check_dirichlet(conditions: object, dim: int) -> None:
+    """A sequence of :class:`Dirichlet` whose values match their components."""
+    if not isinstance(conditions, Sequence) or isinstance(conditions, (str, bytes)):
+        raise InputError(f"dirichlet must be a list of Dirichlet conditions, got {_short(conditions)}")
+    for i, bc in enumerate(conditions):
+        if not isinstance(bc, Dirichlet):
+            raise InputError(f"dirichlet[{i}] must be a Dirichlet(tag, value, components), got {_short(bc)}")
+        comps = tuple(range(dim)) if bc.components is None else bc.components
+        if not isinstance(comps, Sequence) or not all(
+            isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in comps
+        ):
+            raise InputError(f"dirichlet[{i}].components must be integers in 0..{dim - 1}, got {_short(comps)}")
+        if callable(bc.value):
+            continue
+        try:
+            v = np.asarray(bc.value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"dirichlet[{i}].value must be numbers or a function, got {_short(bc.value)}") from None
+        if v.ndim > 1 or (v.ndim == 1 and v.size != len(comps)):
+            raise InputError(
+                f"dirichlet[{i}] on tag {bc.tag!r}: {v.size} value(s) for {len(comps)} component(s) {list(comps)}; "
+                "give one value per component (or one number for all)"
+            )
+
+
+def check_problem(problem) -> None:
+    """Raise :class:`InputError` naming the first field of ``problem`` that cannot be used."""
+    if not isinstance(problem.mesh, Mesh):
+        raise InputError(f"mesh must be a signorini.fem.mesh.Mesh, got {_short(problem.mesh)}")
+    if not isinstance(problem.material, IsotropicElastic):
+        raise InputError(f"material must be an IsotropicElastic, got {_short(problem.material)}")
+    if not isinstance(problem.obstacle, RigidObstacle):
+        raise InputError(
+            f"obstacle must be a rigid obstacle (PlaneObstacle, SphereObstacle), got {_short(problem.obstacle)}"
+        )
+    tag = problem.contact_tag
+    tags = [tag] if isinstance(tag, str) else tag
+    if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):
+        raise InputError(f"contact_tag must be a tag or a non-empty list of tags, got {_short(tag)}")
+    dim, n = problem.mesh.dim, problem.mesh.n_nodes
+    check_dirichlet(problem.dirichlet, dim)
+    vector_value("u0", problem.u0, dim, n)
+    vector_value("v0", problem.v0, dim, n)
+    vector_value("body_force", problem.body_force, dim, allow_none=True)
+    if not isinstance(problem.tractions, dict):
+        raise InputError(f"tractions must be a dict tag -> vector or function, got {_short(problem.tractions)}")
+    for k, v in problem.tractions.items():
+        if not isinstance(k, str):
+            raise InputError(f"tractions: the key {_short(k)} is not a tag name")
+        vector_value(f"tractions[{k!r}]", v, dim)
+    if problem.contact_where is not None and not callable(problem.contact_where):
+        raise InputError(f"contact_where must be a function of the points or None, got {_short(problem.contact_where)}")
