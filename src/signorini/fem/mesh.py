@@ -56,7 +56,7 @@ class Mesh:
         cells = np.asarray(self.cells)
         if cells.dtype.kind not in "iu":
             if cells.dtype.kind != "f" or not np.all(cells == np.round(cells)):
-                raise MeshError(f"cells must be integer node indices, got {cells.dtype} values such as {cells.flat[:3]}")
+                raise MeshError(f"cells must be integer node indices, got {cells.dtype} such as {cells.flat[:3]}")
         self.cells = np.ascontiguousarray(cells, dtype=np.int64)
         if self.cell_type not in SUPPORTED_CELLS:
             raise MeshError(f"unsupported cell type {self.cell_type!r}; supported: {', '.join(SUPPORTED_CELLS)}")
