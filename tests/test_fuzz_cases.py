@@ -54,7 +54,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from signorini.contact.obstacles import OBSTACLES
-from signorini.dynamics.mass import MASS_VARIANTS
+from signorini.dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from signorini.dynamics.schemes import SCHEMES
 from signorini.io.cli import main
 from signorini.io.config import SECTIONS
@@ -65,7 +65,6 @@ VALID_EXAMPLES = 150  # default (deterministic) run
 MUTATION_EXAMPLES = 15  # per mutation kind, default run
 SLOW_VALID_EXAMPLES = 1500
 SLOW_MUTATION_EXAMPLES = 75
-MIN_SUCCESS_FRACTION = 0.3  # of the generated valid cases that must exit 0
 
 OUTCOMES: dict[str, Counter] = {}  # kind -> exit codes seen (printed at the end with -s)
 
@@ -137,6 +136,7 @@ class Case:
 ANY = frozenset({0, 2, 3})
 INVALID = frozenset({2})
 RUNS = frozenset({0, 3})
+VALID = frozenset({0})  # a generated valid case must run: a refusal is a bug of the code or of the generator
 
 
 def case_from_doc(doc: dict, expected=ANY, kind="valid", note="", meta=None) -> Case:
@@ -149,10 +149,15 @@ def decimals(lo: float, hi: float, step: float = 0.01):
 
 
 def _in_bounds(p, draw) -> float:
+    """A multiple of 0.01 inside the parameter's bounds (never rounded out of them: HHT's
+    alpha <= 1/3 gives at most 0.33)."""
     lo = 0.0 if p.low is None else p.low
     hi = lo + 1.0 if p.high is None else p.high
-    lo_i = math.floor(lo * 100) + (1 if p.open_low else 0)
-    hi_i = math.ceil(hi * 100) - (1 if p.open_high else 0)
+    lo_i, hi_i = math.ceil(lo * 100 - 1e-9), math.floor(hi * 100 + 1e-9)
+    if p.open_low and lo_i / 100 <= lo:
+        lo_i += 1
+    if p.open_high and hi_i / 100 >= hi:
+        hi_i -= 1
     return draw(st.integers(lo_i, hi_i)) / 100
 
 
@@ -162,6 +167,26 @@ MESHES = {
     3: ("box", ("hexahedron", "tetra"), ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")),
 }
 DTS = (0.01, 0.02, 0.025, 0.05, 0.1, 0.125)
+
+
+#: masses that need two cells across the contact layer: ``seed`` keeps the cells not
+#: touching Gamma_C, the moment-preserving extrapolation needs affinely independent
+#: non-contact nodes (a single layer above a side is collinear in 2D)
+NEEDS_THICKNESS = {"seed", "seed-normal", "moment-preserving", "moment-preserving-tensor"}
+
+
+def mass_choices(entry, tilted: bool, cell_type: str) -> list[str]:
+    """The mass variants a valid case may name with this scheme and geometry (the code refuses the others,
+    with a message: schemes that need mass on every dof, seed-normal on a tilted or curved contact,
+    the tensor form on simplices)."""
+    if not entry.obj.massless_dofs_allowed:
+        return ["standard", "lumped"]
+    names = list(MASS_VARIANTS.names(aliases=False))
+    if tilted:
+        names.remove("seed-normal")
+    if cell_type not in ("line", "quad", "hexahedron"):
+        names.remove("moment-preserving-tensor")
+    return names
 
 
 @st.composite
@@ -279,10 +304,15 @@ def valid_cases(draw) -> Case:
     doc["time"] = time_t
 
     solver: dict = {}
-    if draw(st.integers(0, 4)) > 0:
-        solver["mass"] = draw(st.sampled_from(MASS_VARIANTS.names()))
+    cell_type = mesh.get("cell", {1: "line", 2: "quad", 3: "hexahedron"}[dim])
+    choices = mass_choices(entry, tilted, cell_type)
+    if draw(st.integers(0, 4)) > 0 or DEFAULT_MASS not in choices:
+        solver["mass"] = draw(st.sampled_from(choices))
+    if MASS_VARIANTS.resolve(solver.get("mass", DEFAULT_MASS)) in NEEDS_THICKNESS:
+        cells[-1] = max(cells[-1], 2)  # two cells across the contact layer: mass left, an affine fit possible
     if draw(st.integers(0, 3)) == 0:
-        backends = ["auto", "superlu", "cg"] + (["pardiso"] if has_pardiso() else [])
+        backends = ["auto", "superlu"] + ([] if entry.obj.needs_condensed_solve else ["cg"])
+        backends += ["pardiso"] if has_pardiso() else []  # (extra 'pardiso'; CI installs it)
         solver["backend"] = draw(st.sampled_from(backends))
         if solver["backend"] in ("auto", "cg") and draw(st.booleans()):
             solver["preconditioner"] = draw(st.sampled_from(["jacobi", "amg"]))
@@ -297,7 +327,7 @@ def valid_cases(draw) -> Case:
     restitution = float(options.get("restitution", 0.0)) if entry.name == "paoli-schatzman" else 0.0
     meta = {"dim": dim, "steps": steps, "T": T, "dt": dt, "scheme": entry.name, "restitution": restitution}
     meta.update(moving=moving, gap=gap, tilted=tilted)
-    return case_from_doc(doc, RUNS | INVALID, "valid", "", meta)
+    return case_from_doc(doc, VALID, "valid", "", meta)
 
 
 # ----------------------------------------------------------------------------- mutations
@@ -1158,7 +1188,7 @@ def _run_valid(tmp_path: Path, examples: int, derandomize: bool) -> None:
 
     prop()
     total = sum(seen.values())
-    assert seen[0] >= MIN_SUCCESS_FRACTION * total, f"only {seen[0]} of {total} valid cases ran: {dict(seen)}"
+    assert seen[0] == total, f"only {seen[0]} of {total} valid cases ran: {dict(seen)}"  # strict oracle
 
 
 def _run_mutation(tmp_path: Path, kind: str, examples: int, derandomize: bool) -> None:
