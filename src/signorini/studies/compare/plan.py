@@ -1,0 +1,211 @@
+"""Planning ``signorini compare``: targets, levels, every run's dt checked, jobs and the memory estimate."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
+from ...dynamics.simulate import number_of_steps
+from ...errors import InputError, check_positive
+from ..benchmarks import get_benchmark
+from ..reference_study import DEFAULT_REFERENCE_FACTOR, Reference, check_levels
+from .names import Pair, SchemeSpec
+from .pool import Job, default_jobs
+
+DEFAULT_RATIO = 0.5
+DEFAULT_LEVELS = 3
+DEFAULT_N0 = {1: 20, 2: 1, 3: 1}
+DEFAULT_T = {1: 3.0, 2: 1.0, 3: 1.0}  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
+ERROR_NORMS = {"u_H1": "u L2(0,T; H1)", "v_L2": "v L2(0,T; L2)"}
+CONTACT_NORM = {1: "stress", 2: "force", 3: "force"}  # contact error of errors_1d / relative_errors
+
+
+@dataclass(frozen=True)
+class BenchmarkTarget:
+    """A registered benchmark with parameter overrides; levels are its ``n``."""
+
+    name: str
+    overrides: tuple[tuple[str, float], ...] = ()
+    kind: str = "benchmark"
+
+    @property
+    def label(self) -> str:
+        return self.name
+
+    @property
+    def bench(self):
+        return get_benchmark(self.name)
+
+    @property
+    def params(self) -> dict:
+        return dict(self.overrides)
+
+    def problem(self, level: int | None):
+        return self.bench.problem(level, self.params)
+
+
+@dataclass(frozen=True)
+class CaseTarget:
+    """A case file: ``load()`` (picklable, e.g. a module-level function bound with
+    :func:`functools.partial`) returns its Problem; one level, the file's dt and T."""
+
+    label: str
+    load: Callable[[], Any]
+    dt: float
+    T: float
+    solver_options: tuple[tuple[str, Any], ...] = ()
+    kind: str = "case"
+
+    def problem(self, level: int | None):
+        return self.load()
+
+
+@dataclass
+class Plan:
+    """Validated inputs of a comparison (nothing has run yet)."""
+
+    target: Any
+    pairs: list[Pair]
+    levels: list[int | None]
+    dts: list[float]
+    T: float
+    ratio: float | None = None
+    hs: list[float] | None = None
+    reference: Any = None  # (SchemeSpec, mass, level) to run, or a Reference to reuse, or None (exact / case)
+    solver_options: tuple[tuple[str, Any], ...] = ()
+    length_scale: float = 1.0
+    counts: tuple[int, int, int, int, int] | None = None  # case file: (nodes, cells, per cell, dim, contact)
+
+    @property
+    def kind(self) -> str:
+        return self.target.kind
+
+    @property
+    def has_errors(self) -> bool:
+        return self.kind == "benchmark"
+
+    @property
+    def exact(self) -> bool:
+        return self.kind == "benchmark" and self.target.bench.dim == 1
+
+
+def _steps(dt: float, T: float, where: str) -> int:
+    try:
+        return number_of_steps(dt, T)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+def plan_benchmark(
+    name: str,
+    pairs: list[Pair],
+    levels: int = DEFAULT_LEVELS,
+    n0: int | None = None,
+    T: float | None = None,
+    ratio: float = DEFAULT_RATIO,
+    overrides: dict | None = None,
+    reference: tuple | Reference | None = None,
+) -> Plan:
+    """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + seed
+    ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level).  Raises InputError."""
+    b = get_benchmark(name)
+    b.require_nested("signorini compare")
+    params = b.params(overrides)
+    target = BenchmarkTarget(b.name, tuple(sorted((k, float(v)) for k, v in (overrides or {}).items())))
+    if not pairs:
+        raise InputError("nothing to compare: give at least one scheme and one mass")
+    if int(levels) != levels or levels < 1:
+        raise InputError(f"--levels must be a positive integer, got {levels}")
+    n0 = DEFAULT_N0[b.dim] if n0 is None else n0
+    if int(n0) != n0 or n0 < 1:
+        raise InputError(f"--n0 must be a positive integer, got {n0}")
+    T = check_positive("--T", DEFAULT_T[b.dim] if T is None else T)
+    ratio = check_positive("--ratio", ratio)
+    ns = [int(n0) * 2**k for k in range(int(levels))]
+    hs = [b.h(n, params) for n in ns]
+    dts = [ratio * h for h in hs]
+    for n, dt in zip(ns, dts, strict=True):
+        _steps(dt, T, f"level n = {n} (dt = {ratio:g} h = {dt:.6g})")
+    ref: Any = None
+    if b.dim == 1:
+        if reference is not None:
+            raise InputError(f"{name!r} is compared with its exact solution; --reference does not apply")
+    elif isinstance(reference, Reference):
+        ref = reference
+        check_levels(ns, ref.level)
+        if ref.t_end < T * (1 - 1e-9):
+            raise InputError(f"the reference (n = {ref.level}) ends at t = {ref.t_end:.6g}, before T = {T:g}")
+    else:
+        scheme, mass, level = reference or (SchemeSpec("crank-nicolson"), "seed", DEFAULT_REFERENCE_FACTOR * ns[-1])
+        check_levels(ns, level)
+        _steps(ratio * b.h(level, params), T, f"reference level n = {level}")
+        ref = (scheme, mass, level)
+    problem = b.problem(ns[0], params)  # parameters and mesh valid before anything runs
+    return Plan(target, list(pairs), ns, dts, T, ratio, hs, ref, (), _length_scale(problem))
+
+
+def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
+    """One level (the case file's mesh, dt and T), no errors."""
+    if not pairs:
+        raise InputError("nothing to compare: give at least one scheme and one mass")
+    _steps(target.dt, target.T, f"case file {target.label}")
+    problem = problem if problem is not None else target.load()
+    m = problem.mesh
+    counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size)
+    return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
+                length_scale=_length_scale(problem), counts=counts)  # fmt: skip
+
+
+def _length_scale(problem) -> float:
+    pts = problem.mesh.points
+    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+
+
+def _cost(target, level: int | None, dt: float, T: float) -> float:
+    if target.kind != "benchmark":
+        return T / dt
+    nodes = target.bench.mesh_counts(level)[0]
+    return nodes * target.bench.dim * T / dt
+
+
+def make_jobs(plan: Plan) -> list[Job]:
+    jobs = []
+    finest = len(plan.levels) - 1
+    two_d = plan.has_errors and not plan.exact
+    for i, pair in enumerate(plan.pairs):
+        for k, (n, dt) in enumerate(zip(plan.levels, plan.dts, strict=True)):
+            jobs.append(
+                Job(
+                    (i, k), plan.target, n, pair.scheme, pair.mass, dt, plan.T, plan.solver_options,
+                    snapshots=plan.has_errors, exact_errors=plan.exact, return_history=two_d,
+                    keep_series=k == finest, cost=_cost(plan.target, n, dt, plan.T),
+                )
+            )  # fmt: skip
+    if isinstance(plan.reference, tuple):
+        scheme, mass, level = plan.reference
+        dt = plan.ratio * plan.target.bench.h(level, plan.target.params)
+        jobs.append(Job(("reference",), plan.target, level, scheme, mass, dt, plan.T, plan.solver_options,
+                        snapshots=True, return_history=True, cost=_cost(plan.target, level, dt, plan.T)))  # fmt: skip
+    return jobs
+
+
+def estimate_plan(plan: Plan, jobs: int | None = None) -> CompareEstimate:
+    """Peak memory of the whole matrix (:func:`~signorini.dynamics.budget.estimate_compare`):
+    every run with the fields it keeps for the errors (every level of every run), the
+    ``jobs`` largest at once, plus the 2D/3D fields held by this process until the errors
+    against the reference are measured.  Built from mesh counts: nothing is meshed."""
+    job_list = make_jobs(plan)
+    workers = default_jobs(len(job_list)) if jobs is None else int(jobs)
+    runs = []
+    for j in job_list:
+        if plan.kind == "benchmark":
+            b = plan.target.bench
+            counts = (*b.mesh_counts(j.level), b.dim, b.contact_count(j.level))
+        else:
+            counts = plan.counts
+        runs.append(estimate_run(*counts, number_of_steps(j.dt, j.T), kept_fields=j.snapshots))
+    return estimate_compare(runs, [j.return_history for j in job_list], workers)
