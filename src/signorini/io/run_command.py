@@ -1,0 +1,229 @@
+"""``signorini run``: a benchmark or a case file into a validated RunSpec, executed into a result directory."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..dynamics.mass import DEFAULT_MASS
+from ..errors import ConvergenceError, InputError
+from ..registry import parse_assignments
+from .exit_codes import EXIT_CODES
+from .messages import one_line
+from .plugins import load_scheme
+from .results_dir import ResultDirectory
+from .streams import deferred_signals
+from .summary import Progress, one_screen_summary
+
+
+@dataclass
+class RunSpec:
+    """Everything ``signorini run`` needs, from a benchmark or a case file."""
+
+    problem: Any
+    scheme: Any
+    dt: float
+    T: float
+    mass: str
+    out: Path
+    label: str
+    scheme_options: dict = field(default_factory=dict)
+    solver_options: dict = field(default_factory=dict)
+    snapshot_every: int = 0
+    meta: dict = field(default_factory=dict)
+    case_file: Path | None = None
+    limits: dict = field(default_factory=dict)
+    measure: Any = None  # a benchmark's extra figures (observers, summary fields, text)
+
+
+def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
+    """--max-steps, --max-memory (GiB) and --yes over the case file's [limits]."""
+    out = dict(case_limits)
+    if args.max_steps is not None:
+        if args.max_steps < 1:
+            raise InputError(f"--max-steps must be a positive integer, got {args.max_steps}")
+        out["max_steps"] = args.max_steps
+    if args.max_memory is not None:
+        from ..errors import check_positive
+
+        out["max_memory"] = check_positive("--max-memory", args.max_memory)
+    if args.yes:
+        out["yes"] = True
+    return out
+
+
+def check_size(counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict) -> None:
+    """Refuse (exit 2, with the estimate) a run over the step or memory limit unless confirmed.
+
+    ``counts`` = (nodes, cells, nodes per cell, dim, contact nodes), known before meshing
+    for a benchmark.
+    """
+    from ..dynamics.budget import check_run_size, estimate_run
+    from ..dynamics.simulate import number_of_steps
+
+    est = estimate_run(*counts, number_of_steps(dt, T))
+    mem = limits.get("max_memory")
+    check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
+
+
+def mesh_counts(problem) -> tuple[int, int, int, int, int]:
+    m = problem.mesh
+    return m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size
+
+
+def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:
+    sch = {**scheme_options, **parse_assignments(args.scheme_option, "--scheme-option")}
+    given = parse_assignments(args.solver_option, "--solver-option")
+    sol = {**solver_options, **given}
+    if args.backend is not None:
+        if "backend" in given and str(given["backend"]) != args.backend:
+            raise InputError(
+                f"--backend {args.backend} and --solver-option backend={given['backend']} disagree; give one of them"
+            )
+        sol["backend"] = args.backend
+    return sch, sol
+
+
+def benchmark_spec(args: argparse.Namespace) -> RunSpec:
+    from ..studies.benchmarks import get_benchmark
+
+    bench = get_benchmark(args.target)
+    overrides = parse_assignments(args.set, "--set")
+    n = args.n if args.n is not None else bench.n_default()
+    if n < 1:
+        raise InputError(f"--n must be a positive integer, got {n}")
+    dt_default, T_default = bench.run_times(n, overrides)
+    dt = args.dt if args.dt is not None else dt_default
+    T = args.T if args.T is not None else T_default
+    limits = _limits(args, {})
+    nodes, cells, per_cell = bench.mesh_counts(n, overrides)
+    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits)
+    problem = bench.problem(n, overrides)
+    sch, sol = _options(args, {}, {})
+    params = bench.params(overrides)
+    meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
+    if args.snapshot_every is not None and args.snapshot_every < 0:
+        raise InputError(f"--snapshot-every must be >= 0, got {args.snapshot_every}")
+    scheme = load_scheme(args.scheme or "cn")
+    measure = bench.measure(params) if bench.measure is not None else None
+    return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
+                   sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure)  # fmt: skip
+
+
+def case_spec(args: argparse.Namespace) -> RunSpec:
+    from .config import load_case
+
+    for flag in ("n", "dt", "T"):
+        if getattr(args, flag) is not None:
+            raise InputError(f"--{flag} does not apply to a case file; set it in the file")
+    if args.set:
+        raise InputError("--set does not apply to a case file; edit the file")
+    case = load_case(args.target, _limits(args, {}), check_size)
+    out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
+    scheme = load_scheme(args.scheme) if args.scheme else case.scheme
+    sch, sol = _options(args, case.scheme_options if not args.scheme else {}, case.solver_options)
+    every = args.snapshot_every if args.snapshot_every is not None else case.snapshot_every
+    if every < 0:
+        raise InputError(f"--snapshot-every must be >= 0, got {every}")
+    limits = _limits(args, case.limits)
+    check_size(mesh_counts(case.problem), case.dt, case.T, limits)
+    meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
+    return RunSpec(case.problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
+                   sch, sol, every, meta, Path(args.target), limits)  # fmt: skip
+
+
+class LazyFieldWriter:
+    """A :class:`~signorini.io.output.FieldWriter` into the result directory, which is
+    created only when the time loop starts (so invalid input creates nothing)."""
+
+    def __init__(self, rd: ResultDirectory, every: int):
+        self.rd, self.every, self.inner = rd, every, None
+
+    def start(self, run) -> None:
+        from .output import FieldWriter
+
+        self.inner = FieldWriter(self.rd.create() / "fields.xdmf", self.every)
+        self.inner.start(run)
+
+    def record(self, run, n, state) -> None:
+        self.inner.record(run, n, state)
+
+    def close(self, run, status, n_last, state) -> None:
+        if self.inner is not None:
+            self.inner.close(run, status, n_last, state)
+
+
+def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
+    """summary.json of a run that failed before its first step (status failed, no levels,
+    every counter of :data:`~signorini.dynamics.history.COUNTER_KEYS` zero)."""
+    from ..dynamics.history import COUNTER_KEYS
+
+    tmp = rd.create()
+    summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
+               "steps": 0, "counters": dict.fromkeys(COUNTER_KEYS, 0), **spec.meta}  # fmt: skip
+    (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    rd.commit()
+
+
+def execute(spec: RunSpec, args: argparse.Namespace) -> int:
+    """Run the simulation into a temporary directory and publish it, whatever the status."""
+    from ..dynamics.simulate import simulate
+
+    with ResultDirectory(spec.out, args.overwrite) as rd:
+        observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
+        if spec.measure is not None:
+            observers += spec.measure.observers()
+        try:
+            H = simulate(
+                spec.problem,
+                spec.scheme,
+                spec.dt,
+                spec.T,
+                mass=spec.mass,
+                progress=Progress(args.quiet, spec.label),
+                scheme_options=spec.scheme_options,
+                solver_options=spec.solver_options,
+                observers=observers,
+            )
+        except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
+            write_setup_failure(rd, spec, exc)
+            print(f"signorini: failed: {one_line(exc)} (summary in {spec.out})", file=sys.stderr)
+            return EXIT_CODES["failed"]
+        with deferred_signals() as late:  # a signal now would lose every computed step: record it
+            H.meta.update(spec.meta)
+            if spec.measure is not None:
+                H.meta.update(spec.measure.summary(H))
+            tmp = rd.create()
+            if spec.case_file is not None:
+                shutil.copy(spec.case_file, tmp / "case.toml")
+            H.save(tmp)
+            if late.name and H.status == "finished":
+                H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
+                H.save(tmp)
+            rd.commit()
+    with deferred_signals() as after:  # the results are in place: a signal only shortens the report
+        report_run(H, spec, args)
+    return EXIT_CODES["interrupted"] if after.name and H.success else EXIT_CODES[H.status]
+
+
+def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:
+    """Warnings and failures on stderr, the one-screen summary on stdout (unless quiet)."""
+    for w in H.meta.get("warnings", []):
+        print(f"signorini: warning: {one_line(w)}", file=sys.stderr)
+    if not args.quiet:
+        print(one_screen_summary(H))
+        if spec.measure is not None:
+            print(spec.measure.text(H.meta))
+        print(f"  results in {spec.out}")
+    if not H.success:
+        print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out})", file=sys.stderr)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    spec = case_spec(args) if args.target.endswith(".toml") else benchmark_spec(args)
+    return execute(spec, args)

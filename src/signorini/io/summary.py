@@ -1,0 +1,96 @@
+"""What a run prints: the progress bar on stderr and the one-screen summary on stdout."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+
+class Progress:
+    """A one-line progress bar on stderr, only when it is a terminal and not quiet."""
+
+    def __init__(self, quiet: bool, label: str):
+        self.enabled = (not quiet) and sys.stderr.isatty()
+        self.label = label
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+        self.first: tuple[float, int] | None = None  # (time, step) of the first step seen
+
+    def __call__(self, i: int, n: int) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if self.first is None:  # the estimate starts with the loop: set-up time is not a step's
+            self.first = (now, i)
+        if now - self.t0 < 2.0 or (now - self.last < 0.2 and i < n):
+            return
+        self.last = now
+        frac = i / n
+        bar = "#" * int(30 * frac)
+        t1, i1 = self.first
+        eta = (now - t1) / max(i - i1, 1) * (n - i)
+        sys.stderr.write(f"\r{self.label} [{bar:<30}] {i}/{n} steps, {eta:5.1f}s left")
+        if i == n:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def mass_effect_line(s: dict) -> str:
+    """One line: the mass variant (and whether it is the default) and what it keeps."""
+    e = s.get("mass_effect") or {}
+    if not e:
+        return ""
+    how = "" if s.get("mass_named", True) else " (the default)"
+    return (
+        f"  mass {s['mass']}{how}: keeps {100 * e['mass_ratio']:.6g}% of the mass, centre of mass moved by "
+        f"{100 * e['centre_shift']:.2g}% of the body's size, inertia changed by {100 * e['inertia_change']:.2g}%\n"
+    )
+
+
+def energy_line(H, s: dict) -> str:
+    """The energy line: the drift for a closed system; with work done on it (time-dependent
+    loads, prescribed motion), the external work and the identity's residual instead."""
+    work = H.columns()["external_work"]
+    w = float(work[-1]) if work.size and np.isfinite(work[-1]) else 0.0
+    scale = max(abs(s["energy_initial"]), abs(s["energy_final"]), abs(w), 1e-300)
+    if abs(w) > 1e-9 * scale:
+        res = s.get("energy_identity_residual")
+        res_text = f"{res:.2e}" if res is not None else "n/a"
+        return (
+            f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g}, external work {w:.6g} "
+            f"(loads and prescribed motion; energy identity residual {res_text})\n"
+        )
+    drift = s["energy_max_relative_drift"]
+    drift_text = f"max drift {100 * drift:.3g}% of E0" if drift is not None else "E0 = 0: no relative drift"
+    return f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} ({drift_text})\n"
+
+
+def one_screen_summary(H) -> str:
+    s = H.summary()
+    c = s["counters"]
+    return (
+        f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs, {s['contact_nodes']} contact nodes\n"
+        f"  status {s['status']}{': ' + s['message'] if s['message'] else ''}\n"
+        f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
+        f"fallbacks {s['fallbacks']}\n"
+        f"{energy_line(H, s)}"
+        f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
+        f"{mass_effect_line(s)}"
+        f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
+        f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves" + factorization_tip(s)
+    )
+
+
+def factorization_tip(s: dict) -> str:
+    """A hint when SuperLU factored a large 3D system and a faster backend is one pip away."""
+    from ..linalg import has_cholmod, has_pardiso
+
+    big_3d = s.get("dim") == 3 and s.get("free_dofs", s["dofs"]) >= 30_000
+    if s["backend"] != "superlu" or not big_3d or has_cholmod() or has_pardiso():
+        return ""
+    return (
+        '\n  tip: the extras cholmod and metis (pip install ".[cholmod,metis]"; or pardiso on x86-64) factor'
+        " 3D systems like this one several times faster with a fraction of the memory (docs/performance.md)"
+    )
