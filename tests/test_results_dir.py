@@ -63,8 +63,8 @@ def test_abort_removes_temporary_and_created_parents(tmp_path):
 def test_commit_replaces_only_at_the_end(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
-    write_marker(out)
     (out / "old").write_text("old")
+    write_marker(out)
     with ResultDirectory(out, overwrite=True) as rd:
         (rd.create() / "new").write_text("new")
         assert (out / "old").exists()  # the old results stay until the commit
@@ -215,9 +215,9 @@ def test_nul_byte_in_out_is_an_input_error(tmp_path, capsys):
 
 def _marked_result(path, files):
     path.mkdir()
-    write_marker(path)
     for i in range(files):
         (path / f"f{i}").write_text("old")
+    write_marker(path)
 
 
 def test_kill_during_commit_leaves_one_complete_result(tmp_path):
@@ -302,3 +302,33 @@ def test_concurrent_cli_runs_never_replace_each_other(tmp_path):
     else:
         assert "is not empty" in results[1][1] and not kept
     assert is_result_directory(out) and (out / "summary.json").exists()
+
+
+def test_a_file_added_to_a_result_directory_makes_it_not_ours(tmp_path, capsys):
+    """The marker lists what signorini wrote: a user's notes added later are never deleted by --overwrite."""
+    out = tmp_path / "proj"
+    assert _run_quiet(out) == 0
+    assert is_result_directory(out)
+    (out / "notes.md").write_text("mine")
+    assert not is_result_directory(out)
+    assert _run_quiet(out, "--overwrite") == 2
+    assert "not written by signorini" in capsys.readouterr().err
+    assert (out / "notes.md").read_text() == "mine"
+
+
+@pytest.mark.parametrize("name", ["a\nb", "tab\there", "~/x", "~"])
+def test_control_characters_and_tilde_in_out_are_refused(tmp_path, monkeypatch, capsys, name):
+    monkeypatch.chdir(tmp_path)
+    assert _run_quiet(name) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and ("control character" in err or "'~'" in err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_result_directory_follows_the_umask(tmp_path):
+    old = os.umask(0o077)
+    try:
+        assert _run_quiet(tmp_path / "o") == 0
+    finally:
+        os.umask(old)
+    assert (tmp_path / "o").stat().st_mode & 0o777 == 0o700

@@ -276,6 +276,9 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS) -> Discretization:
     )
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
     disc.mass_effect = mass_effect(M, mesh, problem.material.rho)
+    if red.T is not None:  # the largest |w|_1 of an extrapolated contact node (1 for a node's own value)
+        rows = np.asarray(abs(red.T[contact.nodes]).sum(axis=1)).ravel()
+        disc.mass_effect["max_extrapolation_weight"] = float(rows.max(initial=0.0))
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):

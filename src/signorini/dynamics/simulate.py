@@ -162,12 +162,23 @@ def _catch_signals(enabled: bool):
             signal.signal(s, h)
 
 
+#: an extrapolation weight |w|_1 above this is reported (<= 12 on every part we measured)
+MAX_QUIET_WEIGHT = 20.0
+
+
 def run_warnings(disc: Discretization) -> list[str]:
     """Warnings about what the run computes: a mass variant that changes the body's inertia."""
     out = []
     text = effect_warning(disc.mass_effect) if disc.mass_effect else None
     if text:
         out.append(f"mass {disc.mass_name!r} {text}: the run does not simulate the body's own inertia")
+    w = disc.mass_effect.get("max_extrapolation_weight", 0.0) if disc.mass_effect else 0.0
+    if w > MAX_QUIET_WEIGHT:
+        out.append(
+            f"mass {disc.mass_name!r}: a contact node is extrapolated with weights of |w|_1 = {w:.3g} "
+            f"(> {MAX_QUIET_WEIGHT:g}): the redistributed mass may add spurious low-frequency modes; refine the mesh "
+            "next to the contact boundary"
+        )
     return out
 
 

@@ -52,11 +52,11 @@ _NEW_PREFIX = ".signorini-new."
 _OLD_PREFIX = ".signorini-old."
 
 _WATCHDOG = r"""
-import os, shutil, sys
+import json, os, shutil, sys
 tmp, out, created = sys.argv[1], sys.argv[2], sys.argv[3:]
 aside, committing, done = [], False, False
 for line in sys.stdin.buffer:
-    word, _, arg = line.decode("utf-8", "surrogateescape").rstrip("\n").partition(" ")
+    word, arg = json.loads(line)
     if word == "commit":
         committing = True
     elif word == "aside":
@@ -92,12 +92,28 @@ class ResultConflict(OSError):
     """
 
 
+def _files(directory: Path) -> set[str]:
+    """Relative paths of everything under ``directory`` (files, links and directories)."""
+    out = set()
+    for root, dirs, files in os.walk(directory):
+        for name in dirs + files:
+            out.add(os.path.relpath(os.path.join(root, name), directory))
+    return out
+
+
 def is_result_directory(path: Path) -> bool:
-    """True when ``path`` is a directory holding this tool's marker (a regular file)."""
+    """True when ``path`` holds this tool's marker (a regular file) and nothing that the
+    marker's manifest does not list: a file the user put into a result directory makes it
+    theirs again (``--overwrite`` refuses it)."""
     m = Path(path) / MARKER
     try:
-        return m.is_file() and not m.is_symlink() and json.loads(m.read_text()).get("written_by") == "signorini"
-    except (OSError, ValueError, AttributeError):
+        if not m.is_file() or m.is_symlink():
+            return False
+        info = json.loads(m.read_text())
+        if info.get("written_by") != "signorini" or not isinstance(info.get("manifest"), list):
+            return False
+        return _files(Path(path)) - {MARKER} <= set(info["manifest"])
+    except (OSError, ValueError, AttributeError, TypeError):
         return False
 
 
@@ -154,6 +170,10 @@ def resolve_output(out: Path | str, overwrite: bool, flag: str = "--out") -> Pat
         raise InputError(f"{flag} must be a directory path, got an empty string")
     if "\0" in text:
         raise InputError(f"{flag} must not contain a NUL byte")
+    if any(ord(c) < 32 or ord(c) == 127 for c in text):
+        raise InputError(f"{flag} {text!r} contains a control character (a newline, a tab, ...); rename it")
+    if text.startswith("~"):
+        raise InputError(f"{flag} {text!r} starts with '~', which is not expanded here; give the path in full")
     name_max = _limit(_nearest_existing(Path(os.path.abspath(text))), "PC_NAME_MAX", 255)
     if any(len(os.fsencode(p)) > name_max for p in Path(text).parts):
         raise InputError(f"{flag} {text[:80]!r}...: a path component is longer than {name_max} bytes")
@@ -191,14 +211,17 @@ def check_output_path(out: Path, overwrite: bool, flag: str = "--out") -> None:
     resolve_output(out, overwrite, flag)
 
 
-def write_marker(directory: Path) -> None:
-    """Write :data:`MARKER` (who wrote the directory, and when) into ``directory``."""
+def write_marker(directory: Path, manifest: bool = True) -> None:
+    """Write :data:`MARKER` into ``directory``: who wrote it, when, and (``manifest``) the
+    list of everything it holds, so that a file added later is recognized as not ours."""
     info = {
         "written_by": "signorini",
         "version": __version__,
         "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "pid": os.getpid(),
     }
+    if manifest:
+        info["manifest"] = sorted(_files(Path(directory)) - {MARKER})
     (Path(directory) / MARKER).write_text(json.dumps(info) + "\n")
 
 
@@ -232,8 +255,10 @@ class ResultDirectory:
                 d.mkdir()
                 self.created.insert(0, d)
             self.tmp = Path(tempfile.mkdtemp(prefix=_NEW_PREFIX, dir=self.out.parent))
-            self.tmp.chmod(0o755)
-            write_marker(self.tmp)
+            umask = os.umask(0)
+            os.umask(umask)
+            self.tmp.chmod(0o777 & ~umask)  # as a plain mkdir would (mkdtemp makes 0700)
+            write_marker(self.tmp, manifest=False)  # being written: not replaceable until committed
         except OSError as exc:
             self.abort()
             if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
@@ -254,10 +279,12 @@ class ResultDirectory:
         except OSError:  # no watchdog: cleanup on normal exits still happens
             self._watchdog = None
 
-    def _tell(self, line: str) -> None:
+    def _tell(self, word: str, arg: str = "") -> None:
+        """One message to the watchdog: a JSON line, so no path can split it."""
         if self._watchdog is not None:
             try:
-                self._watchdog.stdin.write(os.fsencode(line) + b"\n")
+                line = json.dumps([word, arg], ensure_ascii=True)
+                self._watchdog.stdin.write(line.encode("ascii") + b"\n")
                 self._watchdog.stdin.flush()
             except OSError:
                 pass
@@ -289,6 +316,7 @@ class ResultDirectory:
     def commit(self) -> None:
         """Publish the temporary directory as ``out`` (see the module's guarantees)."""
         tmp = self.create()
+        write_marker(tmp)  # with the manifest of what this run wrote
         self._tell("commit")
         asides: list[Path] = []
         reason = ""
@@ -306,7 +334,7 @@ class ResultDirectory:
             if reason:
                 break
             aside = Path(tempfile.mkdtemp(prefix=_OLD_PREFIX, dir=self.out.parent))
-            self._tell(f"aside {aside}")
+            self._tell("aside", os.fsdecode(aside))
             try:
                 os.rename(self.out, aside)  # replaces the empty placeholder atomically
             except FileNotFoundError:  # another run moved it first: try again
