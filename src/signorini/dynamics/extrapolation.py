@@ -171,7 +171,7 @@ def _grow(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, todo: np.ndar
     A = node_graph(mesh)
     drop = sp.diags((~is_c).astype(float))
     R = A[contact_nodes[todo]]
-    for ring in range(2, MAX_RING + 1):  # two rings first: the historical choice
+    for _ring in range(2, MAX_RING + 1):  # two rings first: the historical choice
         R = (R @ A).tocsr()
         F = (R @ drop).tocsr()
         F.eliminate_zeros()
