@@ -138,3 +138,13 @@ def test_deeply_nested_toml_is_an_input_error(tmp_path):
     path.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
     with pytest.raises(InputError, match="TOML"):
         load_case(path)
+
+
+def test_where_with_a_non_finite_value_is_refused(tmp_path):
+    path = tmp_path / "c.toml"
+    text = _case_text("").replace('tag = "ymin"\nobstacle', 'tag = "ymin"\nwhere = "sqrt(x - 0.5) < 1"\nobstacle')
+    path.write_text(text)
+    from signorini.dynamics.problem import discretize
+
+    with pytest.raises(InputError, match="not finite"):
+        discretize(load_case(path).problem, "standard")

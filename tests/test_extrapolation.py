@@ -216,3 +216,27 @@ def test_redistribution_adds_no_spurious_low_frequency_mode(part):
     disc = discretize(prob, "moment-preserving")
     assert disc.mass_effect["max_extrapolation_weight"] <= 15.0
     assert lowest(disc.M) > 0.8 * lowest(mass_matrix("standard", mesh, 1000.0, nodes))
+
+
+@pytest.mark.parametrize("gravity", ["-76518.0", "-76518.0 * min(t / 1e-4, 1)"])
+def test_gravity_written_as_an_expression_follows_the_mass(tmp_path, gravity):
+    """A force density that is the same at every point, even as an expression of t, is applied
+    as M g: with neighbour (no extrapolation operator) a free body still falls without stress."""
+    from signorini.io.cli import main
+
+    case = tmp_path / "c.toml"
+    case.write_text(
+        f'[mesh]\nfile = "{PARTS / "cylinder.msh"}"\n[material]\nrho = 7800.0\nE = 2e11\nnu = 0.3\n'
+        '[contact]\ntag = "skin"\nobstacle = { type = "plane", point = [0.0, 0.0, -1.0], normal = [0.0, 0.0, 1.0] }\n'
+        f'[loads]\nbody_force = [0.0, 0.0, "{gravity}"]\n[time]\ndt = 1e-5\nT = 2e-4\n[solver]\nmass = "neighbour"\n'
+    )
+    out = tmp_path / "o"
+    assert main(["run", str(case), "--out", str(out), "--quiet", "--snapshot-every", "20"]) == 0
+    import meshio
+
+    with meshio.xdmf.TimeSeriesReader(str(out / "fields.xdmf")) as r:
+        r.read_points_cells()
+        _, pd, _ = r.read_data(r.num_steps - 1)
+    uz = pd["displacement"][:, 2]
+    assert np.ptp(uz) < 1e-9 * np.abs(uz).max()  # rigid: every node moved by the same amount
+    assert pd["von_mises"].max() < 1e-6 * 7800.0 * 9.81 * 0.1

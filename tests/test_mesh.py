@@ -185,3 +185,22 @@ def test_vtu_cell_past_the_last_node_is_a_mesh_error(tmp_path):
     meshio.write(path, meshio.Mesh(SQUARE, [("triangle", np.array([[0, 1, 2], [0, 2, 9]]))]))
     with pytest.raises(MeshError, match="outside 0..3|cannot read mesh file"):
         read_mesh(path)
+
+
+def test_gmsh_physical_names_are_matched_with_their_dimension(tmp_path):
+    """A surface group and a volume group may share an id (1): the surface's name tags the facets."""
+    import meshio
+
+    from signorini.fem.mesh import read_mesh
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    mesh = meshio.Mesh(
+        pts,
+        [("tetra", np.array([[0, 1, 2, 3]])), ("triangle", np.array([[0, 1, 2]]))],
+        cell_data={"gmsh:physical": [np.array([1]), np.array([1])], "gmsh:geometrical": [np.array([1]), np.array([1])]},
+        field_data={"body": np.array([1, 3]), "skin": np.array([1, 2])},
+    )
+    path = tmp_path / "g.msh"
+    meshio.write(path, mesh, file_format="gmsh22", binary=False)
+    m = read_mesh(path)
+    assert m.tags == ["skin"]

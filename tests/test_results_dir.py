@@ -332,3 +332,19 @@ def test_result_directory_follows_the_umask(tmp_path):
     finally:
         os.umask(old)
     assert (tmp_path / "o").stat().st_mode & 0o777 == 0o700
+
+
+def test_a_dangling_link_in_the_middle_of_out_is_refused(tmp_path, capsys):
+    (tmp_path / "dl").symlink_to(tmp_path / "nowhere")
+    assert _run_quiet(tmp_path / "dl" / "sub") == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dl"]
+
+
+def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert _run_quiet("") == 2
+    assert "must not be empty" in capsys.readouterr().err
+    (tmp_path / "c.toml").write_text(REST + '[output]\ndirectory = ""\n')
+    assert main(["run", "c.toml", "--quiet"]) == 2
+    assert list(p.name for p in tmp_path.iterdir()) == ["c.toml"]

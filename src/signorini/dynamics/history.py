@@ -216,7 +216,9 @@ class History:
             "impact_impulses": impact_impulses(self.lambda_sum, imp),
             "penetration_max": float(pen.max(initial=0.0)),
             "untagged_penetration_max": (
-                float(np.max(self.untagged_penetration, initial=0.0)) if self.untagged_penetration is not None else None
+                max(float(np.max(self.untagged_penetration, initial=0.0)), self.meta.get("untagged_worst_penetration", 0.0))
+                if self.untagged_penetration is not None
+                else None
             ),
             "penetration_time_integral": float(pen[1:].sum() * dt),
             "oscillation_index": oscillation_index(self.t, self.lambda_sum),

@@ -147,9 +147,13 @@ class Discretization:
         return self.contact.gaps_at(t)
 
 
-def _uniform(f) -> np.ndarray | None:
-    """The force density when it is one constant vector, else None."""
-    return None if callable(f) else np.asarray(f, dtype=float).ravel()
+def _uniform(f, mesh: Mesh) -> np.ndarray | None:
+    """The force density when it is the same vector at every point (a constant, or a function
+    of x, or of t only, such as ``"-9810 * min(t / 0.01, 1)"``), else None."""
+    if not callable(f):
+        return np.asarray(f, dtype=float).ravel()
+    v = np.asarray(f(mesh.points), dtype=float).reshape(mesh.n_nodes, -1)
+    return v[0].copy() if np.all(v == v[0]) else None
 
 
 def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tuple[np.ndarray, list]:
@@ -159,7 +163,7 @@ def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tu
     rho = problem.material.rho
 
     def body(f):
-        return red.body_load(body_load(mesh, f), _uniform(f), rho)
+        return red.body_load(body_load(mesh, f), _uniform(f, mesh), rho)
 
     sources = [(body, problem.body_force)] if problem.body_force is not None else []
     for tag, tr in problem.tractions.items():

@@ -330,6 +330,7 @@ def simulate(
         H = _finish(run, n_last, recorder, energies, snaps, setup_seconds, loop)
         H.untagged_penetration = untagged.series
         H.meta["untagged_boundary_nodes"] = int(untagged.nodes.size)
+        H.meta["untagged_worst_penetration"] = untagged.worst[0]  # the failing level of untagged_contact=fail too
         if untagged.exceeded():
             H.meta["warnings"].append(untagged.message())
         if interrupts.signal_name and status == "finished":  # after the last step: every step kept

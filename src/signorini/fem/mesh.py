@@ -286,7 +286,7 @@ def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
 _DIM_OF = {"line": 1, "triangle": 2, "quad": 2, "tetra": 3, "hexahedron": 3}
 
 
-def _tagged_facets(m, ftype: str, names: dict[int, str]) -> dict[str, list[np.ndarray]]:
+def _tagged_facets(m, ftype: str, names: dict[int, str], fdim: int) -> dict[str, list[np.ndarray]]:
     """Facet arrays per physical group: every group of a facet, not only the first.
 
     ``gmsh:physical`` holds one group per element; a Gmsh 4 file attaches groups to
@@ -305,8 +305,9 @@ def _tagged_facets(m, ftype: str, names: dict[int, str]) -> dict[str, list[np.nd
                 name = names.get(int(tag_id), str(int(tag_id)))
                 facets.setdefault(name, []).append(block.data[tags == tag_id])
     for name, per_block in (m.cell_sets or {}).items():
-        if name.startswith("gmsh:") or name not in (m.field_data or {}):
-            continue
+        fd = (m.field_data or {}).get(name)
+        if name.startswith("gmsh:") or fd is None or len(fd) < 2 or int(fd[1]) != fdim:
+            continue  # not a physical group of facets
         found = [
             block.data[np.asarray(idx, dtype=np.int64)]
             for block, idx in zip(m.cells, per_block, strict=False)
@@ -363,8 +364,9 @@ def read_mesh(path: str | Path) -> Mesh:
     ftype = FACET_TYPES[cell_type]
     _check_indices(p.name, "cells", cells, len(m.points))
     _check_points(p.name, m.points, dim)
-    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
-    facets = _tagged_facets(m, ftype, names)
+    # physical names per (id, dimension): "skin" (surface 1) and "body" (volume 1) may share an id
+    names = {int(v[0]): k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1}
+    facets = _tagged_facets(m, ftype, names, dim - 1)
     for k, v in facets.items():
         _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))
     declared = sorted(k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1)

@@ -80,7 +80,7 @@ from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
 from ..registry import Motion, Vector
-from .expressions import Expression, _short, vector_field
+from .expressions import Expression, _short, check_finite, vector_field
 from .schema import REQUIRED, section_keys
 
 TIME_KEYS = {"scheme", "dt", "T"}
@@ -159,7 +159,7 @@ def _where(table: dict):
     ex = Expression("contact.where", text, conditions=True)
     if "t" in ex.variables:
         raise InputError("'contact.where' may use x, y and z only (the contact nodes do not change in time)")
-    return lambda p: ex(p) != 0
+    return lambda p: check_finite("contact.where", text, ex(p), p, 0.0) != 0
 
 
 def _mesh(m: dict, base: Path, guard=None) -> Mesh:
@@ -317,6 +317,8 @@ def _output(outp: Any) -> tuple[Path | None, int]:
     out = outp.get("directory")
     if out is not None and not isinstance(out, str):
         raise InputError("'output.directory' must be a string")
+    if out is not None and not out.strip():
+        raise InputError("'output.directory' must not be empty (omit the key for the default out/<case name>)")
     every = outp.get("snapshot_every", 0)
     if not isinstance(every, int) or isinstance(every, bool) or every < 0:
         raise InputError(f"'output.snapshot_every' must be a non-negative integer, got {every!r}")

@@ -149,6 +149,9 @@ def _compile(
 
         def compare(env):
             vals = [t(env) for t in terms]
+            for v in vals:
+                if not np.all(np.isfinite(v)):
+                    raise InputError(f"'{key}': {text!r} compares a value that is not finite (check its domain)")
             out = np.ones(np.broadcast(*vals).shape, dtype=bool)
             for op, a, b in zip(ops, vals[:-1], vals[1:], strict=True):
                 out &= op(a, b)

@@ -140,7 +140,15 @@ def _limit(base: Path, name: str, default: int) -> int:
 
 
 def _resolve_link(out: Path, flag: str) -> Path:
-    """The real path of ``out`` (symbolic links followed); dangling links and loops refused."""
+    """The real path of ``out`` (symbolic links followed); dangling links and loops refused,
+    on ``out`` itself and on every directory of its path (a dangling link in the middle would
+    make the run create the link's target)."""
+    for p in reversed(Path(os.path.abspath(out)).parents):
+        if p.is_symlink() and not os.path.exists(p):
+            raise InputError(
+                f"{flag} {str(out)!r}: {str(p)!r} on its path is a symbolic link to {os.readlink(p)!r}, which does not "
+                "exist or loops"
+            )
     if out.is_symlink():
         try:
             return out.resolve(strict=True)

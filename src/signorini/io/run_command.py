@@ -89,9 +89,15 @@ def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dic
     return sch, sol
 
 
+def _check_out_given(args: argparse.Namespace) -> None:
+    if args.out is not None and not args.out.strip():
+        raise InputError("--out must not be empty (omit it for the default)")
+
+
 def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     from ..studies.benchmarks import get_benchmark
 
+    _check_out_given(args)
     bench = get_benchmark(args.target)
     overrides = parse_assignments(args.set, "--set")
     n = args.n if args.n is not None else bench.n_default()
@@ -123,6 +129,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
             raise InputError(f"--{flag} does not apply to a case file; set it in the file")
     if args.set:
         raise InputError("--set does not apply to a case file; edit the file")
+    _check_out_given(args)
     case = load_case(args.target, _limits(args, {}), check_size)
     out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
     scheme = load_scheme(args.scheme) if args.scheme else case.scheme
