@@ -192,6 +192,13 @@ class History:
             **self.diagnostics(),
         }
 
+    def _untagged_max(self) -> float | None:
+        """Largest untagged penetration of the levels kept, or of the level a failure stopped at."""
+        if self.untagged_penetration is None:
+            return None
+        kept = float(np.max(self.untagged_penetration, initial=0.0))
+        return max(kept, float(self.meta.get("untagged_worst_penetration", 0.0)))
+
     def diagnostics(self) -> dict:
         """Scheme-comparison figures: penetration, oscillation per impact, identity residual.
 
@@ -215,11 +222,7 @@ class History:
             "impulse": float(np.nansum(imp)) if np.isfinite(imp).any() else None,
             "impact_impulses": impact_impulses(self.lambda_sum, imp),
             "penetration_max": float(pen.max(initial=0.0)),
-            "untagged_penetration_max": (
-                max(float(np.max(self.untagged_penetration, initial=0.0)), self.meta.get("untagged_worst_penetration", 0.0))
-                if self.untagged_penetration is not None
-                else None
-            ),
+            "untagged_penetration_max": self._untagged_max(),
             "penetration_time_integral": float(pen[1:].sum() * dt),
             "oscillation_index": oscillation_index(self.t, self.lambda_sum),
             "impact_oscillation_indices": oscillation_indices(self.lambda_sum),
