@@ -138,7 +138,7 @@ TRIS = [[0, 1, 2], [0, 2, 3]]
     "points, facets, phys, match",
     [
         (SQUARE, [[0, 1], [0, 1]], None, "more than once"),
-        (SQUARE, [[1, 3]], None, "not a face of any cell"),
+        (SQUARE, [[1, 3]], None, "not faces of any cell"),
         (SQUARE + np.array([[0, 0, 0], [0, 0, 0.5], [0, 0, 0], [0, 0, 0]]), [[0, 1]], None, "coordinate varies"),
         (SQUARE, [[0, 7]], None, "outside 0..3|cannot read mesh file"),
     ],
@@ -204,3 +204,17 @@ def test_gmsh_physical_names_are_matched_with_their_dimension(tmp_path):
     meshio.write(path, mesh, file_format="gmsh22", binary=False)
     m = read_mesh(path)
     assert m.tags == ["skin"]
+
+
+def test_non_conforming_meshes_and_interior_tags_are_refused(tmp_path):
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import Mesh, _check_facets
+
+    pts = SQUARE[:, :2]
+    with pytest.raises(MeshError, match="same nodes"):
+        _check_facets("m", Mesh(pts, np.array([[0, 1, 2], [2, 1, 0]]), "triangle", {}))
+    with pytest.raises(MeshError, match="more than two cells"):
+        five = np.vstack([pts, [[2.0, 2.0]]])  # a third triangle on the diagonal 0-2
+        _check_facets("m", Mesh(five, np.array([[0, 1, 2], [0, 2, 3], [0, 4, 2]]), "triangle", {}))
+    with pytest.raises(MeshError, match="inside the body"):
+        _check_facets("m", Mesh(pts, np.array(TRIS), "triangle", {"diag": np.array([[0, 2]])}))

@@ -411,23 +411,49 @@ def _check_points(name: str, points: np.ndarray, dim: int) -> None:
         )
 
 
+def _rows(a: np.ndarray) -> np.ndarray:
+    """Rows of an int array as one opaque (void) value each, for set operations on rows."""
+    a = np.ascontiguousarray(a, dtype=np.int64)
+    return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
+
+
 def _check_facets(name: str, mesh: Mesh) -> None:
-    """Every tagged facet is a face of a cell, not degenerate, and listed once per tag."""
+    """A conforming mesh whose tags hold boundary facets, each listed once.
+
+    Refused: two cells with the same nodes, a face shared by more than two cells (a node
+    index that wrapped or overlapping cells), a facet listed twice in a tag (it would
+    count twice in the contact weights), a tagged facet that is not a face of a cell or
+    that lies inside the body (shared by two cells).
+    """
     ref = reference_element(mesh.cell_type)
+    cells = _rows(np.sort(mesh.cells, axis=1))
+    if np.unique(cells).size != cells.size:
+        raise MeshError(f"{name}: two cells have the same nodes (a duplicated or corrupt cell)")
     loc = np.array(ref.facets)
-    faces = np.sort(mesh.cells[:, loc].reshape(-1, loc.shape[1]), axis=1)
-    known = {tuple(f) for f in np.unique(faces, axis=0)} if len(faces) < 2_000_000 else None
+    faces = _rows(np.sort(mesh.cells[:, loc].reshape(-1, loc.shape[1]), axis=1))
+    known, counts = np.unique(faces, return_counts=True)
+    if (counts > 2).any():
+        raise MeshError(
+            f"{name}: {int((counts > 2).sum())} face(s) shared by more than two cells: the mesh does not conform "
+            "(overlapping cells, or a node reference that wrapped)"
+        )
     for tag, f in mesh.facets.items():
-        key = np.sort(f, axis=1)
-        uniq, counts = np.unique(key, axis=0, return_counts=True)
-        if (counts > 1).any():
+        key, n = np.unique(_rows(np.sort(f, axis=1)), return_counts=True)
+        if (n > 1).any():
             raise MeshError(
-                f"{name}: tag {tag!r} lists {int((counts > 1).sum())} facet(s) more than once "
+                f"{name}: tag {tag!r} lists {int((n > 1).sum())} facet(s) more than once "
                 "(they would count twice in the contact weights); remove the duplicates"
             )
-        if known is not None and any(tuple(r) not in known for r in uniq):
-            bad = next(r for r in uniq if tuple(r) not in known)
-            raise MeshError(f"{name}: tag {tag!r} has a facet {bad.tolist()} that is not a face of any cell")
+        pos = np.clip(np.searchsorted(known, key), 0, known.size - 1)
+        missing = known[pos] != key
+        if missing.any():
+            raise MeshError(f"{name}: tag {tag!r} has {int(missing.sum())} facet(s) that are not faces of any cell")
+        inside = counts[pos] > 1
+        if inside.any():
+            raise MeshError(
+                f"{name}: tag {tag!r} has {int(inside.sum())} facet(s) inside the body (shared by two cells); "
+                "boundary tags hold boundary facets only"
+            )
 
 
 def write_mesh(mesh: Mesh, path: str | Path) -> None:
