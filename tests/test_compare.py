@@ -267,12 +267,15 @@ def test_the_compare_estimate_counts_the_kept_fields():
     b = plan.target.bench
     jobs = cmp.make_jobs(plan)
     fields = [16.0 * b.mesh_counts(j.level)[0] * 2 * (round(j.T / j.dt) + 1) for j in jobs]  # U, V of every level
-    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-12)
+    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-12, abs=0)
     assert est.held_bytes == est.kept_fields_bytes  # 2D: every run's fields come back for the errors
     bare = [estimate_run(*b.mesh_counts(j.level), 2, b.contact_count(j.level), round(j.T / j.dt)) for j in jobs]
-    assert est.total_bytes == pytest.approx(max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-12)
+    assert est.total_bytes == pytest.approx(
+        max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-12, abs=0
+    )
     longer = cmp.estimate_plan(cmp.plan_benchmark("bar2d", pairs, 2, T=1.0), 1)
-    assert longer.kept_fields_bytes == pytest.approx(2 * est.kept_fields_bytes, rel=0.01)  # grows with the levels kept
+    # grows with the levels kept (measured 8.2e-3: not exactly linear in T)
+    assert longer.kept_fields_bytes == pytest.approx(2 * est.kept_fields_bytes, rel=0.01, abs=0)
     assert longer.total_bytes > est.total_bytes
     assert cmp.estimate_plan(plan, 2).running_bytes > est.running_bytes  # two runs at once
     one_d = cmp.estimate_plan(cmp.plan_benchmark("bar1d", pairs, 2, 10, 1.0), 2)
@@ -340,4 +343,4 @@ def test_compare_bar3d_numbers_equal_those_of_run(bar3d_report, tmp_path, scheme
     H = simulate(p2, scheme, finest["dt"], 0.5, mass=mass, snapshot_every=1, scheme_options=opts)
     errors = relative_errors(H, p2.mesh, ref, 0.5)
     for key in ("u_H1", "v_L2", "force"):
-        assert finest["errors"][key] == pytest.approx(errors[key], rel=1e-9), key
+        assert finest["errors"][key] == pytest.approx(errors[key], rel=1e-12, abs=0), key  # measured 0

@@ -35,4 +35,4 @@ def test_penalty_force_law():
     b = get_benchmark("bar1d-impact")
     H = _run(40, 50.0)
     k = 50.0 * b.params()["E"] / b.h(40)
-    assert np.allclose(H.lam, -k * np.maximum(0.0, -H.gap), rtol=1e-8, atol=1e-12)
+    assert np.allclose(H.lam, -k * np.maximum(0.0, -H.gap), rtol=1e-13, atol=1e-15)  # |lam| <= 2.3: measured 4e-15

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from custom_scheme import MyTheta  # tests/ is on sys.path (pytest's rootdir-relative import)
+from distinct_schemes import REPEATS
 from signorini.dynamics.schemes import SCHEMES, make_scheme
 from signorini.dynamics.simulate import simulate
 from signorini.errors import InputError
@@ -109,6 +110,7 @@ def test_registered_at_runtime_then_removed():
         ("newmark", {"beta": 0.25, "gamma": 0.5}, "crank-nicolson"),
         ("theta", {"theta": 0.5}, "crank-nicolson"),
         ("theta", {"theta": 1.0}, "backward-euler"),
+        *((name, {}, same_as) for name, same_as in REPEATS.items()),  # the defaults, left out of the sweeps
     ],
 )
 def test_parametrized_entries_reproduce_named_schemes(name, options, same_as):
@@ -132,7 +134,7 @@ def test_bad_scheme_options(name, options, message):
         make_scheme(name, options)
 
 
-@pytest.mark.parametrize("entry", list(SCHEMES), ids=lambda e: e.name)
+@pytest.mark.parametrize("entry", [e for e in SCHEMES if e.name not in REPEATS], ids=lambda e: e.name)
 def test_every_registered_scheme_identity_and_complementarity(entry):
     """Every registry entry: complementarity and its own energy identity to round-off."""
     p, dt = _bar2d()
@@ -148,7 +150,8 @@ def test_every_registered_scheme_identity_and_complementarity(entry):
     assert err.max() <= 1e-11 * H.energy[0]
     # cumulative parts add up to the energy change from level 0
     total = H.external_work + H.contact_work + H.numerical_dissipation
-    assert np.allclose(H.energy - H.energy[0], total, atol=1e-11 * H.energy[0])
+    # docs/verification.md: 1e-11 of the energy scale (measured 6.8e-14 E0)
+    assert np.allclose(H.energy - H.energy[0], total, rtol=0, atol=1e-11 * H.energy[0])
     assert H.meta["energy_definition"]
 
 

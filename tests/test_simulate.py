@@ -134,14 +134,15 @@ def test_bar2d_symmetric_about_midline():
     H = simulate(b.problem(4), "cn", b.h(4) / 2, 1.0, mass="seed", snapshot_every=5)
     x = H.coordinates[:, 0]
     order, mirror = np.argsort(x), np.argsort(0.1 - x)
-    assert np.allclose(H.lam[:, order], H.lam[:, mirror], atol=1e-12 * np.abs(H.lam).max())
+    # docs/verification.md: symmetric to 1e-12 (measured 1.5e-13 max|lam|, 1e-14 on u ~ 0.2)
+    assert np.allclose(H.lam[:, order], H.lam[:, mirror], rtol=0, atol=1e-12 * np.abs(H.lam).max())
     p = b.problem(4)
     pts = p.mesh.points
     key = np.lexsort((pts[:, 0], pts[:, 1]))
     key_m = np.lexsort((np.round(0.1 - pts[:, 0], 12), pts[:, 1]))
     u = H.snapshots["u"][-1].reshape(-1, 2)
-    assert np.allclose(u[key, 1], u[key_m, 1], atol=1e-12)
-    assert np.allclose(u[key, 0], -u[key_m, 0], atol=1e-12)
+    assert np.allclose(u[key, 1], u[key_m, 1], rtol=0, atol=1e-12)
+    assert np.allclose(u[key, 0], -u[key_m, 0], rtol=0, atol=1e-12)
 
 
 def test_cn_seed_nearly_conservative_in_2d():
