@@ -1101,7 +1101,7 @@ def check_finished(case: Case, o: Outcome, info: str) -> None:
     steps = case.meta.get("steps")
     if case.kind == "valid":
         assert s["steps"] == steps and len(H) == steps + 1, f"steps {s['steps']} != {steps}{info}"
-        assert math.isclose(float(H[-1]["t"]), case.meta["T"], rel_tol=1e-9), f"last t != T{info}"
+        assert math.isclose(float(H[-1]["t"]), case.meta["T"], rel_tol=1e-9, abs_tol=0.0), f"last t != T{info}"
     for n, row in enumerate(H):
         for col, text in row.items():
             v = float(text)
