@@ -237,4 +237,14 @@ def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name:
         todo, R = todo[~got], R[~got]
         if todo.size == 0:
             return out.tocsr()
-    raise InputError(f"mass {name!r}: the body has no non-contact node to carry the contact nodes' mass")
+    free = np.flatnonzero(~is_c)
+    if free.size == 0:
+        raise InputError(f"mass {name!r}: every node of the body is a contact node: no node can carry their mass")
+    from scipy.spatial import cKDTree  # far from every non-contact node in the graph: the nearest in space
+
+    seeds_c = sp.csr_matrix(seeds)[todo]
+    counts = np.maximum(np.diff(seeds_c.indptr), 1)
+    centres = (seeds_c @ mesh.points) / counts[:, None]
+    _, idx = cKDTree(mesh.points[free]).query(centres, k=1)
+    out[todo, free[np.asarray(idx).ravel()]] = 1.0
+    return out.tocsr()

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ConvergenceError
+from ..errors import ConvergenceError, InputError
 from ..fem.mesh import Mesh, boundary_facets
 from .observers import Observer, Run
 from .schemes import State
@@ -68,6 +68,8 @@ class UntaggedContact(Observer):
         if p > self.worst[0]:
             self.worst = (p, int(self.nodes[j]), float(s.t))
         if self.mode == "fail" and p > self.tolerance:
+            if n == 0:  # the data put it there: an input error, before anything is computed
+                raise InputError(f"{self.message()} (at t = 0: the initial state)")
             raise ConvergenceError(self.message())
 
     def record(self, run: Run, n: int, state: State) -> None:

@@ -63,9 +63,11 @@ def _dispatch(args: argparse.Namespace) -> int:
     except ConvergenceError as exc:
         print(f"signorini: failed: {one_line(exc)}", file=sys.stderr)
         return EXIT_CODES["failed"]
-    except MemoryError:
+    except MemoryError as exc:
+        why = f" ({one_line(exc)})" if str(exc) else ""
         print(
-            "signorini: error: out of memory (try a smaller size, --backend cg, or a larger machine)", file=sys.stderr
+            f"signorini: error: out of memory{why} (try a smaller size, --backend cg, or a larger machine)",
+            file=sys.stderr,
         )
         return EXIT_ENVIRONMENT
     except OSError as exc:

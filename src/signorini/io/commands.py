@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..registry import parse_assignments
-from .exit_codes import EXIT_CODES
+from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .results_dir import run_into
 from .run_command import _limits, check_size
 
@@ -182,4 +182,8 @@ def cmd_template(args: argparse.Namespace) -> int:
     from .schema import template
 
     print(template(args.dim), end="")
+    sys.stdout.flush()
+    if getattr(sys.stdout, "failed", False):  # the template is the product: a full disk or closed pipe is a failure
+        print("signorini: error: the template could not be written to stdout", file=sys.stderr)
+        return EXIT_ENVIRONMENT
     return 0

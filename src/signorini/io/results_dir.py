@@ -199,6 +199,11 @@ def resolve_output(out: Path | str, overwrite: bool, flag: str = "--out") -> Pat
     if real.exists():
         if not real.is_dir():
             raise InputError(f"{flag} {shown} exists and is not a directory")
+        if os.path.ismount(real):
+            raise InputError(
+                f"{flag} {shown} is a mount point: results are written beside it and renamed onto it, which a "
+                "mount point cannot be; give a directory inside it"
+            )
         if not _is_empty_dir(real):
             if not overwrite:
                 raise InputError(f"output directory {shown} is not empty; pass --overwrite to replace it")
@@ -211,6 +216,10 @@ def resolve_output(out: Path | str, overwrite: bool, flag: str = "--out") -> Pat
         raise InputError(f"{flag} {shown} cannot be created: {str(base)!r} is a file, not a directory")
     if not os.access(base, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {shown} cannot be created: no write permission in {str(base)!r}")
+    try:  # root passes os.access everywhere: probe (/proc, /sys, read-only mounts), leaving nothing
+        os.rmdir(tempfile.mkdtemp(prefix=_NEW_PREFIX, dir=base))
+    except OSError as exc:
+        raise InputError(f"{flag} {shown} cannot be created in {str(base)!r}: {exc.strerror or exc}") from None
     return real
 
 

@@ -215,7 +215,10 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             rd.commit()
     with deferred_signals() as after:  # the results are in place: a signal only shortens the report
         report_run(H, spec, args)
-    return EXIT_CODES["interrupted"] if after.name and H.success else EXIT_CODES[H.status]
+    late_signal = after.name or (late.name if H.status == "finished" else None)
+    if late_signal:
+        print(f"signorini: {late_signal} received after the results were written; nothing lost", file=sys.stderr)
+    return EXIT_CODES[H.status]
 
 
 def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:

@@ -174,7 +174,9 @@ def run_jobs(jobs: Sequence[Job], workers: int) -> list[Outcome]:
         results = list(ex.map(execute_job, [jobs[i] for i in order]))
     except BrokenProcessPool as exc:
         ex.shutdown(wait=True, cancel_futures=True)
-        raise RuntimeError(f"a worker process died ({exc}; out of memory?); rerun with --jobs 1") from None
+        raise MemoryError(  # the environment's failure (exit 4), not a bug
+            f"a worker process of compare died ({exc}): most likely the out-of-memory killer; rerun with --jobs 1"
+        ) from None
     except BaseException:
         ex.shutdown(wait=True, cancel_futures=True)
         raise

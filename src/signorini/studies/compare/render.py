@@ -58,9 +58,15 @@ def table_markdown(result: dict) -> list[str]:
         bare = f"{m['step_over_bare']:.2f} x {m['bare_op']}" if _finite(m["step_over_bare"]) else "n/a (not measured)"
         decided = RANK_LABELS.get(p["decided_by"], p["decided_by"] or "(last)")
         kept = f"{100 * m['mass_kept']:.4g}%" if _finite(m.get("mass_kept")) else "n/a"
-        note = "; ".join(
-            x for x in (p["reason"], "the mass changes the body's inertia" if m.get("changes_physics") else "") if x
+        untagged = m.get("untagged_penetration_max") or 0.0
+        notes = (
+            p["reason"],
+            "the mass changes the body's inertia" if m.get("changes_physics") else "",
+            f"untagged boundary nodes {untagged:.3g} inside the obstacle"
+            if m.get("violates_contact") and untagged
+            else "",
         )
+        note = "; ".join(x for x in notes if x)
         cells += [drift, _f(m["oscillation_index"], ".3f"), _f(m["penetration_max"], ".2e"), kept,
                   _f(m["step_ms"], ".3g"), bare, decided, note or "-"]  # fmt: skip
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
