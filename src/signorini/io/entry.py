@@ -40,13 +40,23 @@ def main() -> int:
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, _interrupt)
     try:
-        return cli_main()
+        code = cli_main()
     except KeyboardInterrupt:
         try:
             os.write(2, b"signorini: interrupted before the time loop; nothing written\n")
         except OSError:
             pass
-        return 130
+        code = 130
+    from . import output
+
+    if output.ABANDONED:  # an HDF5 file failed mid-write: end without HDF5's deallocation (it can crash)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError, AttributeError):
+                pass
+        os._exit(code)
+    return code
 
 
 if __name__ == "__main__":

@@ -33,6 +33,9 @@ from ..fem.assembly import von_mises
 
 #: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
 HEADROOM = 4 * 2**20
+#: HDF5 writers given up after a failed write: kept alive until the process ends without
+#: running their deallocation (``os._exit``), which would crash inside HDF5
+ABANDONED: list = []
 
 
 def _free_bytes(path: Path) -> int:
@@ -108,15 +111,29 @@ class FieldWriter(Observer):
         p = np.zeros(mesh.n_nodes)
         p[self._nodes] = -s.lam / self._weights
         vm = von_mises(mesh, self._material, s.U)
-        self._writer.write_data(
-            float(s.t), point_data={"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p}
-        )
+        try:
+            self._writer.write_data(
+                float(s.t), point_data={"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p}
+            )
+        except Exception as exc:  # inside HDF5 (the disk filled under us): never touch this file again
+            self._abandon()
+            if "space" in str(exc).lower() or isinstance(exc, OSError):
+                raise _no_space() from None
+            raise
         self.times.append(float(s.t))
         self._last = n
 
     def record(self, run: Run, n: int, state: State) -> None:
         if n % self.every == 0:
             self._write(n, state)
+
+    def _abandon(self) -> None:
+        """Give up the HDF5 file without closing it: after a failed write HDF5 keeps retrying
+        its metadata and its deallocation can crash the process, so the writer is kept alive
+        (:data:`ABANDONED`) and the process ends with ``os._exit`` (:mod:`signorini.io.entry`)."""
+        ABANDONED.append(self._writer)
+        self._writer = None
+        self._release_reserve()
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         if self._writer is None:
