@@ -16,8 +16,10 @@ by the SVD of A_c, accurate to cond(A_c) x machine precision).
 
 **The neighbourhood grows until the fit is well posed** (:func:`neighbourhoods`):
 
-1. the non-contact nodes within two rings of the node graph (the paper's bar and every
-   node with interior neighbours nearby: the historical choice, unchanged);
+1. the non-contact nodes within two rings of the node graph (the first, historical choice:
+   the paper's bar and every node with interior neighbours nearby; within the ring, the
+   2(d+1) nearest are tried first, :data:`COMPACT`, which changed the bars' matrices:
+   bar2d's by 15% of its largest entry);
 2. further rings, up to :data:`MAX_RING`, for nodes on rims, edges and corners of a
    body whose whole skin is in contact;
 3. the k nearest non-contact nodes in space (k doubling), for bodies whose interior is

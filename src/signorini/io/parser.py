@@ -28,7 +28,12 @@ EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --o
 def add_output_arguments(p, default: str | None, out_help: str, quiet_help: str) -> None:
     """--out, --overwrite and --quiet, shared by every command that writes a directory."""
     p.add_argument("--out", default=default, help=out_help)
-    p.add_argument("--overwrite", action="store_true", help="replace a non-empty output directory")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an output directory that signorini wrote (it holds the marker .signorini and nothing "
+        "else); any other non-empty directory is refused",
+    )
     p.add_argument("--quiet", action="store_true", help=quiet_help)
 
 

@@ -218,6 +218,10 @@ def _expression_lines() -> list[str]:
         "otherwise).  The value must be finite at every node (else the error names the key, the expression "
         "and one point).  Initial data may not depend on `t`; obstacle positions may depend on `t` only.",
         "",
+        "`[contact] where` is a *condition* of `x`, `y`, `z`: the same language plus the comparisons "
+        "`< <= > >=` (chained, as in `0.1 < z < 0.2`) and `and`, `or`, `not`; a contact node is kept where it "
+        "is true.  `==` and `!=` are not offered (floating-point equality); the compared values must be finite.",
+        "",
     ]
 
 
