@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 import signal
-import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
@@ -34,6 +33,7 @@ from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
 from ..linalg.base import memory_info, total_memory
 from ..linalg.threads import blas_threads
+from ..signals import handled
 from .context import Context
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS
@@ -149,17 +149,8 @@ class _Interrupts:
 @contextmanager
 def _catch_signals(enabled: bool):
     flag = _Interrupts()
-    if not enabled or threading.current_thread() is not threading.main_thread():
+    with handled(flag.handler, enabled):
         yield flag
-        return
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in old:
-        signal.signal(s, flag.handler)
-    try:
-        yield flag
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 #: an extrapolation weight |w|_1 above this is reported (<= 12 on every part we measured)

@@ -17,9 +17,10 @@ import io
 import os
 import signal
 import sys
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+
+from ..signals import handled
 
 
 def _reopen_closed_descriptors() -> None:
@@ -125,14 +126,5 @@ class SignalRecord:
 def deferred_signals() -> Iterator[SignalRecord]:
     """Record SIGINT/SIGTERM instead of acting on them (main thread only)."""
     record = SignalRecord()
-    if threading.current_thread() is not threading.main_thread():
+    with handled(record.handler):
         yield record
-        return
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in old:
-        signal.signal(s, record.handler)
-    try:
-        yield record
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)

@@ -1,0 +1,30 @@
+"""SIGINT and SIGTERM routed to a handler for the duration of a block (one definition for the package)."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def handled(handler: Callable, enabled: bool = True) -> Iterator[None]:
+    """Route SIGINT/SIGTERM to ``handler`` inside the block, restore the previous handlers after.
+
+    Signal handlers can only be set from the main thread: elsewhere (and with
+    ``enabled=False``) the block runs with the handlers as they are.
+    """
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.getsignal(s) for s in SIGNALS}
+    for s in SIGNALS:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
