@@ -42,15 +42,34 @@ def main(argv: list[str] | None = None) -> int:
         return _dispatch(args)
 
 
+def _report_warnings(caught: list) -> None:
+    """One line for the warnings a command raised (all of them with SIGNORINI_TRACEBACK=1)."""
+    if not caught:
+        return
+    if os.environ.get("SIGNORINI_TRACEBACK"):
+        for w in caught:
+            print(f"signorini: warning: {w.category.__name__}: {one_line(w.message)}", file=sys.stderr)
+        return
+    first = caught[0]
+    print(
+        f"signorini: note: {len(caught)} library warning(s), the first {first.category.__name__}: "
+        f"{one_line(first.message, 160)} (SIGNORINI_TRACEBACK=1 lists them)",
+        file=sys.stderr,
+    )
+
+
 def _dispatch(args: argparse.Namespace) -> int:
     """Run the command; map every exception to its exit code and a one-line message."""
     old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" else None
     try:
-        # every quantity is checked for finiteness where it matters; numpy's floating-point
-        # warnings would only add lines before a one-line error
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return args.func(args)
+        # every quantity is checked for finiteness where it matters, so numpy's floating-point
+        # flags are off; Python warnings are collected and counted in one line (not hidden)
+        with np.errstate(all="ignore"), warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return args.func(args)
+            finally:
+                _report_warnings(caught)
     except InputError as exc:
         print(f"signorini: error: {one_line(exc)}", file=sys.stderr)
         return 2
