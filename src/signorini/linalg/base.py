@@ -264,15 +264,24 @@ CG_FRIENDLY_RATIO = 4.0
 def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: bool = False) -> str:
     """Direct solver when its estimated factor fits in ``budget`` bytes, else ``cg``.
 
-    SuperLU for small systems (< 30k dofs, where Pardiso's start-up dominates), then
-    Pardiso when installed, CHOLMOD (cvxopt) when installed.  Without either, a large 3D
-    system goes to CG when ``cg_friendly`` (the operator is mass-dominated, see
-    :data:`CG_FRIENDLY_RATIO`, and the scheme can use the CG contact solve): SuperLU's
-    LU of a 3D operator is slow and large (bar3d n = 16: 52 s, 3.5 GB, against 1.5 s of
-    set-up and 0.6 GB for CG, whose steps are also faster; docs/performance.md).  Then
-    SuperLU, and CG when no factor fits.
+    By estimated cost: the size of the factor (:func:`estimate_factor_bytes`) is the cost
+    of every step's two triangular solves and the measure of its set-up.  Pardiso, when
+    installed, is chosen as soon as its nested-dissection factor is estimated smaller than
+    SuperLU's (3D from about 5,000 dofs: bar3d n = 8, 19,683 dofs, 104 MB against 200 MB;
+    measured set-up 1.2 s against 3.4 s; docs/performance.md), else SuperLU for small
+    systems (< 30k dofs: it has no start-up, and 2D factors are alike), then CHOLMOD
+    (cvxopt), whose Python-side ordering makes its set-up slower than SuperLU's below 30k
+    dofs (measured 10 s against 3.4 s at 19k dofs).  Without either, a large 3D system
+    goes to CG when ``cg_friendly`` (the operator is mass-dominated, see
+    :data:`CG_FRIENDLY_RATIO`, and the scheme can use the CG contact solve): SuperLU's LU
+    of a 3D operator is slow and large (bar3d n = 16: 52 s, 3.5 GB, against 1.5 s of
+    set-up and 0.6 GB for CG, whose steps are also faster).  Then SuperLU, and CG when no
+    factor fits.
     """
     budget = 0.4 * total_memory() if not budget else budget
+    pardiso = estimate_factor_bytes(n, dim, "pardiso")
+    if has_pardiso() and pardiso <= budget and pardiso < estimate_factor_bytes(n, dim, "superlu"):
+        return "pardiso"
     if n < SMALL and estimate_factor_bytes(n, dim, "superlu") <= budget:
         return "superlu"
     for name, present in (("pardiso", has_pardiso), ("cholmod", has_cholmod)):
