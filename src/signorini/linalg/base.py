@@ -280,7 +280,8 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
     """
     budget = 0.4 * total_memory() if not budget else budget
     pardiso = estimate_factor_bytes(n, dim, "pardiso")
-    if has_pardiso() and pardiso <= budget and pardiso < estimate_factor_bytes(n, dim, "superlu"):
+    # has_pardiso() last: it imports pypardiso, which a small run must not load
+    if pardiso <= budget and pardiso < estimate_factor_bytes(n, dim, "superlu") and has_pardiso():
         return "pardiso"
     if n < SMALL and estimate_factor_bytes(n, dim, "superlu") <= budget:
         return "superlu"
