@@ -289,8 +289,8 @@ def _add_reproduce(sub) -> None:
         "standard and seed masses; one figure per figure of the paper (fig1_*.png .. fig8_*.png, "
         "mapped in report.md); 2D/3D rates against a reference 4x finer than the finest level, "
         "checked against other references; section 6 ranks CN, BE, generalized-alpha and Paoli-Schatzman x "
-        "standard/seed with `signorini compare` (1D impact, 2D bar).  --quick (default) takes about 25 s on 2 "
-        "idle cores.",
+        "standard/seed with `signorini compare` (1D impact, 2D bar).  --quick (default) takes 25-60 s on 2 "
+        "cores (idle to loaded).",
         "  signorini reproduce --quick --out results\n  signorini reproduce --full --out full",
     )
     g = q.add_mutually_exclusive_group()
