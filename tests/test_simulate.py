@@ -44,18 +44,6 @@ def _levels(name, mass, scheme, levels, T=3.0, params=None):
 LEVELS = (20, 40, 80, 160)
 
 
-@pytest.mark.parametrize("name", ["bar1d", "bar1d-impact"])
-@pytest.mark.parametrize("mass", ["seed", "moment-preserving"])
-def test_cn_redistributed_mass_converges(name, mass):
-    rates, rows = _levels(name, mass, "cn", LEVELS)
-    # spec 3.3: ~0.3-0.5 for H1, velocity and stress, ~1 for L2(u); energy error O(h)
-    for k in ("u_H1", "v_L2", "stress"):
-        assert 0.2 < np.mean(rates[k]) < 0.75, (k, rates[k])
-        assert rows[-1][k] < rows[0][k]
-    assert 0.7 < np.mean(rates["u_L2"]) < 1.4
-    assert np.mean(rates["energy_L2"]) > 0.9
-
-
 @pytest.mark.parametrize("params", [{"gap": 0.3, "E": 4.0}, {"L": 2.0, "rho": 2.0, "gap": 0.2}])
 def test_cn_seed_converges_non_default_parameters(params):
     rates, rows = _levels("bar1d", "seed", "cn", LEVELS, T=3.0 * params.get("L", 1.0), params=params)
@@ -91,21 +79,6 @@ def test_cn_standard_mass_gains_energy_and_does_not_converge():
     assert min(E_end) > 1.5 * 0.125  # the paper's finding: energy grows after impact
     rates, rows = _levels("bar1d", "standard", "cn", (40, 160))
     assert rows[-1]["stress"] > 1.0 and rows[-1]["u_H1"] > 0.5
-
-
-@pytest.mark.parametrize("mass", ["standard", "seed", "lumped", "moment-preserving", "seed-normal"])
-@pytest.mark.parametrize("scheme", ["cn", "be"])
-def test_bar2d_first_contact_identity_and_complementarity(mass, scheme):
-    b = get_benchmark("bar2d")
-    n = 2
-    dt = b.h(n) / 2
-    H = simulate(b.problem(n), scheme, dt, 1.2, mass=mass)
-    assert_complementarity(H)
-    assert_energy_identity(H)
-    touching = H.gap.min(axis=1) <= 1e-12 * 0.2
-    first = H.t[np.argmax(touching)]
-    assert first - dt < 0.4 + 1e-12 <= first + 1e-12  # in the step containing t = 0.4
-    assert H.lam[H.t < 0.4 - 1e-12].max() == 0.0
 
 
 def test_bar3d_contact_and_identity():
