@@ -47,6 +47,8 @@ def main() -> int:
         except OSError:
             pass
         code = 130
+    for s in (signal.SIGINT, signal.SIGTERM):  # the exit code is decided: a signal now changes nothing
+        signal.signal(s, signal.SIG_IGN)
     from . import output
 
     if output.ABANDONED:  # an HDF5 file failed mid-write: end without HDF5's deallocation (it can crash)
