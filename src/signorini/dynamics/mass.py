@@ -53,7 +53,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..fem.assembly import scalar_mass_matrix, vectorize
+from ..fem.assembly import lumped_mass_matrix, scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
 from ..linalg.sparse import count_per_row
 from ..registry import Registry
@@ -77,8 +77,7 @@ def _standard(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.cs
 
 
 def _lumped(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
-    m = np.asarray(scalar_mass_matrix(mesh, rho).sum(axis=1)).ravel()
-    return sp.diags(np.repeat(m, mesh.dim), format="csr")
+    return vectorize(lumped_mass_matrix(scalar_mass_matrix(mesh, rho)), mesh.dim)
 
 
 def _scalar_variant(name: str, build):

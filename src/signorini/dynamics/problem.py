@@ -115,10 +115,6 @@ class Discretization:
         return self.constraints.fixed
 
     @property
-    def loads_vary(self) -> bool:
-        return bool(self._varying)
-
-    @property
     def dirichlet_varies(self) -> bool:
         return self.constraints.time_dependent
 

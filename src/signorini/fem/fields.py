@@ -8,10 +8,7 @@ arguments ``(x, t)``.  :func:`at_time` turns any of them into a function of x on
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable
 from typing import Any
-
-import numpy as np
 
 
 def is_time_dependent(f: Any) -> bool:
@@ -35,10 +32,3 @@ def at_time(f: Any, t: float) -> Any:
     if is_time_dependent(f):
         return lambda x: f(x, t)
     return f
-
-
-def evaluate(f: Any, x: np.ndarray, t: float, shape: tuple[int, ...]) -> np.ndarray:
-    """Values of a constant / f(x) / f(x, t) at points x, broadcast to ``shape``."""
-    g: Callable | Any = at_time(f, t)
-    v = g(x) if callable(g) else np.asarray(g, dtype=float)
-    return np.broadcast_to(np.asarray(v, dtype=float), shape)

@@ -14,7 +14,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..errors import InputError
 from ..fem.fields import at_time, is_time_dependent
@@ -114,47 +113,3 @@ class Constraints:
     def free_index(self, dofs: np.ndarray) -> np.ndarray:
         """Position among free dofs of full ``dofs`` (-1 for fixed dofs)."""
         return self._full_to_free[np.asarray(dofs)]
-
-    def reduce(self, A: sp.spmatrix) -> sp.csr_matrix:
-        """A_ff (free rows and columns)."""
-        return self.reduce_with_lifting(A)[0]
-
-    def lifting(self, A: sp.spmatrix) -> np.ndarray:
-        """A_fD u_D: subtract it from the free right-hand side."""
-        return self.reduce_with_lifting(A)[1]
-
-    def reduce_with_lifting(self, A: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
-        """(A_ff, A_fD u_D) in one vectorized pass over the entries of the CSR matrix."""
-        A = sp.csr_matrix(A)
-        n = A.shape[0]
-        is_free = np.zeros(n, dtype=bool)
-        is_free[self.free] = True
-        rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
-        row_free = is_free[rows]
-        col_free = is_free[A.indices]
-        keep = row_free & col_free
-        cols = self._full_to_free[A.indices[keep]].astype(A.indices.dtype)
-        counts = np.bincount(rows[keep], minlength=n)[self.free]
-        indptr = np.zeros(self.free.size + 1, dtype=A.indptr.dtype)
-        np.cumsum(counts, out=indptr[1:])
-        Aff = sp.csr_matrix((A.data[keep], cols, indptr), shape=(self.free.size, self.free.size))
-        lift = np.zeros(self.free.size)
-        if self.fixed.size:
-            u = np.zeros(n)
-            u[self.fixed] = self.values
-            cross = row_free & ~col_free
-            lift = np.bincount(
-                self._full_to_free[rows[cross]],
-                weights=A.data[cross] * u[A.indices[cross]],
-                minlength=self.free.size,
-            )
-        return Aff, lift
-
-    def expand(self, u_free: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
-        """Full vector from free values; fixed dofs get their prescribed values
-        (or ``fixed_values``, e.g. zero for velocities)."""
-        u_free = np.asarray(u_free)
-        out = np.empty(u_free.shape[:-1] + (self.space.n_dofs,))
-        out[..., self.free] = u_free
-        out[..., self.fixed] = self.values if fixed_values is None else fixed_values
-        return out

@@ -274,12 +274,6 @@ def table_start(title: str, columns: list[str], intro: tuple[str, ...] = ()) -> 
     return lines + ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
 
 
-def figure_file(number: int) -> str:
-    from .plots import PAPER_FIGURES
-
-    return PAPER_FIGURES[number][0] + ".png"
-
-
 def figure_md(number: int) -> list[str]:
     """The markdown image of paper figure ``number`` with its caption."""
     from .plots import PAPER_FIGURES
