@@ -103,11 +103,12 @@ def contact_figure(runs: dict, scheme: str, number: int, png: Path, csv_path: Pa
     for j, mass in enumerate(masses):
         H = runs[mass]
         nodes = representative_nodes(H.coordinates)
-        colors = [f"C{k}" for k in range(nodes.size)]
-        for c, i in zip(colors, nodes, strict=True):
+        for k, i in enumerate(nodes):
+            # coinciding histories stay visible: a wide solid line under narrower dashed/dotted ones
+            style = {"color": f"C{k}", "ls": LINESTYLES[k % len(LINESTYLES)], "lw": max(2.4 - 0.7 * k, 0.8)}
             lab = f"node x = {H.coordinates[i, 0]:.3g}"
-            ax[0, j].plot(H.t, H.gap[:, i], color=c, lw=1, label=lab)
-            ax[1, j].plot(H.t, H.lam[:, i], color=c, lw=1, label=lab)
+            ax[0, j].plot(H.t, H.gap[:, i], label=lab, **style)
+            ax[1, j].plot(H.t, H.lam[:, i], label=lab, **style)
             header += [f"t_{mass}_node{i}", f"gap_{mass}_node{i}", f"lambda_{mass}_node{i}"]
             cols += [H.t, H.gap[:, i], H.lam[:, i]]
         ax[0, j].set_title(f"{MASS_TITLE[mass]}: normal displacement (gap to the obstacle)", fontsize=9)
