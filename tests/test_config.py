@@ -148,3 +148,18 @@ def test_where_with_a_non_finite_value_is_refused(tmp_path):
 
     with pytest.raises(InputError, match="not finite"):
         discretize(load_case(path).problem, "standard")
+
+
+def test_dirichlet_blocks_on_two_tags_must_agree_on_shared_nodes(tmp_path):
+    path = tmp_path / "c.toml"
+    clash = (
+        '[[dirichlet]]\ntag = "ymax"\nvalue = [0.0, 0.0]\n[[dirichlet]]\ntag = "xmax"\ncomponents = [0]\n'
+        "value = [0.1]\n"
+    )
+    path.write_text(_case_text(clash))
+    from signorini.dynamics.problem import discretize
+
+    with pytest.raises(InputError, match="prescribe different values"):
+        discretize(load_case(path).problem, "standard")
+    path.write_text(_case_text(clash.replace("[0.1]", "[0.0]")))  # agreeing: fine
+    assert discretize(load_case(path).problem, "standard").fixed.size > 0

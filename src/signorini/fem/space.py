@@ -90,6 +90,33 @@ class Constraints:
         self._full_to_free = -np.ones(space.n_dofs, dtype=np.int64)
         self._full_to_free[self.free] = np.arange(self.free.size)
         self.values = self.values_at(0.0)
+        self._check_agreement(0.0)
+
+    def _check_agreement(self, t: float) -> None:
+        """Two conditions that prescribe one dof (a corner shared by two tags) must agree:
+        otherwise the last one would win without a word."""
+        if len(self._parts) < 2:
+            return
+        seen = np.full(self.space.n_dofs, np.nan)
+        owner = np.full(self.space.n_dofs, -1)
+        for k, (bc, nodes, dofs) in enumerate(self._parts):
+            if callable(bc.value):
+                vals = np.asarray(at_time(bc.value, t)(self.space.mesh.points[nodes]), dtype=float)
+            else:
+                vals = np.atleast_1d(np.asarray(bc.value, dtype=float))
+            v = np.broadcast_to(vals.reshape(len(nodes), -1) if vals.ndim > 1 else vals, dofs.shape).ravel()
+            d = dofs.ravel()
+            both = ~np.isnan(seen[d])
+            clash = both & ~np.isclose(seen[d], v, rtol=1e-12, atol=1e-300)
+            if clash.any():
+                i = int(np.flatnonzero(clash)[0])
+                j = int(owner[d[i]])
+                raise InputError(
+                    f"Dirichlet conditions on tags {self._parts[j][0].tag!r} and {bc.tag!r} prescribe different values "
+                    f"({seen[d[i]]:g} and {v[i]:g}) on the dof {int(d[i])} they share "
+                    f"(node {int(d[i]) // self.space.dim}); make them agree there"
+                )
+            seen[d], owner[d] = v, k
 
     def values_at(self, t: float) -> np.ndarray:
         """Prescribed values on the fixed dofs (in the order of ``fixed``) at time t."""
