@@ -25,3 +25,13 @@ def pytest_sessionfinish(session, exitstatus):
             reporter.write_line(f"SIGNORINI_NO_SKIPS: skipped {rep.nodeid}: {reason}", red=True)
         reporter.write_line(f"SIGNORINI_NO_SKIPS=1: {len(skipped)} test(s) skipped; expected none", red=True)
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+@pytest.fixture(scope="session")
+def reproduced_tiny(tmp_path_factory):
+    """``signorini reproduce --tiny`` run once per session (read-only for the tests that use it)."""
+    from signorini.io.cli import main
+
+    out = tmp_path_factory.mktemp("reproduce_tiny") / "out"
+    assert main(["reproduce", "--tiny", "--out", str(out), "--quiet"]) == 0
+    return out

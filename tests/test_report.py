@@ -4,15 +4,13 @@ import re
 import numpy as np
 import pytest
 
-from signorini.io.cli import main
 from signorini.studies import plots, report
 from signorini.studies.reference_study import DEFAULT_REFERENCE_FACTOR
 
 
 @pytest.fixture(scope="module")
-def tiny_report(tmp_path_factory):
-    out = tmp_path_factory.mktemp("rep") / "r"
-    assert main(["reproduce", "--tiny", "--out", str(out), "--quiet"]) == 0
+def tiny_report(reproduced_tiny):
+    out = reproduced_tiny  # one run of reproduce --tiny per session (tests/conftest.py)
     return out, (out / "report.md").read_text(), json.loads((out / "summary.json").read_text())
 
 

@@ -49,8 +49,11 @@ SAME = 1e-12  # recomputed series vs the CSV: relative to the series' largest va
 @pytest.fixture(scope="module", params=["tiny", pytest.param("quick", marks=pytest.mark.slow)])
 def reproduced(request, tmp_path_factory):
     size = request.param
-    out = tmp_path_factory.mktemp(f"reproduce_{size}") / "out"
-    assert main(["reproduce", f"--{size}", "--out", str(out), "--quiet"]) == 0
+    if size == "tiny":  # shared with test_report.py: one run per session
+        out = request.getfixturevalue("reproduced_tiny")
+    else:
+        out = tmp_path_factory.mktemp(f"reproduce_{size}") / "out"
+        assert main(["reproduce", f"--{size}", "--out", str(out), "--quiet"]) == 0
     text = (out / "report.md").read_text()
     return size, out, text, report.SIZES[size]
 
