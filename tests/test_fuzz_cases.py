@@ -706,7 +706,8 @@ CHOICE_SLOTS = {
     ("mesh", "cell"): ["quadrilateral", "hex", "tri", "", "line "],
     ("contact", "obstacle", "type"): ["ball", "plane ", "", "cylinder"],
     ("solver", "backend"): ["umfpack", "", "CG ", "mumps"],
-    ("solver", "preconditioner"): ["ilu", "", "AMG "],
+    # registry names are case-insensitive and stripped ("AMG " is amg): not a bad choice
+    ("solver", "preconditioner"): ["ilu", "", "amgx"],
 }
 
 
