@@ -100,15 +100,17 @@ NARROW = [
 ]
 
 
+def _agree(p, derived) -> None:
+    """hertz.py's prediction ``p`` against this file's derivation (approach, force, duration, radius, mass, E*)."""
+    d, F, tc, a, m, Es = derived
+    assert _close(p.mass, m) and _close(p.E_star, Es)
+    for name, mine in (("max_approach", d), ("peak_force", F), ("duration", tc), ("contact_radius", a)):
+        assert _close(getattr(p, name), mine), (name, getattr(p, name), mine)
+
+
 @pytest.mark.parametrize("R, E, nu, rho, v", PARAMS + NARROW)
 def test_sphere_on_rigid_plane(R, E, nu, rho, v):
-    d, F, tc, a, m, Es = sphere_impact(R, E, nu, rho, v)
-    p = hertz_prediction(3, R, E, nu, rho, v)
-    assert _close(p.mass, m) and _close(p.E_star, Es)
-    assert _close(p.max_approach, d), (p.max_approach, d)
-    assert _close(p.peak_force, F), (p.peak_force, F)
-    assert _close(p.duration, tc), (p.duration, tc)
-    assert _close(p.contact_radius, a), (p.contact_radius, a)
+    _agree(hertz_prediction(3, R, E, nu, rho, v), sphere_impact(R, E, nu, rho, v))
 
 
 def _disc_cases():
@@ -118,13 +120,7 @@ def _disc_cases():
 
 @pytest.mark.parametrize("R, E, nu, rho, v", _disc_cases())
 def test_disc_on_rigid_plane_per_unit_thickness(R, E, nu, rho, v):
-    d, F, tc, b, m, Es = disc_impact(R, E, nu, rho, v)
-    p = hertz_prediction(2, R, E, nu, rho, v)
-    assert _close(p.mass, m) and _close(p.E_star, Es)
-    assert _close(p.duration, tc), (p.duration, tc)
-    assert _close(p.contact_radius, b), (p.contact_radius, b)
-    assert _close(p.max_approach, d), (p.max_approach, d)
-    assert _close(p.peak_force, F), (p.peak_force, F)
+    _agree(hertz_prediction(2, R, E, nu, rho, v), disc_impact(R, E, nu, rho, v))
 
 
 @pytest.mark.parametrize("R, E, nu, rho, v", NARROW)

@@ -37,6 +37,19 @@ def add_output_arguments(p, default: str | None, out_help: str, quiet_help: str)
     p.add_argument("--quiet", action="store_true", help=quiet_help)
 
 
+def add_limit_arguments(p, steps_what: str, memory_what: str) -> None:
+    """--max-steps, --max-memory and --yes, shared by every command that may start large runs."""
+    p.add_argument("--max-steps", type=int, default=None, help=f"refuse {steps_what} unless --yes (default 1,000,000)")
+    p.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GIB",
+        help=f"refuse {memory_what} unless --yes (default 80%% of the machine's memory)",
+    )
+    p.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
+
+
 def add_command(sub, name: str, help: str, description: str, examples: str) -> argparse.ArgumentParser:
     """A subcommand whose help ends with its examples (kept verbatim)."""
     return sub.add_parser(
@@ -118,21 +131,11 @@ def _add_run(sub) -> None:
     out.add_argument(
         "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps and at the end (0: none)"
     )
-    out.add_argument(
-        "--max-steps",
-        type=int,
-        default=None,
-        help="refuse runs with more steps unless --yes (default 1,000,000; case file: [limits] max_steps)",
+    add_limit_arguments(
+        out,
+        "runs with more steps (case file: [limits] max_steps)",
+        "runs whose estimated memory exceeds this many GiB (case file: [limits] max_memory)",
     )
-    out.add_argument(
-        "--max-memory",
-        type=float,
-        default=None,
-        metavar="GIB",
-        help="refuse runs whose estimated memory exceeds this many GiB unless --yes "
-        "(default 80%% of the machine's memory; case file: [limits] max_memory)",
-    )
-    out.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
     add_output_arguments(
         out, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
     )
@@ -176,18 +179,11 @@ def _add_study(sub) -> None:
     st.add_argument("--ratio", type=float, default=0.5, help="time step over mesh size, dt = ratio h (default 0.5)")
     st.add_argument("--T", type=float, default=1.0, help="final time (default 1)")
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
-    st.add_argument(
-        "--max-steps", type=int, default=None, help="refuse a level with more steps unless --yes (default 1,000,000)"
+    add_limit_arguments(
+        st,
+        "a level with more steps",
+        "the study when a level's estimated memory (with the fields it keeps for the errors) exceeds this many GiB",
     )
-    st.add_argument(
-        "--max-memory",
-        type=float,
-        default=None,
-        metavar="GIB",
-        help="refuse the study when a level's estimated memory (with the fields it keeps for the errors) exceeds "
-        "this many GiB unless --yes (default 80%% of the machine's memory)",
-    )
-    st.add_argument("--yes", action="store_true", help="run even if over the step or memory limits")
     add_output_arguments(st, "out/study", "output directory (default out/study)", "no table on stdout")
     st.set_defaults(func=cmd_study)
 
@@ -262,19 +258,12 @@ def _add_compare(sub) -> None:
         default=None,
         help="parallel processes (default: min(available cores, number of runs)); results do not depend on it",
     )
-    cpo.add_argument(
-        "--max-steps", type=int, default=None, help="refuse a run with more steps unless --yes (default 1,000,000)"
+    add_limit_arguments(
+        cpo,
+        "a run with more steps",
+        "the matrix when its estimated memory exceeds this many GiB: every run with the fields it keeps for the "
+        "errors, --jobs runs at once, the fields held for a 2D/3D reference",
     )
-    cpo.add_argument(
-        "--max-memory",
-        type=float,
-        default=None,
-        metavar="GIB",
-        help="refuse the matrix when its estimated memory exceeds this many GiB unless --yes: every run with the "
-        "fields it keeps for the errors, --jobs runs at once, the fields held for a 2D/3D reference "
-        "(default 80%% of the machine's memory)",
-    )
-    cpo.add_argument("--yes", action="store_true", help="run even if over the step or memory limits")
     add_output_arguments(cpo, "out/compare", "output directory (default out/compare)", "no table on stdout")
     cp.set_defaults(func=cmd_compare)
 
