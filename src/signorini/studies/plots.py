@@ -53,11 +53,13 @@ def _fig(rows: int, cols: int, size=(10, 6), **kw):
 
 
 def _save(fig, path: Path, title: str | None = None) -> None:
+    """Suptitle ``title``, lay out (tight unless the figure has its own layout engine) and write ``path``."""
     import matplotlib.pyplot as plt
 
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -130,10 +132,14 @@ def contact_figure(runs: dict, scheme: str, number: int, png: Path, csv_path: Pa
 def energy_figure(runs: dict, conv: dict | None, scheme: str, number: int, png: Path, csv_path: Path) -> None:
     """Fig. 2 (CN) / Fig. 7 (BE): E(t)/E(0) for each mass on its own axis, and the
     energy error norms of the convergence study against the level (``conv`` maps the
-    mass to a :func:`convergence_study` result; None leaves the panel out)."""
+    mass to a :func:`convergence_study` result; None leaves the panel out).
+
+    The legend of the error panel sits below it, off the data; L2 norms are drawn as
+    large filled circles under small open squares (Linf), so equal norms stay visible.
+    """
     masses = [m for m in ("standard", "seed") if m in runs]
     ncols = len(masses) + (1 if conv else 0)
-    fig, ax = _fig(1, ncols, (4.6 * ncols, 4.2))
+    fig, ax = _fig(1, ncols, (4.6 * ncols, 4.6 if conv else 4.2), layout="constrained")
     header, cols = [], []
     for j, mass in enumerate(masses):
         H = runs[mass]
@@ -152,13 +158,16 @@ def energy_figure(runs: dict, conv: dict | None, scheme: str, number: int, png: 
         for j, (mass, c) in enumerate(conv.items()):
             n = np.array([r["n"] for r in c["rows"]])
             levels |= set(n.tolist())
-            for key, style in (("energy_L2", "o-"), ("energy_Linf", "s--")):
-                a.loglog(n, [r[key] for r in c["rows"]], style, color=f"C{j}", label=f"{mass}: {NORM_TITLE[key]}")
+            for key, style in (
+                ("energy_L2", {"ls": "-", "marker": "o", "ms": 8, "lw": 2.2}),
+                ("energy_Linf", {"ls": "--", "marker": "s", "ms": 5, "lw": 1.2, "mfc": "white"}),
+            ):
+                a.loglog(n, [r[key] for r in c["rows"]], color=f"C{j}", label=f"{mass}: {NORM_TITLE[key]}", **style)
         c0 = next(iter(conv.values()))
         _level_axis(a, sorted(levels), c0["rows"], c0.get("ratio"))
         a.set_ylabel("relative error")
         a.set_title(f"energy error norms over [0, {c0['T']:g}] vs refinement", fontsize=9)
-        a.legend(fontsize=7)
+        a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2, frameon=False)
     name = SCHEME_TITLE.get(scheme, scheme)
     _save(fig, png, _paper_title(number, f"{name} energy; standard vs modified mass"
                                          + (", error norms against the reference" if conv else "")))  # fmt: skip
@@ -199,7 +208,7 @@ def convergence_figure(conv: dict, scheme: str, number: int, png: Path, csv_path
     with slopes 1/2 and 1 for reading the rates.  ``conv`` maps labels (the masses) to
     :func:`convergence_study` results against the same reference."""
     keys = keys or ("u_H1", "force", "v_L2", "v_Linf")
-    fig, ax = _fig(1, len(keys), (4.1 * len(keys), 4.3))
+    fig, ax = _fig(1, len(keys), (4.1 * len(keys), 4.6), layout="constrained")
     rows = []
     first = next(iter(conv.values()))
     for j, k in enumerate(keys):
@@ -218,11 +227,12 @@ def convergence_figure(conv: dict, scheme: str, number: int, png: Path, csv_path
         _level_axis(a, sorted(levels), first["rows"], first.get("ratio"))
         a.set_title(NORM_TITLE.get(k, k), fontsize=9)
         a.set_ylabel("relative error")
-    ax[0, 0].legend(fontsize=7)
+    handles, labels = ax[0, 0].get_legend_handles_labels()  # one legend for every panel, below them
+    fig.legend(handles, labels, fontsize=8, loc="outside lower center", ncol=len(labels), frameon=False)
     ref = first["reference"]
     name = SCHEME_TITLE.get(scheme, scheme)
-    _save(fig, png, _paper_title(number, f"{name} error curves, T = {first['T']:g}; reference: "
-                                         f"{ref.get('description', 'exact')}"))  # fmt: skip
+    _save(fig, png, _wrap(_paper_title(number, f"{name} error curves, T = {first['T']:g}; reference: "
+                                               f"{ref.get('description', 'exact')}"), 40 * len(keys)))  # fmt: skip
     with open(csv_path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["mass", "norm", "n", "relative_error", "reference_level"])
@@ -376,7 +386,7 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
     relative = quantity == "energy" and all(e != 0 and np.isfinite(e) for e in E0s.values())
     ylabel = spec[1] if relative or quantity != "energy" else f"scheme energy E(t) ({units})"
     drift_panel = relative  # energy: also |E - E0|/|E0| on a log scale, where small drifts differ
-    fig, ax = _fig(1, 2 if drift_panel else 1, (14, 4.8) if drift_panel else (9.5, 4.6))
+    fig, ax = _fig(1, 2, (14, 4.8), layout="constrained") if drift_panel else _fig(1, 1, (9.5, 4.6))
     a = ax[0, 0]
     rows = []
     for p in pairs:
@@ -402,28 +412,21 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
     if drift_panel:
         b = ax[0, 1]
         b.set_yscale("log")
-        b.set_ylabel(f"energy drift |E(t) - E(0)| / |E(0)| (floor {DRIFT_FLOOR:g})")
-        b.set_title("drift on a log scale", fontsize=9)
+        b.set_ylabel("energy drift |E(t) - E(0)| / |E(0)|")
+        b.set_title(f"drift on a log scale (values below {DRIFT_FLOOR:g} drawn at {DRIFT_FLOOR:g})", fontsize=9)
         a.set_title("E(t) / E(0)", fontsize=9)
     if quantity == "penetration":
         _penetration_axis(a, [float(np.max(series[p["label"]]["penetration"], initial=0.0)) for p in pairs], result)
-    _legend_right(fig, ax[0, -1] if not drift_panel else a)
-    if drift_panel:  # the legend of the left panel goes below both
-        a.get_legend().remove()
+    if drift_panel:  # one legend for both panels, below them (constrained layout makes room)
         handles, labels = a.get_legend_handles_labels()
-        ncol = min(4, max(1, len(labels)))
-        fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
+        fig.legend(
+            handles, labels, fontsize=7, loc="outside lower center", ncol=min(4, max(1, len(labels))), frameon=False
+        )
+    else:
+        _legend_right(fig, a)
     what = spec[2][0].upper() + spec[2][1:]
     title = f"{what} vs time, one line per scheme / mass pair ({_where(result)}){_unavailable_note(result)}"
-    if drift_panel:
-        import matplotlib.pyplot as plt
-
-        fig.suptitle(_wrap(title, 140), fontsize=10)
-        fig.tight_layout(rect=(0, 0.045 * -(-len(labels) // ncol) + 0.02, 1, 0.95))
-        fig.savefig(png, dpi=110)
-        plt.close(fig)
-    else:
-        _save(fig, png, _wrap(title))
+    _save(fig, png, _wrap(title, 140 if drift_panel else 115))
     value = {"energy": "energy", "force": "total_contact_force", "penetration": "penetration"}[quantity]
     header = [value, "energy_over_E0", "energy_drift"] if relative else [value, f"plotted_{value}"]
     _write_csv_rows(csv_path, ["pair", "scheme", "mass", "t", *header], rows)
