@@ -14,6 +14,7 @@ import scipy.sparse as sp
 from ..errors import InputError
 from ..fem.assembly import facet_weights
 from ..fem.space import Constraints, VectorSpace
+from .frames import frame_rows, tangent_frames
 from .obstacles import RigidObstacle
 
 
@@ -28,6 +29,8 @@ class ContactSet:
     gaps : (nc,) gaps g_i at t = 0 [length].
     weights : (nc,) w_i = int_{Gamma_C} N_i ds (1 per node in 1D).
     B : (nc, n_dofs) sparse, row i = nu_i^T on the dofs of node i.
+    dofs : (nc, d) the dofs of the contact nodes.
+    tangents : (nc, d - 1, d) unit tangents of the nodal frames (:mod:`~.frames`).
     """
 
     nodes: np.ndarray
@@ -37,6 +40,36 @@ class ContactSet:
     B: sp.csr_matrix
     points: np.ndarray | None = None
     obstacle: RigidObstacle | None = None
+    dofs: np.ndarray | None = None
+
+    @property
+    def tangents(self) -> np.ndarray:
+        """Unit tangents (nc, d - 1, d) of the nodal frames (computed once, from the normals)."""
+        if not hasattr(self, "_tangents"):
+            self._tangents = tangent_frames(self.normals)
+        return self._tangents
+
+    def tangential_matrix(self, n_dofs: int) -> sp.csr_matrix:
+        """T (nc (d - 1), n_dofs): row i (d - 1) + k = t_ik^T on the dofs of node i."""
+        return frame_rows(self.dofs, self.tangents, n_dofs)
+
+    def frame_matrix(self, n_dofs: int) -> sp.csr_matrix:
+        """H (nc d, n_dofs) node-major: row i d = nu_i^T, rows i d + k = t_ik^T (k >= 1)."""
+        return frame_rows(self.dofs, np.concatenate([self.normals[:, None, :], self.tangents], axis=1), n_dofs)
+
+    def obstacle_slip(self, t0: float, t1: float) -> np.ndarray:
+        """Tangential components (nc, d - 1) of the obstacle's translation from t0 to t1 [length]."""
+        shift = self.obstacle.translation(t0, t1) if self.obstacle is not None else np.zeros(0)
+        if shift.size == 0 or not np.any(shift):
+            return np.zeros(self.tangents.shape[:2])
+        return np.einsum("ikd,d->ik", self.tangents, shift)
+
+    def force_components(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
+        """Global components (d,) of the total contact force sum_i lambda_i nu_i + lambda_t,i . t_i [force]."""
+        F = self.normals.T @ lam
+        if lam_t is not None and lam_t.size:
+            F = F + np.einsum("ik,ikd->d", lam_t, self.tangents)
+        return F
 
     @classmethod
     def from_tag(
@@ -84,7 +117,7 @@ class ContactSet:
                     f"condition in the normal direction (e.g. node {int(nodes[clash][0])}); "
                     "remove them from the Dirichlet or the contact tag"
                 )
-        return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle)
+        return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle, dofs)
 
     @property
     def moving(self) -> bool:

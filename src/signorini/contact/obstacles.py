@@ -86,6 +86,14 @@ class RigidObstacle:
         """Gaps g(t) (n,) at the reference points x (n, d); constant for a fixed obstacle."""
         return self.gaps_and_normals(x)[0]
 
+    def translation(self, t0: float, t1: float) -> np.ndarray:
+        """The obstacle's rigid translation from t0 to t1 (d,) [length]; 0 for a fixed one.
+
+        The tangential slip of a contact node is measured relative to it (obstacles
+        translate, they do not rotate).
+        """
+        return np.zeros(0)
+
 
 class PlaneObstacle(RigidObstacle):
     """Half-space obstacle {x : (x - point(t)) . normal < 0}; ``normal`` points out of
@@ -106,6 +114,9 @@ class PlaneObstacle(RigidObstacle):
 
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         return (x - self._point(t)) @ self.normal
+
+    def translation(self, t0: float, t1: float) -> np.ndarray:
+        return self._point(t1) - self._point(t0) if self.moving else np.zeros(self.normal.size)
 
 
 class SphereObstacle(RigidObstacle):
@@ -131,6 +142,9 @@ class SphereObstacle(RigidObstacle):
 
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         return np.linalg.norm(x - self._center(t), axis=1) - self.radius
+
+    def translation(self, t0: float, t1: float) -> np.ndarray:
+        return self._center(t1) - self._center(t0) if self.moving else np.zeros(self.center.size)
 
 
 OBSTACLES = Registry("obstacle type")

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -61,6 +61,7 @@ from ..linalg import (
 from ..linalg.spmv import sparse_product
 from .complementarity import complementarity_residual, solve_lcp
 from .delassus import DelassusColumns
+from .friction import FRICTIONLESS, Friction, solve_cone
 from .schur import SchurDelassus, schur_dofs
 
 
@@ -83,11 +84,17 @@ class ContactLaw:
     velocity-level scheme); lambda is zero elsewhere.  None: all of them.
     ``compliance`` c (nc,) >= 0: the constraint becomes ``B x + c lambda <= bound``, i.e. the
     penalty lambda_i = -max(0, (B x)_i - bound_i) / c_i.  None: exact contact.
-    Only the condensed (direct) solver supports them; a friction law will be one more field.
+    ``friction`` (:class:`~signorini.contact.friction.Friction`): a frictional law adds d - 1
+    tangential multipliers per node (a solver built with d components); ``reference``
+    (nc, d - 1) is c_t of the slip v_t = T x - c_t, and ``radius`` (nc,) the Tresca
+    thresholds s w_i [force].  Only the condensed (direct) solver supports these fields.
     """
 
     subset: np.ndarray | None = None
     compliance: np.ndarray | None = None
+    friction: Friction = FRICTIONLESS
+    reference: np.ndarray | None = None
+    radius: np.ndarray | None = None
 
     @property
     def exact(self) -> bool:
@@ -95,10 +102,13 @@ class ContactLaw:
         return (self.subset is None or bool(self.subset.all())) and self.compliance is None
 
     def scaled(self, s: float) -> ContactLaw:
-        """The same law for the system divided by s (lambda = s mu: compliance times s)."""
-        if self.compliance is None or s == 1.0:
+        """The same law for the system divided by s (lambda = s mu: compliance times s,
+        Tresca thresholds divided by s; Coulomb's cone is invariant)."""
+        if s == 1.0 or (self.compliance is None and self.radius is None):
             return self
-        return ContactLaw(self.subset, np.asarray(self.compliance) * s)
+        compliance = None if self.compliance is None else np.asarray(self.compliance) * s
+        radius = None if self.radius is None else np.asarray(self.radius) / s
+        return replace(self, compliance=compliance, radius=radius)
 
 
 SIGNORINI = ContactLaw()
@@ -106,12 +116,20 @@ SIGNORINI = ContactLaw()
 
 @dataclass
 class StepInfo:
-    """What one contact solve did: active-set iterations, NNLS fallback, residual."""
+    """What one contact solve did: active-set iterations, NNLS fallback, residual.
+
+    With friction also ``lam_t`` (nc, d - 1) the tangential multipliers [force],
+    ``slip`` (nc, d - 1) the slip v_t = T x - c_t at the solution [length] and ``status``
+    (nc,) separated / stick / slip (:data:`~signorini.contact.friction.STATUS_NAMES`).
+    """
 
     iterations: int
     fallback: bool
     residual: float
     active: np.ndarray
+    lam_t: np.ndarray | None = None
+    slip: np.ndarray | None = None
+    status: np.ndarray | None = None
 
 
 class ContactSolver:
@@ -128,6 +146,8 @@ class ContactSolver:
             "contact_iterations": 0,
             "fallbacks": 0,
             "krylov_iterations": 0,
+            "friction_iterations": 0,
+            "friction_fallbacks": 0,
         }
         self.timings: dict[str, float] = {}
         self.factor_bytes = 0
@@ -195,9 +215,11 @@ class CondensedContactSolver(ContactSolver):
         condense_budget: float = 2e9,
         lcp_max_iter: int = 50,
         condensation: str = "auto",
+        components: int = 1,
     ):
         super().__init__()
         self.B = sp.csr_matrix(B)
+        self.components = components  # rows of B per contact node (d with friction)
         nc, n = self.B.shape
         self.condensation = condensation = choose_condensation(condensation, backend, self.B, condense_budget)
         t0 = time.perf_counter()
@@ -213,7 +235,8 @@ class CondensedContactSolver(ContactSolver):
             self.delassus = DelassusColumns(self.factor, self.B, condense_budget)
             if condensation == "full":
                 self.delassus.ensure(np.arange(nc))
-        self.active = np.zeros(nc, dtype=bool)
+        self.active = np.zeros(nc // components, dtype=bool)
+        self.lam_prev = np.zeros((nc // components, components))
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
@@ -247,7 +270,10 @@ class CondensedContactSolver(ContactSolver):
         every node outside P with r_i = q_i + W_iP mu_P < 0 joins P, until none does.
         Then mu (zero outside P) solves the whole LCP: outside P, mu_i = 0 and r_i >= 0.
         P only grows, so this ends after at most nc rounds (one or two in practice).
+        With friction (``components`` > 1) see :meth:`_solve_friction`.
         """
+        if self.components > 1:
+            return self._solve_friction(b, bound, law)
         state, BU = self.delassus.free(b)
         nc = self.B.shape[0]
         subset, compliance = law.subset, law.compliance
@@ -299,6 +325,68 @@ class CondensedContactSolver(ContactSolver):
         self.counters["fallbacks"] += int(fallback)
         self._sync()
         return U, lam, StepInfo(iterations, fallback, residual, self.active)
+
+    def _solve_friction(
+        self, b: np.ndarray, bound: np.ndarray, law: ContactLaw
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+        """The frictional solve (:func:`~signorini.contact.friction.solve_cone`) on a growing
+        candidate set P of nodes: ``bound`` (nc d,) holds, node-major, the normal bound and
+        the tangential reference c_t of every node; v = H x - bound = v_free + W lambda.
+        P starts as the nodes violated by x_free plus the previous active set, warm-started
+        with the previous multipliers; a node outside P whose normal v_n > 0 joins P.
+        Nodes outside P carry lambda = 0, which is the law's solution there (v_n <= 0 and
+        radius 0).  Returns lambda (nc, d) in the nodal frames."""
+        d = self.components
+        state, HU = self.delassus.free(b)
+        nc = self.B.shape[0] // d
+        v_free = (HU - bound).reshape(nc, d)
+        lam = np.zeros((nc, d))
+        subset = law.subset
+        idx = np.arange(nc) if subset is None else np.flatnonzero(subset)
+        mu = law.friction.coefficient
+        radius = None if law.radius is None else np.asarray(law.radius, dtype=float)
+        gap = -v_free[idx, 0]
+        scale = max(self.gap_scale, float(np.max(np.abs(gap), initial=0.0)))
+        in_P = (gap < 0) | self.active[idx]
+        comp = np.arange(d)
+        iterations, fallback, residual = 0, False, 0.0
+        sol = None
+        while in_P.any():
+            P = idx[in_P]
+            rows = (P[:, None] * d + comp).ravel()
+            near = idx[np.argsort(gap)]
+            self.delassus.ensure(rows, fill=(near[:, None] * d + comp).ravel())
+            sol = solve_cone(
+                self.delassus.block(rows), v_free[P], mu, None if radius is None else radius[P],
+                self.lam_prev[P], scale,
+            )  # fmt: skip
+            iterations += sol.iterations
+            fallback |= sol.fallback
+            residual = sol.residual
+            lam[:] = 0.0
+            lam[P] = sol.lam
+            out = idx[~in_P]
+            if out.size == 0:
+                break
+            v_out = v_free[out, 0] + self.delassus.W(out * d, rows) @ sol.lam.ravel()
+            joining = v_out > 0
+            if not joining.any():
+                break
+            in_P[np.flatnonzero(~in_P)[joining]] = True
+        x = self.delassus.complete(state, lam.ravel())
+        v = (self.B @ x - bound).reshape(nc, d) if sol is not None else v_free
+        status = np.zeros(nc, dtype=np.int8)
+        if sol is not None:
+            status[idx[in_P]] = sol.status
+        self.active = lam[:, 0] < 0
+        self.lam_prev = lam
+        self.counters["contact_iterations"] += iterations
+        self.counters["friction_iterations"] += iterations
+        self.counters["fallbacks"] += int(fallback)
+        self.counters["friction_fallbacks"] += int(fallback)
+        self._sync()
+        info = StepInfo(iterations, fallback, residual, self.active, lam[:, 1:].copy(), v[:, 1:].copy(), status)
+        return x, lam[:, 0].copy(), info
 
 
 class ActiveSetCGSolver(ContactSolver):
@@ -450,12 +538,17 @@ def make_contact_solver(
     options: dict[str, Any] | None = None,
     nodes: np.ndarray | None = None,
     cg_friendly: bool = False,
+    components: int = 1,
 ) -> ContactSolver:
     """The contact solver for ``options['backend']`` (``auto``: :func:`choose_backend`);
     ``nodes`` (n,) is the mesh node of each row of K (blocks of ``block-jacobi``);
-    ``cg_friendly``: K is mass-dominated and the scheme can use the CG contact solve."""
+    ``cg_friendly``: K is mass-dominated and the scheme can use the CG contact solve;
+    ``components``: rows of B per contact node (d with friction: B is the frame matrix H)."""
     opts = solver_options(options)
     backend = opts["backend"]
+    if components > 1 and backend == "cg":
+        raise InputError("friction needs the condensed contact solve of a direct backend (superlu, pardiso, "
+                         "cholmod or auto), not cg")  # fmt: skip
     if backend == "auto" and opts["condensation"] == "schur":
         if not has_pardiso():
             raise InputError("solver option condensation='schur' needs the pardiso backend, which is not installed "
@@ -467,11 +560,16 @@ def make_contact_solver(
         # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
         fits = 8.0 * nc * nc < budget
         backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if fits else "cg"
+        if backend == "cg" and components > 1:
+            raise InputError(
+                f"friction needs the dense Delassus matrix of {nc} x {nc} entries ({8.0 * nc * nc / 2**30:.3g} GiB), "
+                "more than the memory budget; raise solver.memory_budget or coarsen the contact boundary"
+            )
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
             opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0), opts["spmv"],
         )  # fmt: skip
     return CondensedContactSolver(
-        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"]
+        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components
     )

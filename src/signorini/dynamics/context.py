@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -98,7 +98,10 @@ class _System:
             dim = ctx.disc.space.dim
             nodes = (f if D.size else np.arange(Kff.shape[0])) // dim  # dofs are node-major
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
-            self.solver: ContactSolver = make_contact_solver(Kff, ctx.Bf, gap_scale, dim, options, nodes, cg_friendly)
+            B = ctx.Hf if ctx.components > 1 else ctx.Bf  # with friction: the nodal frames' rows
+            self.solver: ContactSolver = make_contact_solver(
+                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.components
+            )
         except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
             raise InputError(
                 f"the operator {op} on the free dofs cannot be factorized ({type(exc).__name__}: {exc}): it is "
@@ -137,8 +140,21 @@ class Context:
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
         self.BD = BD if BD is not None and BD.nnz else None
-        #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it)
-        self.iterative_ok = True
+        #: the contact law; with friction, T (nc (d - 1), n) the tangential rows of the nodal
+        #: frames and H (nc d, n) all of them, node-major (:meth:`ContactSet.frame_matrix`)
+        self.friction = disc.friction
+        self.components = self.friction.components(disc.space.dim)
+        self.T = self.H = self.Hf = self.HD = None
+        if self.components > 1:
+            n = disc.space.n_dofs
+            self.T = disc.contact.tangential_matrix(n)
+            self.H = disc.contact.frame_matrix(n)
+            self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
+            HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
+            self.HD = HD if HD is not None and HD.nnz else None
+        #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it;
+        #: never with friction)
+        self.iterative_ok = self.components == 1
         self._systems: list[_System] = []
         self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)
@@ -222,9 +238,49 @@ class Context:
         if guess is not None and sys.solver.uses_guess:
             x0 = guess() if callable(guess) else guess
             sys.solver.set_guess(x0[self.free] if self.has_fixed else x0)
+        if self.components > 1:
+            if not law.friction.frictional or law.reference is None:
+                raise InputError(
+                    f"this step's contact solve has no friction data; the run's law is {self.friction.label} "
+                    "(a scheme that carries friction passes Context.friction_law)"
+                )
+            bound = np.column_stack([bound, law.reference]).ravel()
         b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
         x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, law.scaled(s))
+        if s != 1.0 and info.lam_t is not None:
+            info.lam_t = s * info.lam_t
         return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
+
+    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
+        """``base`` with the run's friction for a position-level step t0 -> t1 from U = U^n:
+        the slip of the step is v_t = T U^{n+1} - c_t with c_t = T U^n + T (obstacle
+        translation), the tangential part of U^{n+1} - U^n relative to the obstacle.
+        ``base`` itself when the run is frictionless."""
+        if self.components == 1:
+            return base
+        ref = (self.T @ U).reshape(self.disc.contact.size, -1) + self.disc.contact.obstacle_slip(t0, t1)
+        return replace(base, friction=self.friction, reference=ref, radius=self._radius())
+
+    def friction_rate_law(self, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
+        """``base`` with the run's friction for a velocity-level step: the slip rate is
+        v_t = T V^{n+1} - c_t with c_t the obstacle's tangential velocity over the step."""
+        if self.components == 1:
+            return base
+        ref = self.disc.contact.obstacle_slip(t0, t1) / (t1 - t0)
+        return replace(base, friction=self.friction, reference=ref, radius=self._radius())
+
+    def _radius(self) -> np.ndarray | None:
+        """Tresca thresholds s w_i (nc,) [force]; None for Coulomb."""
+        if self.friction.law != "tresca":
+            return None
+        return self.friction.threshold * self.disc.contact.weights
+
+    def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
+        """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]."""
+        f = self.B.T @ lam
+        if lam_t is not None and self.T is not None:
+            f = f + self.T.T @ lam_t.ravel()
+        return f
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = rhs`` on the free rows without contact."""
@@ -237,8 +293,9 @@ class Context:
             return rhs, bound
         xD = np.zeros(self.fixed.size) if fixed_values is None else fixed_values
         b = rhs[self.free] - s * sys.lift(xD)
-        if bound is not None and self.BD is not None:
-            bound = bound - self.BD @ xD
+        rows = self.HD if self.components > 1 else self.BD
+        if bound is not None and rows is not None:
+            bound = bound - rows @ xD
         return b, bound
 
     def _expand(self, x: np.ndarray, fixed_values) -> np.ndarray:

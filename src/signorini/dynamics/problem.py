@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.contact_set import ContactSet
+from ..contact.friction import Friction, make_friction
 from ..contact.obstacles import RigidObstacle
 from ..errors import InputError, NonFiniteError
 from ..fem.assembly import body_load, stiffness_matrix, surface_load
@@ -47,6 +48,9 @@ class Problem:
         prescribed motion is its time derivative at t = 0).
     body_force : constant vector, function of x, or of (x, t) [force / length^d].
     tractions : tag -> constant vector, function of x, or of (x, t) [force / length^(d-1)].
+    friction : the contact law (:mod:`signorini.contact.friction`): None or ``"frictionless"``,
+        ``"coulomb:0.3"``, ``"tresca:0.01"``, ``{"law": "coulomb", "coefficient": 0.3}`` or a
+        :class:`~signorini.contact.friction.Friction` (normalized to one).
     """
 
     mesh: Mesh
@@ -60,11 +64,15 @@ class Problem:
     tractions: dict[str, Sequence[float] | Callable] = field(default_factory=dict)
     name: str = "problem"
     contact_where: Callable[[np.ndarray], np.ndarray] | None = None
+    friction: Friction | str | dict | None = None
 
     def __post_init__(self) -> None:
         from .validate import check_problem
 
         check_problem(self)
+        self.friction = make_friction(self.friction)
+        if self.friction.frictional and self.mesh.dim == 1:
+            raise InputError(f"friction {self.friction.label!r} needs a 2D or 3D problem: a 1D bar has no tangent")
 
 
 def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -141,6 +149,11 @@ class Discretization:
     def gaps(self, t: float) -> np.ndarray:
         """Contact gaps g(t) (nc,) [length]."""
         return self.contact.gaps_at(t)
+
+    @property
+    def friction(self) -> Friction:
+        """The contact law of the problem (frictionless unless given)."""
+        return self.problem.friction
 
 
 def _uniform(f, mesh: Mesh) -> np.ndarray | None:

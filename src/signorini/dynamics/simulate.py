@@ -40,7 +40,7 @@ from .mass import DEFAULT_MASS
 from .mass_effect import effect_warning
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .problem import Discretization, Problem, discretize
-from .schemes import Scheme, State, make_scheme
+from .schemes import Scheme, State, friction_schemes, make_scheme
 from .untagged import UntaggedContact
 
 DT_RANGE = (1e-150, 1e150)
@@ -125,7 +125,8 @@ def initial_state(ctx: Context) -> State:
             sol = spla.spsolve(Mrr.tocsc(), r[idx])
             ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
-    state = State(0.0, U, V, A, np.zeros(disc.contact.size))
+    lam_t = np.zeros((disc.contact.size, ctx.components - 1)) if ctx.components > 1 else None
+    state = State(0.0, U, V, A, np.zeros(disc.contact.size), lam_t=lam_t)
     R0 = np.zeros(n)
     ml = np.setdiff1d(ctx.massless, ctx.fixed)
     R0[ml] = -r[ml]
@@ -223,7 +224,14 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     ``check_context`` called before and after, so a refusal comes before any output)."""
     ctx = Context(disc, dt, opts)
     schemes = [s for s in schemes if s is not None]
-    ctx.iterative_ok = not any(s.needs_condensed_solve for s in schemes)
+    ctx.iterative_ok = ctx.iterative_ok and not any(s.needs_condensed_solve for s in schemes)
+    if ctx.friction.frictional:
+        for s in schemes:
+            if s.friction_refusal:
+                raise InputError(
+                    f"scheme {s.name} cannot carry friction ({ctx.friction.label}): {s.friction_refusal}; "
+                    f"schemes that do: {', '.join(friction_schemes())}"
+                )
     for s in schemes:
         s.check_context(ctx)
     for s in schemes:

@@ -42,6 +42,11 @@ register_scheme(ContactStabilizedNewmark, ("csn",))
 register_scheme(EnergyConserving)
 
 
+def friction_schemes() -> list[str]:
+    """The registered schemes that carry a frictional contact law."""
+    return [e.name for e in SCHEMES if e.obj.friction_refusal is None]
+
+
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
     """A scheme instance from a registry name/alias, a Scheme subclass or an instance."""
     if isinstance(scheme, Scheme):
@@ -70,6 +75,7 @@ __all__ = [
     "Scheme",
     "State",
     "Theta",
+    "friction_schemes",
     "make_scheme",
     "register_scheme",
 ]

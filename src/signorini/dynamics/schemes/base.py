@@ -59,6 +59,8 @@ class State:
     ``U``, ``V``, ``A`` : (n,) displacement, velocity, acceleration (A may be zero for
     schemes that do not use it; on massless dofs V = (U^{n+1} - U^n)/dt and A = 0).
     ``lam`` : (nc,) contact forces of the step that produced this level (<= 0).
+    ``lam_t`` : (nc, d - 1) tangential contact forces in the nodal frames (friction), or
+    None; taken from ``info.lam_t`` when not given.
     ``extra`` : scheme-specific data (e.g. the previous level of a two-step scheme).
     ``cache`` : products computed once per level (``M V``, ``S U``, ...).
     """
@@ -71,6 +73,11 @@ class State:
     info: StepInfo | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     cache: dict[str, Any] = field(default_factory=dict)
+    lam_t: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.lam_t is None and self.info is not None:
+            self.lam_t = self.info.lam_t
 
     def product(self, key: str, compute) -> Any:
         """``compute()`` once per state, memoized under ``key``."""
@@ -88,12 +95,13 @@ class EnergyParts:
     """Right-hand side of a scheme's energy identity for one step [energy]."""
 
     external: float = 0.0  # work of time-dependent loads and of prescribed motion
-    contact: float = 0.0  # contact term
+    contact: float = 0.0  # contact term (normal forces)
     numerical: float = 0.0  # the scheme's own dissipation / start-up relaxation
+    friction: float = 0.0  # work of the tangential contact forces (<= 0 when it dissipates)
 
     @property
     def total(self) -> float:
-        return self.external + self.contact + self.numerical
+        return self.external + self.contact + self.numerical + self.friction
 
 
 class Scheme:
@@ -111,6 +119,9 @@ class Scheme:
     #: needs the condensed (Delassus) contact solve of a direct backend: ``auto`` never
     #: picks cg for it, an explicit cg is refused (index sets, penalty compliances)
     needs_condensed_solve: ClassVar[bool] = False
+    #: why the scheme refuses a frictional contact law (None: it carries friction, with
+    #: the frictional work in its energy identity)
+    friction_refusal: ClassVar[str | None] = "it does not implement tangential contact forces"
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
@@ -223,8 +234,8 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
             R = np.zeros(s.U.size) if R is None else R
             D = ctx.fixed
             RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D]
-            if ctx.BD is not None:
-                RD = RD - ctx.B[:, D].T @ s.lam
+            if ctx.BD is not None or ctx.HD is not None:
+                RD = RD - ctx.contact_force(s.lam, s.lam_t)[D]
             R[D] = RD
         return R
 
@@ -238,6 +249,23 @@ def load_work(ctx: Context, old: State, new: State, w_new: float) -> float:
         return 0.0
     dU = new.U - old.U
     return float(dU @ (w_new * F1 + (1 - w_new) * F0) - (new.U @ F1 - old.U @ F0))
+
+
+def friction_work(ctx: Context, dX: np.ndarray, lam_t: np.ndarray | None) -> float:
+    """(T dX) . lambda_t: the work of the tangential contact forces lambda_t (nc, d - 1)
+    over the displacement dX (n,) [energy]; 0 without friction."""
+    if lam_t is None or ctx.T is None:
+        return 0.0
+    return float((ctx.T @ dX) @ lam_t.ravel())
+
+
+def weighted(a: np.ndarray | None, b: np.ndarray | None, w: float) -> np.ndarray | None:
+    """w a + (1 - w) b, or None when both are None (frictionless levels)."""
+    if a is None and b is None:
+        return None
+    a = np.zeros_like(b) if a is None else a
+    b = np.zeros_like(a) if b is None else b
+    return w * a + (1 - w) * b
 
 
 def reaction_work(ctx: Context, old: State, new: State, w_new: float) -> tuple[float, float]:

@@ -38,6 +38,7 @@ class ContactStabilizedNewmark(Scheme):
     description = "Deuflhard-Krause-Ertel: mass projection of the predictor, then a CN corrector (standard masses)"
     parameters = ()
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
+    friction_refusal = "its contact-stabilizing L2 projection is defined for the normal component only"
     massless_dofs_allowed = False
 
     def check_context(self, ctx, prepared: bool = False) -> None:

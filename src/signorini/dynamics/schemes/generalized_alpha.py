@@ -47,7 +47,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, load_work, reaction_work
+from .base import EnergyParts, State, friction_work, load_work, reaction_work, weighted
 from .newmark import Newmark
 
 
@@ -86,14 +86,19 @@ class GeneralizedAlpha(Newmark):
         pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         if af:
-            lagged = af * (ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.B.T @ s.lam)
+            lagged = af * (ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.contact_force(s.lam, s.lam_t))
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
             rhs += lagged
         rhs = rhs / (1 - af) + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(ctx.dt), rhs, ctx.gaps(t), fixed, guess=functools.partial(self.taylor_guess, ctx, s)
+            self.operator(ctx.dt),
+            rhs,
+            ctx.gaps(t),
+            fixed,
+            ctx.friction_law(s.U, s.t, t),
+            functools.partial(self.taylor_guess, ctx, s),
         )
         return self.update(ctx, s, t, U, lam, info, pred)
 
@@ -107,7 +112,12 @@ class GeneralizedAlpha(Newmark):
         dt = ctx.dt
         dU = new.U - old.U
         lam_w = (1 - af) * new.lam + af * old.lam
-        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=float((ctx.B @ dU) @ lam_w))
+        lam_t_w = weighted(new.lam_t, old.lam_t, 1 - af)
+        parts = EnergyParts(
+            external=load_work(ctx, old, new, 1 - af),
+            contact=float((ctx.B @ dU) @ lam_w),
+            friction=friction_work(ctx, dU, lam_t_w),
+        )
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
@@ -116,8 +126,8 @@ class GeneralizedAlpha(Newmark):
             U_w = (1 - af) * new.U + af * old.U
             F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
             RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D]
-            if ctx.BD is not None:
-                RD = RD - ctx.B[:, D].T @ lam_w
+            if ctx.BD is not None or ctx.HD is not None:
+                RD = RD - ctx.contact_force(lam_w, lam_t_w)[D]
             parts.external += float(dU[D] @ RD)
         if af != 0.5 or am != 0.5:
             dA = new.A - old.A

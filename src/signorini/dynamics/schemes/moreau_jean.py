@@ -39,7 +39,7 @@ import numpy as np
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, load_work
+from .base import EnergyParts, Scheme, State, friction_work, load_work
 
 
 class MoreauJean(Scheme):
@@ -53,6 +53,7 @@ class MoreauJean(Scheme):
     exact_contact = False  # velocity-level: penetration O(dt)
     needs_condensed_solve = True
     massless_dofs_allowed = False  # with the default theta = 1/2 (theta > 1/2 accepts them)
+    friction_refusal = None  # Coulomb on the slip rate T V^{n+1} of the index set (as Siconos)
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "index sets")
@@ -84,9 +85,12 @@ class MoreauJean(Scheme):
             D = ctx.fixed
             fixed = (ctx.dirichlet(t1) - s.U[D]) / (th * dt) - (1 - th) / th * s.V[D]
         bound = np.broadcast_to(bound, BV0.shape).copy()
-        V, P, info = ctx.solve(self.operator(dt), rhs, bound, fixed, ContactLaw(subset=index))
+        law = ctx.friction_rate_law(t0, t1, ContactLaw(subset=index))
+        V, P, info = ctx.solve(self.operator(dt), rhs, bound, fixed, law)
         U = s.U + dt * (th * V + (1 - th) * s.V)
-        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P})
+        P_t = info.lam_t  # tangential impulses (friction), or None
+        lam_t = None if P_t is None else P_t / dt
+        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P, "impulse_t": P_t}, lam_t=lam_t)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """The impulse P of the step, unknown of the velocity-level solve."""
@@ -97,14 +101,19 @@ class MoreauJean(Scheme):
         dU, dV = new.U - old.U, new.V - old.V
         Vth = th * new.V + (1 - th) * old.V
         P = new.extra["impulse"]
-        parts = EnergyParts(external=load_work(ctx, old, new, th), contact=float((ctx.B @ Vth) @ P))
+        P_t = new.extra.get("impulse_t")
+        parts = EnergyParts(
+            external=load_work(ctx, old, new, th),
+            contact=float((ctx.B @ Vth) @ P),
+            friction=friction_work(ctx, Vth, P_t),
+        )
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             Fth = th * ctx.load(new.t) + (1 - th) * ctx.load(old.t)
             SUth = th * (ctx.S[D] @ new.U) + (1 - th) * (ctx.S[D] @ old.U)
             r = ctx.M[D] @ dV + dt * (SUth - Fth[D])
-            if ctx.BD is not None:
-                r = r - ctx.B[:, D].T @ P
+            if ctx.BD is not None or ctx.HD is not None:
+                r = r - ctx.contact_force(P, P_t)[D]
             parts.external += float(Vth[D] @ r)
         if th != 0.5:
             parts.numerical = -(th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))
@@ -129,3 +138,4 @@ class EnergyConserving(MoreauJean):
     description = "midpoint rule + persistency (Laursen-Chawla): energy exactly conserved through impacts"
     parameters = ()
     theta, restitution = 0.5, 1.0
+    friction_refusal = "its persistency condition conserves energy and is derived for frictionless contact"

@@ -17,6 +17,7 @@ out of equilibrium) and <x> = (x^n + x^{n+1})/2:
         = dU.<F> - Delta(U.F)          (work of time-dependent loads)
         + dU_D.<R_D>                   (work of the prescribed motion)
         + 1/2 (B dU).(lambda^n + lambda^{n+1})        (contact)
+        + 1/2 (T dU).(lambda_t^n + lambda_t^{n+1})    (friction)
         + dt (gamma - 1/2) <V>.M dA + dU_f.<R_f>      (numerical)
 
 For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
@@ -31,7 +32,7 @@ import numpy as np
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, load_work, mechanical_energy, reaction_work
+from .base import EnergyParts, Scheme, State, friction_work, load_work, mechanical_energy, reaction_work, weighted
 
 
 class Newmark(Scheme):
@@ -42,6 +43,7 @@ class Newmark(Scheme):
         Parameter("gamma", 0.5, "Newmark gamma (>= 1/2: no negative damping)", float, 0.5, 1.0),
     )
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (beta - gamma/2) A.MA"
+    friction_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
@@ -56,7 +58,7 @@ class Newmark(Scheme):
             rhs,
             ctx.gaps(t),
             fixed,
-            self.contact_law(ctx),
+            ctx.friction_law(s.U, s.t, t, self.contact_law(ctx)),
             functools.partial(self.taylor_guess, ctx, s),
         )
         return self.update(ctx, s, t, U, lam, info, p)
@@ -102,6 +104,7 @@ class Newmark(Scheme):
             external=load_work(ctx, old, new, 0.5) + dR_fixed,
             contact=0.5 * float((ctx.B @ dU) @ (old.lam + new.lam)),
             numerical=dR_free,
+            friction=friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, 0.5)),
         )
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)

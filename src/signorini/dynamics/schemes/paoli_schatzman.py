@@ -48,6 +48,7 @@ class PaoliSchatzman(Scheme):
     description = "two-step scheme with exact contact on (U^{n+1} + e U^{n-1})/(1+e) (restitution e)"
     parameters = (Parameter("restitution", 0.0, "restitution coefficient e", float, 0.0, 1.0),)
     starter = "crank-nicolson"
+    friction_refusal = "its two-step contact law on (U^{n+1} + e U^{n-1})/(1 + e) has no derived tangential counterpart"
     energy_definition = (
         "E^{n-1/2} = 1/2 D.MD + 1/2 Ubar.S Ubar - Ubar.Fbar with D = (U^n - U^{n-1})/dt, "
         "Ubar = (U^n + U^{n-1})/2, Fbar = (F^n + F^{n-1})/2 (at level 0 the virtual U^{-1} that makes the "

@@ -36,6 +36,7 @@ class PenaltyCN(CrankNicolson):
     exact_contact = False
     beta, gamma = 0.25, 0.5
     needs_condensed_solve = True
+    friction_refusal = "a penalty on the tangential slip is not implemented (its springs would store the stick energy)"
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "penalty compliances")

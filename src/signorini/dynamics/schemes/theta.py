@@ -11,7 +11,7 @@ i.e. ``(M/(theta dt)^2 + S) U^{n+1} = M p + F^{n+1} + B^T lambda`` with
 Energy identity (exact; docs/schemes.md), with x_theta = theta x^{n+1} + (1-theta) x^n:
 
     Delta [1/2 V.MV + 1/2 U.SU - U.F] = dU.F_theta - Delta(U.F) + dU_D.R_D,theta
-        + (B dU).lambda_theta
+        + (B dU).lambda_theta + (T dU).lambda_t,theta        (contact, friction)
         - (theta - 1/2) (|dV|_M^2 + |dU|_S^2) + dU_f.R_f,theta
 
 so the scheme dissipates for theta > 1/2 (BE: -1/2|dV|_M^2 - 1/2|dU|_S^2 + dU.B^T lambda^{n+1},
@@ -26,7 +26,7 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
+from .base import EnergyParts, Scheme, State, friction_work, load_work, products, reaction_work, weighted
 
 
 class Theta(Scheme):
@@ -34,6 +34,7 @@ class Theta(Scheme):
     description = "theta-method on (U, V, A), exact contact at t_{n+1}; dissipative for theta > 1/2"
     parameters = (Parameter("theta", 1.0, "implicitness", float, 0.5, 1.0),)
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
+    friction_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
@@ -45,7 +46,12 @@ class Theta(Scheme):
         rhs = ctx.Mop @ p + ctx.load(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(dt), rhs, ctx.gaps(t), fixed, guess=functools.partial(self.taylor_guess, ctx, s)
+            self.operator(dt),
+            rhs,
+            ctx.gaps(t),
+            fixed,
+            ctx.friction_law(s.U, s.t, t),
+            functools.partial(self.taylor_guess, ctx, s),
         )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
@@ -72,6 +78,7 @@ class Theta(Scheme):
             external=load_work(ctx, old, new, th) + dR_fixed,
             contact=float((ctx.B @ dU) @ (th * new.lam + (1 - th) * old.lam)),
             numerical=numerical,
+            friction=friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, th)),
         )
 
 

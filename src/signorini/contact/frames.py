@@ -1,0 +1,55 @@
+"""Nodal contact frames: the outward normal nu_i and d - 1 orthonormal tangents t_ik.
+
+The frame of a contact node is built from its normal alone, by a rule that is smooth
+in the normal (so that frames of neighbouring nodes on a curved boundary are close and
+a rotation of the whole problem rotates the frames with it in 2D):
+
+* 2D: t = (nu_y, -nu_x), the normal turned by -90 degrees (``(0, 1)`` gives ``(1, 0)``);
+* 3D: the branch-free orthonormal basis of Duff et al. (J. Comput. Graph. Tech. 6(1),
+  2017): with s = sign(nu_z) (+1 at 0), a = -1/(s + nu_z), b = nu_x nu_y a,
+  t_1 = (1 + s nu_x^2 a, s b, -s nu_x), t_2 = (b, s + nu_y^2 a, -nu_y); it is
+  continuous everywhere except across nu_z = 0 where s flips (a horizontal normal),
+  which is why the frame of a node is computed once, at t = 0.
+
+The normals are those of t = 0 (:mod:`signorini.contact.obstacles`: B does not change
+during a run), so the frames are constant in time, hence continuous in time, for fixed
+and moving obstacles alike.  The motion of a moving obstacle enters the tangential
+slip through its translation over the step (:meth:`RigidObstacle.translation`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+
+def tangent_frames(normals: np.ndarray) -> np.ndarray:
+    """Unit tangents (nc, d - 1, d) orthogonal to the unit ``normals`` (nc, d) and to each other.
+
+    1D has no tangent: the result has shape (nc, 0, 1).
+    """
+    n = np.asarray(normals, dtype=float)
+    nc, d = n.shape
+    if d == 1:
+        return np.zeros((nc, 0, 1))
+    if d == 2:
+        return np.stack([n[:, 1], -n[:, 0]], axis=1)[:, None, :]
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    s = np.where(z >= 0.0, 1.0, -1.0)
+    a = -1.0 / (s + z)
+    b = x * y * a
+    t1 = np.stack([1.0 + s * x * x * a, s * b, -s * x], axis=1)
+    t2 = np.stack([b, s + y * y * a, -y], axis=1)
+    return np.stack([t1, t2], axis=1)
+
+
+def frame_rows(dofs: np.ndarray, vectors: np.ndarray, n_dofs: int) -> sp.csr_matrix:
+    """The sparse matrix (nc k, n_dofs) whose row i k + j is ``vectors[i, j]`` on the dofs of node i.
+
+    ``dofs`` (nc, d) are the dofs of the contact nodes; ``vectors`` (nc, k, d) the k
+    vectors of each node's frame (its normal, its tangents or all of them), node-major.
+    """
+    nc, k, d = vectors.shape
+    rows = np.repeat(np.arange(nc * k), d)
+    cols = np.repeat(dofs, k, axis=0).ravel() if k else np.zeros(0, dtype=np.intp)
+    return sp.csr_matrix((vectors.ravel(), (rows, cols)), shape=(nc * k, n_dofs))
