@@ -31,6 +31,17 @@ HISTORY_COLUMNS = (
     "impulse",
     "untagged_penetration",
 )
+#: columns added after HISTORY_COLUMNS: the global components of the total contact force
+#: (one per space dimension: x; x, y; x, y, z), then the friction columns
+FORCE_COLUMNS = ("contact_force_x", "contact_force_y", "contact_force_z")
+FRICTION_COLUMNS = ("stick_nodes", "slip_nodes", "friction_dissipation")
+
+
+def history_columns(dim: int) -> tuple[str, ...]:
+    """The header of ``history.csv`` for a run in ``dim`` space dimensions."""
+    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS
+
+
 STATUSES = ("finished", "interrupted", "failed")
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
 COUNTER_KEYS = ("steps", "factorizations", "linear_solves", "contact_iterations", "fallbacks")
@@ -63,6 +74,15 @@ class History:
         (semismooth Newton) iterations, whether the robust fallback ran, and the
         relative complementarity residual.
     coordinates : (nc, d) contact node coordinates; weights : (nc,) contact area weights.
+    contact_force : (N+1, d) global components of the total contact force
+        sum_i lambda_i nu_i + lambda_t,i . t_i [force] (every run).
+    lam_t, slip : (N+1, nc, d - 1) tangential multipliers in the nodal frames [force] and
+        slip of the step ending at t_n (relative to the obstacle; a slip rate for
+        velocity-level schemes) [length]; None without friction.
+    contact_status : (N+1, nc) int8, 0 separated, 1 stick, 2 slip (None without friction).
+    friction_work : (N+1,) cumulative work of the tangential forces in the scheme's
+        energy identity (<= 0 when friction dissipates); ``friction_dissipation`` = minus it.
+    tangents : (nc, d - 1, d) the tangent vectors of the nodal frames (None without friction).
     snapshots : optional dict with ``t`` (k,), ``u`` and ``v`` (k, n_dofs) full fields.
     meta : inputs, sizes and timings (dofs, backend, ...).
     status : ``finished``, ``interrupted`` (SIGINT/SIGTERM) or ``failed`` (non-finite
@@ -90,6 +110,12 @@ class History:
     numerical_dissipation: np.ndarray | None = None
     impulse: np.ndarray | None = None
     untagged_penetration: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
+    lam_t: np.ndarray | None = None
+    slip: np.ndarray | None = None
+    contact_status: np.ndarray | None = None
+    friction_work: np.ndarray | None = None
+    tangents: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
     counters: dict = field(default_factory=dict)
@@ -127,8 +153,31 @@ class History:
         on = self.active > 0
         return int(np.sum(on[1:] & ~on[:-1]))
 
+    @property
+    def dim(self) -> int:
+        return int(self.coordinates.shape[1]) if self.coordinates.ndim == 2 else 1
+
+    def friction_counts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(stick, slip) node counts per level; without friction no node sticks and every
+        node in contact slips (nothing holds it tangentially)."""
+        if self.contact_status is None:
+            return np.zeros(self.t.size, dtype=np.int64), np.asarray(self.active, dtype=np.int64)
+        return (self.contact_status == 1).sum(axis=1), (self.contact_status == 2).sum(axis=1)
+
     def columns(self) -> dict[str, np.ndarray]:
         """The per-step table written to ``history.csv``."""
+        force = self.contact_force if self.contact_force is not None else np.full((self.t.size, self.dim), np.nan)
+        stick, slip = self.friction_counts()
+        fw = _or_nan(self.friction_work, self.t.size)
+        return {
+            **self._base_columns(),
+            **{name: force[:, k] for k, name in enumerate(FORCE_COLUMNS[: self.dim])},
+            "stick_nodes": stick,
+            "slip_nodes": slip,
+            "friction_dissipation": -fw,
+        }
+
+    def _base_columns(self) -> dict[str, np.ndarray]:
         return {
             "t": self.t,
             "energy": self.energy,
@@ -154,14 +203,24 @@ class History:
         cols = self.columns()
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(HISTORY_COLUMNS)
-            for row in zip(*(cols[c] for c in HISTORY_COLUMNS), strict=True):
+            names = history_columns(self.dim)
+            w.writerow(names)
+            for row in zip(*(cols[c] for c in names), strict=True):
                 w.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else int(v) for v in row])
 
     def write_contact_npz(self, path: str | Path) -> None:
+        """``t``, ``gap``, ``lam`` (= ``lambda_n``), ``coordinates``, ``weights``; with friction also
+        ``lambda_t`` (N+1, nc, d - 1), ``slip`` (N+1, nc, d - 1), ``status`` (N+1, nc: 0 separated,
+        1 stick, 2 slip) and ``tangents`` (nc, d - 1, d), the nodal frames' tangent vectors."""
+        extra = {}
+        if self.lam_t is not None:
+            extra = {"lambda_t": self.lam_t, "slip": self.slip, "status": self.contact_status}
+            if self.tangents is not None:
+                extra["tangents"] = self.tangents
         np.savez_compressed(
-            path, t=self.t, gap=self.gap, lam=self.lam, coordinates=self.coordinates, weights=self.weights
-        )
+            path, t=self.t, gap=self.gap, lam=self.lam, lambda_n=self.lam, coordinates=self.coordinates,
+            weights=self.weights, **extra,
+        )  # fmt: skip
 
     def save(self, out: str | Path) -> None:
         """Write ``history.csv``, ``contact.npz`` and ``summary.json`` into ``out``."""
@@ -189,6 +248,7 @@ class History:
             "fallbacks": int(np.sum(self.fallbacks)),
             "min_gap": float(self.gap.min()) if self.gap.size else None,
             "max_lambda": float(self.lam.max()) if self.lam.size else None,
+            "cone_residual_max": float(np.max(self.residual)) if self.lam_t is not None else None,
             **self.diagnostics(),
         }
 
@@ -234,9 +294,19 @@ def _or_nan(a: np.ndarray | None, n: int) -> np.ndarray:
     return np.full(n, np.nan) if a is None else a
 
 
-def empty_series(levels: int, n_contact: int) -> dict[str, np.ndarray]:
-    """Pre-allocated per-level arrays of a run, keyed like the :class:`History` fields."""
+def empty_series(levels: int, n_contact: int, dim: int = 1, tangential: int = 0) -> dict[str, np.ndarray]:
+    """Pre-allocated per-level arrays of a run, keyed like the :class:`History` fields
+    (``tangential``: d - 1 with friction, else 0: no friction arrays)."""
+    friction = {}
+    if tangential:
+        friction = {
+            "lam_t": np.zeros((levels, n_contact, tangential)),
+            "slip": np.zeros((levels, n_contact, tangential)),
+            "contact_status": np.zeros((levels, n_contact), dtype=np.int8),
+        }
     return {
+        **friction,
+        "contact_force": np.zeros((levels, dim)),
         "gap": np.empty((levels, n_contact)),
         "lam": np.zeros((levels, n_contact)),
         "kinetic_energy": np.empty(levels),

@@ -57,7 +57,7 @@ class HistoryRecorder(Observer):
 
     def start(self, run: Run) -> None:
         nc = run.ctx.disc.contact.size
-        self.series = empty_series(run.n_steps + 1, nc)
+        self.series = empty_series(run.n_steps + 1, nc, run.ctx.disc.space.dim, run.ctx.components - 1)
         for k in ("kinetic_energy", "elastic_energy"):
             del self.series[k]
         self._prev = run.initial
@@ -68,6 +68,12 @@ class HistoryRecorder(Observer):
         S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
         S["lam"][n] = s.lam
         S["active"][n] = int(np.count_nonzero(s.lam))
+        S["contact_force"][n] = run.ctx.disc.contact.force_components(s.lam, s.lam_t)
+        if "lam_t" in S and s.lam_t is not None:
+            S["lam_t"][n] = s.lam_t
+            if s.info is not None and s.info.slip is not None:
+                S["slip"][n] = s.info.slip
+                S["contact_status"][n] = s.info.status
         if s.info is not None:
             S["iterations"][n] = s.info.iterations
             S["fallbacks"][n] = s.info.fallback
@@ -96,12 +102,13 @@ def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:
 class EnergyRecorder(Observer):
     """The scheme's discrete energy per level and the three parts of its identity."""
 
-    KEYS = ("kinetic_energy", "elastic_energy", "predicted_increment", "external", "contact", "numerical")
+    KEYS = ("kinetic_energy", "elastic_energy", "predicted_increment", "external", "contact", "numerical", "friction")
+    PARTS = ("external", "contact", "numerical", "friction")
 
     def start(self, run: Run) -> None:
         n = run.n_steps + 1
         self.series = {k: np.full(n, np.nan) for k in self.KEYS}
-        for k in ("external", "contact", "numerical"):
+        for k in self.PARTS:
             self.series[k][0] = 0.0
         self.series["kinetic_energy"][0], self.series["elastic_energy"][0] = _finite_energy(
             run.scheme.energy(run.ctx, run.initial), 0
@@ -117,8 +124,9 @@ class EnergyRecorder(Observer):
             S["external"][n] = S["external"][n - 1] + parts.external
             S["contact"][n] = S["contact"][n - 1] + parts.contact
             S["numerical"][n] = S["numerical"][n - 1] + parts.numerical
+            S["friction"][n] = S["friction"][n - 1] + parts.friction
         else:
-            for k in ("external", "contact", "numerical"):
+            for k in self.PARTS:
                 S[k][n] = S[k][n - 1]
         self._prev.cache.clear()  # release the old level's products
         self._prev = state

@@ -75,6 +75,30 @@ class Problem:
             raise InputError(f"friction {self.friction.label!r} needs a 2D or 3D problem: a 1D bar has no tangent")
 
 
+def with_friction(problem: Problem, spec: Friction | str | dict | None, where: str = "--friction") -> Problem:
+    """``problem`` with the contact law ``spec`` (None: unchanged), validated as a new Problem."""
+    if spec is None:
+        return problem
+    import dataclasses
+
+    return dataclasses.replace(problem, friction=make_friction(spec, where))
+
+
+def check_friction_schemes(friction: Friction, schemes: Sequence[str]) -> None:
+    """InputError naming the first scheme (registry name) that cannot carry ``friction``."""
+    if not friction.frictional:
+        return
+    from .schemes import SCHEMES, friction_schemes
+
+    for name in schemes:
+        why = SCHEMES.get(name).obj.friction_refusal
+        if why:
+            raise InputError(
+                f"scheme {name} cannot carry friction ({friction.label}): {why}; "
+                f"schemes that do: {', '.join(friction_schemes())}"
+            )
+
+
 def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
     """(f'(0), f''(0)) by one-sided differences of second order with step h.
 

@@ -184,6 +184,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "energy_definition": scheme.energy_definition,
         "mass": disc.mass_name,
         "mass_effect": dict(disc.mass_effect),
+        "friction": disc.friction.describe(),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
@@ -419,6 +420,8 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         series.update(kinetic_energy=E["kinetic_energy"], elastic_energy=E["elastic_energy"])
         series["predicted_increment"] = E["predicted_increment"]
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
+        if ctx.components > 1:
+            work["friction_work"] = E["friction"]
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())
@@ -428,6 +431,7 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         **work,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
+        tangents=disc.contact.tangents if ctx.components > 1 else None,
         snapshots=snaps.snapshots() if snaps is not None else {},
         meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),
         counters={**dict.fromkeys(COUNTER_KEYS, 0), **ctx.counters(), "steps": n_last},

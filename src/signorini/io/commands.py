@@ -107,8 +107,9 @@ def compare_plan(args: argparse.Namespace):
         case = load_case(args.target, limits, check_size)
         load = functools.partial(case_problem, str(args.target))
         target = cmp.CaseTarget(
-            Path(args.target).name, load, case.dt, case.T, tuple(sorted(case.solver_options.items()))
-        )
+            Path(args.target).name, load, case.dt, case.T, tuple(sorted(case.solver_options.items())),
+            friction=args.friction,
+        )  # fmt: skip
         plan = cmp.plan_case(target, pairs, case.problem)
         check_compare_size(plan, args.jobs, _limits(args, case.limits))
         return plan
@@ -116,7 +117,7 @@ def compare_plan(args: argparse.Namespace):
     ref = cmp.parse_reference(args.reference) if args.reference is not None else None
     levels = cmp.DEFAULT_LEVELS if args.levels is None else args.levels
     ratio = cmp.DEFAULT_RATIO if args.ratio is None else args.ratio
-    plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref)
+    plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref, args.friction)
     check_compare_size(plan, args.jobs, _limits(args, {}))
     return plan
 

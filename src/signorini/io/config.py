@@ -30,6 +30,7 @@ errors that name the key and the allowed values)::
     [contact]
     tag = "ymin"
     obstacle = { type = "plane", point = [0.0, "0.1 * t"], normal = [0.0, 1.0] }
+    # friction = { law = "coulomb", coefficient = 0.3 }   # or { law = "tresca", threshold = 0.01 }
     # or { type = "sphere", center = [...], radius = R }: a rigid ball the body stays out of
     # positions (point, center) may be expressions of t: a moving obstacle
 
@@ -70,6 +71,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..contact.friction import make_friction
 from ..contact.obstacles import OBSTACLES, RigidObstacle
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
@@ -388,6 +390,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     tag = _contact_tags(mesh, c)
     where = _where(c)
     obstacle = _obstacle(c.get("obstacle"), dim)
+    friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])
     u0 = vector_field("initial.displacement", init.get("displacement", [0.0] * dim), dim)
@@ -401,8 +404,9 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every = _output(data.get("output", {}))
     problem = Problem(
-        mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where
-    )
+        mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
+        friction=friction,
+    )  # fmt: skip
     named = "mass" in data.get("solver", {})
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)
 

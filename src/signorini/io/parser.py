@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from .. import __version__
+from ..contact.friction import CONTACT_LAWS
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
 from ..linalg import BACKENDS, SOLVER_OPTIONS
@@ -48,6 +49,20 @@ def add_limit_arguments(p, steps_what: str, memory_what: str) -> None:
         help=f"refuse {memory_what} unless --yes (default 80%% of the machine's memory)",
     )
     p.add_argument("--yes", action="store_true", help="run even if over --max-steps or --max-memory")
+
+
+def add_friction_argument(p, default: str) -> None:
+    """``--friction LAW:VALUE`` (run, compare)."""
+    laws = "; ".join(
+        f"{e.name}" + (f":{e.parameters[0].name.upper()} ({e.parameters[0].doc})" if e.parameters else "")
+        for e in CONTACT_LAWS
+    )
+    p.add_argument(
+        "--friction",
+        default=None,
+        metavar="LAW:VALUE",
+        help=f"contact law: {laws}; e.g. coulomb:0.3 or tresca:0.01; 2D/3D only {default}",
+    )
 
 
 def add_command(sub, name: str, help: str, description: str, examples: str) -> argparse.ArgumentParser:
@@ -103,6 +118,7 @@ def _add_run(sub) -> None:
         help=f"mass variant: {', '.join(MASS_VARIANTS.names())} (default {DEFAULT_MASS}, which keeps the "
         "mass, centre of mass and inertia; or the case file's)",
     )
+    add_friction_argument(both, "(default frictionless, or the case file's)")
     both.add_argument(
         "--backend",
         default=None,
@@ -238,6 +254,7 @@ def _add_compare(sub) -> None:
         metavar="M1,M2,...",
         help=f"comma-separated mass variants: {', '.join(MASS_VARIANTS.names())}",
     )
+    add_friction_argument(cp, "for every run of the matrix (default frictionless, or the case file's)")
     cb = cp.add_argument_group("benchmarks only (errors with a case file)")
     cb.add_argument("--levels", type=int, default=None, help="number of nested levels n0 2^k (default 3)")
     cb.add_argument("--n0", type=int, default=None, help="coarsest level (default 20 in 1D, 1 in 2D/3D)")

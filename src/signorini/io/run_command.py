@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..dynamics.mass import DEFAULT_MASS
+from ..dynamics.problem import with_friction
 from ..errors import ConvergenceError, InputError
 from ..registry import parse_assignments
 from .exit_codes import EXIT_CODES
@@ -109,7 +110,7 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     limits = _limits(args, {})
     nodes, cells, per_cell = bench.mesh_counts(n, overrides)
     check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits)
-    problem = bench.problem(n, overrides)
+    problem = with_friction(bench.problem(n, overrides), args.friction)
     sch, sol = _options(args, {}, {})
     params = bench.params(overrides)
     meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
@@ -140,7 +141,8 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     limits = _limits(args, case.limits)
     check_size(mesh_counts(case.problem), case.dt, case.T, limits)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
-    return RunSpec(case.problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
+    problem = with_friction(case.problem, args.friction)
+    return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits)  # fmt: skip
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..contact.friction import CONTACT_LAWS
 from ..contact.obstacles import OBSTACLES
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
@@ -122,6 +123,9 @@ SECTIONS: tuple[Section, ...] = (
                 _ex('{ type = "plane", point = [0.0], normal = [1.0] }',
                     '{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }',
                     '{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }')),
+            Key("friction", "inline table", "frictionless", "",
+                "{ law = \"coulomb\", coefficient = mu } or { law = \"tresca\", threshold = s } "
+                "(s: force / length^(d-1)); 2D and 3D only (docs/friction.md)"),
         ),
         required=True,
     ),
@@ -196,6 +200,10 @@ def _registry_lines() -> list[str]:
     md.append(f"* `[solver] mass`: {', '.join(f'`{n}`' for n in MASS_VARIANTS.names())}.")
     opts = [p.name for p in SOLVER_OPTIONS] + sorted({p.name for e in BACKENDS for p in e.parameters})
     md.append(f"* `[solver]` options: {', '.join(f'`{n}`' for n in opts)} (meanings in `docs/registries.md`).")
+    md.append("* `[contact] friction` laws:")
+    for e in CONTACT_LAWS:
+        params = ", ".join(f"`{p.name}` ({p.doc}; {p.bounds_text()})" for p in e.parameters)
+        md.append(f"  * `{e.name}`: {e.description}{'; ' + params if params else ''}")
     md.append("* `[contact] obstacle` types:")
     for e in OBSTACLES:
         params = ", ".join(f"`{p.name}` ({p.doc})" for p in e.parameters)

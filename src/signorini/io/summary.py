@@ -67,6 +67,25 @@ def energy_line(H, s: dict) -> str:
     return f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} ({drift_text})\n"
 
 
+def friction_line(H, s: dict) -> str:
+    """With friction: the law, what it dissipated, the last level's stick/slip nodes and the solver."""
+    f = s.get("friction") or {}
+    if f.get("law", "frictionless") == "frictionless":
+        return ""
+    cols = H.columns()
+    diss = cols["friction_dissipation"][-1]
+    res = s.get("energy_identity_residual")
+    c = s["counters"]
+    return (
+        f"  friction {', '.join(f'{k} {v}' for k, v in f.items() if k != 'law')} ({f['law']}): dissipated "
+        f"{diss:.6g} (energy identity residual {res:.2e} with it), at the end {int(cols['stick_nodes'][-1])} stick / "
+        f"{int(cols['slip_nodes'][-1])} slip nodes; {c.get('friction_iterations', 0)} Newton iterations, "
+        f"{c.get('friction_fallbacks', 0)} fallbacks, cone residual max {s['cone_residual_max']:.2e}\n"
+        if res is not None
+        else ""
+    )
+
+
 def one_screen_summary(H) -> str:
     s = H.summary()
     c = s["counters"]
@@ -76,6 +95,7 @@ def one_screen_summary(H) -> str:
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
         f"fallbacks {s['fallbacks']}\n"
         f"{energy_line(H, s)}"
+        f"{friction_line(H, s)}"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
         f"{mass_effect_line(s)}"
         f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "

@@ -25,8 +25,14 @@ the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/
                 touching it at t = 0 with speed ``velocity``; compared with Hertz's
                 quasi-static impact (:mod:`signorini.studies.hertz`).
 ``hertz2d``     the same with a disc (P1 triangles, plane strain, per unit thickness).
+``incline2d``   an elastic block on a plane under a gravity tilted by ``angle`` degrees,
+``incline3d``   Coulomb friction ``mu``; the closed-form sliding acceleration
+                g (sin a - mu cos a) (0 when tan a <= mu) is printed beside the computed
+                one (:mod:`signorini.studies.incline`).
 
-Hertz parameters: ``R``=1, ``E``=1, ``nu``=0.3, ``rho``=1, ``velocity``=0.002, mesh
+Hertz parameters: ``R``=1, ``E``=1, ``nu``=0.3, ``rho``=1, ``velocity``=0.002,
+``tangential_velocity``=0 (along x: an oblique impact), ``mu``=0 (Coulomb friction with the
+plane; 0 and no ``--friction``: frictionless), mesh
 controls ``cap``=2 (radius of the contact cap / Hertz contact radius a*), ``far``=0.25
 (element size far from the pole / R), ``grading``=0.5; level ``n``: element size a*/n
 on the cap (gmsh, ``pip install ".[mesh]"``), default dt = t_c/(25 n) and T = 1.5 t_c
@@ -48,7 +54,7 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import hertz
+from ..studies import hertz, incline
 from ..studies.exact import ExactBar1D
 
 
@@ -90,6 +96,8 @@ class Benchmark:
             if not np.isfinite(p[k]):
                 raise InputError(f"parameter {k!r} of {self.name!r} must be finite, got {v!r}")
         for k in ("L", "E", "rho", "width", "length", "mu", "R", "far", "grading"):
+            if k == "mu" and "lam" not in p:
+                continue  # a friction coefficient (hertz, incline), not the Lame parameter of the bars
             if k in p and p[k] <= 0:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be > 0, got {p[k]}")
         for k in ("gap", "velocity"):
@@ -263,6 +271,10 @@ for _b in (
     *(Benchmark(f"hertz{d}d", d, dict(hertz.HERTZ_DEFAULTS), hertz.builder(d), None,
                 f"elastic {'ball' if d == 3 else 'disc (plane strain)'} hitting a rigid plane vs Hertz's impact theory",
                 hertz.DEFAULT_LEVEL[d], hertz.sizes(d), hertz.run_times(d), hertz.measure(d), hertz.check_params)
+      for d in (2, 3)),
+    *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
+                "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
+                2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params)
       for d in (2, 3)),
 ):  # fmt: skip
     _register(_b)

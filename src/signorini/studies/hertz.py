@@ -59,6 +59,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 from scipy.special import beta
 
+from ..contact.friction import Friction
 from ..contact.obstacles import PlaneObstacle
 from ..dynamics.observers import CentreOfMassRecorder, Observer
 from ..dynamics.problem import Problem
@@ -281,7 +282,7 @@ def _contact_radius(H) -> float:
 
 # ----------------------------------------------------------------------------- benchmarks
 HERTZ_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "velocity": 0.002, "cap": 2.0, "far": 0.25,
-                  "grading": 0.5, "skin": 0.0}  # fmt: skip
+                  "grading": 0.5, "skin": 0.0, "tangential_velocity": 0.0, "mu": 0.0}  # fmt: skip
 DEFAULT_LEVEL = {2: 8, 3: 3}
 STEPS_PER_DURATION = 25  # default dt = t_c / (25 n)
 
@@ -294,6 +295,8 @@ def check_params(p: dict) -> None:
         raise InputError(f"parameter 'velocity' must be > 0 (the speed towards the plane), got {p['velocity']}")
     if p["cap"] <= 1:
         raise InputError(f"parameter 'cap' (cap radius / Hertz contact radius) must be > 1, got {p['cap']}")
+    if p["mu"] < 0:
+        raise InputError(f"parameter 'mu' (Coulomb coefficient with the plane) must be >= 0, got {p['mu']}")
     if p["skin"] not in (0.0, 1.0):
         raise InputError(f"parameter 'skin' must be 0 (contact on the cap) or 1 (the whole skin), got {p['skin']}")
 
@@ -341,8 +344,9 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
             contact_tag=("cap", "surface") if p["skin"] else "cap",
             obstacle=PlaneObstacle(np.zeros(dim), e),
             u0=0.0,
-            v0=-p["velocity"] * e,
+            v0=-p["velocity"] * e + p["tangential_velocity"] * np.eye(dim)[0],
             name=f"hertz{dim}d",
+            friction=Friction("coulomb", p["mu"]) if p["mu"] > 0 else None,
         )
 
     return build

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
+from ...dynamics.problem import check_friction_schemes, with_friction
 from ...dynamics.simulate import number_of_steps
 from ...errors import InputError, check_positive
 from ..benchmarks import get_benchmark
@@ -31,6 +32,7 @@ class BenchmarkTarget:
     name: str
     overrides: tuple[tuple[str, float], ...] = ()
     kind: str = "benchmark"
+    friction: str | None = None  # --friction (e.g. "coulomb:0.3"), None: the benchmark's own
 
     @property
     def label(self) -> str:
@@ -45,7 +47,7 @@ class BenchmarkTarget:
         return dict(self.overrides)
 
     def problem(self, level: int | None):
-        return self.bench.problem(level, self.params)
+        return with_friction(self.bench.problem(level, self.params), self.friction)
 
 
 @dataclass(frozen=True)
@@ -59,9 +61,10 @@ class CaseTarget:
     T: float
     solver_options: tuple[tuple[str, Any], ...] = ()
     kind: str = "case"
+    friction: str | None = None  # --friction, None: the case file's
 
     def problem(self, level: int | None):
-        return self.load()
+        return with_friction(self.load(), self.friction)
 
 
 @dataclass
@@ -109,13 +112,16 @@ def plan_benchmark(
     ratio: float = DEFAULT_RATIO,
     overrides: dict | None = None,
     reference: tuple | Reference | None = None,
+    friction: str | None = None,
 ) -> Plan:
     """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + seed
     ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level).  Raises InputError."""
     b = get_benchmark(name)
     b.require_nested("signorini compare")
     params = b.params(overrides)
-    target = BenchmarkTarget(b.name, tuple(sorted((k, float(v)) for k, v in (overrides or {}).items())))
+    target = BenchmarkTarget(
+        b.name, tuple(sorted((k, float(v)) for k, v in (overrides or {}).items())), friction=friction
+    )
     if not pairs:
         raise InputError("nothing to compare: give at least one scheme and one mass")
     if int(levels) != levels or levels < 1:
@@ -144,7 +150,8 @@ def plan_benchmark(
         check_levels(ns, level)
         _steps(ratio * b.h(level, params), T, f"reference level n = {level}")
         ref = (scheme, mass, level)
-    problem = b.problem(ns[0], params)  # parameters and mesh valid before anything runs
+    problem = target.problem(ns[0])  # parameters, mesh and friction valid before anything runs
+    check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
     return Plan(target, list(pairs), ns, dts, T, ratio, hs, ref, (), _length_scale(problem))
 
 
@@ -153,7 +160,8 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     if not pairs:
         raise InputError("nothing to compare: give at least one scheme and one mass")
     _steps(target.dt, target.T, f"case file {target.label}")
-    problem = problem if problem is not None else target.load()
+    problem = target.problem(None) if problem is None or target.friction else problem
+    check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
     m = problem.mesh
     counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size)
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
