@@ -42,6 +42,8 @@ from ..registry import Parameter, Registry
 #: node statuses reported in contact.npz and the fields
 SEPARATED, STICK, SLIP = 0, 1, 2
 STATUS_NAMES = ("separated", "stick", "slip")
+#: Newton stops here (relative residual), or where it stalls below the tolerance
+ROUND_OFF = 1e-15
 
 CONTACT_LAWS = Registry("contact law")
 CONTACT_LAWS.register("frictionless", "frictionless", "Signorini contact without friction (one multiplier per node)")
@@ -226,7 +228,9 @@ def solve_cone(
     it = 0
     eye = np.eye(m * d)
     IrW = eye - rho * W
-    while res > tol and it < max_iter:
+    # Newton goes on to round-off (semismooth Newton ends in one step once the stick/slip and
+    # contact structure is right); tol decides whether a stalled iteration has converged
+    while res > ROUND_OFF and it < max_iter:
         it += 1
         D = _jacobian_blocks(z, mu, radius)
         J = eye.copy()
@@ -248,6 +252,8 @@ def solve_cone(
             t *= 0.5
         else:
             break
+        if size(F_trial) >= res and res <= tol:
+            break  # no progress at round-off
         lam, F, z = trial, F_trial, z_trial
         res = size(F)
     fallback = False

@@ -166,6 +166,9 @@ class ContactSolver:
         """An estimate (n,) of the next solve's x; a direct solve has no use for it."""
 
 
+#: a frictional candidate must penetrate by more than this times the gap scale (round-off)
+GRAZING = 1e-13
+
 CONDENSATIONS = ("auto", "lazy", "full", "schur")
 #: ``auto`` takes the Schur condensation from this many contact nodes: below, the lazy
 #: columns (blocks of 64, each about 15 solves) cost less than Schur's slower solves
@@ -347,7 +350,10 @@ class CondensedContactSolver(ContactSolver):
         radius = None if law.radius is None else np.asarray(law.radius, dtype=float)
         gap = -v_free[idx, 0]
         scale = max(self.gap_scale, float(np.max(np.abs(gap), initial=0.0)))
-        in_P = (gap < 0) | self.active[idx]
+        # a penetration at round-off is no contact: such grazing nodes would pose the cone
+        # problem with a normal force of round-off size, degenerate for a large mu
+        touch = GRAZING * scale
+        in_P = (gap < -touch) | self.active[idx]
         comp = np.arange(d)
         iterations, fallback, residual = 0, False, 0.0
         sol = None
@@ -369,7 +375,7 @@ class CondensedContactSolver(ContactSolver):
             if out.size == 0:
                 break
             v_out = v_free[out, 0] + self.delassus.W(out * d, rows) @ sol.lam.ravel()
-            joining = v_out > 0
+            joining = v_out > touch
             if not joining.any():
                 break
             in_P[np.flatnonzero(~in_P)[joining]] = True
