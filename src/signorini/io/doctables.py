@@ -11,6 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..contact.friction import CONTACT_LAWS
 from ..contact.obstacles import OBSTACLES
 from ..dynamics.mass import MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
@@ -27,6 +28,7 @@ def all_registries() -> dict[str, Registry]:
     return {
         "Time schemes (`--scheme`, `[time] scheme`; options: `--scheme-option`, keys of `[time]`)": SCHEMES,
         "Mass variants (`--mass`, `[solver] mass`)": MASS_VARIANTS,
+        "Contact laws (`--friction LAW:VALUE`, `[contact] friction = { law = ... }`)": CONTACT_LAWS,
         "Obstacles (`[contact] obstacle = { type = ... }`)": OBSTACLES,
         "Linear-algebra backends (`--backend`, `--solver-option backend=`, `[solver] backend`)": BACKENDS,
         "Preconditioners (backend `cg`: `--solver-option preconditioner=`)": PRECONDITIONERS,
@@ -45,6 +47,12 @@ def render() -> str:
     ]
     for title, reg in all_registries().items():
         md += [f"## {title}", "", reg.markdown_table()]
+    md += ["## Friction per scheme (docs/friction.md)", "", "| scheme | friction |", "|---|---|"]
+    for e in SCHEMES:
+        why = e.obj.friction_refusal
+        text = "carries it (frictional work in its energy identity)" if why is None else f"refuses: {why}"
+        md.append(f"| `{e.name}` | {text} |")
+    md.append("")
     md += ["## Solver options (`--solver-option NAME=VALUE`, keys of `[solver]`)", ""]
     md += ["| option | default | allowed | meaning |", "|---|---|---|---|"]
     for p in SOLVER_OPTIONS:
