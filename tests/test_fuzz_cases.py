@@ -177,13 +177,10 @@ NEEDS_THICKNESS = {"seed", "seed-normal", "moment-preserving", "moment-preservin
 
 def mass_choices(entry, tilted: bool, cell_type: str) -> list[str]:
     """The mass variants a valid case may name with this scheme and geometry (the code refuses the others,
-    with a message: schemes that need mass on every dof, seed-normal on a tilted or curved contact,
-    the tensor form on simplices)."""
+    with a message: schemes that need mass on every dof, the tensor form on simplices)."""
     if not entry.obj.massless_dofs_allowed:
         return ["standard", "lumped"]
     names = list(MASS_VARIANTS.names(aliases=False))
-    if tilted:
-        names.remove("seed-normal")
     if cell_type not in ("line", "quad", "hexahedron"):
         names.remove("moment-preserving-tensor")
     return names

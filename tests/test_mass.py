@@ -112,11 +112,30 @@ def test_errors():
         mass_matrix("heavy", mesh, 1.0)
     with pytest.raises(InputError, match="contact nodes"):
         mass_matrix("seed", mesh, 1.0, np.array([], dtype=int))
-    m2 = rectangle(2, 2)
-    nodes = m2.nodes_of("ymin")
-    tilted = np.tile([0.6, -0.8], (nodes.size, 1))
-    with pytest.raises(InputError, match="axis"):
-        mass_matrix("seed-normal", m2, 1.0, nodes, tilted)
+    with pytest.raises(InputError, match="normals"):
+        mass_matrix("seed-normal", rectangle(2, 2), 1.0, rectangle(2, 2).nodes_of("ymin"), None)
+
+
+@pytest.mark.parametrize("normal", [[0.6, -0.8], [0.0, -1.0]])
+def test_seed_normal_any_direction(normal):
+    """seed-normal through the nodal frames: the normal component of every contact node is
+    massless, M stays symmetric positive semi-definite, and a translation along the
+    (flat) boundary's tangent keeps the whole standard mass."""
+    mesh = rectangle(3, 3)
+    nodes = mesh.nodes_of("ymin")
+    nu = np.tile(np.asarray(normal) / np.linalg.norm(normal), (nodes.size, 1))
+    M = mass_matrix("seed-normal", mesh, 1.0, nodes, nu).toarray()
+    e = np.zeros(M.shape[0])
+    for i, node in enumerate(nodes):
+        e[:] = 0.0
+        e[2 * node : 2 * node + 2] = nu[i]
+        assert np.abs(M @ e).max() <= 1e-15 * np.abs(M).max()
+    assert np.abs(M - M.T).max() <= 1e-15 * np.abs(M).max()  # the assembly's summation order
+    assert np.linalg.eigvalsh(M).min() >= -1e-15 * np.abs(M).max()
+    t = np.array([-nu[0, 1], nu[0, 0]])  # the tangent: a translation along it keeps the whole mass
+    E = np.tile(t, mesh.n_nodes)
+    std = mass_matrix("standard", mesh, 1.0).toarray()
+    assert abs(E @ M @ E - E @ std @ E) <= 1e-14 * (E @ std @ E)
 
 
 # --------------------------------------------------------------------- one meaning per name

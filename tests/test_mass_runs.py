@@ -21,8 +21,7 @@ through the first impact):
   kept but not the inertia for neighbour and mass-free-surface, by hand on bar1d for
   lumped and seed.
 
-``seed-normal`` needs axis-aligned contact normals and ``moment-preserving-tensor`` a
-generated grid: both bars have them.  About 5 s.
+``moment-preserving-tensor`` needs a generated grid: both bars have one.  About 5 s.
 """
 
 import numpy as np

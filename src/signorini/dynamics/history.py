@@ -248,7 +248,9 @@ class History:
             "fallbacks": int(np.sum(self.fallbacks)),
             "min_gap": float(self.gap.min()) if self.gap.size else None,
             "max_lambda": float(self.lam.max()) if self.lam.size else None,
-            "cone_residual_max": float(np.max(self.residual)) if self.lam_t is not None else None,
+            # the worst (scaled) residual of the contact law of the steps: the Alart-Curnier
+            # residual with friction, the complementarity residual of Signorini without
+            "cone_residual_max": float(np.max(self.residual)),
             **self.diagnostics(),
         }
 

@@ -8,7 +8,9 @@ name                   definition                                               
 ``seed``               rho int over the elements that do not touch Gamma_C        all components
                        (the seed paper's M_mod, GetFEM ``singular_mass=1``)        of contact nodes
 ``seed-normal``        ``seed`` for the normal component, ``standard`` for the    normal comps
-                       tangential ones (flat, axis-aligned Gamma_C)                of contact nodes
+                       tangential ones, through the nodal frames (any obstacle;    of contact nodes
+                       :func:`seed_normal_mass`): the tangential inertia that
+                       friction acts on is kept
 ``moment-preserving``  contact rows/columns removed, the mass put back so that    all components
                        total mass, first and second moments are preserved          of contact nodes
                        (T^T M T, any mesh)
@@ -53,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..fem.assembly import lumped_mass_matrix, scalar_mass_matrix, vectorize
+from ..fem.assembly import assemble_vector, element_mass_matrices, lumped_mass_matrix, scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
 from ..linalg.sparse import count_per_row
 from ..registry import Registry
@@ -187,26 +189,45 @@ def seed_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.cs
 
 
 def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals: np.ndarray | None) -> sp.csr_matrix:
-    """Normal-only seed mass: sum_k M^(k) (x) e_k e_k^T with M^(k) = M_mod for the
-    normal axis k and the standard mass for the others.  Needs all contact normals
-    equal to +-e_k (flat, axis-aligned Gamma_C)."""
+    """The seed mass in the normal direction only, through the nodal frames (any obstacle).
+
+    M = M_mod (x) I + sum over the cells K touching Gamma_C of P_K (M_K (x) I) P_K, with M_mod
+    the ``seed`` scalar mass (cells not touching Gamma_C), M_K the scalar mass of cell K and
+    P_K = blockdiag(I - n_a n_a^T) over K's nodes a: n_a the unit normal nu_a of a contact
+    node, and for the other nodes of K the normalized mean of the normals of K's contact
+    nodes.  Each term is a congruence of a positive semi-definite matrix (M is one), the
+    normal component of every contact node is massless (M_mod has no row for it, P_K removes
+    it) and its tangential components keep their standard inertia.  On a flat contact
+    boundary (all n_a = n) it is M_mod (x) n n^T + M_std (x) (I - n n^T): the seed mass for the
+    normal component, the standard mass for the tangential ones (and, for n = +-e_k, the
+    construction of the seed paper's normal-only variant).  Normals are those of t = 0.
+    """
     d = mesh.dim
     if normals is None:
         raise InputError("mass 'seed-normal' needs the contact normals")
-    n = np.asarray(normals)
-    k = int(np.argmax(np.abs(n[0])))
-    if not np.allclose(np.abs(n[:, k]), 1.0, atol=1e-10):
-        raise InputError(
-            "mass 'seed-normal' needs a flat contact boundary with normals along a coordinate axis; "
-            "use 'seed' or 'moment-preserving' for this geometry"
-        )
-    std = scalar_mass_matrix(mesh, rho)
-    mod = seed_scalar_mass(mesh, rho, contact_nodes)
-    out = sp.csr_matrix((d * mesh.n_nodes, d * mesh.n_nodes))
-    for j in range(d):
-        e = sp.csr_matrix(([1.0], ([j], [j])), shape=(d, d))
-        out = out + sp.kron(mod if j == k else std, e, format="csr")
-    return out.tocsr()
+    nu = np.asarray(normals, dtype=float)
+    cells = mesh.cells
+    near = touching_cells(mesh, contact_nodes)
+    out = vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
+    if not near.any():
+        return out
+    # the unit normal of every contact node (n_nodes, d), zero elsewhere
+    node_normal = np.zeros((mesh.n_nodes, d))
+    node_normal[contact_nodes] = nu
+    sub = cells[near]
+    is_c = np.zeros(mesh.n_nodes, dtype=bool)
+    is_c[contact_nodes] = True
+    n_a = node_normal[sub]  # (m, nv, d)
+    mean = n_a.sum(axis=1)
+    norm = np.linalg.norm(mean, axis=1)
+    first = n_a[np.arange(sub.shape[0]), np.argmax(is_c[sub], axis=1)]
+    cell_n = np.where((norm > 1e-12)[:, None], mean / np.where(norm > 1e-12, norm, 1.0)[:, None], first)
+    n_a = np.where(is_c[sub][:, :, None], n_a, cell_n[:, None, :])
+    P = np.eye(d) - n_a[..., :, None] * n_a[..., None, :]  # (m, nv, d, d)
+    Ke = element_mass_matrices(mesh, rho)[near]  # (m, nv, nv)
+    Kv = Ke[:, :, :, None, None] * np.einsum("eaik,ebkj->eabij", P, P)
+    near_part = assemble_vector(Mesh(mesh.points, sub, mesh.cell_type), Kv)
+    return (out + 0.5 * (near_part + near_part.T)).tocsr()  # exactly symmetric (P_a P_b vs P_b P_a round-off)
 
 
 # ----------------------------------------------------------------------------- other redistributions
@@ -384,7 +405,8 @@ MASS_VARIANTS.register(
 MASS_VARIANTS.register(
     "seed-normal",
     _seed_normal,
-    "seed for the normal component only (flat, axis-aligned Gamma_C); kernel = normal components",
+    "seed for the normal component only, through the nodal frames (any obstacle): contact nodes keep their "
+    "tangential inertia; kernel = their normal components",
 )
 MASS_VARIANTS.register(
     "moment-preserving",

@@ -420,8 +420,7 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         series.update(kinetic_energy=E["kinetic_energy"], elastic_energy=E["elastic_energy"])
         series["predicted_increment"] = E["predicted_increment"]
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
-        if ctx.components > 1:
-            work["friction_work"] = E["friction"]
+        work["friction_work"] = E["friction"]  # zeros without friction
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())

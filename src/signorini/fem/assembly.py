@@ -168,17 +168,24 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
     return assemble_vector(mesh, Ke)
 
 
+def element_mass_matrices(mesh: Mesh, rho: float = 1.0) -> np.ndarray:
+    """rho int_K N_a N_b dx for every cell K, shape (n_cells, nv, nv) (a broadcast view of one
+    cell's matrix when the cells are translates of each other)."""
+    ref = reference_element(mesh.cell_type)
+    wdet, _ = _element_data(mesh)
+    Ke = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    if Ke.shape[0] != mesh.n_cells:
+        Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
+    return Ke
+
+
 def scalar_mass_matrix(mesh: Mesh, rho: float = 1.0, cell_weight: np.ndarray | None = None) -> sp.csr_matrix:
     """Scalar consistent mass m_ab = int rho w_e N_a N_b dx, shape (n_nodes, n_nodes).
 
     ``cell_weight`` (n_cells,) multiplies each element's contribution (0 drops it; this
     is how the ``seed`` mass removes the elements touching the contact boundary).
     """
-    ref = reference_element(mesh.cell_type)
-    wdet, _ = _element_data(mesh)
-    Ke = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
-    if Ke.shape[0] != mesh.n_cells:
-        Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
+    Ke = element_mass_matrices(mesh, rho)
     if cell_weight is not None:
         Ke = Ke * np.asarray(cell_weight, dtype=float)[:, None, None]
     return assemble_scalar(mesh, Ke)
