@@ -291,3 +291,45 @@ def test_cg_backend_is_refused():
 def test_labels_round_trip():
     for f in (Friction("coulomb", 0.3), Friction("tresca", threshold=0.01), Friction()):
         assert make_friction(f.label) == f == make_friction(f)
+
+
+# ----------------------------------------------------------------------------- mass variants (docs/friction.md)
+@pytest.fixture(scope="module")
+def mass_table():
+    """examples/friction_masses.py on its two coarse levels (the docs' table uses three)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "examples" / "friction_masses.py"
+    spec = importlib.util.spec_from_file_location("friction_masses", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return {(r["mass"], r["scheme"]): r for mass in MASS_VARIANTS.names(aliases=False)
+            for r in [module.row(mass, "cn", (1, 2))]}  # fmt: skip
+
+
+REMOVING = ["seed", "moment-preserving", "moment-preserving-tensor", "neighbour", "mass-free-surface"]
+
+
+def test_cn_frictional_work_sign_depends_on_the_mass(mass_table):
+    """CN averages lambda_t over the step: its frictional work is not sign-definite.  With the
+    standard and lumped masses it is positive on some steps (and in total: friction feeds the
+    energy gain of CN); with every mass that removes the contact nodes' inertia it is never
+    positive and the energy never rises above E^0 beyond round-off."""
+    for mass in ("standard", "lumped"):
+        assert mass_table[mass, "cn"]["steps with work > 0"] > 0
+    for mass in REMOVING:
+        r = mass_table[mass, "cn"]
+        assert r["status"] == "finished"
+        assert r["steps with work > 0"] == 0 and r["energy rise / E0"] <= 1e-11
+        assert r["frictional work / E0"] < 0
+
+
+def test_tangential_force_oscillation_by_mass(mass_table):
+    """seed-normal keeps the contact nodes' tangential inertia: with CN its tangential force
+    oscillates like the normal force of the standard mass; removing all components does not."""
+    osc = {m: mass_table[m, "cn"]["osc. tangential"] for m in MASS_VARIANTS.names(aliases=False)}
+    for mass in REMOVING:
+        assert osc[mass] <= 1.3
+    assert osc["seed-normal"] >= 3 * osc["moment-preserving"]
+    assert osc["standard"] >= 3 * osc["moment-preserving"]
