@@ -7,7 +7,11 @@ interrupted or fails; the XDMF index is written when the observer is closed.
 
 Point data per time: ``displacement`` and ``velocity`` (n_nodes, 3, padded with zeros
 below 3D), ``von_mises`` (n_nodes,), ``contact_pressure`` (n_nodes,, zero off Gamma_C,
-positive in compression, -lambda_i / w_i).
+positive in compression, -lambda_i / w_i), ``contact_traction`` (n_nodes, 3): the traction
+vector the obstacle exerts, (lambda_i nu_i + lambda_t,i . t_i) / w_i [force / length^(d-1)],
+zero off Gamma_C (tangential part with friction only), and ``contact_status`` (n_nodes,):
+-1 off Gamma_C, 0 separated, 1 stick, 2 slip (without friction: 2 for every node in
+contact, nothing holds it tangentially).
 
 A full disk must not reach the HDF5 library: once a write has failed inside it, its
 metadata cache keeps retrying and closing the file crashes the process.  Before every
@@ -87,10 +91,11 @@ class FieldWriter(Observer):
         self._mesh, self._material = mesh, run.problem.material
         self._nodes = run.ctx.disc.contact.nodes
         self._weights = run.ctx.disc.contact.weights
+        self._contact = run.ctx.disc.contact
         pts = np.zeros((mesh.n_nodes, 3))
         pts[:, : mesh.dim] = mesh.points
-        # displacement, velocity (n, 3) and two scalars per node, in double precision
-        self._snapshot_bytes = 8 * 8 * mesh.n_nodes
+        # displacement, velocity, traction (n, 3) and three scalars per node, in double precision
+        self._snapshot_bytes = 8 * 12 * mesh.n_nodes
         self._hold_reserve()
         self._snapshot_bytes += pts.nbytes + mesh.cells.nbytes
         self._check_room()
@@ -111,10 +116,19 @@ class FieldWriter(Observer):
         p = np.zeros(mesh.n_nodes)
         p[self._nodes] = -s.lam / self._weights
         vm = von_mises(mesh, self._material, s.U)
+        c = self._contact
+        traction = np.zeros((mesh.n_nodes, 3))
+        force = c.normals * s.lam[:, None]
+        if s.lam_t is not None and s.lam_t.size:
+            force = force + np.einsum("ik,ikd->id", s.lam_t, c.tangents)
+        traction[self._nodes, :d] = force / self._weights[:, None]
+        status = np.full(mesh.n_nodes, -1.0)
+        info_status = s.info.status if s.info is not None else None
+        status[self._nodes] = info_status if info_status is not None else np.where(s.lam < 0, 2.0, 0.0)
+        data = {"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p,
+                "contact_traction": traction, "contact_status": status}  # fmt: skip
         try:
-            self._writer.write_data(
-                float(s.t), point_data={"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p}
-            )
+            self._writer.write_data(float(s.t), point_data=data)
         except Exception as exc:  # inside HDF5 (the disk filled under us): never touch this file again
             self._abandon()
             if "space" in str(exc).lower() or isinstance(exc, OSError):
