@@ -233,11 +233,9 @@ def solve_cone(
     while res > ROUND_OFF and it < max_iter:
         it += 1
         D = _jacobian_blocks(z, mu, radius)
-        J = eye.copy()
-        Dfull = np.zeros((m * d, m * d))
-        idx = np.arange(m)[:, None, None] * d
-        Dfull[(idx + np.arange(d)[None, :, None]), (idx + np.arange(d)[None, None, :])] = D
-        J -= Dfull @ IrW
+        # J = I - D (I - rho W) with D block diagonal: node i's rows are D_i times its rows
+        # of (I - rho W), O(m^2 d^3) instead of a dense product
+        J = eye - np.einsum("iab,ibk->iak", D, IrW.reshape(m, d, m * d)).reshape(m * d, m * d)
         try:
             step = np.linalg.solve(J, -F.ravel()).reshape(m, d)
         except np.linalg.LinAlgError:
