@@ -19,8 +19,9 @@ mass matrix, the same one the body force follows (:mod:`signorini.dynamics.mass`
 the closed form holds for every mass variant.
 
 Parameters: ``E`` = 1000, ``nu`` = 0.3, ``rho`` = 1, ``g`` = 1, ``angle`` = 30 (degrees),
-``mu`` = 0.3, ``width`` = 1, ``height`` = 0.25.  Level n: 4n x n elements (2D), 4n x 4n
-x n (3D), h = height / n; default dt = 0.02 / n, T = 2.
+``mu`` = 0.3, ``width`` = 1, ``height`` = 0.25.  Level n: 4n x 2n elements (2D), 4n x 4n
+x 2n (3D; two cells through the height, which the moment-preserving default mass needs),
+h = height / (2n); default dt = 0.02 / n, T = 2.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ def predicted_acceleration(p: dict, mu: float | None = None) -> float:
 def builder(dim: int) -> Callable[[int, dict], Problem]:
     def build(n: int, p: dict) -> Problem:
         w, hgt = p["width"], p["height"]
-        mesh = rectangle(4 * n, n, w, hgt) if dim == 2 else box(4 * n, 4 * n, n, w, w, hgt)
+        mesh = rectangle(4 * n, 2 * n, w, hgt) if dim == 2 else box(4 * n, 4 * n, 2 * n, w, w, hgt)
         return Problem(
             mesh=mesh,
             material=IsotropicElastic.from_young(p["E"], p["nu"], p["rho"]),
@@ -98,9 +99,10 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
 
 def sizes(dim: int) -> Callable[[int, dict], tuple[float, int, int, int, int]]:
     def counts(n: int, p: dict) -> tuple[float, int, int, int, int]:
+        h = p["height"] / (2 * n)
         if dim == 2:
-            return p["height"] / n, (4 * n + 1) * (n + 1), 4 * n * n, 4, 4 * n + 1
-        return p["height"] / n, (4 * n + 1) ** 2 * (n + 1), 16 * n**3, 8, (4 * n + 1) ** 2
+            return h, (4 * n + 1) * (2 * n + 1), 8 * n * n, 4, 4 * n + 1
+        return h, (4 * n + 1) ** 2 * (2 * n + 1), 32 * n**3, 8, (4 * n + 1) ** 2
 
     return counts
 

@@ -104,6 +104,7 @@ def collect(plan: Plan, outcomes: dict, reference: Reference | None) -> dict:
         "reference": ref_info,
         "contact_norm": contact_norm,
         "length_scale": plan.length_scale,
+        "friction": plan.friction,
         "pairs": pairs,
     }
     return rank_result(result)

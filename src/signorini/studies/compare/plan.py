@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -82,6 +82,7 @@ class Plan:
     solver_options: tuple[tuple[str, Any], ...] = ()
     length_scale: float = 1.0
     counts: tuple[int, int, int, int, int] | None = None  # case file: (nodes, cells, per cell, dim, contact)
+    friction: dict = field(default_factory=lambda: {"law": "frictionless"})  # the contact law of every run
 
     @property
     def kind(self) -> str:
@@ -152,7 +153,10 @@ def plan_benchmark(
         ref = (scheme, mass, level)
     problem = target.problem(ns[0])  # parameters, mesh and friction valid before anything runs
     check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
-    return Plan(target, list(pairs), ns, dts, T, ratio, hs, ref, (), _length_scale(problem))
+    return Plan(
+        target, list(pairs), ns, dts, T, ratio, hs, ref, (), _length_scale(problem),
+        friction=problem.friction.describe(),
+    )  # fmt: skip
 
 
 def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
@@ -165,7 +169,7 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     m = problem.mesh
     counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size)
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
-                length_scale=_length_scale(problem), counts=counts)  # fmt: skip
+                length_scale=_length_scale(problem), counts=counts, friction=problem.friction.describe())  # fmt: skip
 
 
 def _length_scale(problem) -> float:

@@ -26,12 +26,17 @@ def reference_text(result: dict) -> str:
 
 
 def setup_text(result: dict) -> str:
+    law = result.get("friction") or {"law": "frictionless"}
+    friction = "" if law["law"] == "frictionless" else (
+        f"  Contact law: {law['law']} ({', '.join(f'{k} {v:g}' for k, v in law.items() if k != 'law')}) in every run."
+    )  # fmt: skip
     if result["kind"] != "benchmark":
-        return f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}."
+        return f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}.{friction}"
     levels = ", ".join(str(n) for n in result["levels"])
     return (
         f"Benchmark `{result['target']}`, levels n = {levels} (h = {result['h'][0]:.4g} .. {result['h'][-1]:.4g}, "
         f"dt = {result['ratio']:g} h), T = {result['T']:g}; diagnostics at the finest level n = {result['levels'][-1]}."
+        + friction
     )
 
 
