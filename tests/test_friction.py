@@ -244,19 +244,38 @@ def test_incline_sticking_stays_elastic():
     assert np.all(H.contact_status[late] == STICK)
 
 
-def test_tresca_block_closed_form():
+@pytest.mark.parametrize(
+    "scheme, options, mass, tol",
+    [("be", None, "moment-preserving", 1e-6), ("moreau-jean", {"theta": 1.0}, "moment-preserving", 1e-6),
+     ("moreau-jean", None, "standard", None), ("cn", None, "moment-preserving", None)],
+)  # fmt: skip
+def test_tresca_block_closed_form(scheme, options, mass, tol):
     """Tresca threshold s on the whole base (every node in contact and sliding): m x_G'' =
-    m g sin a - s |Gamma_C|, i.e. a = g sin a - s width / (rho width height)."""
+    m g sin a - s |Gamma_C|, i.e. a = g sin a - s width / (rho width height): exact for the
+    dissipative schemes (measured 1e-10).  The midpoint schemes keep the normal waves that
+    switching gravity on starts: a quarter of the nodes are off the plane at any time, where
+    Tresca's threshold does not act, and the block slides faster (CN: 0.32 instead of 0.1);
+    their identity still closes.  Moreau-Jean's multipliers are impulses: its bound is
+    dt s w_i (with theta = 1/2 it shares CN's factorization, scaled by dt^2/4)."""
     bench = get_benchmark("incline2d")
     p = bench.params()
     s = 0.1
     problem = with_friction(bench.problem(2), f"tresca:{s}")
     com = CentreOfMassRecorder([1.0, 0.0])
-    H = simulate(problem, "be", dt=0.01, T=2.0, observers=[com])
+    H = simulate(problem, scheme, dt=0.01, T=2.0, mass=mass, observers=[com], scheme_options=options)
+    assert H.status == "finished", H.message
     keep = H.t >= 0.5
     a = 2 * np.polyfit(H.t[keep], com.position[keep], 2)[0]
-    expected = p["g"] * math.sin(math.radians(p["angle"])) - s / (p["rho"] * p["height"])
-    assert abs(a / expected - 1) <= 1e-6
+    g_sin = p["g"] * math.sin(math.radians(p["angle"]))
+    expected = g_sin - s / (p["rho"] * p["height"])
+    if tol is not None:
+        assert abs(a / expected - 1) <= tol
+        assert H.counters["friction_fallbacks"] == 0  # settled: the contact set never cycles
+    else:  # undamped normal waves: nodes leave the plane and lose their threshold, less friction
+        assert expected < a < g_sin
+        assert (H.active[keep] < H.lam.shape[1]).any()
+    dE = H.energy_increment[1:] - H.predicted_increment[1:]
+    assert np.abs(dE).max() <= 1e-11 * np.abs(H.energy).max()
 
 
 # ----------------------------------------------------------------------------- input

@@ -44,6 +44,8 @@ SEPARATED, STICK, SLIP = 0, 1, 2
 STATUS_NAMES = ("separated", "stick", "slip")
 #: Newton stops here (relative residual), or where it stalls below the tolerance
 ROUND_OFF = 1e-15
+#: Tresca: contact sets tried per step (each one convex problem)
+MAX_CONTACT_SETS = 30
 
 CONTACT_LAWS = Registry("contact law")
 CONTACT_LAWS.register("frictionless", "frictionless", "Signorini contact without friction (one multiplier per node)")
@@ -144,12 +146,18 @@ class ConeResult:
     residual: float  # |F|_inf / (rho * length scale): the cone-complementarity residual [-]
 
 
-def _project(z: np.ndarray, mu: float, radius: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pi(z) per node (m, d), the disc radii r (m,) and |z_t| (m,) (see the module docstring)."""
+def _project(
+    z: np.ndarray, mu: float, radius: np.ndarray | None, fixed: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pi(z) per node (m, d), the disc radii r (m,) and |z_t| (m,) (see the module docstring);
+    ``fixed``: the radii are ``radius`` whatever z_n (the inner problem of Tresca)."""
     out = np.empty_like(z)
     zn = z[:, 0]
     out[:, 0] = np.minimum(zn, 0.0)
-    r = mu * np.maximum(-zn, 0.0) if radius is None else np.where(zn < 0.0, radius, 0.0)
+    if radius is None:
+        r = mu * np.maximum(-zn, 0.0)
+    else:
+        r = radius if fixed else np.where(zn < 0.0, radius, 0.0)
     zt = z[:, 1:]
     norm = np.linalg.norm(zt, axis=1)
     factor = np.where(norm > r, r / np.where(norm > 0, norm, 1.0), 1.0)
@@ -157,14 +165,14 @@ def _project(z: np.ndarray, mu: float, radius: np.ndarray | None) -> tuple[np.nd
     return out, r, norm
 
 
-def _jacobian_blocks(z: np.ndarray, mu: float, radius: np.ndarray | None) -> np.ndarray:
+def _jacobian_blocks(z: np.ndarray, mu: float, radius: np.ndarray | None, fixed: bool = False) -> np.ndarray:
     """A generalized Jacobian of Pi at z: (m, d, d) blocks, one per node."""
     m, d = z.shape
     D = np.zeros((m, d, d))
     zn = z[:, 0]
     contact = zn < 0.0
     D[:, 0, 0] = contact
-    _, r, norm = _project(z, mu, radius)
+    _, r, norm = _project(z, mu, radius, fixed)
     stick = (norm <= r) & (r > 0)
     slip = norm > r
     eye = np.eye(d - 1)
@@ -198,6 +206,14 @@ def solve_cone(
 ) -> ConeResult:
     """Solve the frictional contact problem of m nodes on the condensed system.
 
+    Coulomb: one semismooth Newton solve (:func:`_solve`).  Tresca acts on the nodes in
+    contact only, a radius that jumps with the contact status: it is solved as a sequence
+    of problems with fixed radii s w_i on a contact set A (each convex: Signorini plus a
+    given threshold), A updated to the nodes in contact at the solution until it repeats
+    (then the radii match the law), at most ``MAX_CONTACT_SETS`` times.  When A cycles (a
+    node in contact without its threshold and separated with it) the threshold acts on
+    the union of the two sets: a counted fallback.
+
     Parameters
     ----------
     W : (m d, m d) Delassus matrix in the nodal frames, node-major [length / force].
@@ -208,6 +224,49 @@ def solve_cone(
     scale : length scale of the residual (the gaps of the problem).
     tol : relative tolerance on |F|_inf / (rho scale).
     """
+    if radius is None:
+        return _solve(W, v_free, mu, None, False, warm, scale, tol, max_iter, max_sweeps)
+    radius = np.asarray(radius, dtype=float)
+    lam = None if warm is None else np.asarray(warm, dtype=float)
+    A = (v_free[:, 0] > 0) if lam is None else (lam[:, 0] < 0) | (v_free[:, 0] > 0)
+    iterations, fallback, seen = 0, False, set()
+    for _ in range(MAX_CONTACT_SETS):
+        res = _solve(W, v_free, 0.0, np.where(A, radius, 0.0), True, lam, scale, tol, max_iter, max_sweeps)
+        iterations += res.iterations
+        fallback |= res.fallback
+        rho = 1.0 / float(np.mean(np.diag(W)))
+        A_new = (res.lam[:, 0] - rho * res.v[:, 0]) < 0
+        if np.array_equal(A_new, A):
+            res.iterations, res.fallback = iterations, fallback
+            return res
+        seen.add(A.tobytes())
+        union = A | A_new
+        A, lam = A_new, res.lam
+        if A_new.tobytes() in seen:
+            # a node in contact without its threshold and separated with it: the law's radius is
+            # set-valued there (touching, zero pressure).  Counted fallback: the threshold acts
+            # on the union of the two sets, one convex problem (docs/friction.md)
+            res = _solve(W, v_free, 0.0, np.where(union, radius, 0.0), True, lam, scale, tol, max_iter, max_sweeps)
+            res.iterations, res.fallback = iterations + res.iterations, True
+            return res
+    raise ConvergenceError(
+        f"the Tresca contact set did not settle in {MAX_CONTACT_SETS} updates; reduce the time step"
+    )
+
+
+def _solve(
+    W: np.ndarray,
+    v_free: np.ndarray,
+    mu: float,
+    radius: np.ndarray | None,
+    fixed: bool,
+    warm: np.ndarray | None,
+    scale: float,
+    tol: float,
+    max_iter: int,
+    max_sweeps: int,
+) -> ConeResult:
+    """Semismooth Newton (then the counted Gauss-Seidel fallback) on F(l) = l - Pi(l - rho v(l))."""
     m, d = v_free.shape
     if m == 0:
         return ConeResult(np.zeros((0, d)), v_free.copy(), np.zeros(0, np.int8), 0, False, 0.0)
@@ -218,7 +277,7 @@ def solve_cone(
     def residual_of(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         v = b + W @ lam.ravel()
         z = lam - rho * v.reshape(m, d)
-        return lam - _project(z, mu, radius)[0], z
+        return lam - _project(z, mu, radius, fixed)[0], z
 
     def size(F: np.ndarray) -> float:
         return float(np.max(np.abs(F))) / (rho * scale)
@@ -232,7 +291,7 @@ def solve_cone(
     # contact structure is right); tol decides whether a stalled iteration has converged
     while res > ROUND_OFF and it < max_iter:
         it += 1
-        D = _jacobian_blocks(z, mu, radius)
+        D = _jacobian_blocks(z, mu, radius, fixed)
         # J = I - D (I - rho W) with D block diagonal: node i's rows are D_i times its rows
         # of (I - rho W), O(m^2 d^3) instead of a dense product
         J = eye - np.einsum("iab,ibk->iak", D, IrW.reshape(m, d, m * d)).reshape(m * d, m * d)
@@ -256,7 +315,7 @@ def solve_cone(
         res = size(F)
     fallback = False
     if not res <= tol:
-        lam, sweeps = _gauss_seidel(W, b, lam, rho, mu, radius, tol, scale, max_sweeps, d)
+        lam, sweeps = _gauss_seidel(W, b, lam, rho, mu, radius, fixed, tol, scale, max_sweeps, d)
         it += sweeps
         fallback = True
         F, z = residual_of(lam)
@@ -267,13 +326,13 @@ def solve_cone(
                 f"sweeps; residual {res:.3g}); reduce the time step or the friction coefficient"
             )
     v = (b + W @ lam.ravel()).reshape(m, d)
-    _, r, norm = _project(lam - rho * v, mu, radius)
+    _, r, norm = _project(lam - rho * v, mu, radius, fixed)
     # exact zeros where the projection says so (no round-off multipliers on separated nodes)
     lam[lam[:, 0] >= 0.0] = 0.0
     return ConeResult(lam, v, _status(lam, r, norm), it, fallback, res)
 
 
-def _gauss_seidel(W, b, lam, rho, mu, radius, tol, scale, max_sweeps, d) -> tuple[np.ndarray, int]:
+def _gauss_seidel(W, b, lam, rho, mu, radius, fixed, tol, scale, max_sweeps, d) -> tuple[np.ndarray, int]:
     """Projected block Gauss-Seidel on the nodes (the counted fallback of :func:`solve_cone`).
 
     Node i is updated with its own block's rho_i = 1 / mean(diag W_ii): lam_i <- Pi(lam_i -
@@ -288,9 +347,9 @@ def _gauss_seidel(W, b, lam, rho, mu, radius, tol, scale, max_sweeps, d) -> tupl
             sl = slice(i * d, (i + 1) * d)
             vi = b[sl] + W[sl] @ x
             zi = (x[sl] - vi / diag[i])[None, :]
-            x[sl] = _project(zi, mu, None if rad is None else rad[i : i + 1])[0][0]
+            x[sl] = _project(zi, mu, None if rad is None else rad[i : i + 1], fixed)[0][0]
         v = b + W @ x
-        F = x - _project((x - rho * v).reshape(m, d), mu, rad)[0].ravel()
+        F = x - _project((x - rho * v).reshape(m, d), mu, rad, fixed)[0].ravel()
         if float(np.max(np.abs(F))) / (rho * scale) <= tol:
             return x.reshape(m, d), sweep
     return x.reshape(m, d), max_sweeps

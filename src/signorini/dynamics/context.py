@@ -263,11 +263,14 @@ class Context:
 
     def friction_rate_law(self, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
         """``base`` with the run's friction for a velocity-level step: the slip rate is
-        v_t = T V^{n+1} - c_t with c_t the obstacle's tangential velocity over the step."""
+        v_t = T V^{n+1} - c_t with c_t the obstacle's tangential velocity over the step.
+        The multipliers are impulses: the Tresca bound of a step is (t1 - t0) s w_i."""
         if self.components == 1:
             return base
         ref = self.disc.contact.obstacle_slip(t0, t1) / (t1 - t0)
-        return replace(base, friction=self.friction, reference=ref, radius=self._radius())
+        radius = self._radius()
+        radius = None if radius is None else (t1 - t0) * radius
+        return replace(base, friction=self.friction, reference=ref, radius=radius)
 
     def _radius(self) -> np.ndarray | None:
         """Tresca thresholds s w_i (nc,) [force]; None for Coulomb."""
