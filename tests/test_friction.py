@@ -352,3 +352,20 @@ def test_tangential_force_oscillation_by_mass(mass_table):
         assert osc[mass] <= 1.3
     assert osc["seed-normal"] >= 3 * osc["moment-preserving"]
     assert osc["standard"] >= 3 * osc["moment-preserving"]
+
+
+@pytest.mark.parametrize("scheme", ["be", "cn", "generalized-alpha"])
+def test_tangent_prescribed_by_dirichlet(scheme):
+    """A symmetry condition u_x = 0 on xmin prescribes the tangential motion of the corner
+    contact node: its tangential force is the reaction's, the cone problem drops it (lambda_t
+    = 0 there) and every step solves without fallback."""
+    from signorini.fem.space import Dirichlet
+
+    p = block(friction="coulomb:0.3", vt=0.0, dirichlet=[Dirichlet("xmin", (0.0,), components=(0,))])
+    H = run(p, scheme=scheme)
+    assert H.counters["friction_fallbacks"] == 0
+    corner = np.flatnonzero(np.isclose(H.coordinates[:, 0], 0.0))
+    assert corner.size == 1 and (H.lam[:, corner] < 0).any()
+    assert np.all(H.lam_t[:, corner] == 0.0)
+    dE = H.energy_increment[1:] - H.predicted_increment[1:]
+    assert np.abs(dE).max() <= 1e-11 * np.abs(H.energy).max()

@@ -117,6 +117,8 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
     if isinstance(spec, str):
         name, sep, value = spec.partition(":")
         law = CONTACT_LAWS.resolve(name)
+        if law == "frictionless" and sep:
+            raise InputError(f"{where}: frictionless takes no value, got {spec!r} (e.g. coulomb:0.3)")
         if law != "frictionless" and not sep:
             raise InputError(f"{where}: {law} needs a value, e.g. {law}:{0.3 if law == 'coulomb' else 0.01}")
         spec = {"law": law, **({_PARAMETER[law]: value.strip()} if sep else {})}
@@ -127,6 +129,10 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
         raise InputError(f"{where}.law is missing; allowed: {', '.join(CONTACT_LAWS.names())}")
     law = CONTACT_LAWS.resolve(str(opts.pop("law")))
     entry = CONTACT_LAWS.get(law)
+    unknown = sorted(set(opts) - {p.name for p in entry.parameters})
+    if unknown:
+        allowed = ", ".join(p.name for p in entry.parameters) or "none"
+        raise InputError(f"{where}: unknown option {unknown[0]!r} for law {law!r}; allowed: {allowed}")
     values = entry.options(opts, where=where)
     missing = [p.name for p in entry.parameters if p.name not in opts]
     if missing:
@@ -249,9 +255,7 @@ def solve_cone(
             res = _solve(W, v_free, 0.0, np.where(union, radius, 0.0), True, lam, scale, tol, max_iter, max_sweeps)
             res.iterations, res.fallback = iterations + res.iterations, True
             return res
-    raise ConvergenceError(
-        f"the Tresca contact set did not settle in {MAX_CONTACT_SETS} updates; reduce the time step"
-    )
+    raise ConvergenceError(f"the Tresca contact set did not settle in {MAX_CONTACT_SETS} updates; reduce the time step")
 
 
 def _solve(
@@ -323,7 +327,7 @@ def _solve(
         if not res <= max(tol, 1e-10):
             raise ConvergenceError(
                 f"the frictional contact solve did not converge (semismooth Newton then {sweeps} Gauss-Seidel "
-                f"sweeps; residual {res:.3g}); reduce the time step or the friction coefficient"
+                f"sweeps; residual {res:.3g}); reduce the time step, or the friction coefficient or threshold"
             )
     v = (b + W @ lam.ravel()).reshape(m, d)
     _, r, norm = _project(lam - rho * v, mu, radius, fixed)

@@ -240,6 +240,9 @@ class CondensedContactSolver(ContactSolver):
                 self.delassus.ensure(np.arange(nc))
         self.active = np.zeros(nc // components, dtype=bool)
         self.lam_prev = np.zeros((nc // components, components))
+        # frame rows with no free dof (a tangent whose motion a Dirichlet condition prescribes,
+        # e.g. a symmetry plane through a contact node): the reaction carries that force
+        self.dead = (np.asarray(abs(self.B).sum(axis=1)).ravel() == 0).reshape(-1, components)
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
@@ -357,15 +360,25 @@ class CondensedContactSolver(ContactSolver):
         comp = np.arange(d)
         iterations, fallback, residual = 0, False, 0.0
         sol = None
+        near = idx[np.argsort(gap)]
+        fill = (near[:, None] * d + comp).ravel()
         while in_P.any():
             P = idx[in_P]
             rows = (P[:, None] * d + comp).ravel()
-            near = idx[np.argsort(gap)]
-            self.delassus.ensure(rows, fill=(near[:, None] * d + comp).ravel())
-            sol = solve_cone(
-                self.delassus.block(rows), v_free[P], mu, None if radius is None else radius[P],
-                self.lam_prev[P], scale,
-            )  # fmt: skip
+            self.delassus.ensure(rows, fill=fill)
+            W, vP = self.delassus.block(rows), v_free[P]
+            dead = self.dead[P].ravel()
+            if dead.any():  # a decoupled unit row with no slip: its multiplier is exactly 0
+                W[dead, :] = 0.0
+                W[:, dead] = 0.0
+                W[dead, dead] = float(np.mean(np.diag(W)[~dead]))
+                vP = np.where(self.dead[P], 0.0, vP)
+            try:
+                sol = solve_cone(W, vP, mu, None if radius is None else radius[P], self.lam_prev[P], scale)
+            except ConvergenceError:
+                self.counters["fallbacks"] += 1
+                self.counters["friction_fallbacks"] += 1
+                raise
             iterations += sol.iterations
             fallback |= sol.fallback
             residual = sol.residual

@@ -73,16 +73,16 @@ def friction_line(H, s: dict) -> str:
     if f.get("law", "frictionless") == "frictionless":
         return ""
     cols = H.columns()
-    diss = cols["friction_dissipation"][-1]
+    diss = float(cols["friction_dissipation"][-1]) + 0.0  # no "-0"
     res = s.get("energy_identity_residual")
+    work = "n/a" if not np.isfinite(diss) else f"{diss:.6g}"
+    res_text = f" (energy identity residual {res:.2e} with it)" if res is not None else ""
     c = s["counters"]
     return (
-        f"  friction {', '.join(f'{k} {v}' for k, v in f.items() if k != 'law')} ({f['law']}): dissipated "
-        f"{diss:.6g} (energy identity residual {res:.2e} with it), at the end {int(cols['stick_nodes'][-1])} stick / "
+        f"  friction {', '.join(f'{k} {v}' for k, v in f.items() if k != 'law')} ({f['law']}): friction_dissipation "
+        f"{work}{res_text}, at the end {int(cols['stick_nodes'][-1])} stick / "
         f"{int(cols['slip_nodes'][-1])} slip nodes; {c.get('friction_iterations', 0)} Newton iterations, "
         f"{c.get('friction_fallbacks', 0)} fallbacks, cone residual max {s['cone_residual_max']:.2e}\n"
-        if res is not None
-        else ""
     )
 
 
