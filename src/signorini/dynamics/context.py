@@ -158,6 +158,14 @@ class Context:
         self._systems: list[_System] = []
         self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)
+        #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
+        #: tilted or curved contact): schemes that balance massless rows apart refuse it
+        n = disc.contact.normals
+        self.rotated_kernel = bool(
+            disc.mass_name == "seed-normal"
+            and n.size
+            and not np.all(np.isclose(np.abs(n).max(axis=1), 1.0, atol=1e-12))
+        )
         if self.massless.size == disc.M.shape[0]:
             raise InputError(
                 f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "
@@ -277,6 +285,22 @@ class Context:
         if self.friction.law != "tresca":
             return None
         return self.friction.threshold * self.disc.contact.weights
+
+    def massless_update(self, V: np.ndarray, A: np.ndarray, U: np.ndarray, U_old: np.ndarray) -> None:
+        """On the massless directions, in place: V = (U - U_old)/dt and A = 0.
+
+        Massless dofs (zero rows of M) and, for ``seed-normal`` on a tilted or curved
+        contact, the contact nodes' normals nu_i (the rows of B, orthonormal): there the
+        scheme's own V and A are not controlled by any inertia (CN's (-1)^n mode grows in
+        them, and M A then carries their round-off)."""
+        ml = self.massless
+        if ml.size:
+            V[ml] = (U[ml] - U_old[ml]) / self.dt
+            A[ml] = 0.0
+        if self.rotated_kernel:
+            B = self.B
+            V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
+            A -= B.T @ (B @ A)
 
     def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
         """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]."""

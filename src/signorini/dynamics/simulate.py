@@ -119,18 +119,24 @@ def initial_state(ctx: Context) -> State:
         Mrr = ctx.M[idx][:, idx].tocsr()
         d = Mrr.diagonal()
         pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
-        sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
-        ctx.initial_acceleration = "cg"
-        if info != 0:  # fall back to a direct solve (reported in summary.json: initial_acceleration)
-            sol = spla.spsolve(Mrr.tocsc(), r[idx])
-            ctx.initial_acceleration = "spsolve (cg did not converge)"
+        if ctx.rotated_kernel:  # singular: the least-squares solution of least norm
+            sol = spla.minres(Mrr, r[idx], rtol=1e-14, maxiter=20000)[0]
+            ctx.initial_acceleration = "minres (massless normal directions)"
+        else:
+            sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
+            ctx.initial_acceleration = "cg"
+            if info != 0:  # fall back to a direct solve (reported in summary.json: initial_acceleration)
+                sol = spla.spsolve(Mrr.tocsc(), r[idx])
+                ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
     lam_t = np.zeros((disc.contact.size, ctx.components - 1)) if ctx.components > 1 else None
     state = State(0.0, U, V, A, np.zeros(disc.contact.size), lam_t=lam_t)
     R0 = np.zeros(n)
     ml = np.setdiff1d(ctx.massless, ctx.fixed)
     R0[ml] = -r[ml]
-    if ml.size and np.any(R0[ml] != 0.0):
+    if ctx.rotated_kernel and idx.size:  # out of equilibrium along the massless normals
+        R0[idx] = ctx.M[idx] @ A - r[idx]
+    if np.any(R0 != 0.0):
         state.extra["R0"] = R0
     return state
 

@@ -143,6 +143,12 @@ class Scheme:
     def _refuse_massless(self, ctx: Context, why: str, fix: str = "the 'standard' or 'lumped' mass") -> None:
         """InputError if the mass leaves free dofs massless (``why``: what goes wrong then)."""
         free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
+        if ctx.rotated_kernel:
+            raise InputError(
+                f"scheme {self.name}: mass {ctx.disc.mass_name!r} on a tilted or curved contact boundary leaves the "
+                f"contact nodes massless along their normals, which are not coordinate axes, and {why} "
+                f"(docs/schemes.md); use {fix}"
+            )
         if free_massless.size:
             raise InputError(
                 f"scheme {self.name}: mass {ctx.disc.mass_name!r} leaves {free_massless.size} free "

@@ -59,6 +59,20 @@ class GeneralizedAlpha(Newmark):
     )
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (a_f - a_m)^2/4 A.MA"
 
+    def check_context(self, ctx, prepared: bool = False) -> None:
+        if self.alphas()[1] != 0.0:
+            self._refuse_massless_directions(ctx)
+
+    def _refuse_massless_directions(self, ctx) -> None:
+        """Massless rows are balanced at t_{n+1} along the coordinate axes only."""
+        if ctx.rotated_kernel:
+            self._refuse_massless(
+                ctx,
+                "the weighted balance leaves an undamped (-1)^n mode along them (its massless rows are balanced at "
+                "t_{n+1} along the coordinate axes only)",
+                "crank-nicolson, newmark, backward-euler or theta, or another mass",
+            )
+
     def alphas(self) -> tuple[float, float]:
         r = self.rho_inf
         return (2 * r - 1) / (r + 1), r / (r + 1)

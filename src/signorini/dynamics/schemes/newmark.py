@@ -73,10 +73,7 @@ class Newmark(Scheme):
         dt, g = ctx.dt, self.gamma
         A = U / (self.beta * dt * dt) - p
         V = s.V + dt * ((1 - g) * s.A + g * A)
-        ml = ctx.massless
-        if ml.size:
-            V[ml] = (U[ml] - s.U[ml]) / dt
-            A[ml] = 0.0
+        ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:

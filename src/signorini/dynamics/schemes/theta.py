@@ -55,10 +55,7 @@ class Theta(Scheme):
         )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
-        ml = ctx.massless
-        if ml.size:
-            V[ml] = (U[ml] - s.U[ml]) / dt
-            A[ml] = 0.0
+        ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
