@@ -403,3 +403,32 @@ def test_seed_normal_on_a_tilted_plane(scheme, friction):
 def test_seed_normal_tilted_refused_by_axis_balanced_schemes(scheme):
     with pytest.raises(InputError, match="not coordinate axes"):
         simulate(tilted_block(), scheme, dt=DT, T=DT, mass="seed-normal")
+
+
+@pytest.mark.parametrize("condensation", ["full", "schur"])
+def test_condensations_agree_with_friction(condensation):
+    """lazy, full and schur Delassus condensations: the same frictional histories to 1e-10."""
+    from signorini.linalg import has_pardiso
+
+    if condensation == "schur" and not has_pardiso():
+        pytest.skip("condensation schur needs the pardiso extra (pip install '.[pardiso]')")
+    options = {"condensation": condensation, **({"backend": "pardiso"} if condensation == "schur" else {})}
+    lazy = run(block(friction="coulomb:0.3"), scheme="cn", mass="moment-preserving")
+    other = run(block(friction="coulomb:0.3"), scheme="cn", mass="moment-preserving", solver_options=options)
+    assert other.meta["condensation"] == condensation and lazy.meta["condensation"] == "lazy"
+    scale = np.abs(lazy.lam).max()
+    assert np.abs(other.lam - lazy.lam).max() <= 1e-10 * scale
+    assert np.abs(other.lam_t - lazy.lam_t).max() <= 1e-10 * scale
+
+
+def test_compare_runs_the_incline(tmp_path):
+    from signorini.io.cli import main
+
+    out = tmp_path / "c"
+    argv = ["compare", "incline2d", "--schemes", "be", "--masses", "moment-preserving", "--levels", "1", "--T", "0.25",
+            "--reference", "backward-euler:standard:2", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    import json
+
+    result = json.loads((out / "compare.json").read_text())
+    assert result["friction"] == {"law": "coulomb", "coefficient": 0.3}

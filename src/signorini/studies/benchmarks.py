@@ -80,6 +80,8 @@ class Benchmark:
     times: Callable[[int, dict], tuple[float, float]] | None = None
     measure: Callable[[dict], Any] | None = None
     check: Callable[[dict], None] | None = None
+    #: structured levels nested by halving (the bars; the inclines: generated grids with sizes)
+    structured: bool = False
 
     def params(self, overrides: dict | None = None) -> dict[str, float]:
         """Defaults updated with ``overrides``; unknown names and bad values are errors."""
@@ -110,7 +112,7 @@ class Benchmark:
     @property
     def nested(self) -> bool:
         """Whether levels are nested structured meshes (what reference studies and compare need)."""
-        return self.sizes is None
+        return self.sizes is None or self.structured
 
     def require_nested(self, command: str) -> None:
         """InputError for a command that measures errors against a finer nested level."""
@@ -274,7 +276,7 @@ for _b in (
       for d in (2, 3)),
     *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
                 "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
-                2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params)
+                2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params, True)
       for d in (2, 3)),
 ):  # fmt: skip
     _register(_b)
