@@ -91,9 +91,28 @@ def compare(label: str, make, dt: float, T: float) -> dict:
     return out
 
 
+def friction_markdown(rows: list[dict]) -> list[str]:
+    """The table of :func:`friction_rows` for bench.md."""
+    md = ["", "## Coulomb friction (mu = 0.3) against frictionless, CN, default mass", "",
+          "| problem | dofs | contact nodes | step ms | Coulomb step ms | ratio | set-up + loop ratio | Newton it. |",
+          "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for r in rows:
+        md.append(
+            f"| {r['problem']} | {r['dofs']} | {r['contact_nodes']} | {r['step_frictionless_ms']:.3g} | "
+            f"{r['step_coulomb_ms']:.3g} | {r['step_ratio']:.2f}x | {r['total_ratio']:.2f}x | "
+            f"{r['newton_per_contact_step']:.2f} |"
+        )
+    return md
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    quick = "--quick" in argv
+    friction_rows("--quick" in argv)
+    return 0
+
+
+def friction_rows(quick: bool = False) -> list[dict]:
+    """Both problems of the module docstring (the ball at n = 3 with ``quick``), printed as they run."""
     rows = [compare("bar3d n=8 oblique", oblique_bar, 0.1 / 8 / 2, 80 * 0.1 / 8 / 2)]
     if importlib.util.find_spec("gmsh") is not None:
         from signorini.dynamics.problem import with_friction
@@ -107,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(compare(f"hertz3d n={n} oblique", lambda f: with_friction(ball, f or "frictionless"), dt, T))
     else:
         print('gmsh not installed (pip install ".[mesh]"): the ball is skipped', flush=True)
-    return 0
+    return rows
 
 
 if __name__ == "__main__":

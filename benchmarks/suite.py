@@ -1,8 +1,9 @@
 """Benchmark suite: bar3d (n = 4, 8, 16, 32) and bar2d series, CN with the seed mass,
 the Hertz ball and disc series when gmsh is installed (``pip install ".[mesh]"``; hertz3d
 n = 9 is a ball of about 36k dofs with about 1.3k contact nodes, n = 14 one of about
-100k dofs), and the per-step cost
-of every registered scheme on bar3d n = 8.
+100k dofs), the per-step cost
+of every registered scheme on bar3d n = 8, and the cost of Coulomb friction against the
+frictionless run (:mod:`benchmarks.bench_friction`).
 
 Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
 
@@ -265,8 +266,13 @@ def main(argv=None) -> int:
     sbench, sn = a.schemes_on[0], int(a.schemes_on[1])
     srows = measure_schemes(sbench, sn, a.steps, a.backend)
     md += schemes_markdown(sbench, sn, srows)
+    from .bench_friction import friction_markdown, friction_rows
+
+    frows = friction_rows(a.quick)  # Coulomb against frictionless: bar3d n = 8 oblique, the ball
+    md += friction_markdown(frows)
     (out / "bench.md").write_text("\n".join(md) + "\n")
-    (out / "bench.json").write_text(json.dumps({"rows": rows, "exponents": exps, "schemes": srows}, indent=1))
+    payload = {"rows": rows, "exponents": exps, "schemes": srows, "friction": frows}
+    (out / "bench.json").write_text(json.dumps(payload, indent=1))
     plot(rows, exps, out / "bench.png")
     print("\n".join(md))
     return 0

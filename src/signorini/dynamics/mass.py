@@ -395,8 +395,13 @@ def _moment_preserving_general(mesh: Mesh, rho: float, contact_nodes: np.ndarray
 
 
 # ----------------------------------------------------------------------------- registry
-MASS_VARIANTS.register("standard", _standard, "consistent mass rho int phi_i . phi_j (kernel {0})")
-MASS_VARIANTS.register("lumped", _lumped, "row-sum lumped consistent mass (kernel {0})")
+MASS_VARIANTS.register(
+    "standard",
+    _standard,
+    "consistent mass rho int phi_i . phi_j (kernel {0}); with friction and CN the frictional work can be positive "
+    "(docs/friction.md)",
+)
+MASS_VARIANTS.register("lumped", _lumped, "row-sum lumped consistent mass (kernel {0}); with friction: as standard")
 MASS_VARIANTS.register(
     "seed",
     _scalar_variant("seed", seed_scalar_mass),
@@ -406,12 +411,14 @@ MASS_VARIANTS.register(
     "seed-normal",
     _seed_normal,
     "seed for the normal component only, through the nodal frames (any obstacle): contact nodes keep their "
-    "tangential inertia; kernel = their normal components",
+    "tangential inertia; kernel = their normal components; with friction its tangential force oscillates under CN "
+    "(use a dissipative scheme)",
 )
 MASS_VARIANTS.register(
     "moment-preserving",
     _scalar_variant("moment-preserving", moment_preserving_scalar_mass),
-    "contact mass removed, redistributed so that mass, first and second moments are preserved",
+    "contact mass removed, redistributed so that mass, first and second moments are preserved; recommended with "
+    "friction (docs/friction.md)",
 )
 MASS_VARIANTS.register(
     "moment-preserving-tensor",
