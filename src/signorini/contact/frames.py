@@ -4,7 +4,8 @@ The frame of a contact node is built from its normal alone, by a rule that is sm
 in the normal (so that frames of neighbouring nodes on a curved boundary are close and
 a rotation of the whole problem rotates the frames with it in 2D):
 
-* 2D: t = (nu_y, -nu_x), the normal turned by -90 degrees (``(0, 1)`` gives ``(1, 0)``);
+* 2D: t = (-nu_y, nu_x), the normal turned by +90 degrees (the body's bottom normal
+  ``(0, -1)`` gives ``(1, 0)``), so that (nu, t) is right-handed as in 3D;
 * 3D: the branch-free orthonormal basis of Duff et al. (J. Comput. Graph. Tech. 6(1),
   2017): with s = sign(nu_z) (+1 at 0), a = -1/(s + nu_z), b = nu_x nu_y a,
   t_1 = (1 + s nu_x^2 a, s b, -s nu_x), t_2 = (b, s + nu_y^2 a, -nu_y); it is
@@ -33,7 +34,7 @@ def tangent_frames(normals: np.ndarray) -> np.ndarray:
     if d == 1:
         return np.zeros((nc, 0, 1))
     if d == 2:
-        return np.stack([n[:, 1], -n[:, 0]], axis=1)[:, None, :]
+        return np.stack([-n[:, 1], n[:, 0]], axis=1)[:, None, :]
     x, y, z = n[:, 0], n[:, 1], n[:, 2]
     s = np.where(z >= 0.0, 1.0, -1.0)
     a = -1.0 / (s + z)
