@@ -96,7 +96,7 @@ class _System:
         gap_scale = float(np.max(np.abs(ctx.disc.contact.gaps))) if ctx.disc.contact.size else 0.0
         try:
             dim = ctx.disc.space.dim
-            nodes = (f if D.size else np.arange(Kff.shape[0])) // dim  # dofs are node-major
+            nodes = ctx.disc.space.dofmap.nodes_of(f if D.size else np.arange(Kff.shape[0]))
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
             B = ctx.Hf if ctx.components > 1 else ctx.Bf  # with friction: the nodal frames' rows
             self.solver: ContactSolver = make_contact_solver(

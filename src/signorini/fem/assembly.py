@@ -150,10 +150,19 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
 
     In 1D: K[a,b] = int E N_a' N_b' dx.  Units: [force / length].
     """
+    Ke = element_stiffness_matrices(mesh, material)
+    if mesh.dim == 1:
+        return assemble_scalar(mesh, Ke[..., 0, 0])
+    return assemble_vector(mesh, Ke)
+
+
+def element_stiffness_matrices(mesh: Mesh, material: IsotropicElastic) -> np.ndarray:
+    """The element blocks K[e, a, b, i, j] of :func:`stiffness_matrix`, shape (n_cells, nv, nv, d, d)
+    (a broadcast view of one cell's when the cells are translates of each other)."""
     wdet, G = _element_data(mesh)
     if mesh.dim == 1:
         Ke = material.young * np.einsum("eq,eqa,eqb->eab", wdet, G[..., 0], G[..., 0])
-        return assemble_scalar(mesh, np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:]))
+        return np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])[..., None, None]
     e, q, nv, d = G.shape
     # K2[e, a, i, b, j] = sum_q w_q det J G[q, a, i] G[q, b, j], one batched matmul
     Gw = (G * wdet[:, :, None, None]).reshape(e, q, nv * d)
@@ -165,7 +174,7 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
     Ke[:, :, :, idx, idx] += mu * lap[..., None]
     if Ke.shape[0] != mesh.n_cells:  # identical elements: one matrix for all
         Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
-    return assemble_vector(mesh, Ke)
+    return Ke
 
 
 def element_mass_matrices(mesh: Mesh, rho: float = 1.0) -> np.ndarray:

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError
 from ..fem.fields import at_time, is_time_dependent
 from ..fem.mesh import Mesh
+from .dofmap import DofMap
 
 Value = float | Sequence[float] | Callable[..., np.ndarray]
 
@@ -43,12 +44,13 @@ class VectorSpace:
     def __init__(self, mesh: Mesh):
         self.mesh = mesh
         self.dim = mesh.dim
-        self.n_dofs = mesh.n_nodes * mesh.dim
+        #: the one-process dof map (:mod:`signorini.fem.dofmap`): node-major blocks of d dofs
+        self.dofmap = DofMap.serial(mesh.n_nodes, mesh.dim)
+        self.n_dofs = self.dofmap.n_dofs
 
     def dofs(self, nodes: np.ndarray, components: Sequence[int] | None = None) -> np.ndarray:
         """Dofs of ``nodes`` (array) for ``components``, shape (len(nodes), len(components))."""
-        comps = np.arange(self.dim) if components is None else np.asarray(components, dtype=np.int64)
-        return self.dim * np.asarray(nodes, dtype=np.int64)[:, None] + comps[None, :]
+        return self.dofmap.dofs(nodes, components)
 
     def interpolate(self, value: Value) -> np.ndarray:
         """Nodal interpolant of a constant vector or of a function (n, d) -> (n, d)."""

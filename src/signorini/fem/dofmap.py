@@ -1,0 +1,69 @@
+"""The dof map: which process owns which dofs, in blocks of d per node.
+
+In the spirit of dolfinx's ``IndexMap``: the nodes are numbered so that each process owns
+a contiguous range ``[start, stop)`` of them (its *owned* nodes), and also reads the
+*ghost* nodes owned by others that its cells touch.  A node's d dofs are consecutive
+(block size d, node-major): ``dof = d * node + component``.  The serial path is the
+one-process map (everything owned, no ghost), so the arithmetic lives here only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DofMap:
+    """Owned node range, ghost nodes and block size of one process.
+
+    Attributes
+    ----------
+    n_nodes : global number of nodes.
+    block_size : d, the dofs per node.
+    start, stop : the owned nodes [start, stop) in the global numbering.
+    ghosts : (g,) global indices of the nodes read but owned by other processes.
+    """
+
+    n_nodes: int
+    block_size: int
+    start: int = 0
+    stop: int | None = None
+    ghosts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @classmethod
+    def serial(cls, n_nodes: int, block_size: int) -> DofMap:
+        """Every node owned by the one process."""
+        return cls(int(n_nodes), int(block_size), 0, int(n_nodes))
+
+    @property
+    def owned_nodes(self) -> int:
+        return (self.n_nodes if self.stop is None else self.stop) - self.start
+
+    @property
+    def n_dofs(self) -> int:
+        """Global number of dofs d n_nodes."""
+        return self.block_size * self.n_nodes
+
+    @property
+    def owned_dofs(self) -> tuple[int, int]:
+        """The owned dof range [d start, d stop)."""
+        stop = self.n_nodes if self.stop is None else self.stop
+        return self.block_size * self.start, self.block_size * stop
+
+    def dofs(self, nodes: np.ndarray, components: Sequence[int] | None = None) -> np.ndarray:
+        """Global dofs of ``nodes`` for ``components``, shape (len(nodes), len(components))."""
+        comps = np.arange(self.block_size) if components is None else np.asarray(components, dtype=np.int64)
+        return self.block_size * np.asarray(nodes, dtype=np.int64)[:, None] + comps[None, :]
+
+    def nodes_of(self, dofs: np.ndarray) -> np.ndarray:
+        """The node of each dof."""
+        return np.asarray(dofs) // self.block_size
+
+    def owns(self, nodes: np.ndarray) -> np.ndarray:
+        """Whether each global node is owned here."""
+        nodes = np.asarray(nodes)
+        stop = self.n_nodes if self.stop is None else self.stop
+        return (nodes >= self.start) & (nodes < stop)
