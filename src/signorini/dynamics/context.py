@@ -302,6 +302,13 @@ class Context:
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)
 
+    def contact_on_fixed(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray | float:
+        """(B^T lambda + T^T lambda_t) on the Dirichlet dofs (the contact part of their reactions),
+        0.0 when no contact row touches a fixed dof."""
+        if self.BD is None and self.HD is None:
+            return 0.0
+        return self.contact_force(lam, lam_t)[self.fixed]
+
     def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
         """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]."""
         f = self.B.T @ lam

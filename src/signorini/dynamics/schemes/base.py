@@ -239,9 +239,7 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
         if varying:
             R = np.zeros(s.U.size) if R is None else R
             D = ctx.fixed
-            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D]
-            if ctx.BD is not None or ctx.HD is not None:
-                RD = RD - ctx.contact_force(s.lam, s.lam_t)[D]
+            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t)
             R[D] = RD
         return R
 

@@ -76,8 +76,6 @@ class ContactStabilizedNewmark(Scheme):
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             Up = old.U + dt * old.V + delta
-            r = (4.0 / (dt * dt)) * (ctx.M[D] @ (new.U - Up)) + Ss[D] - Fs[D]
-            if ctx.BD is not None:
-                r = r - ctx.B[:, D].T @ mu1
+            r = (4.0 / (dt * dt)) * (ctx.M[D] @ (new.U - Up)) + Ss[D] - Fs[D] - ctx.contact_on_fixed(mu1)
             parts.external += 0.5 * float(dU[D] @ r)
         return parts

@@ -139,9 +139,7 @@ class GeneralizedAlpha(Newmark):
             A_w = (1 - am) * new.A + am * old.A
             U_w = (1 - af) * new.U + af * old.U
             F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
-            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D]
-            if ctx.BD is not None or ctx.HD is not None:
-                RD = RD - ctx.contact_force(lam_w, lam_t_w)[D]
+            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - ctx.contact_on_fixed(lam_w, lam_t_w)
             parts.external += float(dU[D] @ RD)
         if af != 0.5 or am != 0.5:
             dA = new.A - old.A

@@ -111,9 +111,7 @@ class MoreauJean(Scheme):
             D = ctx.fixed
             Fth = th * ctx.load(new.t) + (1 - th) * ctx.load(old.t)
             SUth = th * (ctx.S[D] @ new.U) + (1 - th) * (ctx.S[D] @ old.U)
-            r = ctx.M[D] @ dV + dt * (SUth - Fth[D])
-            if ctx.BD is not None or ctx.HD is not None:
-                r = r - ctx.contact_force(P, P_t)[D]
+            r = ctx.M[D] @ dV + dt * (SUth - Fth[D]) - ctx.contact_on_fixed(P, P_t)
             parts.external += float(Vth[D] @ r)
         if th != 0.5:
             parts.numerical = -(th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))

@@ -89,9 +89,7 @@ class PaoliSchatzman(Scheme):
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             MU1, SU1 = self._MU(ctx, new), self._SU(ctx, new)
-            R = (MU1 - 2 * MU + MUp)[D] / dt**2 + 0.25 * (SU1 + 2 * SU + SUp)[D] - F[D]
-            if ctx.BD is not None:
-                R = R - ctx.B[:, D].T @ lam
+            R = (MU1 - 2 * MU + MUp)[D] / dt**2 + 0.25 * (SU1 + 2 * SU + SUp)[D] - F[D] - ctx.contact_on_fixed(lam)
             new.extra["R_D"] = R
         return new
 
@@ -130,8 +128,7 @@ class PaoliSchatzman(Scheme):
         """R_D^n of the step (U^{n-1}, U^n) -> U^{n+1} with the contact forces ``lam``."""
         D, dt = ctx.fixed, ctx.dt
         R = ctx.M[D] @ (new.U - 2 * old.U + Up) / dt**2 + 0.25 * (ctx.S[D] @ (new.U + 2 * old.U + Up))
-        R = R - ctx.load(old.t)[D]
-        return R - ctx.B[:, D].T @ lam if ctx.BD is not None else R
+        return R - ctx.load(old.t)[D] - ctx.contact_on_fixed(lam)
 
     def energy(self, ctx, s: State) -> tuple[float, float]:
         Up = self._previous(ctx, s)
