@@ -3,6 +3,8 @@
 import re
 from pathlib import Path
 
+import numpy as np
+
 
 def test_readme_python_example(capsys):
     text = (Path(__file__).parents[1] / "README.md").read_text()
@@ -11,6 +13,18 @@ def test_readme_python_example(capsys):
     out = capsys.readouterr().out.splitlines()
     ratios = {line.split()[0]: float(line.split()[3]) for line in out}
     assert ratios["standard"] > 1.5 and abs(ratios["seed"] - 1) < 0.01
+
+
+def test_tutorial_friction_example(capsys):
+    """The tutorial's second block: the sliding acceleration it prints is the closed form."""
+    text = (Path(__file__).parents[1] / "docs" / "tutorial.md").read_text()
+    code = re.findall(r"```python\n(.*?)```", text, re.S)[1]
+    exec(compile(code, "tutorial-friction", "exec"), {})
+    out = capsys.readouterr().out
+    accel = float(re.search(r"x_G'' = ([\d.]+)", out).group(1))
+    g_sin, g_cos = np.sin(np.radians(30.0)), np.cos(np.radians(30.0))
+    assert abs(accel / (g_sin - 0.3 * g_cos) - 1) <= 1e-6
+    assert "stick / slip nodes at the end: 0 9" in out
 
 
 def test_tutorial_example(capsys):
