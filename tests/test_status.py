@@ -58,8 +58,13 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     cmd += ["--snapshot-every", "200", "--out", str(out)]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     deadline = time.perf_counter() + 60
-    # the hidden result directory appears when the time loop starts (the field writer's start)
-    while not any(p.name.startswith(".signorini-new.") for p in tmp_path.iterdir()) and time.perf_counter() < deadline:
+
+    # the hidden result directory appears when the time loop starts (the field writer's start); its
+    # HDF5 file when the writer's child process has written the mesh (io/field_process.py)
+    def started() -> bool:
+        return any(p.name.startswith(".signorini-new.") and (p / "fields.h5").exists() for p in tmp_path.iterdir())
+
+    while not started() and time.perf_counter() < deadline:
         time.sleep(0.05)
     time.sleep(1.5)
     t0 = time.perf_counter()
@@ -95,8 +100,13 @@ def test_sigterm_stops_cli_with_status_interrupted(tmp_path):
     cmd += ["--snapshot-every", "1000", "--out", str(out)]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     deadline = time.perf_counter() + 60
-    # the hidden result directory appears when the time loop starts (the field writer's start)
-    while not any(p.name.startswith(".signorini-new.") for p in tmp_path.iterdir()) and time.perf_counter() < deadline:
+
+    # the hidden result directory appears when the time loop starts (the field writer's start); its
+    # HDF5 file when the writer's child process has written the mesh (io/field_process.py)
+    def started() -> bool:
+        return any(p.name.startswith(".signorini-new.") and (p / "fields.h5").exists() for p in tmp_path.iterdir())
+
+    while not started() and time.perf_counter() < deadline:
         time.sleep(0.05)
     time.sleep(1.5)
     proc.send_signal(signal.SIGTERM)

@@ -111,3 +111,38 @@ def test_disk_full_while_streaming_fields_is_exit_4_in_one_line(tmp_path):
         assert list(mnt.iterdir()) == []
     finally:
         subprocess.run(["umount", str(mnt)])
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{task}/children") as f:
+            out += [int(c) for c in f.read().split()]
+    return out
+
+
+def test_crash_of_the_field_writer_is_exit_4_in_one_line(tmp_path):
+    """HDF5 runs in a child process (io/field_process.py): a segmentation fault there (what a
+    disk filled by another program during a write can do) ends the run with exit 4 and one
+    line naming the signal, not with a crash of the run itself."""
+    import time
+
+    p = subprocess.Popen(
+        [*CLI, "run", "bar2d", "--n", "8", "--T", "8", "--snapshot-every", "1", "--out", str(tmp_path / "o")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    writer = None
+    deadline = time.monotonic() + 60
+    while writer is None and time.monotonic() < deadline and p.poll() is None:
+        for child in _children(p.pid):
+            with open(f"/proc/{child}/cmdline", "rb") as f:
+                if b"spawn_main" in f.read():  # not the resource tracker
+                    writer = child
+        time.sleep(0.05)
+    assert writer is not None, "the field writer process was not found"
+    time.sleep(0.5)  # a few snapshots written
+    os.kill(writer, signal.SIGSEGV)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 4, err
+    assert err.count("\n") == 1 and "field writer process died (signal SIGSEGV)" in err
+    assert "Traceback" not in err

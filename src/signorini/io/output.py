@@ -13,8 +13,11 @@ zero off Gamma_C (tangential part with friction only), and ``contact_status`` (n
 -1 off Gamma_C, 0 separated, 1 stick, 2 slip (without friction: 2 for every node in
 contact, nothing holds it tangentially).
 
-A full disk must not reach the HDF5 library: once a write has failed inside it, its
-metadata cache keeps retrying and closing the file crashes the process.  Before every
+HDF5 runs in a child process (:mod:`signorini.io.field_process`): a crash inside it, which
+a disk filled by another program during a write can cause, ends the run with exit 4 in
+one line instead of killing it.  A full disk must not reach the HDF5 library either: once
+a write has failed inside it, its metadata cache keeps retrying and closing the file
+crashes the process.  Before every
 snapshot the writer checks that the file system has room for it (twice its size plus
 :data:`HEADROOM`) and keeps a reserve file of :data:`HEADROOM` bytes beside the fields,
 released before the HDF5 file is closed so that the final metadata always fits.  When
@@ -37,8 +40,8 @@ from ..fem.assembly import von_mises
 
 #: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
 HEADROOM = 4 * 2**20
-#: HDF5 writers given up after a failed write: kept alive until the process ends without
-#: running their deallocation (``os._exit``), which would crash inside HDF5
+#: kept for :mod:`signorini.io.entry`: HDF5 writers given up in this process (none since the
+#: writer runs in a child process, :mod:`signorini.io.field_process`)
 ABANDONED: list = []
 
 
@@ -85,7 +88,7 @@ class FieldWriter(Observer):
             raise _no_space()
 
     def start(self, run: Run) -> None:
-        import meshio
+        from .field_process import FieldProcess
 
         mesh = run.problem.mesh
         self._mesh, self._material = mesh, run.problem.material
@@ -99,11 +102,15 @@ class FieldWriter(Observer):
         self._hold_reserve()
         self._snapshot_bytes += pts.nbytes + mesh.cells.nbytes
         self._check_room()
-        # meshio names the HDF5 file relative to the working directory: open it from the target's
-        with contextlib.chdir(self.path.parent):
-            self._writer = meshio.xdmf.TimeSeriesWriter(self.path.name)
-            self._writer.__enter__()
-            self._writer.write_points_cells(pts, [(mesh.cell_type, mesh.cells)])
+        # HDF5 runs in a child process: a crash inside it (the disk filled by another program
+        # during a write) costs the fields, not the run (:mod:`signorini.io.field_process`)
+        self._writer = FieldProcess(self.path)
+        try:
+            self._writer.mesh(pts, mesh.cell_type, mesh.cells)
+        except OSError:
+            self._writer = None
+            self._release_reserve()
+            raise
         self._write(0, run.initial)
 
     def _write(self, n: int, s: State) -> None:
@@ -128,11 +135,10 @@ class FieldWriter(Observer):
         data = {"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p,
                 "contact_traction": traction, "contact_status": status}  # fmt: skip
         try:
-            self._writer.write_data(float(s.t), point_data=data)
-        except Exception as exc:  # inside HDF5 (the disk filled under us): never touch this file again
-            self._abandon()
-            if "space" in str(exc).lower() or isinstance(exc, OSError):
-                raise _no_space() from None
+            self._writer.data(float(s.t), data)
+        except OSError:  # the child failed or died: it never touches the file again
+            self._writer = None
+            self._release_reserve()
             raise
         self.times.append(float(s.t))
         self._last = n
@@ -141,22 +147,18 @@ class FieldWriter(Observer):
         if n % self.every == 0:
             self._write(n, state)
 
-    def _abandon(self) -> None:
-        """Give up the HDF5 file without closing it: after a failed write HDF5 keeps retrying
-        its metadata and its deallocation can crash the process, so the writer is kept alive
-        (:data:`ABANDONED`) and the process ends with ``os._exit`` (:mod:`signorini.io.entry`)."""
-        ABANDONED.append(self._writer)
-        self._writer = None
-        self._release_reserve()
-
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         if self._writer is None:
             return
         try:
             if self._last != n_last:
                 self._write(n_last, state)
+        except BaseException:
+            if self._writer is not None:
+                self._writer.abandon()
+            raise
         finally:
             self._release_reserve()
-            with contextlib.chdir(self.path.parent):
-                self._writer.__exit__(None, None, None)
+            if self._writer is not None and not self._writer.closed:
+                self._writer.close()
             self._writer = None

@@ -1,0 +1,116 @@
+"""The HDF5 side of the field output, in a child process.
+
+HDF5 can crash the process it runs in (a segmentation fault, not an exception) when the
+disk fills *during* a write, e.g. because another program filled it after the writer's
+free-space check.  So the XDMF/HDF5 writer lives in a child process started with
+``spawn`` (no fork of a process with BLAS threads): :class:`FieldProcess` sends it the
+mesh, then each snapshot, and waits for its answer, so errors arrive at the step that
+caused them.  If the child dies or reports a failed write, the run gets an
+:class:`OSError` (exit 4, one line, as for a full disk) and the child never touches the
+file again; the main process itself never runs HDF5 on the fields.
+"""
+
+from __future__ import annotations
+
+import errno
+import multiprocessing
+import os
+import signal
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def _serve(conn, path: str) -> None:
+    """The child: write what the parent sends until "close" (or die trying, alone)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    target = Path(path)
+    os.chdir(target.parent)  # meshio names the HDF5 file relative to the working directory
+    import meshio
+
+    writer = None
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            os._exit(0)  # the parent is gone: leave the file as it is
+        try:
+            if msg[0] == "mesh":
+                writer = meshio.xdmf.TimeSeriesWriter(target.name)
+                writer.__enter__()
+                writer.write_points_cells(msg[1], [(msg[2], msg[3])])
+            elif msg[0] == "data":
+                writer.write_data(msg[1], point_data=msg[2])
+            elif msg[0] == "close":
+                if writer is not None:
+                    writer.__exit__(None, None, None)
+                conn.send(("ok",))
+                os._exit(0)
+            conn.send(("ok",))
+        except Exception as exc:  # noqa: BLE001 (reported to the parent, which decides)
+            space = isinstance(exc, OSError) or "space" in str(exc).lower()
+            conn.send(("error", type(exc).__name__, str(exc)[:500], space))
+            os._exit(0)  # never close an HDF5 file after a failed write
+
+
+class FieldProcess:
+    """The parent's handle on the writer child (see the module docstring)."""
+
+    def __init__(self, path: Path):
+        ctx = multiprocessing.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_serve, args=(child, str(path)), daemon=True, name="signorini-fields")
+        self.process.start()
+        child.close()
+        self.closed = False
+
+    def _ask(self, msg: tuple) -> None:
+        try:
+            self._conn.send(msg)
+            answer = self._conn.recv()
+        except (EOFError, OSError, BrokenPipeError):
+            self.process.join(5)
+            code = self.process.exitcode
+            how = f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit {code}"
+            self.closed = True
+            raise OSError(
+                errno.EIO,
+                f"the field writer process died ({how}) while writing the fields' HDF5 file "
+                "(a full disk or a crash inside HDF5)",
+            ) from None
+        if answer[0] == "error":
+            self.closed = True
+            self.process.join(5)
+            if answer[3]:
+                detail = f"{answer[1]}: {answer[2]}"
+                raise OSError(errno.ENOSPC, f"No space left on device while streaming fields ({detail})")
+            raise OSError(errno.EIO, f"the field writer failed: {answer[1]}: {answer[2]}")
+
+    def mesh(self, points: np.ndarray, cell_type: str, cells: np.ndarray) -> None:
+        self._ask(("mesh", points, cell_type, cells))
+
+    def data(self, t: float, point_data: dict[str, Any]) -> None:
+        self._ask(("data", float(t), point_data))
+
+    def close(self) -> None:
+        """Write the XDMF index and end the child (a dead child is left as it is)."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._ask(("close",))
+        finally:
+            self.process.join(10)
+            if self.process.is_alive():  # pragma: no cover - a child stuck in HDF5
+                self.process.kill()
+            self._conn.close()
+
+    def abandon(self) -> None:
+        """Stop the child without closing its file (after a failure elsewhere)."""
+        self.closed = True
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join(5)
+        self._conn.close()
