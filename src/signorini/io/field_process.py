@@ -12,6 +12,7 @@ file again; the main process itself never runs HDF5 on the fields.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import multiprocessing
 import os
@@ -21,14 +22,20 @@ from typing import Any
 
 import numpy as np
 
+STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
 
 def _serve(conn, path: str) -> None:
     """The child: write what the parent sends until "close" (or die trying, alone)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked since the spawn: dropped now
     target = Path(path)
-    os.chdir(target.parent)  # meshio names the HDF5 file relative to the working directory
-    import meshio
+    try:
+        os.chdir(target.parent)  # meshio names the HDF5 file relative to the working directory
+        import meshio
+    except BaseException:  # noqa: BLE001 - the run stopped and removed its directory: nothing to do
+        os._exit(0)  # silently: the parent reports what happened, never the child
 
     writer = None
     while True:
@@ -49,9 +56,10 @@ def _serve(conn, path: str) -> None:
                 conn.send(("ok",))
                 os._exit(0)
             conn.send(("ok",))
-        except Exception as exc:  # noqa: BLE001 (reported to the parent, which decides)
+        except BaseException as exc:  # noqa: BLE001 (reported to the parent, which decides)
             space = isinstance(exc, OSError) or "space" in str(exc).lower()
-            conn.send(("error", type(exc).__name__, str(exc)[:500], space))
+            with contextlib.suppress(BaseException):
+                conn.send(("error", type(exc).__name__, str(exc)[:500], space))
             os._exit(0)  # never close an HDF5 file after a failed write
 
 
@@ -62,7 +70,14 @@ class FieldProcess:
         ctx = multiprocessing.get_context("spawn")
         self._conn, child = ctx.Pipe()
         self.process = ctx.Process(target=_serve, args=(child, str(path)), daemon=True, name="signorini-fields")
-        self.process.start()
+        # the child starts with SIGINT/SIGTERM blocked (a Ctrl-C to the process group during its
+        # interpreter start-up would print a KeyboardInterrupt traceback); here they stay
+        # pending for the parent's handlers, never lost
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            self.process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         child.close()
         self.closed = False
 
