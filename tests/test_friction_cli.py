@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cases import falling_rectangle
 from signorini.io.cli import main
 
 ROOT = Path(__file__).parents[1]
@@ -73,31 +74,6 @@ def test_friction_option_overrides_the_case(tmp_path):
     assert json.loads((out / "summary.json").read_text())["friction"] == {"law": "tresca", "threshold": 100.0}
 
 
-BAD_CASE = """
-[mesh]
-generator = "rectangle"
-cells = [4, 2]
-size = [1.0, 0.5]
-
-[material]
-rho = 1.0
-E = 100.0
-nu = 0.3
-
-[contact]
-tag = "ymin"
-obstacle = {{ type = "plane", point = [0.0, -0.01], normal = [0.0, 1.0] }}
-friction = {friction}
-
-[initial]
-velocity = [0.0, -1.0]
-
-[time]
-dt = 0.01
-T = 0.05
-"""
-
-
 @pytest.mark.parametrize(
     "friction, message",
     [
@@ -111,7 +87,7 @@ T = 0.05
 )
 def test_bad_friction_in_a_case_file(tmp_path, capsys, friction, message):
     case = tmp_path / "case.toml"
-    case.write_text(BAD_CASE.format(friction=friction))
+    case.write_text(falling_rectangle((4, 2), (1.0, 0.5), 100.0, contact_extra=f"friction = {friction}\n", dt=0.01))
     out = tmp_path / "out"
     assert main(["run", str(case), "--out", str(out)]) == 2
     err = capsys.readouterr().err

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from cases import falling_rectangle
 from signorini.contact.obstacles import PlaneObstacle
 from signorini.dynamics.problem import Problem
 from signorini.dynamics.simulate import simulate
@@ -13,23 +14,7 @@ from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import rectangle
 from signorini.io.cli import main
 
-CASE = """[mesh]
-generator = "rectangle"
-cells = [4, 4]
-size = [1.0, 1.0]
-[material]
-rho = 1.0
-E = 1.0
-nu = 0.3
-[contact]
-tag = "xmin"
-obstacle = { type = "plane", point = [0.0, -0.01], normal = [0.0, 1.0] }
-[initial]
-velocity = [0.0, -1.0]
-[time]
-dt = 0.005
-T = 0.05
-"""
+CASE = falling_rectangle(tag="xmin")
 
 
 def _problem(tag="xmin"):
