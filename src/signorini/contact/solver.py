@@ -584,6 +584,15 @@ def make_contact_solver(
                 f"friction needs the dense Delassus matrix of {nc} x {nc} entries ({8.0 * nc * nc / 2**30:.3g} GiB), "
                 "more than the memory budget; raise solver.memory_budget or coarsen the contact boundary"
             )
+    if backend == "petsc":
+        from ..linalg.petsc.factor import check_options_used, set_options
+
+        set_options(opts)
+        solver = CondensedContactSolver(
+            K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components
+        )
+        check_options_used(opts)
+        return solver
     if backend == "cg":
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),

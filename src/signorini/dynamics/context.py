@@ -30,6 +30,7 @@ from ..errors import InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
 from ..linalg.sparse import linear_combination, principal_combination
 from ..linalg.spmv import sparse_product
+from ..parallel import run_comm
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -136,6 +137,8 @@ class Context:
         self.M, self.S, self.B = disc.M, disc.S, disc.B
         self.free, self.fixed = disc.free, disc.fixed
         self.solver_options = dict(solver_options or {})
+        #: the ranks of the run (:mod:`signorini.parallel`): one process, or mpiexec's for ``petsc``
+        self.comm = run_comm(self.solver_options.get("backend", "auto"))
         self.has_fixed = self.fixed.size > 0
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None

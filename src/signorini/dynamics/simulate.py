@@ -33,6 +33,7 @@ from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
 from ..linalg.base import memory_info, total_memory
 from ..linalg.threads import blas_threads
+from ..parallel import peak_memory_bytes
 from ..signals import handled
 from .context import Context
 from .history import COUNTER_KEYS, History
@@ -146,11 +147,25 @@ class _Interrupts:
 
     def __init__(self) -> None:
         self.signal_name: str | None = None
+        self.signum = 0
+        #: a second SIGINT aborts the step in progress; never on several ranks, where one rank
+        #: leaving a collective solve would leave the others waiting in it
+        self.abort_on_second = True
 
     def handler(self, signum, frame) -> None:
-        if self.signal_name is not None and signum == signal.SIGINT:
+        if self.signal_name is not None and signum == signal.SIGINT and self.abort_on_second:
             raise KeyboardInterrupt
         self.signal_name = signal.Signals(signum).name
+        self.signum = int(signum)
+
+    def agree(self, comm) -> None:
+        """On several ranks: every rank stops when a signal reached any of them (one
+        reduction per step), with the name of the highest signal number received."""
+        if comm.size == 1:
+            return
+        signum = comm.max(self.signum)
+        if signum and not self.signum:
+            self.signum, self.signal_name = signum, signal.Signals(signum).name
 
 
 @contextmanager
@@ -330,6 +345,7 @@ def simulate(
     untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
     obs.insert(1, untagged)
     with _catch_signals(handle_signals) as interrupts:
+        interrupts.abort_on_second = run.ctx.comm.size == 1
         t_loop = time.perf_counter()
         status, message, n_last = advance(run, starter, obs, interrupts)
         loop = time.perf_counter() - t_loop
@@ -339,6 +355,7 @@ def simulate(
         H.meta["untagged_worst_penetration"] = untagged.worst[0]  # the failing level of untagged_contact=fail too
         if untagged.exceeded():
             H.meta["warnings"].append(untagged.message())
+        interrupts.agree(run.ctx.comm)
         if interrupts.signal_name and status == "finished":  # after the last step: every step kept
             status, message = "interrupted", f"{interrupts.signal_name} after the time loop (all {n_last} steps kept)"
     H.status, H.message = status, message
@@ -355,7 +372,23 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
         "step_seconds": (loop - columns) / max(n_last, 1),
         "in_loop_condensation_seconds": columns,
     }
-    return assemble_history(run, n_last, recorder, energies, snaps, timings)
+    H = assemble_history(run, n_last, recorder, energies, snaps, timings)
+    H.meta.update(rank_figures(run.ctx.comm, timings))
+    return H
+
+
+def rank_figures(comm, timings: dict) -> dict:
+    """``ranks`` and, per rank in rank order, the set-up and step times [s] and the peak
+    resident memory [bytes] (``getrusage``: the process's own peak, whatever its cgroup)."""
+    mine = (timings["setup_seconds"], timings["step_seconds"], peak_memory_bytes())
+    every = comm.gather(mine)
+    return {
+        "ranks": comm.size,
+        "rank_setup_seconds": [float(v[0]) for v in every],
+        "rank_step_seconds": [float(v[1]) for v in every],
+        "rank_peak_memory_bytes": [int(v[2]) for v in every],
+        "rank_peak_memory_source": "getrusage(RUSAGE_SELF).ru_maxrss of each rank's process",
+    }
 
 
 def _one_step(run: Run, starter: Scheme | None, state: State, n: int) -> State:
@@ -382,6 +415,7 @@ def advance(
         threads = run.ctx.solver_options.get("loop_blas_threads", 1)
         with blas_threads(threads):
             for n in range(1, N + 1):
+                interrupts.agree(run.ctx.comm)
                 if interrupts.signal_name:
                     status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"
                     break

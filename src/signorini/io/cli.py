@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 
 from ..errors import ConvergenceError, InputError
+from ..parallel import is_root, launched
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .messages import one_line
 from .parser import build_parser
@@ -42,9 +43,16 @@ def main(argv: list[str] | None = None) -> int:
         return _dispatch(args)
 
 
+def _print(text: str) -> None:
+    """A message on stderr, from rank 0 only when started by mpiexec (every rank meets the
+    same input errors and failures: one line, not P)."""
+    if is_root():
+        print(text, file=sys.stderr)
+
+
 def _report_warnings(caught: list) -> None:
     """One line for the warnings a command raised (all of them with SIGNORINI_TRACEBACK=1)."""
-    if not caught:
+    if not caught or not is_root():
         return
     if os.environ.get("SIGNORINI_TRACEBACK"):
         for w in caught:
@@ -67,20 +75,24 @@ def _dispatch(args: argparse.Namespace) -> int:
         with np.errstate(all="ignore"), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
+                ranks = launched()[1]
+                if ranks > 1 and args.command != "run":
+                    raise InputError(f"started as {ranks} MPI ranks: only `signorini run ... --backend petsc` runs on "
+                                     f"several ranks, not `signorini {args.command}`")  # fmt: skip
                 return args.func(args)
             finally:
                 _report_warnings(caught)
     except InputError as exc:
-        print(f"signorini: error: {one_line(exc)}", file=sys.stderr)
+        _print(f"signorini: error: {one_line(exc)}")
         return 2
     except KeyboardInterrupt:
-        print("signorini: interrupted before the time loop; nothing written", file=sys.stderr)
+        _print("signorini: interrupted before the time loop; nothing written")
         return 130
     except ResultConflict as exc:
-        print(f"signorini: error: {one_line(exc.strerror)}", file=sys.stderr)
+        _print(f"signorini: error: {one_line(exc.strerror)}")
         return EXIT_ENVIRONMENT
     except ConvergenceError as exc:
-        print(f"signorini: failed: {one_line(exc)}", file=sys.stderr)
+        _print(f"signorini: failed: {one_line(exc)}")
         return EXIT_CODES["failed"]
     except MemoryError as exc:
         why = f" ({one_line(exc)})" if str(exc) else ""

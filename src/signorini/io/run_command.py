@@ -180,9 +180,17 @@ def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> N
 
 
 def execute(spec: RunSpec, args: argparse.Namespace) -> int:
-    """Run the simulation into a temporary directory and publish it, whatever the status."""
-    from ..dynamics.simulate import simulate
+    """Run the simulation into a temporary directory and publish it, whatever the status.
 
+    Started by ``mpiexec`` (backend ``petsc``), rank 0 does this and the other ranks run
+    the same simulation writing nothing (:func:`execute_follower`)."""
+    from ..dynamics.simulate import simulate
+    from ..parallel import launched, run_comm
+
+    rank, _ = launched()
+    run_comm(str(spec.solver_options.get("backend", "auto")))  # a serial backend on P > 1 ranks: refused
+    if rank != 0:
+        return execute_follower(spec, args)
     with ResultDirectory(spec.out, args.overwrite) as rd:
         observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
         if spec.measure is not None:
@@ -220,6 +228,22 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     late_signal = after.name or (late.name if H.status == "finished" else None)
     if late_signal:
         print(f"signorini: {late_signal} received after the results were written; nothing lost", file=sys.stderr)
+    return EXIT_CODES[H.status]
+
+
+def execute_follower(spec: RunSpec, args: argparse.Namespace) -> int:
+    """A rank other than 0: the same checks of the output path as rank 0 (read-only, so
+    every rank stops on the same refusal), the same simulation, nothing written or printed."""
+    from ..dynamics.simulate import simulate
+    from .results_dir import resolve_output
+
+    resolve_output(spec.out, args.overwrite)
+    observers = spec.measure.observers() if spec.measure is not None else []
+    try:
+        H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
+                     solver_options=spec.solver_options, observers=observers)  # fmt: skip
+    except ConvergenceError:
+        return EXIT_CODES["failed"]
     return EXIT_CODES[H.status]
 
 

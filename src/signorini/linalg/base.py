@@ -157,6 +157,12 @@ BACKENDS.register(
     ".cholmod:CholmodFactor",
     "supernodal Cholesky, CHOLMOD via cvxopt (extra 'cholmod'), nested dissection (METIS with extra 'metis')",
 )
+BACKENDS.register(
+    "petsc",
+    ".petsc.factor:PetscFactor",
+    "parallel MUMPS Cholesky through PETSc on the ranks of mpiexec (extra 'mpi', scripts/mpi-env.sh); "
+    "options petsc.NAME=VALUE pass through as -signorini_NAME",
+)
 BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
 
 
@@ -219,7 +225,12 @@ def solver_options(given: Mapping[str, Any] | None = None, where: str = "solver"
     out = {p.name: p.default for p in SOLVER_OPTIONS}
     out.update({p.name: p.default for p in entry.parameters})
     for k, v in given.items():
+        if k.startswith("petsc.") and backend == "petsc":  # PETSc's own options, checked by PETSc
+            out[k] = str(v)
+            continue
         p = generic.get(k) or own.get(k)
+        if p is None and k.startswith("petsc."):
+            raise InputError(f"solver option {k!r} is a PETSc option: it needs backend 'petsc', not {backend!r}")
         if p is None:
             allowed = ", ".join(sorted(set(generic) | set(own)))
             raise InputError(f"unknown solver option {k!r} for backend {backend!r}; allowed: {allowed}")

@@ -1,0 +1,130 @@
+"""A parallel MUMPS Cholesky factor of K behind the serial :class:`~signorini.linalg.Factor` contract.
+
+K (the free block of a scheme's operator, the same scipy matrix on every rank) is
+handed to PETSc row block by row block: rank r inserts rows [lo_r, hi_r) (whole
+nodes' worth of an even split) into an MPIAIJ matrix, marked SPD, and MUMPS factors it
+once (``-pc_type cholesky -pc_factor_mat_solver_type mumps``: its own parallel analysis
+and mapping, so the input distribution only decides who sends which rows).  A solve
+takes a right-hand side that is the same on every rank, shape (n,) or (n, k), gives each
+rank its rows, runs MUMPS's distributed forward/backward substitution (``MatSolve``, or
+``MatMatSolve`` for a block of k columns: the Delassus columns) and gathers the answer
+on every rank, so that everything after it (the Delassus matrix W, the contact law)
+runs unchanged and identically on every rank.
+
+PETSc options pass through under the prefix ``signorini_`` (``--solver-option
+petsc.mat_mumps_icntl_14=80`` sets ``-signorini_mat_mumps_icntl_14 80``), as dolfinx
+does with its own prefixes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ...errors import InputError
+from ..base import Factor
+from . import load
+
+PREFIX = "signorini_"
+
+
+def row_bounds(n: int, size: int) -> np.ndarray:
+    """Even split of n rows over ``size`` ranks: bounds (size + 1,)."""
+    return np.linspace(0, n, size + 1).round().astype(np.int64)
+
+
+def set_options(options: dict) -> None:
+    """Put ``petsc.NAME=VALUE`` solver options into PETSc's database as ``-signorini_NAME VALUE``."""
+    _, PETSc = load()
+    db = PETSc.Options()
+    for key, value in options.items():
+        if key.startswith("petsc."):
+            db[PREFIX + key[len("petsc.") :]] = str(value)
+
+
+def check_options_used(options: dict) -> None:
+    """InputError naming the ``petsc.`` options that PETSc did not read (misspelled, or not
+    an option of the factorization: PETSc itself would ignore them silently)."""
+    _, PETSc = load()
+    db = PETSc.Options()
+    unused = [k for k in options if k.startswith("petsc.") and not db.used(PREFIX + k[len("petsc.") :])]
+    if unused:
+        raise InputError(
+            f"solver option(s) {', '.join(map(repr, unused))} were not used by PETSc's MUMPS Cholesky "
+            "(misspelled, or options of another PETSc object); see `-help` of a PETSc program or docs/parallel.md"
+        )
+
+
+class PetscFactor(Factor):
+    """MUMPS Cholesky of K on every rank of ``COMM_WORLD`` (see the module docstring)."""
+
+    name = "petsc"
+
+    def __init__(self, K: sp.spmatrix):
+        super().__init__()
+        MPI, PETSc = load()
+        self.MPI, self.PETSc = MPI, PETSc
+        comm = self.comm = PETSc.COMM_WORLD
+        n = K.shape[0]
+        self.bounds = row_bounds(n, comm.size)
+        lo, hi = int(self.bounds[comm.rank]), int(self.bounds[comm.rank + 1])
+        self.lo, self.hi, self.n = lo, hi, n
+        Kr = sp.csr_matrix(K)[lo:hi]
+        Kr.sort_indices()
+        A = PETSc.Mat().createAIJ(
+            size=((hi - lo, n), (hi - lo, n)),
+            csr=(Kr.indptr.astype(PETSc.IntType), Kr.indices.astype(PETSc.IntType), Kr.data.astype(PETSc.ScalarType)),
+            comm=comm,
+        )
+        A.setOption(PETSc.Mat.Option.SPD, True)
+        A.assemble()
+        pc = PETSc.PC().create(comm=comm)
+        pc.setOptionsPrefix(PREFIX)
+        pc.setOperators(A)
+        pc.setType(PETSc.PC.Type.CHOLESKY)
+        pc.setFactorSolverType("mumps")
+        pc.setFromOptions()
+        pc.setUp()
+        self.A, self.pc = A, pc
+        self.F = pc.getFactorMatrix()
+        self.x = A.createVecRight()
+        self.b = A.createVecLeft()
+        self.counts = (np.diff(self.bounds)).astype(np.int64)
+
+    @property
+    def nbytes(self) -> int:
+        """Entries of the factor over all ranks (MUMPS INFOG(29), 8 bytes each, plus 4
+        per integer of INFOG(10))."""
+        try:
+            entries = self.F.getMumpsInfog(29)
+            ints = self.F.getMumpsInfog(10)
+        except (AttributeError, self.PETSc.Error):  # pragma: no cover - an older petsc4py
+            return 0
+        entries = entries if entries >= 0 else -entries * 1_000_000  # MUMPS: negative = millions
+        return int(8 * entries + 4 * max(ints, 0))
+
+    def _gather(self, local: np.ndarray, k: int) -> np.ndarray:
+        """The full (n, k) array from every rank's rows (the same result on every rank)."""
+        out = np.empty((self.n, k))
+        counts = self.counts * k
+        self.comm.tompi4py().Allgatherv(np.ascontiguousarray(local), [out, counts, counts.cumsum() - counts, self.MPI.DOUBLE])
+        return out
+
+    def _solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=float)
+        lo, hi = self.lo, self.hi
+        if b.ndim == 1:
+            self.b.setArray(b[lo:hi])
+            self.F.solve(self.b, self.x)
+            return self._gather(self.x.getArray(readonly=True), 1).ravel()
+        k = b.shape[1]
+        PETSc = self.PETSc
+        Bm = PETSc.Mat().createDense(((hi - lo, self.n), (k, k)), array=np.asfortranarray(b[lo:hi]), comm=self.comm)
+        Xm = PETSc.Mat().createDense(((hi - lo, self.n), (k, k)), comm=self.comm)
+        Xm.setUp()
+        self.F.matSolve(Bm, Xm)
+        local = Xm.getDenseArray(readonly=True)  # (hi - lo, k), column-major
+        out = self._gather(np.ascontiguousarray(local), k)
+        Bm.destroy()
+        Xm.destroy()
+        return out

@@ -1,0 +1,108 @@
+"""The ranks of a run: one process (serial backends) or the ranks of ``mpiexec`` (``petsc``).
+
+The distributed backend keeps the scheme contract unchanged by replicating what is
+small or cheap on every rank (the mesh, the state vectors, the Delassus matrix, the
+contact law) and distributing what is costly (the factorization and its solves,
+:mod:`signorini.linalg.petsc.factor`); every rank then computes the same numbers in
+the same order and takes the same branches.  What can still differ between ranks are
+the signals that reach them and their timings: the time loop agrees on a stop with
+:meth:`Comm.any` once per step, and only rank 0 writes (:attr:`Comm.is_root`).
+
+:func:`launched` reads the process manager's environment (MPICH/hydra ``PMI_RANK``,
+Open MPI ``OMPI_COMM_WORLD_RANK``) without importing MPI, so that a serial run never
+loads it and a command started by ``mpiexec -n P`` with P > 1 on a serial backend is
+refused before it writes anything (P copies would race for one result directory).
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+from typing import Any
+
+from .errors import InputError
+
+_RANK_VARS = (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"))
+
+
+def launched() -> tuple[int, int]:
+    """(rank, size) given by the process manager that started this process, (0, 1) without one."""
+    for r, s in _RANK_VARS:
+        if r in os.environ and s in os.environ:
+            try:
+                return int(os.environ[r]), int(os.environ[s])
+            except ValueError:
+                return 0, 1
+    return 0, 1
+
+
+def is_root() -> bool:
+    """Whether this process prints and writes (rank 0, or not started by mpiexec)."""
+    return launched()[0] == 0
+
+
+def peak_memory_bytes() -> int:
+    """Peak resident memory of this process (``getrusage``, kilobytes on Linux) [bytes]."""
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+class Comm:
+    """One process: every collective is the identity."""
+
+    rank = 0
+    size = 1
+
+    @property
+    def is_root(self) -> bool:
+        return self.rank == 0
+
+    def any(self, flag: bool) -> bool:
+        """Whether ``flag`` is true on some rank."""
+        return bool(flag)
+
+    def max(self, value: int) -> int:
+        """The largest ``value`` over the ranks."""
+        return value
+
+    def gather(self, value: Any) -> list[Any]:
+        """``value`` of every rank, in rank order, on every rank."""
+        return [value]
+
+
+class MPIComm(Comm):
+    """The ranks of ``COMM_WORLD`` (mpi4py)."""
+
+    def __init__(self) -> None:
+        from .linalg.petsc import load
+
+        MPI, _ = load()
+        self.MPI = MPI
+        self.comm = MPI.COMM_WORLD
+        self.rank, self.size = self.comm.rank, self.comm.size
+
+    def any(self, flag: bool) -> bool:
+        return bool(self.comm.allreduce(bool(flag), op=self.MPI.LOR))
+
+    def max(self, value: int) -> int:
+        return int(self.comm.allreduce(int(value), op=self.MPI.MAX))
+
+    def gather(self, value: Any) -> list[Any]:
+        return self.comm.allgather(value)
+
+
+SERIAL = Comm()
+
+
+def run_comm(backend: str) -> Comm:
+    """The ranks of a run on ``backend``: all of ``mpiexec``'s for ``petsc``, else this process.
+
+    A serial backend started as P > 1 ranks is an :class:`InputError` (on every rank)."""
+    if backend == "petsc":
+        return MPIComm()
+    rank, size = launched()
+    if size > 1:
+        raise InputError(
+            f"started as {size} MPI ranks with backend {backend!r}: only backend 'petsc' runs on several ranks "
+            "(add --backend petsc, or run without mpiexec)"
+        )
+    return SERIAL
