@@ -28,7 +28,7 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PY" -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
-"$VENV/bin/python" -m pip install --quiet -e ".[mpi,test]"
+"$VENV/bin/python" -m pip install --quiet -e ".[mpi,mesh,test]"
 # MPICH's hydra (from the wheel) is the launcher: it runs as root and on more ranks than cores
 test -x "$VENV/bin/mpiexec"
 "$VENV/bin/mpiexec" -n 2 "$VENV/bin/python" -c "from mpi4py import MPI; from petsc4py import PETSc; assert MPI.COMM_WORLD.size == 2"

@@ -223,8 +223,19 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "initial_acceleration": getattr(ctx, "initial_acceleration", "none"),
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
+        **rank_contact_dofs(main),
         **{f"{k}_seconds": v for k, v in {**disc.timings, **main.timings}.items()},
     }
+
+
+def rank_contact_dofs(solver) -> dict:
+    """``rank_contact_dofs``: per rank, the contact dofs among its rows of the distributed
+    factor (backend ``petsc``); nothing for a serial backend."""
+    bounds = getattr(getattr(solver, "factor", None), "bounds", None)
+    if bounds is None:
+        return {}
+    cols = np.unique(solver.B.indices)
+    return {"rank_contact_dofs": np.histogram(cols, bounds)[0].astype(int).tolist()}
 
 
 def run_options(
