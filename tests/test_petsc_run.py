@@ -155,3 +155,29 @@ def test_one_and_three_ranks_match_the_serial_run(references, tmp_path, name, ra
     p = _check_case(references, tmp_path, name, ranks)
     if name == "side-impact-coulomb" and ranks == 3:
         assert min(p["rank_contact_dofs"]) > 0
+
+
+def test_every_scheme_runs_on_two_ranks_as_in_serial(tmp_path):
+    """Each registered scheme gives the serial SuperLU run's energy, total contact force and
+    smallest gap at every level on 2 ranks (to 1e-8 of their scales), or refuses the backend
+    in a message that names it: the scheme contract is the same on both backends."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from mpi_schemes import series
+
+    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "python"), str(Path(__file__).parent / "mpi_schemes.py"),
+           str(tmp_path / "par.json")]  # fmt: skip
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=_env())
+    assert r.returncode == 0, r.stderr[-3000:]
+    par = json.loads((tmp_path / "par.json").read_text())
+    ref = series("superlu")
+    assert set(par) == set(ref)
+    for name, want in ref.items():
+        got = par[name]
+        if "refused" in got:
+            assert "petsc" in got["refused"], (name, got["refused"])
+            continue
+        assert got["status"] == want["status"] == "finished", name
+        for key in ("energy", "lambda_sum", "gap_min"):
+            a, b = np.array(want[key]), np.array(got[key])
+            s = max(float(np.abs(a).max()), 1e-300)
+            assert np.abs(a - b).max() <= TOLERANCE * s, (name, key, np.abs(a - b).max() / s)

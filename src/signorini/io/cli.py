@@ -40,7 +40,18 @@ def main(argv: list[str] | None = None) -> int:
         if not getattr(args, "command", None):
             parser.print_help()
             return 2
-        return _dispatch(args)
+        return _end_ranks(_dispatch(args))
+
+
+def _end_ranks(code: int) -> int:
+    """On several MPI ranks, an environment failure (exit 4: a disk that filled while rank 0
+    wrote) is rank 0's alone while the other ranks may wait in a collective solve: abort
+    them all with that code instead of leaving them waiting."""
+    if code == EXIT_ENVIRONMENT and launched()[1] > 1 and "mpi4py.MPI" in sys.modules:
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        sys.modules["mpi4py.MPI"].COMM_WORLD.Abort(code)
+    return code
 
 
 def _print(text: str) -> None:
