@@ -46,8 +46,17 @@ class DelassusColumns:
         self._W = np.empty((nc, 0))
         # Z stored transposed, one row per computed column: gathering the active columns
         # then reads contiguous memory
-        self._Zt: np.ndarray | None = np.empty((0, n))
+        self._Zt: np.ndarray | None = np.empty((0, self._rows()))
         self.seconds = 0.0
+
+    def _rows(self) -> int:
+        """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
+        return self.B.shape[1]
+
+    def _solve_block(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(Z[:, J], W[:, J]) for the nodes J: one solve with |J| right-hand sides."""
+        Zj = self.factor.solve(self.Bt[:, J].toarray()).reshape(self.B.shape[1], -1)
+        return Zj, self.B @ Zj
 
     @property
     def keeps_Z(self) -> bool:
@@ -62,7 +71,7 @@ class DelassusColumns:
         """Room for ``need`` columns: W grows by doubling (at most nc); Z gets its own
         capacity, at most the columns that fit in the budget, and is dropped (W kept)
         when ``need`` exceeds that."""
-        nc, n = self.B.shape
+        nc, n = self.B.shape[0], self._rows()
         cap = self._W.shape[1]
         if need > cap:
             cap = min(nc, max(need, 2 * cap, BLOCK))
@@ -96,12 +105,11 @@ class DelassusColumns:
             new = np.concatenate([new, extra[: BLOCK - new.size % BLOCK]])
         t0 = time.perf_counter()
         self._grow(self.count + new.size)
-        n = self.B.shape[1]
         for k in range(0, new.size, BLOCK):
             J = new[k : k + BLOCK]
-            Zj = self.factor.solve(self.Bt[:, J].toarray()).reshape(n, -1)
+            Zj, Wj = self._solve_block(J)
             s = np.arange(self.count, self.count + J.size)
-            self._W[:, s] = self.B @ Zj
+            self._W[:, s] = Wj
             if self._Zt is not None:
                 self._Zt[s] = Zj.T
             self.slot[J] = s

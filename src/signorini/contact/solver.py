@@ -235,7 +235,8 @@ class CondensedContactSolver(ContactSolver):
         if condensation == "schur":
             self.delassus = SchurDelassus(self.factor, self.B)
         else:
-            self.delassus = DelassusColumns(self.factor, self.B, condense_budget)
+            columns = getattr(self.factor, "columns", DelassusColumns)  # a distributed factor's own kind
+            self.delassus = columns(self.factor, self.B, condense_budget)
             if condensation == "full":
                 self.delassus.ensure(np.arange(nc))
         self.active = np.zeros(nc // components, dtype=bool)

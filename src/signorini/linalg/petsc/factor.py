@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ...contact.delassus import DelassusColumns
 from ...errors import InputError
 from ..base import Factor
 from . import load
@@ -112,19 +113,76 @@ class PetscFactor(Factor):
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=float)
+        return self.gather(self._solve_owned(b[self.lo : self.hi]))
+
+    def solve_owned(self, b: np.ndarray) -> np.ndarray:
+        """This rank's rows of K^-1 b from this rank's rows of b, (m,) or (m, k); no gather
+        (the distributed Delassus columns keep their Z rows where they are computed)."""
+        self.solves += 1 if b.ndim == 1 else int(b.shape[1])
+        return self._solve_owned(b)
+
+    def _solve_owned(self, b: np.ndarray) -> np.ndarray:
         lo, hi = self.lo, self.hi
         if b.ndim == 1:
-            self.b.setArray(b[lo:hi])
+            self.b.setArray(b)
             self.F.solve(self.b, self.x)
-            return self._gather(self.x.getArray(readonly=True), 1).ravel()
+            return self.x.getArray(readonly=True).copy()
         k = b.shape[1]
         PETSc = self.PETSc
-        Bm = PETSc.Mat().createDense(((hi - lo, self.n), (k, k)), array=np.asfortranarray(b[lo:hi]), comm=self.comm)
+        Bm = PETSc.Mat().createDense(((hi - lo, self.n), (k, k)), array=np.asfortranarray(b), comm=self.comm)
         Xm = PETSc.Mat().createDense(((hi - lo, self.n), (k, k)), comm=self.comm)
         Xm.setUp()
         self.F.matSolve(Bm, Xm)
-        local = Xm.getDenseArray(readonly=True)  # (hi - lo, k), column-major
-        out = self._gather(np.ascontiguousarray(local), k)
+        out = np.array(Xm.getDenseArray(readonly=True))  # (hi - lo, k)
         Bm.destroy()
         Xm.destroy()
         return out
+
+    def gather(self, local: np.ndarray) -> np.ndarray:
+        """The full (n,) or (n, k) array from every rank's rows, on every rank."""
+        if local.ndim == 1:
+            return self._gather(local, 1).ravel()
+        return self._gather(np.ascontiguousarray(local), local.shape[1])
+
+    def allreduce(self, a: np.ndarray) -> np.ndarray:
+        """The sum over the ranks of ``a`` (the same shape on every rank)."""
+        out = np.empty_like(a)
+        self.comm.tompi4py().Allreduce(np.ascontiguousarray(a), out, op=self.MPI.SUM)
+        return out
+
+
+class DistributedColumns(DelassusColumns):
+    """:class:`~signorini.contact.delassus.DelassusColumns` on a :class:`PetscFactor`: each rank
+    keeps its own rows of the Z columns (memory n m / P per rank), W = B Z is summed over
+    the ranks and replicated, and a contact step is one distributed solve, the local
+    product Z_loc lambda and one gather of x (instead of a gathered solve and a product
+    of the whole Z on every rank)."""
+
+    def __init__(self, factor: PetscFactor, B: sp.csr_matrix, budget: float):
+        self.Bloc = sp.csr_matrix(B)[:, factor.lo : factor.hi]
+        super().__init__(factor, B, budget)  # per rank: the Z rows it stores
+
+    def _rows(self) -> int:
+        return self.factor.hi - self.factor.lo
+
+    def _solve_block(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f = self.factor
+        Zj = f.solve_owned(self.Bt[f.lo : f.hi][:, J].toarray())
+        return Zj, f.allreduce(self.Bloc @ Zj)
+
+    def free(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f = self.factor
+        x = f.solve_owned(np.asarray(b, dtype=float)[f.lo : f.hi])
+        return x, f.allreduce(self.Bloc @ x)
+
+    def complete(self, x_free: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        f = self.factor
+        A = np.flatnonzero(lam)
+        if A.size and self.keeps_Z:
+            x_free = x_free + self.Z_times(A, lam[A])
+        elif A.size:
+            x_free = x_free + f.solve_owned(np.asarray(self.Bt[f.lo : f.hi] @ lam))
+        return f.gather(x_free)
+
+
+PetscFactor.columns = DistributedColumns

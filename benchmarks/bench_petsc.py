@@ -1,0 +1,80 @@
+"""The petsc backend on 1 and 2 MPI ranks against the serial default backend (issue 22).
+
+Usage: python -m benchmarks.bench_petsc [--n 24] [--steps 10] [--ranks 1 2]
+
+Runs ``signorini run bar3d --n N --set gap=0`` (the bar touches the obstacle from the
+first step, so every step has a contact solve) for ``--steps`` steps of the default dt:
+once serially with the default backend (this interpreter), then with
+``.venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini run ... --backend petsc`` for each P.
+Each run is a fresh process; the figures come from its summary.json: set-up, time per
+step (the Delassus columns computed inside the loop are reported apart, as set-up work),
+factor size and peak memory per rank.  Prints the ratios of one run: the 2-rank step
+against the 1-rank PETSc step (speed-up), and the 1-rank PETSc step against the serial
+default backend's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+VENV = Path(__file__).parents[1] / ".venv-mpi" / "bin"
+
+
+def run(cmd: list[str], out: Path) -> dict:
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    r = subprocess.run([*cmd, "--out", str(out), "--quiet", "--yes"], capture_output=True, text=True, env=env)
+    if r.returncode != 0:
+        raise SystemExit(f"bench_petsc: {' '.join(cmd)} failed ({r.returncode}): {r.stderr[-800:]}")
+    s = json.loads((out / "summary.json").read_text())
+    return {
+        "backend": s["backend"],
+        "ranks": s.get("ranks", 1),
+        "dofs": s["dofs"],
+        "setup": s["setup_seconds"],
+        "step": s["step_seconds"],
+        "columns": s.get("in_loop_condensation_seconds", 0.0),
+        "factor_gb": s.get("factor_bytes", 0) / 1e9,
+        "peak_gib": [m / 2**30 for m in s.get("rank_peak_memory_bytes", [])],
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=24)
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    a = ap.parse_args(argv)
+    if not (VENV / "mpiexec").exists():
+        print("bench_petsc: no .venv-mpi (bash scripts/mpi-env.sh): skipped")
+        return 0
+    dt = 0.1 / a.n / 2  # bar3d's default dt, h/2
+    args = ["bar3d", "--n", str(a.n), "--set", "gap=0", "--T", repr(a.steps * dt)]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        rows.append(run([sys.executable, "-m", "signorini", "run", *args], Path(tmp) / "serial"))
+        for p in a.ranks:
+            cmd = [str(VENV / "mpiexec"), "-n", str(p), str(VENV / "signorini"), "run", *args, "--backend", "petsc"]
+            rows.append(run(cmd, Path(tmp) / f"p{p}"))
+    print(f"bar3d n = {a.n}: {rows[0]['dofs']:,} dofs, {a.steps} steps in contact")
+    print(f"{'run':>16} {'set-up s':>9} {'step ms':>9} {'columns s':>9} {'factor GB':>9}  peak GiB per rank")
+    for r in rows:
+        name = f"{r['backend']} x{r['ranks']}"
+        peaks = " ".join(f"{m:.2f}" for m in r["peak_gib"])
+        print(f"{name:>16} {r['setup']:9.2f} {1e3 * r['step']:9.2f} {r['columns']:9.2f} {r['factor_gb']:9.2f}  {peaks}")
+    by = {r["ranks"]: r for r in rows[1:]}
+    if 1 in by:
+        print(f"petsc x1 step / serial {rows[0]['backend']} step: {by[1]['step'] / rows[0]['step']:.2f}")
+        for p, r in by.items():
+            if p > 1:
+                print(f"speed-up per step, {p} ranks against 1: {by[1]['step'] / r['step']:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
