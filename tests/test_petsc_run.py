@@ -181,3 +181,38 @@ def test_every_scheme_runs_on_two_ranks_as_in_serial(tmp_path):
             a, b = np.array(want[key]), np.array(got[key])
             s = max(float(np.abs(a).max()), 1e-300)
             assert np.abs(a - b).max() <= TOLERANCE * s, (name, key, np.abs(a - b).max() / s)
+
+
+def test_ctrl_c_on_mpiexec_keeps_the_partial_results(tmp_path):
+    """SIGINT to mpiexec (hydra forwards it to every rank): all ranks stop after the same
+    step, rank 0 publishes the levels computed with status interrupted, exit 130, no hang."""
+    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "signorini"), "run", "bar3d", "--n", "8", "--T", "20",
+           "--backend", "petsc", "--out", str(tmp_path / "out"), "--quiet"]  # fmt: skip
+    p = subprocess.Popen(cmd, cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(10.0)  # set-up about 3 s; the loop (3,200 steps) about 60 s
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err[-2000:]
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["status"] == "interrupted" and 0 < s["steps"] < 3200 and s["ranks"] == 2
+    assert len(history(tmp_path / "out")["t"]) == s["steps"] + 1
+    assert err.count("signorini: interrupted") == 1  # one line, from rank 0
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["run", "bar3d", "--n", "2"], "only backend 'petsc' runs on several ranks"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "petsc.mat_mumps_icntl_999=1"],
+         "not used by PETSc"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "condensation=schur"], "pardiso"),
+        (["study", "bar1d"], "only `signorini run"),
+    ],
+)  # fmt: skip
+def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, args, says):
+    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "signorini"), *args, "--out", str(tmp_path / "out")]
+    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=300, env=_env())
+    assert r.returncode == 2, r.stderr[-2000:]
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("signorini:")]
+    assert len(lines) == 1 and says in lines[0], r.stderr
+    assert list(tmp_path.iterdir()) == []
