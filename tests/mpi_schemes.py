@@ -1,8 +1,9 @@
 """Every registered scheme on the petsc backend, run under mpiexec by tests/test_petsc_run.py.
 
 ``mpiexec -n P python tests/mpi_schemes.py OUT.json``: each scheme integrates bar3d n = 2
-(40 steps through the impact, standard mass, which every scheme takes) with backend petsc; rank 0 writes, per scheme, the energy,
-the total contact force and the smallest gap at every level, or the refusal message.
+(40 steps through the impact, standard mass, which every scheme takes) with backend
+petsc; rank 0 writes, per scheme, the energy, the total contact force and the smallest
+gap at every level, or the refusal message.
 """
 
 from __future__ import annotations

@@ -108,7 +108,8 @@ class PetscFactor(Factor):
         """The full (n, k) array from every rank's rows (the same result on every rank)."""
         out = np.empty((self.n, k))
         counts = self.counts * k
-        self.comm.tompi4py().Allgatherv(np.ascontiguousarray(local), [out, counts, counts.cumsum() - counts, self.MPI.DOUBLE])
+        recv = [out, counts, counts.cumsum() - counts, self.MPI.DOUBLE]
+        self.comm.tompi4py().Allgatherv(np.ascontiguousarray(local), recv)
         return out
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
