@@ -38,6 +38,8 @@ def run(cmd: list[str], out: Path) -> dict:
         "dofs": s["dofs"],
         "setup": s["setup_seconds"],
         "step": s["step_seconds"],
+        "factorization": s.get("factorization_seconds", 0.0),
+        "bare_solve": s.get("bare_solve_seconds", 0.0),
         "columns": s.get("in_loop_condensation_seconds", 0.0),
         "factor_gb": s.get("factor_bytes", 0) / 1e9,
         "peak_gib": [m / 2**30 for m in s.get("rank_peak_memory_bytes", [])],
@@ -62,11 +64,13 @@ def main(argv: list[str] | None = None) -> int:
             cmd = [str(VENV / "mpiexec"), "-n", str(p), str(VENV / "signorini"), "run", *args, "--backend", "petsc"]
             rows.append(run(cmd, Path(tmp) / f"p{p}"))
     print(f"bar3d n = {a.n}: {rows[0]['dofs']:,} dofs, {a.steps} steps in contact")
-    print(f"{'run':>16} {'set-up s':>9} {'step ms':>9} {'columns s':>9} {'factor GB':>9}  peak GiB per rank")
+    head = ("run", "set-up s", "factor s", "solve ms", "step ms", "columns s", "factor GB")
+    print(f"{head[0]:>16}" + "".join(f" {h:>9}" for h in head[1:]) + "  peak GiB per rank")
     for r in rows:
         name = f"{r['backend']} x{r['ranks']}"
         peaks = " ".join(f"{m:.2f}" for m in r["peak_gib"])
-        print(f"{name:>16} {r['setup']:9.2f} {1e3 * r['step']:9.2f} {r['columns']:9.2f} {r['factor_gb']:9.2f}  {peaks}")
+        figures = (r["setup"], r["factorization"], 1e3 * r["bare_solve"], 1e3 * r["step"], r["columns"], r["factor_gb"])
+        print(f"{name:>16}" + "".join(f" {v:9.2f}" for v in figures) + f"  {peaks}")
     by = {r["ranks"]: r for r in rows[1:]}
     if 1 in by:
         print(f"petsc x1 step / serial {rows[0]['backend']} step: {by[1]['step'] / rows[0]['step']:.2f}")

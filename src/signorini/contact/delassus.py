@@ -127,7 +127,14 @@ class DelassusColumns:
 
     def Z_times(self, nodes: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """Z[:, nodes] @ lam (needs :attr:`keeps_Z`), shape (n,)."""
-        return lam @ self._Zt[self.slot[nodes]]
+        slots = self.slot[nodes]
+        if 4 * slots.size < self.count:  # a few columns: gather their rows
+            return lam @ self._Zt[slots]
+        # many: one product with every stored row, the others weighted 0, instead of copying
+        # the selected rows first (bar3d n = 24, 625 active nodes: a 2.2 GB copy per step)
+        c = np.zeros(self.count)
+        c[slots] = lam
+        return c @ self._Zt[: self.count]
 
     def free(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x_free, B x_free) for x_free = K^-1 b (one solve)."""

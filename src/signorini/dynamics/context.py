@@ -29,7 +29,7 @@ from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, mak
 from ..errors import InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
 from ..linalg.sparse import linear_combination, principal_combination
-from ..linalg.spmv import sparse_product, usable_cores
+from ..linalg.spmv import sparse_product
 from ..parallel import run_comm
 from .mass import massless_dofs
 from .problem import Discretization
@@ -189,9 +189,11 @@ class Context:
     def _product(self, A: sp.spmatrix) -> Any:
         # general storage, A's own arrays: a symmetric copy (as CG's K) made bar3d n = 32's
         # steps 6% faster but its set-up 5 s longer and its peak 0.6 GB higher
-        # on several ranks of one machine, each rank takes its share of the cores
-        threads = max(1, usable_cores() // self.comm.size) if self.comm.size > 1 else 0
-        return sparse_product(A, self.solver_options.get("spmv", "auto"), threads)
+        if self.comm.size > 1:  # each rank its block of rows (replicated vectors, no halo)
+            from ..linalg.petsc.product import RowBlockProduct
+
+            return RowBlockProduct(A, self.comm)
+        return sparse_product(A, self.solver_options.get("spmv", "auto"))
 
     # -- data of time t ------------------------------------------------------------
     def next_time(self, t: float) -> float:
