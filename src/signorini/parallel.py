@@ -22,6 +22,10 @@ from typing import Any
 
 from .errors import InputError
 
+INSTALL_HINT = (
+    "the petsc backend needs petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
+    "repository root, then use .venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini run ... --backend petsc"
+)
 _RANK_VARS = (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"))
 
 
@@ -73,9 +77,10 @@ class MPIComm(Comm):
     """The ranks of ``COMM_WORLD`` (mpi4py)."""
 
     def __init__(self) -> None:
-        from .linalg.petsc import load
-
-        MPI, _ = load()
+        try:
+            from mpi4py import MPI
+        except ImportError as exc:
+            raise InputError(f"{INSTALL_HINT} ({type(exc).__name__}: {exc})") from None
         self.MPI = MPI
         self.comm = MPI.COMM_WORLD
         self.rank, self.size = self.comm.rank, self.comm.size

@@ -235,7 +235,9 @@ class CondensedContactSolver(ContactSolver):
         if condensation == "schur":
             self.delassus = SchurDelassus(self.factor, self.B)
         else:
-            columns = getattr(self.factor, "columns", DelassusColumns)  # a distributed factor's own kind
+            columns = DelassusColumns
+            if getattr(self.factor, "distributed", False):  # each rank keeps its own rows of Z
+                from .distributed_columns import DistributedColumns as columns
             self.delassus = columns(self.factor, self.B, condense_budget)
             if condensation == "full":
                 self.delassus.ensure(np.arange(nc))

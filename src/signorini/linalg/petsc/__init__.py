@@ -7,11 +7,13 @@ PT-Scotch, and the MPICH wheel), which ``scripts/mpi-env.sh`` installs in ``.ven
 first, or ``petsc4py`` cannot find ``libmpi``) and says how to get them when they are
 missing.
 
-What exists so far (docs/design.md, "Beyond one machine"): the partition of the cells and
-the renumbering of the nodes into contiguous owned ranges (:mod:`.partition`), and the
+What exists (docs/parallel.md, docs/design.md "Beyond one machine"): the backend
+``petsc``, a parallel MUMPS Cholesky behind the serial factor contract (:mod:`.factor`)
+with products by blocks of rows (:mod:`.product`); the partition of the cells and the
+renumbering of the nodes into contiguous owned ranges (:mod:`.partition`), and the
 assembly of S and of the mass on each rank's own cells into PETSc matrices with d x d
-blocks (:mod:`.assemble`); ``python -m signorini.linalg.petsc.selftest`` checks them
-against the serial operators on P ranks.
+blocks (:mod:`.assemble`), which ``python -m signorini.linalg.petsc.selftest`` checks
+against the serial operators on P ranks (not yet the source of the run's operators).
 """
 
 from __future__ import annotations
@@ -19,11 +21,7 @@ from __future__ import annotations
 from types import ModuleType
 
 from ...errors import InputError
-
-INSTALL_HINT = (
-    "the petsc backend needs petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
-    "repository root, then use .venv-mpi/bin/mpiexec -n P .venv-mpi/bin/python ..."
-)
+from ...parallel import INSTALL_HINT
 
 
 def load() -> tuple[ModuleType, ModuleType]:
