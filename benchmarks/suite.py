@@ -3,7 +3,8 @@ the Hertz ball and disc series when gmsh is installed (``pip install ".[mesh]"``
 n = 9 is a ball of about 36k dofs with about 1.3k contact nodes, n = 14 one of about
 100k dofs), the per-step cost
 of every registered scheme on bar3d n = 8, and the cost of Coulomb friction against the
-frictionless run (:mod:`benchmarks.bench_friction`).
+frictionless run (:mod:`benchmarks.bench_friction`), and the petsc backend on 1 and 2 MPI
+ranks when ``.venv-mpi`` exists (:mod:`benchmarks.bench_petsc`, printed only).
 
 Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
 
@@ -270,6 +271,10 @@ def main(argv=None) -> int:
 
     frows = friction_rows(a.quick)  # Coulomb against frictionless: bar3d n = 8 oblique, the ball
     md += friction_markdown(frows)
+    from .bench_petsc import main as petsc_main
+
+    # the petsc backend on 1 and 2 ranks (bar3d n = 16; --quick: n = 8), when .venv-mpi exists
+    petsc_main(["--n", "8" if a.quick else "16", "--steps", "10", "--no-serial"])
     (out / "bench.md").write_text("\n".join(md) + "\n")
     payload = {"rows": rows, "exponents": exps, "schemes": srows, "friction": frows}
     (out / "bench.json").write_text(json.dumps(payload, indent=1))
