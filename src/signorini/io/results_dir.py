@@ -53,19 +53,23 @@ _OLD_PREFIX = ".signorini-old."
 
 _WATCHDOG = r"""
 import json, os, shutil, sys
-tmp, out, created = sys.argv[1], sys.argv[2], sys.argv[3:]
-aside, committing, done = [], False, False
+out = sys.argv[1]
+tmp, created, aside, committing, done = None, [], [], False, False
 for line in sys.stdin.buffer:
     word, arg = json.loads(line)
-    if word == "commit":
+    if word == "tmp":
+        tmp = arg
+    elif word == "made":
+        created.insert(0, arg)
+    elif word == "commit":
         committing = True
     elif word == "aside":
         aside.append(arg)
     elif word == "done":
         done = True
-if done:
+if done or tmp is None and not created:
     sys.exit(0)
-if committing:
+if committing and tmp is not None:
     if not os.path.lexists(out):
         for src in [tmp] + aside[::-1]:
             try:
@@ -75,7 +79,8 @@ if committing:
                 pass
     for a in aside:
         shutil.rmtree(a, ignore_errors=True)
-shutil.rmtree(tmp, ignore_errors=True)
+if tmp is not None:
+    shutil.rmtree(tmp, ignore_errors=True)
 if not committing:
     for d in created:
         try:
@@ -262,6 +267,10 @@ class ResultDirectory:
         """Make the parents and the temporary directory with its marker (once); returns the latter."""
         if self.tmp is not None:
             return self.tmp
+        # the watchdog first, told of each directory as soon as it exists: a SIGKILL at any
+        # moment leaves nothing behind (it used to start after them, a window that a kill
+        # right after the temporary directory appeared could hit on a loaded machine)
+        self._start_watchdog()
         try:
             missing = []
             p = self.out.parent
@@ -271,7 +280,9 @@ class ResultDirectory:
             for d in reversed(missing):
                 d.mkdir()
                 self.created.insert(0, d)
+                self._tell("made", os.fsdecode(d))
             self.tmp = Path(tempfile.mkdtemp(prefix=_NEW_PREFIX, dir=self.out.parent))
+            self._tell("tmp", os.fsdecode(self.tmp))
             umask = os.umask(0)
             os.umask(umask)
             self.tmp.chmod(0o777 & ~umask)  # as a plain mkdir would (mkdtemp makes 0700)
@@ -281,13 +292,12 @@ class ResultDirectory:
             if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
                 raise
             raise InputError(f"{self.flag} {str(self.shown)!r} cannot be created: {exc.strerror or exc}") from None
-        self._start_watchdog()
         return self.tmp
 
     def _start_watchdog(self) -> None:
         try:
             self._watchdog = subprocess.Popen(
-                [sys.executable, "-I", "-S", "-c", _WATCHDOG, str(self.tmp), str(self.out), *map(str, self.created)],
+                [sys.executable, "-I", "-S", "-c", _WATCHDOG, str(self.out)],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
