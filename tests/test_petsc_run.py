@@ -207,6 +207,10 @@ def test_ctrl_c_on_mpiexec_keeps_the_partial_results(tmp_path):
          "not used by PETSc"),
         (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "condensation=schur"], "pardiso"),
         (["study", "bar1d"], "only `signorini run"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "petsc.mat_mumps_icntl_14=abc"],
+         "failed with the petsc.* solver options"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "petsc.pc_type=lu"],
+         "MUMPS Cholesky"),
     ],
 )  # fmt: skip
 def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, args, says):
@@ -216,3 +220,29 @@ def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, arg
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("signorini:")]
     assert len(lines) == 1 and says in lines[0], r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ranks_keep_or_drop_the_z_columns_together(tmp_path):
+    """A budget between the Z rows of the two ranks' blocks (1095 free dofs split 548/547):
+    both ranks take the decision from the largest block, so neither waits for the other
+    (it hung before: one rank solving while the other gathered)."""
+    args = [str(Path(__file__).parents[1] / "examples" / "cylinder_drop.toml"), "--solver-option",
+            "condense_budget=280064", "--out", str(tmp_path / "out"), "--quiet"]  # fmt: skip
+    r = mpirun(2, args, tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
+def test_rank_0_failing_alone_in_the_loop_ends_every_rank(tmp_path):
+    """The output's parent becomes a file while the ranks compute: rank 0 fails creating
+    the directory for the fields (its own, unshared failure), prints one line and ends
+    every rank (MPI_Abort) with exit 2, instead of leaving rank 1 waiting at the next step."""
+    blocker = tmp_path / "q"
+    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "signorini"), "run", "bar3d", "--n", "6", "--T", "4",
+           "--backend", "petsc", "--snapshot-every", "10", "--out", str(blocker / "out")]  # fmt: skip
+    p = subprocess.Popen(cmd, cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.5)
+    blocker.touch()
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 2, err[-2000:]
+    lines = [ln for ln in err.splitlines() if ln.startswith("signorini:")]
+    assert len(lines) == 1 and lines[0].startswith("signorini: error: --out"), err  # (before the loop on a slow start)

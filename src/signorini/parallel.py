@@ -6,7 +6,8 @@ contact law) and distributing what is costly (the factorization and its solves,
 :mod:`signorini.linalg.petsc.factor`); every rank then computes the same numbers in
 the same order and takes the same branches.  What can still differ between ranks are
 the signals that reach them and their timings: the time loop agrees on a stop with
-:meth:`Comm.any` once per step, and only rank 0 writes (:attr:`Comm.is_root`).
+:meth:`Comm.max` of the signal numbers once per step, and only rank 0 writes
+(:attr:`Comm.is_root`); rank 0's own failures end every rank (:func:`mark_unshared`).
 
 :func:`launched` reads the process manager's environment (MPICH/hydra ``PMI_RANK``,
 Open MPI ``OMPI_COMM_WORLD_RANK``) without importing MPI, so that a serial run never
@@ -45,6 +46,17 @@ def is_root() -> bool:
     return launched()[0] == 0
 
 
+#: set when this process ends in a way the other ranks may not share (a failure of rank 0's
+#: own writing during the loop, a Ctrl-C during the set-up): the command line then ends
+#: every rank with MPI_Abort instead of leaving them waiting in a collective
+UNSHARED_END = [False]
+
+
+def mark_unshared() -> None:
+    """Record that this process is leaving on its own (see :data:`UNSHARED_END`)."""
+    UNSHARED_END[0] = True
+
+
 def peak_memory_bytes() -> int:
     """Peak resident memory of this process (``getrusage``, kilobytes on Linux) [bytes]."""
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
@@ -72,6 +84,10 @@ class Comm:
         """``value`` of every rank, in rank order, on every rank."""
         return [value]
 
+    def bcast(self, value: Any) -> Any:
+        """Rank 0's ``value`` on every rank."""
+        return value
+
 
 class MPIComm(Comm):
     """The ranks of ``COMM_WORLD`` (mpi4py)."""
@@ -93,6 +109,9 @@ class MPIComm(Comm):
 
     def gather(self, value: Any) -> list[Any]:
         return self.comm.allgather(value)
+
+    def bcast(self, value: Any) -> Any:
+        return self.comm.bcast(value, root=0)
 
 
 SERIAL = Comm()

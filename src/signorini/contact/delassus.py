@@ -53,6 +53,11 @@ class DelassusColumns:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
         return self.B.shape[1]
 
+    def _budget_rows(self) -> int:
+        """Rows of a Z column as the byte budget counts them (the same figure on every rank
+        of a distributed factor, so that all of them keep or drop Z together)."""
+        return self._rows()
+
     def _solve_block(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(Z[:, J], W[:, J]) for the nodes J: one solve with |J| right-hand sides."""
         Zj = self.factor.solve(self.Bt[:, J].toarray()).reshape(self.B.shape[1], -1)
@@ -80,7 +85,7 @@ class DelassusColumns:
             self._W = W
         if self._Zt is None or need <= self._Zt.shape[0]:
             return
-        z_max = int(self.budget // (8 * max(n, 1)))
+        z_max = int(self.budget // (8 * max(self._budget_rows(), 1)))
         if need > z_max:
             self._Zt = None  # does not fit: keep W only, one more solve per contact step
             return

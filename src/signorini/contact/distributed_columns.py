@@ -17,10 +17,15 @@ class DistributedColumns(DelassusColumns):
 
     def __init__(self, factor, B: sp.csr_matrix, budget: float):
         self.Bloc = sp.csr_matrix(B)[:, factor.lo : factor.hi]
-        super().__init__(factor, B, budget)  # per rank: the Z rows it stores
+        super().__init__(factor, B, budget)  # condense_budget is per rank: the Z rows it stores
 
     def _rows(self) -> int:
         return self.factor.hi - self.factor.lo
+
+    def _budget_rows(self) -> int:
+        # the largest block of rows: every rank takes the same keep-or-drop decision (one
+        # rank dropping Z while another keeps it would send them into different collectives)
+        return int(np.max(np.diff(self.factor.bounds)))
 
     def _solve_block(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         f = self.factor

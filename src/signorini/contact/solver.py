@@ -187,7 +187,8 @@ def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budge
         raise InputError(f"solver option 'condensation' must be one of {allowed}; got {condensation!r}")
     supported = factor_class(backend).supports_schur
     if condensation == "schur" and not supported:
-        raise InputError(f"solver option condensation='schur' needs the pardiso backend, not {backend!r}; "
+        why = " (PETSc has no parallel MUMPS Schur complement)" if backend == "petsc" else ""
+        raise InputError(f"solver option condensation='schur' needs the pardiso backend, not {backend!r}{why}; "
                          "use condensation='lazy' or 'full' with this backend")  # fmt: skip
     if condensation != "auto":
         return condensation
@@ -588,13 +589,23 @@ def make_contact_solver(
                 "more than the memory budget; raise solver.memory_budget or coarsen the contact boundary"
             )
     if backend == "petsc":
-        from ..linalg.petsc.factor import check_options_used, set_options
+        from ..linalg.petsc.factor import check_options_used, clear_options, set_options
 
         set_options(opts)
-        solver = CondensedContactSolver(
-            K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components
-        )
-        check_options_used(opts)
+        try:
+            solver = CondensedContactSolver(
+                K,
+                B,
+                gap_scale,
+                backend,
+                opts["condense_budget"],
+                opts["lcp_max_iter"],
+                opts["condensation"],
+                components,
+            )
+            check_options_used(opts)
+        finally:
+            clear_options(opts)
         return solver
     if backend == "cg":
         return ActiveSetCGSolver(

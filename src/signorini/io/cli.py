@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 
 from ..errors import ConvergenceError, InputError
-from ..parallel import is_root, launched
+from ..parallel import UNSHARED_END, is_root, launched, mark_unshared
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .messages import one_line
 from .parser import build_parser
@@ -43,18 +43,13 @@ def main(argv: list[str] | None = None) -> int:
         return _end_ranks(_dispatch(args))
 
 
-#: set when a command ends in a way the other MPI ranks may not share (a Ctrl-C during the
-#: set-up reaches each rank inside or outside a collective factorization)
-_UNSHARED_END = False
-
-
 def _end_ranks(code: int) -> int:
     """On several MPI ranks, an environment failure (exit 4: a disk that filled while rank 0
     wrote) or a Ctrl-C before the time loop is this rank's alone while the other ranks may
     wait in a collective solve: abort them all with that code instead of leaving them
     waiting.  The failures the ranks share (input errors, a failed or interrupted time
     loop, whose stop they agree on) end normally."""
-    unshared = code == EXIT_ENVIRONMENT or _UNSHARED_END
+    unshared = code == EXIT_ENVIRONMENT or UNSHARED_END[0]
     if unshared and launched()[1] > 1 and "mpi4py.MPI" in sys.modules:
         for stream in (sys.stdout, sys.stderr):
             stream.flush()
@@ -105,8 +100,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         _print(f"signorini: error: {one_line(exc)}")
         return 2
     except KeyboardInterrupt:
-        global _UNSHARED_END
-        _UNSHARED_END = True
+        mark_unshared()  # a Ctrl-C during the set-up reaches each rank inside or outside a collective
         _print("signorini: interrupted before the time loop; nothing written")
         return 130
     except ResultConflict as exc:

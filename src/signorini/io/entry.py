@@ -26,6 +26,24 @@ def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def _quiet_followers() -> None:
+    """Started by mpiexec as a rank other than 0: stdout and stderr go to /dev/null, so that
+    every message (argparse's, --help, start-up interrupts, PETSc's own) comes once, from
+    rank 0; the ranks compute the same things (docs/parallel.md).  SIGNORINI_TRACEBACK=1
+    keeps them, to debug a rank."""
+    from ..parallel import launched  # os and resource only: cheap before the handlers
+
+    if launched()[0] == 0 or os.environ.get("SIGNORINI_TRACEBACK"):
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        os.close(null)
+    except OSError:
+        pass
+
+
 def main() -> int:
     """Install the start-up handlers, import the command line and run it.
 
@@ -33,6 +51,7 @@ def main() -> int:
     turns into its own status and message; one that escapes it (while the arguments are
     parsed) ends here with one line and 130.
     """
+    _quiet_followers()
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, _early)
     from .cli import main as cli_main

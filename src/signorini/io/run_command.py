@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import signal
 import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -13,6 +15,7 @@ from typing import Any
 from ..dynamics.mass import DEFAULT_MASS
 from ..dynamics.problem import with_friction
 from ..errors import ConvergenceError, InputError
+from ..parallel import mark_unshared
 from ..registry import parse_assignments
 from .exit_codes import EXIT_CODES
 from .messages import one_line
@@ -156,15 +159,29 @@ class LazyFieldWriter:
     def start(self, run) -> None:
         from .output import FieldWriter
 
-        self.inner = FieldWriter(self.rd.create() / "fields.xdmf", self.every)
-        self.inner.start(run)
+        with _rank0_only():
+            self.inner = FieldWriter(self.rd.create() / "fields.xdmf", self.every)
+            self.inner.start(run)
 
     def record(self, run, n, state) -> None:
-        self.inner.record(run, n, state)
+        with _rank0_only():
+            self.inner.record(run, n, state)
 
     def close(self, run, status, n_last, state) -> None:
         if self.inner is not None:
-            self.inner.close(run, status, n_last, state)
+            with _rank0_only():
+                self.inner.close(run, status, n_last, state)
+
+
+@contextmanager
+def _rank0_only():
+    """Code that only rank 0 runs inside the time loop: a failure there is not the other
+    ranks' (they would wait for rank 0 at the next step), so it ends every rank."""
+    try:
+        yield
+    except BaseException:
+        mark_unshared()
+        raise
 
 
 def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
@@ -188,10 +205,16 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     from ..parallel import launched, run_comm
 
     rank, _ = launched()
-    run_comm(str(spec.solver_options.get("backend", "auto")))  # a serial backend on P > 1 ranks: refused
+    comm = run_comm(str(spec.solver_options.get("backend", "auto")))  # a serial backend on P > 1: refused
     if rank != 0:
-        return execute_follower(spec, args)
-    with ResultDirectory(spec.out, args.overwrite) as rd:
+        return execute_follower(spec, comm)
+    try:
+        rd = ResultDirectory(spec.out, args.overwrite)  # the checks of the output path
+    except BaseException:
+        comm.bcast(False)  # the other ranks stop too, silently (rank 0 says why)
+        raise
+    comm.bcast(True)
+    with rd:
         observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
         if spec.measure is not None:
             observers += spec.measure.observers()
@@ -231,19 +254,23 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     return EXIT_CODES[H.status]
 
 
-def execute_follower(spec: RunSpec, args: argparse.Namespace) -> int:
-    """A rank other than 0: the same checks of the output path as rank 0 (read-only, so
-    every rank stops on the same refusal), the same simulation, nothing written or printed."""
+def execute_follower(spec: RunSpec, comm) -> int:
+    """A rank other than 0: waits for rank 0's checks of the output path, then runs the
+    same simulation and writes nothing (the command line keeps it silent)."""
     from ..dynamics.simulate import simulate
-    from .results_dir import resolve_output
 
-    resolve_output(spec.out, args.overwrite)
+    if not comm.bcast(None):  # rank 0 refused the output path and says why
+        return 2
     observers = spec.measure.observers() if spec.measure is not None else []
     try:
         H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
                      solver_options=spec.solver_options, observers=observers)  # fmt: skip
     except ConvergenceError:
         return EXIT_CODES["failed"]
+    # the loop's stop is agreed: a signal from now on must not end this rank on its own
+    # (KeyboardInterrupt would abort every rank while rank 0 writes the results)
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
     return EXIT_CODES[H.status]
 
 

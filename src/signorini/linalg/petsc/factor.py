@@ -1,8 +1,8 @@
 """A parallel MUMPS Cholesky factor of K behind the serial :class:`~signorini.linalg.Factor` contract.
 
 K (the free block of a scheme's operator, the same scipy matrix on every rank) is
-handed to PETSc row block by row block: rank r inserts rows [lo_r, hi_r) (whole
-nodes' worth of an even split) into an MPIAIJ matrix, marked SPD, and MUMPS factors it
+handed to PETSc row block by row block: rank r inserts rows [lo_r, hi_r) (an even split
+of the rows, :func:`row_bounds`) into an MPIAIJ matrix, marked SPD, and MUMPS factors it
 once (``-pc_type cholesky -pc_factor_mat_solver_type mumps``: its own parallel analysis
 and mapping, so the input distribution only decides who sends which rows).  A solve
 takes a right-hand side that is the same on every rank, shape (n,) or (n, k), gives each
@@ -33,13 +33,29 @@ def row_bounds(n: int, size: int) -> np.ndarray:
     return np.linspace(0, n, size + 1).round().astype(np.int64)
 
 
+def _given(options: dict) -> dict[str, str]:
+    """The ``petsc.NAME=VALUE`` solver options as PETSc option names (``signorini_NAME``)."""
+    return {PREFIX + k[len("petsc.") :]: str(v) for k, v in options.items() if k.startswith("petsc.")}
+
+
 def set_options(options: dict) -> None:
-    """Put ``petsc.NAME=VALUE`` solver options into PETSc's database as ``-signorini_NAME VALUE``."""
+    """Put ``petsc.NAME=VALUE`` solver options into PETSc's database as ``-signorini_NAME VALUE``
+    (removed again by :func:`clear_options`; PETSc's own report of unused options at
+    exit is off: :func:`check_options_used` refuses them instead)."""
     _, PETSc = load()
     db = PETSc.Options()
-    for key, value in options.items():
-        if key.startswith("petsc."):
-            db[PREFIX + key[len("petsc.") :]] = str(value)
+    db["options_left"] = "0"
+    for name, value in _given(options).items():
+        db[name] = value
+
+
+def clear_options(options: dict) -> None:
+    """Remove the ``petsc.`` options from PETSc's database: the next run in this process
+    starts from a clean one."""
+    _, PETSc = load()
+    db = PETSc.Options()
+    for name in _given(options):
+        db.delValue(name)
 
 
 def check_options_used(options: dict) -> None:
@@ -53,6 +69,14 @@ def check_options_used(options: dict) -> None:
             f"solver option(s) {', '.join(map(repr, unused))} were not used by PETSc's MUMPS Cholesky "
             "(misspelled, or options of another PETSc object); see `-help` of a PETSc program or docs/parallel.md"
         )
+
+
+def _options_text() -> str:
+    """The ``signorini_`` options now in PETSc's database, as the user gave them."""
+    _, PETSc = load()
+    opts = PETSc.Options().getAll()
+    given = [f"petsc.{k[len(PREFIX) :]}={v}" for k, v in opts.items() if k.startswith(PREFIX)]
+    return ", ".join(given) or "none"
 
 
 class PetscFactor(Factor):
@@ -86,8 +110,27 @@ class PetscFactor(Factor):
         pc.setOperators(A)
         pc.setType(PETSc.PC.Type.CHOLESKY)
         pc.setFactorSolverType("mumps")
-        pc.setFromOptions()
-        pc.setUp()
+        try:
+            pc.setFromOptions()
+        except PETSc.Error as exc:
+            raise InputError(
+                f"PETSc refused the petsc.* solver options ({_options_text()}): error {exc.ierr}"
+            ) from None
+        if pc.getType() != PETSc.PC.Type.CHOLESKY or pc.getFactorSolverType() != "mumps":
+            raise InputError(
+                f"the petsc backend is a MUMPS Cholesky factorization; the petsc.* options ({_options_text()}) made it "
+                f"{pc.getType()} with {pc.getFactorSolverType()}: leave pc_type and pc_factor_mat_solver_type alone"
+            )
+        try:
+            pc.setUp()
+        except PETSc.Error as exc:
+            given = _options_text()
+            if given != "none":  # a value PETSc or MUMPS rejects (e.g. icntl_14=abc)
+                raise InputError(
+                    f"the MUMPS Cholesky factorization failed with the petsc.* solver options ({given}): PETSc error "
+                    f"{exc.ierr}; check their names and values, or run without them"
+                ) from None
+            raise RuntimeError(f"MUMPS Cholesky failed (PETSc error {exc.ierr})") from None
         self.A, self.pc = A, pc
         self.F = pc.getFactorMatrix()
         self.x = A.createVecRight()
