@@ -39,6 +39,8 @@ def _check_outcome(tmp_path, rc, sig):
     if sig == signal.SIGKILL:
         assert rc in (0, -signal.SIGKILL)
     else:
+        if rc == -sig and not out.exists():  # before the entry point's handlers: the interpreter's start-up
+            return  # (a loaded machine stretches it; nothing was written, nothing is left: checked above)
         assert rc in (0, 130, 2), rc  # 2: interrupted before the output path was even checked is impossible
     if not out.exists():
         assert rc != 0

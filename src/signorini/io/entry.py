@@ -51,9 +51,9 @@ def main() -> int:
     turns into its own status and message; one that escapes it (while the arguments are
     parsed) ends here with one line and 130.
     """
-    _quiet_followers()
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, _early)
+    _quiet_followers()
     from .cli import main as cli_main
 
     for s in (signal.SIGINT, signal.SIGTERM):
