@@ -65,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         for p in a.ranks:
             cmd = [str(VENV / "mpiexec"), "-n", str(p), str(VENV / "signorini"), "run", *args, "--backend", "petsc"]
             rows.append(run(cmd, Path(tmp) / f"p{p}"))
+            print(f"bench_petsc: {p} rank(s) done: {json.dumps(rows[-1])}", flush=True)  # a long series: as it goes
     print(f"bar3d n = {a.n}: {rows[0]['dofs']:,} dofs, {a.steps} steps in contact")
     head = ("run", "set-up s", "factor s", "solve ms", "step ms", "columns s", "factor GB")
     print(f"{head[0]:>16}" + "".join(f" {h:>9}" for h in head[1:]) + "  peak GiB per rank")
