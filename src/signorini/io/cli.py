@@ -6,6 +6,10 @@ with ``status = "failed"`` in summary.json); 4 the environment failed (out of me
 disk full, an I/O error: what could be kept is kept); 130 interrupted by Ctrl-C or
 SIGTERM (the levels computed are written, ``status = "interrupted"``); 1 an internal
 error (a bug: one line, the traceback with ``SIGNORINI_TRACEBACK=1``).
+
+On several MPI ranks (``mpiexec -n P ... --backend petsc``, docs/parallel.md) the codes are
+the same; rank 0 alone prints, and a failure that rank 0 meets alone (its own writing, a
+Ctrl-C during the set-up) ends every rank with ``MPI_Abort`` and that code.
 """
 
 from __future__ import annotations
