@@ -1,16 +1,18 @@
-"""The petsc backend on 1 and 2 MPI ranks against the serial default backend (issue 22).
+"""The petsc and petsc-cg backends on 1 and 2 MPI ranks against the serial backends (issue 22).
 
 Usage: python -m benchmarks.bench_petsc [--n 24] [--steps 10] [--ranks 1 2] [--no-serial]
+       [--backend petsc|petsc-cg] [--preconditioner jacobi|gamg]
 
 Runs ``signorini run bar3d --n N --set gap=0`` (the bar touches the obstacle from the
 first step, so every step has a contact solve) for ``--steps`` steps of the default dt:
-once serially with the default backend (this interpreter), then with
-``.venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini run ... --backend petsc`` for each P.
+once serially (this interpreter) with the default backend (against ``petsc``) or ``cg``
+(against ``petsc-cg``), then with ``.venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini
+run ... --backend B`` for each P.
 Each run is a fresh process; the figures come from its summary.json: set-up, time per
 step (the Delassus columns computed inside the loop are reported apart, as set-up work),
 factor size and peak memory per rank.  Prints the ratios of one run: the 2-rank step
 against the 1-rank PETSc step (speed-up), and the 1-rank PETSc step against the serial
-default backend's.
+backend's; for the CG backends also the CG iterations per solve.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ def run(cmd: list[str], out: Path) -> dict:
         "columns": s.get("in_loop_condensation_seconds", 0.0),
         "factor_gb": s.get("factor_bytes", 0) / 1e9,
         "peak_gib": [m / 2**30 for m in s.get("rank_peak_memory_bytes", [])],
+        "cg_iterations": s["counters"].get("krylov_iterations", 0) / max(s["counters"]["linear_solves"], 1),
     }
 
 
@@ -51,7 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=24)
     ap.add_argument("--steps", type=int, default=10)
     ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--no-serial", action="store_true", help="skip the serial default-backend run")
+    ap.add_argument("--no-serial", action="store_true", help="skip the serial run")
+    ap.add_argument("--backend", choices=("petsc", "petsc-cg"), default="petsc")
+    ap.add_argument("--preconditioner", choices=("jacobi", "gamg"), default=None, help="of petsc-cg")
     a = ap.parse_args(argv)
     if not (VENV / "mpiexec").exists():
         print("bench_petsc: no .venv-mpi (bash scripts/mpi-env.sh): skipped")
@@ -61,20 +66,25 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         if not a.no_serial:
-            rows.append(run([sys.executable, "-m", "signorini", "run", *args], Path(tmp) / "serial"))
+            ref = ["--backend", "cg"] if a.backend == "petsc-cg" else []
+            rows.append(run([sys.executable, "-m", "signorini", "run", *args, *ref], Path(tmp) / "serial"))
+        own = ["--backend", a.backend]
+        if a.preconditioner:
+            own += ["--solver-option", f"preconditioner={a.preconditioner}"]
         for p in a.ranks:
-            cmd = [str(VENV / "mpiexec"), "-n", str(p), str(VENV / "signorini"), "run", *args, "--backend", "petsc"]
+            cmd = [str(VENV / "mpiexec"), "-n", str(p), str(VENV / "signorini"), "run", *args, *own]
             rows.append(run(cmd, Path(tmp) / f"p{p}"))
             print(f"bench_petsc: {p} rank(s) done: {json.dumps(rows[-1])}", flush=True)  # a long series: as it goes
     print(f"bar3d n = {a.n}: {rows[0]['dofs']:,} dofs, {a.steps} steps in contact")
-    head = ("run", "set-up s", "factor s", "solve ms", "step ms", "columns s", "factor GB")
-    print(f"{head[0]:>16}" + "".join(f" {h:>9}" for h in head[1:]) + "  peak GiB per rank")
+    head = ("run", "set-up s", "factor s", "solve ms", "step ms", "columns s", "factor GB", "CG its")
+    print(f"{head[0]:>20}" + "".join(f" {h:>9}" for h in head[1:]) + "  peak GiB per rank")
     for r in rows:
         name = f"{r['backend']} x{r['ranks']}"
         peaks = " ".join(f"{m:.2f}" for m in r["peak_gib"])
         figures = (r["setup"], r["factorization"], 1e3 * r["bare_solve"], 1e3 * r["step"], r["columns"], r["factor_gb"])
-        print(f"{name:>16}" + "".join(f" {v:9.2f}" for v in figures) + f"  {peaks}")
-    by = {r["ranks"]: r for r in rows if r["backend"] == "petsc"}
+        its = r["cg_iterations"]
+        print(f"{name:>20}" + "".join(f" {v:9.2f}" for v in figures) + f" {its:9.1f}  {peaks}")
+    by = {r["ranks"]: r for r in rows if r["backend"].startswith("petsc")}
     if 1 in by and not a.no_serial:
         print(f"petsc x1 step / serial {rows[0]['backend']} step: {by[1]['step'] / rows[0]['step']:.2f}")
     if 1 in by:

@@ -27,6 +27,8 @@ INSTALL_HINT = (
     "the petsc backend needs petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
     "repository root, then use .venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini run ... --backend petsc"
 )
+#: the backends that run on the ranks of ``mpiexec`` (the others are one process)
+DISTRIBUTED_BACKENDS = ("petsc", "petsc-cg")
 _RANK_VARS = (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"))
 
 
@@ -118,15 +120,16 @@ SERIAL = Comm()
 
 
 def run_comm(backend: str) -> Comm:
-    """The ranks of a run on ``backend``: all of ``mpiexec``'s for ``petsc``, else this process.
+    """The ranks of a run on ``backend``: all of ``mpiexec``'s for ``petsc`` and ``petsc-cg``,
+    else this process.
 
     A serial backend started as P > 1 ranks is an :class:`InputError` (on every rank)."""
-    if backend == "petsc":
+    if backend in DISTRIBUTED_BACKENDS:
         return MPIComm()
     rank, size = launched()
     if size > 1:
         raise InputError(
-            f"started as {size} MPI ranks with backend {backend!r}: only backend 'petsc' runs on several ranks "
-            "(add --backend petsc, or run without mpiexec)"
+            f"started as {size} MPI ranks with backend {backend!r}: only backends 'petsc' and 'petsc-cg' run on "
+            "several ranks (add --backend petsc, or run without mpiexec)"
         )
     return SERIAL

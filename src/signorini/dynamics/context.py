@@ -100,9 +100,11 @@ class _System:
             nodes = ctx.disc.space.dofmap.nodes_of(f if D.size else np.arange(Kff.shape[0]))
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
             B = ctx.Hf if ctx.components > 1 else ctx.Bf  # with friction: the nodal frames' rows
+            free = f if D.size else np.arange(Kff.shape[0])
             self.solver: ContactSolver = make_contact_solver(
-                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.components
-            )
+                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.components,
+                lambda: ctx.disc.space.rigid_body_modes(free),
+            )  # fmt: skip
         except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
             raise InputError(
                 f"the operator {op} on the free dofs cannot be factorized ({type(exc).__name__}: {exc}): it is "

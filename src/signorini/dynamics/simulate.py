@@ -230,8 +230,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
 
 def rank_contact_dofs(solver) -> dict:
     """``rank_contact_dofs``: per rank, the contact dofs among its rows of the distributed
-    factor (backend ``petsc``); nothing for a serial backend."""
-    bounds = getattr(getattr(solver, "factor", None), "bounds", None)
+    factor or operator (backends ``petsc``, ``petsc-cg``); nothing for a serial backend."""
+    bounds = getattr(solver, "bounds", getattr(getattr(solver, "factor", None), "bounds", None))
     if bounds is None:
         return {}
     cols = np.unique(solver.B.indices)

@@ -52,6 +52,30 @@ class VectorSpace:
         """Dofs of ``nodes`` (array) for ``components``, shape (len(nodes), len(components))."""
         return self.dofmap.dofs(nodes, components)
 
+    def rigid_body_modes(self, dofs: np.ndarray) -> np.ndarray:
+        """The rigid motions restricted to ``dofs`` (n,), as orthonormal columns (n, k).
+
+        k = 1, 3, 6 in 1D, 2D, 3D: the d translations e_c and the rotations about the
+        centroid x_0 of those dofs' nodes, omega x (x - x_0) (2D: (-(y - y_0), x - x_0)),
+        orthonormalized (QR); a column that vanishes on ``dofs`` (a motion that Dirichlet
+        conditions hold) is dropped.  The near-null space of an algebraic multigrid.
+        """
+        dofs = np.asarray(dofs, dtype=np.int64)
+        nodes = self.dofmap.nodes_of(dofs)
+        c = dofs - self.dim * nodes
+        x = self.mesh.points[nodes] - self.mesh.points[nodes].mean(axis=0) if dofs.size else np.zeros((0, self.dim))
+        cols = [(c == k).astype(float) for k in range(self.dim)]
+        if self.dim == 2:
+            cols.append(np.where(c == 0, -x[:, 1], x[:, 0]))
+        elif self.dim == 3:
+            for a in range(3):  # rotation about axis a: (e_a x r)_c
+                b, e = (a + 1) % 3, (a + 2) % 3
+                cols.append(np.where(c == b, -x[:, e], np.where(c == e, x[:, b], 0.0)))
+        Q, R = np.linalg.qr(np.column_stack(cols))
+        diag = np.abs(np.diag(R))
+        keep = diag > 1e-10 * max(float(diag.max(initial=0.0)), 1e-300)
+        return np.ascontiguousarray(Q[:, keep])
+
     def interpolate(self, value: Value) -> np.ndarray:
         """Nodal interpolant of a constant vector or of a function (n, d) -> (n, d)."""
         x = self.mesh.points

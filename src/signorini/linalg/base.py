@@ -31,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..parallel import DISTRIBUTED_BACKENDS
 from ..registry import Parameter, Registry
 from .spmv import SPMV_KINDS
 
@@ -164,6 +165,24 @@ BACKENDS.register(
     "options petsc.NAME=VALUE pass through as -signorini_NAME",
 )
 BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
+PETSC_CG_PARAMETERS = (
+    Parameter(
+        "preconditioner",
+        "gamg",
+        "preconditioner of PETSc's CG: gamg (algebraic multigrid, rigid-body near-null space) or jacobi",
+        str,
+        choices=("gamg", "jacobi"),
+    ),
+    *CG_PARAMETERS[1:4],
+)
+BACKENDS.register(
+    "petsc-cg",
+    None,
+    "no factor: PETSc's projected CG on the ranks of mpiexec under the active-set contact solve (extra 'mpi', "
+    "scripts/mpi-env.sh); options petsc.NAME=VALUE pass through to its preconditioner as -signorini_NAME",
+    (),
+    PETSC_CG_PARAMETERS,
+)
 
 
 SOLVER_OPTIONS = (
@@ -225,17 +244,19 @@ def solver_options(given: Mapping[str, Any] | None = None, where: str = "solver"
     out = {p.name: p.default for p in SOLVER_OPTIONS}
     out.update({p.name: p.default for p in entry.parameters})
     for k, v in given.items():
-        if k.startswith("petsc.") and backend == "petsc":  # PETSc's own options, checked by PETSc
+        if k.startswith("petsc.") and backend in DISTRIBUTED_BACKENDS:  # PETSc's own options, checked by PETSc
             out[k] = str(v)
             continue
         p = generic.get(k) or own.get(k)
         if p is None and k.startswith("petsc."):
-            raise InputError(f"solver option {k!r} is a PETSc option: it needs backend 'petsc', not {backend!r}")
+            raise InputError(
+                f"solver option {k!r} is a PETSc option: it needs backend 'petsc' or 'petsc-cg', not {backend!r}"
+            )
         if p is None:
             allowed = ", ".join(sorted(set(generic) | set(own)))
             raise InputError(f"unknown solver option {k!r} for backend {backend!r}; allowed: {allowed}")
         out[k] = p.convert(v, where)
-    if "preconditioner" in out:
+    if "preconditioner" in out and backend not in DISTRIBUTED_BACKENDS:
         try:
             out["preconditioner"] = PRECONDITIONERS.resolve(out["preconditioner"])
         except InputError as exc:

@@ -157,9 +157,10 @@ class Scheme:
             )
 
     def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
-        if self.needs_condensed_solve and prepared and any(s.name.startswith("cg") for s in ctx.solvers):
+        uncondensed = any(getattr(s, "condensation", "") == "none" for s in ctx.solvers)
+        if self.needs_condensed_solve and prepared and uncondensed:
             raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
-                             "(superlu, pardiso or cholmod), not cg")  # fmt: skip
+                             "(superlu, pardiso, cholmod or petsc), not cg or petsc-cg")  # fmt: skip
 
     @property
     def label(self) -> str:

@@ -1,0 +1,282 @@
+"""The contact solve of the serial ``cg`` backend on P ranks through PETSc (backend ``petsc-cg``).
+
+No factorization: for a factor that does not fit, the active-set (semismooth Newton)
+iteration of :class:`~signorini.contact.solver.ActiveSetCGSolver` runs unchanged and
+replicated on every rank, and each of its linear solves
+
+    P K P w = P r,    P = I - B_A^T B_A  (the active nodes' normals, orthonormal rows),
+
+is PETSc's conjugate gradients on the distributed K (MPIAIJ, each rank a block of whole
+nodes' rows), preconditioned by ``P G P`` with G one of
+
+* ``gamg``: PETSc's smoothed-aggregation algebraic multigrid with the rigid-body motions
+  of the free dofs as near-null space (3 in 2D, 6 in 3D;
+  :meth:`~signorini.fem.space.VectorSpace.rigid_body_modes`);
+* ``jacobi``: diagonal scaling, as the serial default (K = c_M M + c_S S is close to its
+  mass part when dt is about a wave's crossing time of a cell).
+
+The rows of one contact node stay on one rank (the row blocks end at node boundaries,
+:func:`node_row_bounds`), so the projection P is local: no communication beyond the
+products and dot products of CG itself.  CG stops as the serial one does, when
+|P (r - K w)| <= rtol |P r| (unpreconditioned 2-norm), started from the previous solution
+(``set_guess``: a scheme's predictor).
+
+The state vectors stay replicated (docs/parallel.md): a solve hands each rank its rows of
+the right-hand side and the start, and one ``Allgatherv`` gives every rank the solution.
+PETSc options pass through under the prefix ``signorini_`` to the preconditioner
+(``--solver-option petsc.pc_gamg_threshold=0.02``); the Krylov method itself stays CG.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ConvergenceError, InputError
+from ..linalg.petsc import load
+from ..linalg.petsc.factor import PREFIX, _options_text, row_bounds
+from .solver import ActiveSetCGSolver, ContactSolver, _best_time
+
+#: preconditioners of ``petsc-cg`` (PETSc PC types)
+PRECONDITIONERS = ("gamg", "jacobi")
+
+
+def node_row_bounds(nodes: np.ndarray, size: int) -> np.ndarray:
+    """Row blocks (size + 1,) of about n / size rows that end at node boundaries.
+
+    ``nodes`` (n,) is the mesh node of each row, a node's rows consecutive (node-major
+    dofs): the even split of :func:`~signorini.linalg.petsc.factor.row_bounds` moved up to
+    the first row of the next node, so that a contact node's rows (and its projection)
+    stay on one rank.
+    """
+    nodes = np.asarray(nodes)
+    n = nodes.size
+    starts = np.flatnonzero(np.r_[True, nodes[1:] != nodes[:-1]])  # first row of each node
+    if np.unique(nodes).size != starts.size:
+        raise ValueError("the rows of a node are not consecutive (node-major dofs are expected)")
+    even = row_bounds(n, size)
+    snapped = np.r_[starts, n][np.searchsorted(np.r_[starts, n], even)]
+    return np.maximum.accumulate(snapped).astype(np.int64)
+
+
+class _Projected:
+    """``y = P A P x`` (petsc4py's Python matrix) with the solver's current local projection."""
+
+    def __init__(self, A, solver: DistributedCGSolver):
+        self.A, self.solver = A, solver
+        self.t = A.createVecRight()
+
+    def mult(self, mat, x, y) -> None:
+        x.copy(self.t)
+        self.solver._project_vec(self.t)
+        self.A.mult(self.t, y)
+        self.solver._project_vec(y)
+
+
+class _ProjectedPC:
+    """``y = P G P x`` (petsc4py's Python preconditioner) with G the inner PC."""
+
+    def __init__(self, inner, solver: DistributedCGSolver, vec):
+        self.inner, self.solver = inner, solver
+        self.t = vec.duplicate()
+
+    def apply(self, pc, x, y) -> None:
+        x.copy(self.t)
+        self.solver._project_vec(self.t)
+        self.inner.apply(self.t, y)
+        self.solver._project_vec(y)
+
+
+class DistributedCGSolver(ActiveSetCGSolver):
+    """Projected CG on PETSc under the serial active-set iteration (see the module docstring).
+
+    Parameters
+    ----------
+    K : (n, n) the operator on the free dofs (the same scipy matrix on every rank).
+    B : (nc, n) the contact normals' rows, one per contact node.
+    nodes : (n,) the mesh node of each row (row blocks end at node boundaries).
+    modes : (n, k) orthonormal rigid-body motions of the rows (``gamg``'s near-null space).
+    """
+
+    def __init__(
+        self,
+        K: sp.spmatrix,
+        B: sp.csr_matrix,
+        gap_scale: float,
+        nodes: np.ndarray,
+        modes: np.ndarray | None,
+        preconditioner: str = "gamg",
+        rtol: float = 1e-12,
+        max_iter: int = 2000,
+        max_newton: int = 30,
+    ):
+        ContactSolver.__init__(self)
+        MPI, PETSc = load()
+        self.MPI, self.PETSc = MPI, PETSc
+        if preconditioner not in PRECONDITIONERS:
+            raise InputError(
+                f"solver option 'preconditioner' of backend petsc-cg must be one of {', '.join(PRECONDITIONERS)}; "
+                f"got {preconditioner!r}"
+            )
+        t0 = time.perf_counter()
+        comm = self.comm = PETSc.COMM_WORLD
+        self.K = K.tocsr() if sp.issparse(K) else sp.csr_matrix(K)
+        self.B = sp.csr_matrix(B)
+        n = self.n = self.K.shape[0]
+        self.bounds = node_row_bounds(nodes, comm.size)
+        lo, hi = self.lo, self.hi = int(self.bounds[comm.rank]), int(self.bounds[comm.rank + 1])
+        self.counts = np.diff(self.bounds).astype(np.int64)
+        owner = np.searchsorted(self.bounds, self.B.indices, side="right") - 1
+        row_of = np.repeat(np.arange(self.B.shape[0]), np.diff(self.B.indptr))
+        split = np.zeros(self.B.shape[0], dtype=bool)
+        np.logical_or.at(split, row_of, owner != owner[np.searchsorted(row_of, row_of)])
+        if split.any():  # pragma: no cover - nodal contact rows never straddle node-aligned blocks
+            raise RuntimeError("a contact row straddles two ranks' rows")
+
+        bs = _block(nodes) if np.all(self.counts % _block(nodes) == 0) else 1
+        # jacobi: the upper triangle in d x d blocks (SBAIJ) reads about half the bytes of a
+        # product; GAMG takes AIJ only  -- docs/performance.md
+        A = _matrix(PETSc, comm, self.K, lo, hi, bs, symmetric=preconditioner == "jacobi")
+        A.setOption(PETSc.Mat.Option.SPD, True)
+        A.assemble()
+        if modes is not None and preconditioner == "gamg":
+            vecs = []
+            for col in modes.T:
+                v = A.createVecRight()
+                v.setArray(col[lo:hi])
+                vecs.append(v)
+            A.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=comm))
+        inner = PETSc.PC().create(comm=comm)
+        inner.setOptionsPrefix(PREFIX)
+        inner.setOperators(A)
+        inner.setType(preconditioner)
+        try:
+            inner.setFromOptions()
+            if inner.getType() != preconditioner:
+                raise InputError(
+                    f"backend petsc-cg takes its preconditioner from the solver option 'preconditioner' "
+                    f"({', '.join(PRECONDITIONERS)}), not from petsc.pc_type; the petsc.* options were "
+                    f"{_options_text()}"
+                )
+            inner.setUp()
+        except PETSc.Error as exc:
+            raise InputError(
+                f"PETSc refused the preconditioner {preconditioner!r} with the petsc.* options ({_options_text()}): "
+                f"error {exc.ierr}"
+            ) from None
+        self.A, self.inner = A, inner
+        op = PETSc.Mat().createPython(((hi - lo, n), (hi - lo, n)), _Projected(A, self), comm=comm)
+        op.setUp()
+        ksp = PETSc.KSP().create(comm=comm)
+        ksp.setType(PETSc.KSP.Type.CG)
+        ksp.setOperators(op, A)
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=rtol, atol=0.0, divtol=1e300, max_it=max_iter)
+        ksp.setInitialGuessNonzero(True)
+        pc = ksp.getPC()
+        pc.setType(PETSc.PC.Type.PYTHON)
+        pc.setPythonContext(_ProjectedPC(inner, self, A.createVecLeft()))
+        ksp.setUp()
+        self.ksp, self.op = ksp, op
+        self.xv, self.bv = A.createVecRight(), A.createVecLeft()
+        self._local_projection = None
+        self.name = f"petsc-cg+{preconditioner}"
+        self.condensation = "none"
+        self.rtol, self.max_iter, self.max_newton = rtol, max_iter, max_newton
+        self.c = float(np.mean(self.K.diagonal()))
+        self.active = np.zeros(self.B.shape[0], dtype=bool)
+        self.U_prev = np.zeros(n)
+        self.gap_scale = max(gap_scale, 1e-300)
+        self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
+        self.timings["bare_spmv"] = _best_time(self._spmv, n)
+
+    # -- the projection of the active set, on this rank's rows -------------------------
+    def _projector(self, BA: sp.csr_matrix):
+        """P = I - B_A^T B_A restricted to this rank's rows: (rows - lo, B_A's rows there) or None."""
+        if BA.shape[0] == 0:
+            return None
+        mine = (BA.indices >= self.lo) & (BA.indices < self.hi)
+        rows_of = np.repeat(np.arange(BA.shape[0]), np.diff(BA.indptr))
+        keep = np.unique(rows_of[mine])
+        if keep.size == 0:
+            return None
+        Bl = BA[keep]
+        cols = np.unique(Bl.indices)
+        Br = Bl[:, cols].tocsr()
+        return cols - self.lo, Br, Br.T.tocsr()
+
+    def _project_local(self, v: np.ndarray, projection) -> None:
+        if projection is not None:
+            idx, Br, BrT = projection
+            v[idx] -= BrT @ (Br @ v[idx])
+
+    def _project_vec(self, vec) -> None:
+        if self._local_projection is not None:
+            with vec as a:
+                self._project_local(a, self._local_projection)
+
+    # -- products and solves -----------------------------------------------------------
+    def _gather(self, local: np.ndarray) -> np.ndarray:
+        out = np.empty(self.n)
+        self.comm.tompi4py().Allgatherv(
+            np.ascontiguousarray(local), [out, self.counts, self.counts.cumsum() - self.counts, self.MPI.DOUBLE]
+        )
+        return out
+
+    def _spmv(self, x: np.ndarray) -> np.ndarray:
+        """A distributed product K x (the bare cost of one CG iteration's product)."""
+        self.xv.setArray(x[self.lo : self.hi])
+        self.A.mult(self.xv, self.bv)
+        return self.bv.getArray(readonly=True)
+
+    def _cg(self, rhs: np.ndarray, x0: np.ndarray, project) -> np.ndarray:
+        self._local_projection = project
+        lo, hi = self.lo, self.hi
+        b = np.array(rhs[lo:hi], dtype=np.float64)
+        x = np.array(x0[lo:hi], dtype=np.float64)
+        self._project_local(b, project)
+        self._project_local(x, project)
+        self.bv.setArray(b)
+        self.xv.setArray(x)
+        self.ksp.solve(self.bv, self.xv)
+        reason, its = self.ksp.getConvergedReason(), self.ksp.getIterationNumber()
+        self._local_projection = None
+        self.counters["linear_solves"] += 1
+        self.counters["krylov_iterations"] += its
+        if reason < 0:
+            raise ConvergenceError(
+                f"PETSc CG did not converge in {its} iterations (reason {reason}, rtol {self.rtol:g}, "
+                f"max_iter {self.max_iter})"
+            )
+        return self._gather(self.xv.getArray(readonly=True))
+
+
+def _matrix(PETSc, comm, K: sp.csr_matrix, lo: int, hi: int, bs: int, symmetric: bool):
+    """Rows [lo, hi) of K as a distributed PETSc matrix with block size d: MPISBAIJ (the d x d
+    blocks on and above the diagonal) when ``symmetric``, else MPIAIJ (what GAMG takes)."""
+    n = K.shape[0]
+    Kr = K[lo:hi]
+    if symmetric:
+        C = Kr.tocoo()
+        keep = C.col // bs >= (C.row + lo) // bs
+        Kr = sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=Kr.shape)
+    itype = PETSc.IntType
+    if not symmetric:
+        Kr.sort_indices()
+        csr = (Kr.indptr.astype(itype), Kr.indices.astype(itype), Kr.data.astype(PETSc.ScalarType))
+        return PETSc.Mat().createAIJ(size=((hi - lo, n), (hi - lo, n)), bsize=bs, csr=csr, comm=comm)
+    Br = sp.bsr_matrix(Kr, blocksize=(bs, bs))
+    Br.sort_indices()
+    csr = (Br.indptr.astype(itype), Br.indices.astype(itype), Br.data.reshape(-1).astype(PETSc.ScalarType))
+    return PETSc.Mat().createSBAIJ(size=((hi - lo, n), (hi - lo, n)), bsize=bs, csr=csr, comm=comm)
+
+
+def _block(nodes: np.ndarray) -> int:
+    """d when every node has the same number d of consecutive rows, else 1."""
+    nodes = np.asarray(nodes)
+    if nodes.size == 0:
+        return 1
+    runs = np.diff(np.flatnonzero(np.r_[True, nodes[1:] != nodes[:-1], True]))
+    return int(runs[0]) if np.all(runs == runs[0]) else 1
