@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:>20}" + "".join(f" {v:9.2f}" for v in figures) + f" {its:9.1f}  {peaks}")
     by = {r["ranks"]: r for r in rows if r["backend"].startswith("petsc")}
     if 1 in by and not a.no_serial:
-        print(f"petsc x1 step / serial {rows[0]['backend']} step: {by[1]['step'] / rows[0]['step']:.2f}")
+        print(f"{by[1]['backend']} x1 step / serial {rows[0]['backend']} step: {by[1]['step'] / rows[0]['step']:.2f}")
     if 1 in by:
         for p, r in by.items():
             if p > 1:

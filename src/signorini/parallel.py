@@ -43,6 +43,18 @@ def launched() -> tuple[int, int]:
     return 0, 1
 
 
+def local_ranks() -> tuple[int, int]:
+    """(P, L): the ranks of the run and those on this machine (hydra's ``MPI_LOCALNRANKS``,
+    Open MPI's ``OMPI_COMM_WORLD_LOCAL_SIZE``; P when neither says), (1, 1) without mpiexec."""
+    size = launched()[1]
+    for var in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE"):
+        try:
+            return size, max(1, min(int(os.environ[var]), size))
+        except (KeyError, ValueError):
+            continue
+    return size, size
+
+
 def is_root() -> bool:
     """Whether this process prints and writes (rank 0, or not started by mpiexec)."""
     return launched()[0] == 0

@@ -618,10 +618,13 @@ def make_contact_solver(
             if backend == "petsc-cg":
                 from .distributed_cg import DistributedCGSolver
 
-                rigid = modes() if modes is not None and opts["preconditioner"] == "gamg" else None
+                pc = opts["preconditioner"]
+                if pc == "auto":  # Jacobi where CG converges in tens of iterations (docs/parallel.md)
+                    pc = "jacobi" if cg_friendly else "gamg"
+                rigid = modes() if modes is not None and pc == "gamg" else None
                 nodes = np.arange(K.shape[0]) if nodes is None else nodes
                 solver = DistributedCGSolver(
-                    K, B, gap_scale, nodes, rigid, opts["preconditioner"], opts["rtol"], opts["max_iter"],
+                    K, B, gap_scale, nodes, rigid, pc, opts["rtol"], opts["max_iter"],
                     opts["max_newton"],
                 )  # fmt: skip
                 check_options_used(opts)

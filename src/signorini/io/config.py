@@ -364,11 +364,12 @@ def _read(path: Path) -> dict:
     return data
 
 
-def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> Case:
+def load_case(path: str | Path, limits: dict | None = None, size_check=None, backend: str | None = None) -> Case:
     """Read and validate a case file; raises :class:`InputError` on any problem.
 
-    ``limits`` override the file's ``[limits]``; ``size_check(counts, dt, T, limits)``
-    (the command line's run-size check) is called before a generated mesh is built.
+    ``limits`` override the file's ``[limits]``; ``size_check(counts, dt, T, limits, backend)``
+    (the command line's run-size check) is called before a generated mesh is built, with
+    ``backend`` (the command line's) or else the file's ``[solver] backend``.
     """
     path = Path(path)
     data = _read(path)
@@ -376,9 +377,12 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None) -> 
     limits = {**_limits(data.get("limits", {})), **(limits or {})}
     guard = None
     if size_check is not None:
+        solver = data.get("solver")
+        named = solver.get("backend") if isinstance(solver, dict) else None
+        chosen = backend or (named if isinstance(named, str) else None)
 
         def guard(counts):
-            size_check(counts, dt, T, limits)
+            size_check(counts, dt, T, limits, chosen)
 
     mesh = _mesh(data["mesh"], path.parent, guard)
     dim = mesh.dim

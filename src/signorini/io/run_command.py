@@ -61,16 +61,20 @@ def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
     return out
 
 
-def check_size(counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict) -> None:
+def check_size(
+    counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict, backend: str | None = None
+) -> None:
     """Refuse (exit 2, with the estimate) a run over the step or memory limit unless confirmed.
 
     ``counts`` = (nodes, cells, nodes per cell, dim, contact nodes), known before meshing
-    for a benchmark.
+    for a benchmark; ``backend`` (None: ``auto``) decides the factor and, on the ranks of
+    ``mpiexec``, the copies on this machine.
     """
     from ..dynamics.budget import check_run_size, estimate_run
     from ..dynamics.simulate import number_of_steps
+    from ..parallel import local_ranks
 
-    est = estimate_run(*counts, number_of_steps(dt, T))
+    est = estimate_run(*counts, number_of_steps(dt, T), backend=str(backend or "auto"), ranks=local_ranks())
     mem = limits.get("max_memory")
     check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
 
@@ -111,10 +115,12 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     dt = args.dt if args.dt is not None else dt_default
     T = args.T if args.T is not None else T_default
     limits = _limits(args, {})
-    nodes, cells, per_cell = bench.mesh_counts(n, overrides)
-    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits)
-    problem = with_friction(bench.problem(n, overrides), args.friction)
     sch, sol = _options(args, {}, {})
+    nodes, cells, per_cell = bench.mesh_counts(n, overrides)
+    check_size(
+        (nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol.get("backend")
+    )
+    problem = with_friction(bench.problem(n, overrides), args.friction)
     params = bench.params(overrides)
     meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
     if args.snapshot_every is not None and args.snapshot_every < 0:
@@ -134,7 +140,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     if args.set:
         raise InputError("--set does not apply to a case file; edit the file")
     _check_out_given(args)
-    case = load_case(args.target, _limits(args, {}), check_size)
+    case = load_case(args.target, _limits(args, {}), check_size, args.backend)
     out = Path(args.out) if args.out else (case.out or Path("out") / Path(args.target).stem)
     scheme = load_scheme(args.scheme) if args.scheme else case.scheme
     sch, sol = _options(args, case.scheme_options if not args.scheme else {}, case.solver_options)
@@ -142,7 +148,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     if every < 0:
         raise InputError(f"--snapshot-every must be >= 0, got {every}")
     limits = _limits(args, case.limits)
-    check_size(mesh_counts(case.problem), case.dt, case.T, limits)
+    check_size(mesh_counts(case.problem), case.dt, case.T, limits, sol.get("backend"))
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
     problem = with_friction(case.problem, args.friction)
     return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,

@@ -168,10 +168,11 @@ BACKENDS.register("cg", None, "no factor: projected CG with an active-set contac
 PETSC_CG_PARAMETERS = (
     Parameter(
         "preconditioner",
-        "gamg",
-        "preconditioner of PETSc's CG: gamg (algebraic multigrid, rigid-body near-null space) or jacobi",
+        "auto",
+        "preconditioner of PETSc's CG: jacobi, gamg (algebraic multigrid, rigid-body near-null space); auto: "
+        "jacobi when the operator is mass-dominated (as auto picks cg), else gamg",
         str,
-        choices=("gamg", "jacobi"),
+        choices=("auto", "jacobi", "gamg"),
     ),
     *CG_PARAMETERS[1:4],
 )

@@ -1,0 +1,49 @@
+"""The run-size estimate (dynamics/budget.py) and its count of MPI ranks on this machine."""
+
+from __future__ import annotations
+
+import pytest
+
+from signorini.dynamics.budget import estimate_run
+from signorini.linalg.base import estimate_factor_bytes
+from signorini.parallel import local_ranks
+
+#: (nodes, cells, nodes per cell, dim, contact nodes) of a 3D hexahedral bar
+COUNTS = (150_817, 138_240, 8, 3, 625)
+
+
+def test_a_serial_backend_ignores_the_ranks():
+    one = estimate_run(*COUNTS, 100, backend="superlu")
+    assert estimate_run(*COUNTS, 100, backend="superlu", ranks=(4, 4)).total_bytes == one.total_bytes
+    assert one.factor_bytes == estimate_factor_bytes(3 * COUNTS[0], 3, "superlu")
+
+
+@pytest.mark.parametrize("P, L", [(1, 1), (2, 2), (4, 2), (8, 1)])
+def test_each_local_rank_holds_its_own_copy_and_a_share_of_the_factor(P, L):
+    e = estimate_run(*COUNTS, 100, backend="petsc", ranks=(P, L))
+    assert (e.ranks, e.local_ranks) == (P, L)
+    assert e.factor_bytes == estimate_factor_bytes(3 * COUNTS[0], 3, "pardiso")  # MUMPS: nested dissection
+    expected = L * (e.setup_bytes + e.history_bytes) + e.factor_bytes * L / P
+    assert e.total_bytes == pytest.approx(expected, rel=1e-15)
+    if P > 1:
+        assert f"{L} of {P} MPI ranks" in e.describe()
+
+
+def test_petsc_cg_has_no_factor_and_cg_neither():
+    for backend in ("petsc-cg", "cg"):
+        e = estimate_run(*COUNTS, 100, backend=backend, ranks=(2, 2))
+        assert e.factor_bytes == 0.0
+
+
+def test_local_ranks_from_the_process_manager(monkeypatch):
+    for var in ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS",
+                "OMPI_COMM_WORLD_LOCAL_SIZE"):  # fmt: skip
+        monkeypatch.delenv(var, raising=False)
+    assert local_ranks() == (1, 1)
+    monkeypatch.setenv("PMI_RANK", "0")
+    monkeypatch.setenv("PMI_SIZE", "8")
+    assert local_ranks() == (8, 8)  # no local count: all on this machine (the safe side)
+    monkeypatch.setenv("MPI_LOCALNRANKS", "2")
+    assert local_ranks() == (8, 2)
+    monkeypatch.setenv("MPI_LOCALNRANKS", "junk")
+    assert local_ranks() == (8, 8)
