@@ -24,7 +24,7 @@ from typing import Any
 from .errors import InputError
 
 INSTALL_HINT = (
-    "the petsc backend needs petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
+    "the backends petsc and petsc-cg need petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
     "repository root, then use .venv-mpi/bin/mpiexec -n P .venv-mpi/bin/signorini run ... --backend petsc"
 )
 #: the backends that run on the ranks of ``mpiexec`` (the others are one process)
@@ -142,6 +142,6 @@ def run_comm(backend: str) -> Comm:
     if size > 1:
         raise InputError(
             f"started as {size} MPI ranks with backend {backend!r}: only backends 'petsc' and 'petsc-cg' run on "
-            "several ranks (add --backend petsc, or run without mpiexec)"
+            "several ranks (add --backend petsc or petsc-cg, or run without mpiexec)"
         )
     return SERIAL

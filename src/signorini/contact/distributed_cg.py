@@ -250,9 +250,11 @@ class DistributedCGSolver(ActiveSetCGSolver):
         self.counters["linear_solves"] += 1
         self.counters["krylov_iterations"] += its
         if reason < 0:
+            names = {v: k for k, v in vars(self.PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
             raise ConvergenceError(
-                f"PETSc CG did not converge in {its} iterations (reason {reason}, rtol {self.rtol:g}, "
-                f"max_iter {self.max_iter})"
+                f"PETSc CG did not converge in {its} iterations ({names.get(reason, 'reason')} {reason}, "
+                f"rtol {self.rtol:g}, max_iter {self.max_iter}); an indefinite preconditioner (DIVERGED_INDEFINITE_PC) "
+                "comes from petsc.* options that do not suit a mass with massless dofs"
             )
         return self._gather(self.xv.getArray(readonly=True))
 

@@ -592,8 +592,8 @@ def make_contact_solver(
     opts = solver_options(options)
     backend = opts["backend"]
     if components > 1 and backend in ("cg", "petsc-cg"):
-        raise InputError("friction needs the condensed contact solve of a direct backend (superlu, pardiso, "
-                         f"cholmod, petsc or auto), not {backend}")  # fmt: skip
+        direct = "petsc" if backend == "petsc-cg" else "superlu, pardiso, cholmod or auto"
+        raise InputError(f"friction needs the Delassus matrix of a direct backend ({direct}), not {backend}")
     if backend == "auto" and opts["condensation"] == "schur":
         if not has_pardiso():
             raise InputError("solver option condensation='schur' needs the pardiso backend, which is not installed "
@@ -619,15 +619,18 @@ def make_contact_solver(
                 from .distributed_cg import DistributedCGSolver
 
                 pc = opts["preconditioner"]
+                why = f"preconditioner={pc}"
                 if pc == "auto":  # Jacobi where CG converges in tens of iterations (docs/parallel.md)
                     pc = "jacobi" if cg_friendly else "gamg"
+                    dominated = "mass" if cg_friendly else "stiffness"
+                    why = f"preconditioner=auto, which took {pc}: the operator is {dominated}-dominated"
                 rigid = modes() if modes is not None and pc == "gamg" else None
                 nodes = np.arange(K.shape[0]) if nodes is None else nodes
                 solver = DistributedCGSolver(
                     K, B, gap_scale, nodes, rigid, pc, opts["rtol"], opts["max_iter"],
                     opts["max_newton"],
                 )  # fmt: skip
-                check_options_used(opts)
+                check_options_used(opts, f"petsc-cg's {pc} preconditioner ({why})")
                 return solver
             solver = CondensedContactSolver(
                 K,

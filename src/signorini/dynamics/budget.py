@@ -90,7 +90,7 @@ class RunEstimate:
         if self.ranks > 1:
             on = (
                 f" on this machine for {self.local_ranks} of {self.ranks} MPI ranks, each with its own copy of the "
-                "set-up and history, the factor spread over the ranks"
+                f"set-up and history{', the factor spread over the ranks' if self.factor_bytes else ''}"
             )
         return (
             f"{self.steps:,} steps, {self.dofs:,} dofs, {self.contact_nodes:,} contact nodes, "

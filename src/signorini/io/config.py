@@ -379,7 +379,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     if size_check is not None:
         solver = data.get("solver")
         named = solver.get("backend") if isinstance(solver, dict) else None
-        chosen = backend or (named if isinstance(named, str) else None)
+        chosen = backend or (named if named in BACKENDS.names() else None)  # a misspelling: refused later
 
         def guard(counts):
             size_check(counts, dt, T, limits, chosen)

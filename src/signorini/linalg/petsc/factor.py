@@ -58,15 +58,16 @@ def clear_options(options: dict) -> None:
         db.delValue(name)
 
 
-def check_options_used(options: dict) -> None:
+def check_options_used(options: dict, reader: str = "PETSc's MUMPS Cholesky") -> None:
     """InputError naming the ``petsc.`` options that PETSc did not read (misspelled, or not
-    an option of the factorization: PETSc itself would ignore them silently)."""
+    an option of ``reader``, the PETSc object that reads them: PETSc itself would ignore
+    them silently)."""
     _, PETSc = load()
     db = PETSc.Options()
     unused = [k for k in options if k.startswith("petsc.") and not db.used(PREFIX + k[len("petsc.") :])]
     if unused:
         raise InputError(
-            f"solver option(s) {', '.join(map(repr, unused))} were not used by PETSc's MUMPS Cholesky "
+            f"solver option(s) {', '.join(map(repr, unused))} were not used by {reader} "
             "(misspelled, or options of another PETSc object); see `-help` of a PETSc program or docs/parallel.md"
         )
 
