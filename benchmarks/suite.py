@@ -4,7 +4,8 @@ n = 9 is a ball of about 36k dofs with about 1.3k contact nodes, n = 14 one of a
 100k dofs), the per-step cost
 of every registered scheme on bar3d n = 8, and the cost of Coulomb friction against the
 frictionless run (:mod:`benchmarks.bench_friction`), and the petsc backend on 1 and 2 MPI
-ranks when ``.venv-mpi`` exists (:mod:`benchmarks.bench_petsc`, printed only).
+ranks when ``.venv-mpi`` exists, with and without a factor (:mod:`benchmarks.bench_petsc`,
+backends ``petsc`` and ``petsc-cg``, printed only).
 
 Run from the repository root:  python -m benchmarks [--quick] [--out DIR] [--steps N]
 
@@ -273,8 +274,9 @@ def main(argv=None) -> int:
     md += friction_markdown(frows)
     from .bench_petsc import main as petsc_main
 
-    # the petsc backend on 1 and 2 ranks (bar3d n = 16; --quick: n = 8), when .venv-mpi exists
-    petsc_main(["--n", "8" if a.quick else "16", "--steps", "10", "--no-serial"])
+    # the petsc and petsc-cg backends on 1 and 2 ranks (bar3d n = 16; --quick: n = 8), when .venv-mpi exists
+    for backend in ("petsc", "petsc-cg"):
+        petsc_main(["--n", "8" if a.quick else "16", "--steps", "10", "--no-serial", "--backend", backend])
     (out / "bench.md").write_text("\n".join(md) + "\n")
     payload = {"rows": rows, "exponents": exps, "schemes": srows, "friction": frows}
     (out / "bench.json").write_text(json.dumps(payload, indent=1))
