@@ -310,12 +310,15 @@ def test_ranks_keep_or_drop_the_z_columns_together(tmp_path):
 def test_rank_0_failing_alone_in_the_loop_ends_every_rank(tmp_path):
     """The output's parent becomes a file while the ranks compute: rank 0 fails creating
     the directory for the fields (its own, unshared failure), prints one line and ends
-    every rank (MPI_Abort) with exit 2, instead of leaving rank 1 waiting at the next step."""
+    every rank (MPI_Abort) with exit 2, instead of leaving rank 1 waiting at the next step.
+    The blocker lands between rank 0's check of --out (about 1.5 s after the start) and the
+    loop's start (after a set-up of 3 to 5 s at n = 12; n = 6's 0.8 s made the window close
+    before the blocker on an idle machine)."""
     blocker = tmp_path / "q"
-    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "signorini"), "run", "bar3d", "--n", "6", "--T", "4",
+    cmd = [str(VENV / "mpiexec"), "-n", "2", str(VENV / "signorini"), "run", "bar3d", "--n", "12", "--T", "4",
            "--backend", "petsc", "--snapshot-every", "10", "--out", str(blocker / "out")]  # fmt: skip
     p = subprocess.Popen(cmd, cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(2.5)
+    time.sleep(3.0)
     blocker.touch()
     _, err = p.communicate(timeout=120)
     assert p.returncode == 2, err[-2000:]
