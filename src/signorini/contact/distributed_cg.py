@@ -66,31 +66,20 @@ def node_row_bounds(nodes: np.ndarray, size: int) -> np.ndarray:
 
 
 class _Projected:
-    """``y = P A P x`` (petsc4py's Python matrix) with the solver's current local projection."""
+    """``y = P Q P x`` with the solver's current local projection P around ``apply(x, y)``:
+    petsc4py's Python matrix (``mult``, Q = K) and Python preconditioner (``apply``, Q = G)."""
 
-    def __init__(self, A, solver: DistributedCGSolver):
-        self.A, self.solver = A, solver
-        self.t = A.createVecRight()
-
-    def mult(self, mat, x, y) -> None:
-        x.copy(self.t)
-        self.solver._project_vec(self.t)
-        self.A.mult(self.t, y)
-        self.solver._project_vec(y)
-
-
-class _ProjectedPC:
-    """``y = P G P x`` (petsc4py's Python preconditioner) with G the inner PC."""
-
-    def __init__(self, inner, solver: DistributedCGSolver, vec):
-        self.inner, self.solver = inner, solver
+    def __init__(self, apply, solver: DistributedCGSolver, vec):
+        self.inner, self.solver = apply, solver
         self.t = vec.duplicate()
 
-    def apply(self, pc, x, y) -> None:
+    def apply(self, _owner, x, y) -> None:
         x.copy(self.t)
         self.solver._project_vec(self.t)
-        self.inner.apply(self.t, y)
+        self.inner(self.t, y)
         self.solver._project_vec(y)
+
+    mult = apply
 
 
 class DistributedCGSolver(ActiveSetCGSolver):
@@ -171,7 +160,8 @@ class DistributedCGSolver(ActiveSetCGSolver):
                 f"error {exc.ierr}"
             ) from None
         self.A, self.inner = A, inner
-        op = PETSc.Mat().createPython(((hi - lo, n), (hi - lo, n)), _Projected(A, self), comm=comm)
+        shell = _Projected(A.mult, self, A.createVecRight())
+        op = PETSc.Mat().createPython(((hi - lo, n), (hi - lo, n)), shell, comm=comm)
         op.setUp()
         ksp = PETSc.KSP().create(comm=comm)
         ksp.setType(PETSc.KSP.Type.CG)
@@ -181,7 +171,7 @@ class DistributedCGSolver(ActiveSetCGSolver):
         ksp.setInitialGuessNonzero(True)
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.PYTHON)
-        pc.setPythonContext(_ProjectedPC(inner, self, A.createVecLeft()))
+        pc.setPythonContext(_Projected(inner.apply, self, A.createVecLeft()))
         ksp.setUp()
         self.ksp, self.op = ksp, op
         self.xv, self.bv = A.createVecRight(), A.createVecLeft()
