@@ -31,6 +31,7 @@ import argparse
 import time
 
 import numpy as np
+import scipy.sparse as sp
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,10 +40,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
 
-    from signorini.contact.distributed_cg import DistributedCGSolver, _matrix, node_row_bounds
+    from signorini.contact.distributed_cg import DistributedCGSolver, _matrix
     from signorini.dynamics.context import Context, Operator
     from signorini.dynamics.problem import discretize
     from signorini.linalg.petsc import load
+    from signorini.linalg.row_block import node_row_bounds
     from signorini.linalg.sparse import principal_combination
     from signorini.studies.benchmarks import get_benchmark
 
@@ -96,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("bench_snes_vi: the contact rows are not single dofs (a curved obstacle): not a box")
     bounds = node_row_bounds(nodes, comm.size)
     lo, hi = int(bounds[comm.rank]), int(bounds[comm.rank + 1])
-    A = _matrix(PETSc, comm, K, lo, hi, 3, symmetric=False)
+    A = _matrix(PETSc, comm, sp.csr_matrix(K)[lo:hi], K.shape[0], lo, 3, symmetric=False)
     A.assemble()
     n = K.shape[0]
     upper = np.full(n, PETSc.INFINITY)

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from signorini.contact.distributed_cg import node_row_bounds
 from signorini.contact.solver import TIE_TOLERANCE, ActiveSetCGSolver
 from signorini.errors import ConvergenceError
 from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box, rectangle
 from signorini.fem.space import VectorSpace
+from signorini.linalg.row_block import node_row_bounds
 
 
 @pytest.mark.parametrize("size", [1, 2, 3, 5])

@@ -40,29 +40,13 @@ import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
 from ..linalg.petsc import load
-from ..linalg.petsc.factor import PREFIX, _options_text, row_bounds
+from ..linalg.petsc.factor import PREFIX, _options_text
+from ..linalg.row_block import RowBlock, node_row_bounds
+from ..parallel import run_comm
 from .solver import ActiveSetCGSolver, ContactSolver, _best_time
 
 #: preconditioners of ``petsc-cg`` (PETSc PC types)
 PRECONDITIONERS = ("gamg", "jacobi")
-
-
-def node_row_bounds(nodes: np.ndarray, size: int) -> np.ndarray:
-    """Row blocks (size + 1,) of about n / size rows that end at node boundaries.
-
-    ``nodes`` (n,) is the mesh node of each row, a node's rows consecutive (node-major
-    dofs): the even split of :func:`~signorini.linalg.petsc.factor.row_bounds` moved up to
-    the first row of the next node, so that a contact node's rows (and its projection)
-    stay on one rank.
-    """
-    nodes = np.asarray(nodes)
-    n = nodes.size
-    starts = np.flatnonzero(np.r_[True, nodes[1:] != nodes[:-1]])  # first row of each node
-    if np.unique(nodes).size != starts.size:
-        raise ValueError("the rows of a node are not consecutive (node-major dofs are expected)")
-    even = row_bounds(n, size)
-    snapped = np.r_[starts, n][np.searchsorted(np.r_[starts, n], even)]
-    return np.maximum.accumulate(snapped).astype(np.int64)
 
 
 class _Projected:
@@ -115,11 +99,12 @@ class DistributedCGSolver(ActiveSetCGSolver):
             )
         t0 = time.perf_counter()
         comm = self.comm = PETSc.COMM_WORLD
-        self.K = K.tocsr() if sp.issparse(K) else sp.csr_matrix(K)
+        if not isinstance(K, RowBlock):  # the same matrix on every rank: blocks of whole nodes' rows
+            K = RowBlock.of(K, node_row_bounds(nodes, comm.size), run_comm("petsc-cg"))
         self.B = sp.csr_matrix(B)
-        n = self.n = self.K.shape[0]
-        self.bounds = node_row_bounds(nodes, comm.size)
-        lo, hi = self.lo, self.hi = int(self.bounds[comm.rank]), int(self.bounds[comm.rank + 1])
+        n = self.n = K.shape[0]
+        self.bounds = K.bounds
+        lo, hi = self.lo, self.hi = K.lo, K.hi
         self.counts = np.diff(self.bounds).astype(np.int64)
         owner = np.searchsorted(self.bounds, self.B.indices, side="right") - 1
         row_of = np.repeat(np.arange(self.B.shape[0]), np.diff(self.B.indptr))
@@ -131,7 +116,7 @@ class DistributedCGSolver(ActiveSetCGSolver):
         bs = _block(nodes) if np.all(self.counts % _block(nodes) == 0) else 1
         # jacobi: the upper triangle in d x d blocks (SBAIJ) reads about half the bytes of a
         # product; GAMG takes AIJ only  -- docs/performance.md
-        A = _matrix(PETSc, comm, self.K, lo, hi, bs, symmetric=preconditioner == "jacobi")
+        A = _matrix(PETSc, comm, K.local, n, lo, bs, symmetric=preconditioner == "jacobi")
         A.setOption(PETSc.Mat.Option.SPD, True)
         A.assemble()
         if modes is not None and preconditioner == "gamg":
@@ -179,12 +164,19 @@ class DistributedCGSolver(ActiveSetCGSolver):
         self.name = f"petsc-cg+{preconditioner}"
         self.condensation = "none"
         self.rtol, self.max_iter, self.max_newton = rtol, max_iter, max_newton
-        self.c = float(np.mean(self.K.diagonal()))
+        self.c = float(np.mean(K.diagonal()))
+        #: K's rows at the contact dofs (replicated, small): the active-set step's products
+        self.contact_dofs = np.unique(self.B.indices)
+        self.K_contact = K.rows(self.contact_dofs)
         self.active = np.zeros(self.B.shape[0], dtype=bool)
         self.U_prev = np.zeros(n)
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(self._spmv, n)
+
+    def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
+        """K's rows at active contact dofs, from the replicated contact rows (no rank holds K)."""
+        return self.K_contact[np.searchsorted(self.contact_dofs, rows)]
 
     # -- the projection of the active set, on this rank's rows -------------------------
     def _projector(self, BA: sp.csr_matrix):
@@ -249,11 +241,11 @@ class DistributedCGSolver(ActiveSetCGSolver):
         return self._gather(self.xv.getArray(readonly=True))
 
 
-def _matrix(PETSc, comm, K: sp.csr_matrix, lo: int, hi: int, bs: int, symmetric: bool):
-    """Rows [lo, hi) of K as a distributed PETSc matrix with block size d: MPISBAIJ (the d x d
-    blocks on and above the diagonal) when ``symmetric``, else MPIAIJ (what GAMG takes)."""
-    n = K.shape[0]
-    Kr = K[lo:hi]
+def _matrix(PETSc, comm, Kr: sp.csr_matrix, n: int, lo: int, bs: int, symmetric: bool):
+    """This rank's rows Kr (m, n) of K, from row ``lo`` on, as a distributed PETSc matrix with
+    block size d: MPISBAIJ (the d x d blocks on and above the diagonal) when ``symmetric``,
+    else MPIAIJ (what GAMG takes)."""
+    hi = lo + Kr.shape[0]
     if symmetric:
         C = Kr.tocoo()
         keep = C.col // bs >= (C.row + lo) // bs

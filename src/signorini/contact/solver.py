@@ -486,6 +486,10 @@ class ActiveSetCGSolver(ContactSolver):
         """The projection onto the complement of the active normals, as ``_cg`` applies it."""
         return _projector(BA)
 
+    def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
+        """The rows ``rows`` (sorted dofs of active contact nodes) of K."""
+        return self.K[rows]
+
     def solve_linear(self, b: np.ndarray) -> np.ndarray:
         return self._cg(b, self.U_prev, self._projector(self.B[:0]))
 
@@ -509,7 +513,7 @@ class ActiveSetCGSolver(ContactSolver):
                 # up = B_A^T g_A and lambda_A only touch the dofs of the active nodes: products
                 # with those rows of K (symmetric) instead of whole K products
                 rows = np.unique(BA.indices)
-                KA = self.K[rows]
+                KA = self._rows_of_K(rows)
                 up = BA.T @ g[A]
                 U = up + self._cg(b - KA.T @ up[rows], self.U_prev - up, project)
                 r_rows = KA @ U - b[rows]

@@ -28,9 +28,10 @@ import scipy.sparse as sp
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO
-from ..linalg.sparse import linear_combination, principal_combination
+from ..linalg.row_block import RowBlock, node_row_bounds, row_bounds
+from ..linalg.sparse import linear_combination, principal_combination, principal_rows
 from ..linalg.spmv import sparse_product
-from ..parallel import run_comm
+from ..parallel import DISTRIBUTED_BACKENDS, run_comm
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -79,17 +80,34 @@ def stiffness_to_mass_ratio(op: Operator, ctx: Context) -> float:
     return float(np.max(op.stiffness * s[has_mass] / (op.mass * m[has_mass])))
 
 
+def _row_blocks(op: Operator, ctx: Context) -> tuple[RowBlock, RowBlock]:
+    """This rank's rows of K_ff and K_fD (the free rows in blocks of whole nodes, so that a
+    contact node's rows and its projection stay on one rank)."""
+    f, D = ctx.free, ctx.fixed
+    bounds = node_row_bounds(ctx.disc.space.dofmap.nodes_of(f), ctx.comm.size)
+    rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
+    Kf, KD = principal_rows(op.mass, ctx.M, op.stiffness, ctx.S, f, D, rows)
+    return RowBlock(Kf, bounds, ctx.comm), RowBlock(KD, bounds, ctx.comm)
+
+
 class _System:
     """A factorized operator restricted to the free dofs, with its lifting block."""
 
     def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
         f, D = ctx.free, ctx.fixed
-        # only the free block and its coupling to the fixed dofs are formed
-        if D.size:
+        # only the free block and its coupling to the fixed dofs are formed; on the ranks of
+        # a distributed backend, only this rank's block of their rows (no rank holds all of K)
+        if ctx.distributed:
+            Kff, KfD = _row_blocks(op, ctx)
+            local = (Kff.local, KfD.local)
+            self.KfD = KfD if D.size else None
+        elif D.size:
             Kff, self.KfD = principal_combination(op.mass, ctx.M, op.stiffness, ctx.S, f, D)
+            local = (Kff, self.KfD)
         else:
             Kff, self.KfD = op.matrix(ctx.M, ctx.S), None
-        if not (np.all(np.isfinite(Kff.data)) and (self.KfD is None or np.all(np.isfinite(self.KfD.data)))):
+            local = (Kff,)
+        if ctx.comm.any(not all(np.all(np.isfinite(A.data)) for A in local)):
             raise NonFiniteError(
                 f"the operator {op} has non-finite entries (material, mesh or dt at the limits of double precision)"
             )
@@ -141,6 +159,9 @@ class Context:
         self.solver_options = dict(solver_options or {})
         #: the ranks of the run (:mod:`signorini.parallel`): one process, or mpiexec's for ``petsc``
         self.comm = run_comm(self.solver_options.get("backend", "auto"))
+        #: the operators of the contact solve and of the products are blocks of rows per rank
+        #: (:class:`~signorini.linalg.row_block.RowBlock`): backends ``petsc`` and ``petsc-cg``
+        self.distributed = self.solver_options.get("backend") in DISTRIBUTED_BACKENDS
         self.has_fixed = self.fixed.size > 0
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
@@ -191,10 +212,8 @@ class Context:
     def _product(self, A: sp.spmatrix) -> Any:
         # general storage, A's own arrays: a symmetric copy (as CG's K) made bar3d n = 32's
         # steps 6% faster but its set-up 5 s longer and its peak 0.6 GB higher
-        if self.comm.size > 1:  # each rank its block of rows (replicated vectors, no halo)
-            from ..linalg.petsc.product import RowBlockProduct
-
-            return RowBlockProduct(A, self.comm)
+        if self.comm.size > 1:  # each rank its block of rows (replicated vectors, no halo), views of A's
+            return RowBlock.of(A, row_bounds(A.shape[0], self.comm.size), self.comm, copy=False)
         return sparse_product(A, self.solver_options.get("spmv", "auto"))
 
     # -- data of time t ------------------------------------------------------------

@@ -133,6 +133,31 @@ def principal_combination(
     return linear_combination(a, Aff, b, Bff, overwrite=True), linear_combination(a, AfD, b, BfD)
 
 
+def principal_rows(
+    a: float, A: sp.spmatrix, b: float, B: sp.spmatrix, free: np.ndarray, fixed: np.ndarray, rows: np.ndarray
+) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """The rows ``rows`` (dof indices, sorted) of ``K = a A + b B`` split by columns:
+    ``K[rows][:, free]`` and ``K[rows][:, fixed]``, forming only those rows.
+
+    A rank of the distributed backends takes its own block of free rows this way
+    (:class:`~signorini.linalg.row_block.RowBlock`): its memory is nnz(K) / P, never
+    all of K.  ``free`` and ``fixed`` are sorted, disjoint and cover 0..n-1.
+    """
+    rows = np.asarray(rows, dtype=np.intp)
+    Kr = linear_combination(a, _canonical(A)[rows], b, _canonical(B)[rows], overwrite=True)
+    n = Kr.shape[1]
+    free, fixed = np.asarray(free, dtype=np.intp), np.asarray(fixed, dtype=np.intp)
+    colmap = np.full(n, -1, dtype=np.int64)
+    colmap[free] = np.arange(free.size)
+    colmap[fixed] = np.arange(fixed.size)
+    to_free = np.zeros(n, dtype=bool)
+    to_free[free] = True
+    mask = to_free[Kr.indices]
+    Kf = _from_mask(Kr, mask, count_per_row(mask, Kr.indptr), (rows.size, free.size), colmap)
+    KD = _from_mask(Kr, ~mask, count_per_row(~mask, Kr.indptr), (rows.size, fixed.size), colmap)
+    return Kf, KD
+
+
 def count_per_row(mask: np.ndarray, indptr: np.ndarray) -> np.ndarray:
     """Number of True entries of ``mask`` (nnz,) in each row of a CSR structure."""
     n = indptr.size - 1

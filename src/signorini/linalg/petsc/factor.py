@@ -1,9 +1,10 @@
 """A parallel MUMPS Cholesky factor of K behind the serial :class:`~signorini.linalg.Factor` contract.
 
-K (the free block of a scheme's operator, the same scipy matrix on every rank) is
-handed to PETSc row block by row block: rank r inserts rows [lo_r, hi_r) (an even split
-of the rows, :func:`row_bounds`) into an MPIAIJ matrix, marked SPD, and MUMPS factors it
-once (``-pc_type cholesky -pc_factor_mat_solver_type mumps``: its own parallel analysis
+K (the free block of a scheme's operator) comes as each rank's own block of rows, a
+:class:`~signorini.linalg.row_block.RowBlock` (the run's context forms only those rows,
+in blocks of whole nodes; a scipy matrix given whole on every rank is split evenly,
+:func:`row_bounds`): rank r inserts rows [lo_r, hi_r) into an MPIAIJ matrix, marked
+SPD, and MUMPS factors it once (``-pc_type cholesky -pc_factor_mat_solver_type mumps``: its own parallel analysis
 and mapping, so the input distribution only decides who sends which rows).  A solve
 takes a right-hand side that is the same on every rank, shape (n,) or (n, k), gives each
 rank its rows, runs MUMPS's distributed forward/backward substitution (``MatSolve``, or
@@ -22,15 +23,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...errors import InputError
+from ...parallel import run_comm
 from ..base import Factor
+from ..row_block import RowBlock, row_bounds
 from . import load
 
 PREFIX = "signorini_"
-
-
-def row_bounds(n: int, size: int) -> np.ndarray:
-    """Even split of n rows over ``size`` ranks: bounds (size + 1,)."""
-    return np.linspace(0, n, size + 1).round().astype(np.int64)
 
 
 def _given(options: dict) -> dict[str, str]:
@@ -93,11 +91,13 @@ class PetscFactor(Factor):
         MPI, PETSc = load()
         self.MPI, self.PETSc = MPI, PETSc
         comm = self.comm = PETSc.COMM_WORLD
+        if not isinstance(K, RowBlock):  # the same matrix on every rank: an even block of rows each
+            K = RowBlock.of(K, row_bounds(K.shape[0], comm.size), run_comm("petsc"))
         n = K.shape[0]
-        self.bounds = row_bounds(n, comm.size)
-        lo, hi = int(self.bounds[comm.rank]), int(self.bounds[comm.rank + 1])
+        self.bounds = K.bounds
+        lo, hi = K.lo, K.hi
         self.lo, self.hi, self.n = lo, hi, n
-        Kr = sp.csr_matrix(K)[lo:hi]
+        Kr = K.local
         Kr.sort_indices()
         A = PETSc.Mat().createAIJ(
             size=((hi - lo, n), (hi - lo, n)),
