@@ -1,4 +1,4 @@
-"""The pieces of backend ``petsc-cg`` that run without MPI: node-aligned row blocks, the
+"""The pieces of backend ``petsc-cg`` that run without MPI: the
 rigid-body near-null space, and the active-set CG's acceptance of a tie (all backends cg)."""
 
 from __future__ import annotations
@@ -13,24 +13,6 @@ from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box, rectangle
 from signorini.fem.space import VectorSpace
-from signorini.linalg.row_block import node_row_bounds
-
-
-@pytest.mark.parametrize("size", [1, 2, 3, 5])
-def test_row_blocks_end_at_node_boundaries(size):
-    rng = np.random.default_rng(size)
-    per_node = rng.integers(1, 4, size=40)  # 1 to 3 free dofs per node (Dirichlet on some components)
-    nodes = np.repeat(np.arange(40), per_node)
-    b = node_row_bounds(nodes, size)
-    assert b[0] == 0 and b[-1] == nodes.size and np.all(np.diff(b) >= 0) and b.size == size + 1
-    starts = set(np.flatnonzero(np.r_[True, nodes[1:] != nodes[:-1]]).tolist()) | {nodes.size}
-    assert set(b.tolist()) <= starts  # no node split between two ranks
-    assert np.abs(np.diff(b) - nodes.size / size).max() <= per_node.max()  # about even
-
-
-def test_row_blocks_refuse_nodes_whose_rows_are_not_consecutive():
-    with pytest.raises(ValueError, match="consecutive"):
-        node_row_bounds(np.array([0, 1, 0, 1]), 2)
 
 
 @pytest.mark.parametrize("dim", [2, 3])

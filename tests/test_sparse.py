@@ -178,6 +178,28 @@ def test_principal_combination_is_the_blocks_of_the_combination(seed):
         assert (A != A0).nnz == 0 and (B != B0).nnz == 0
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_principal_rows_are_the_blocks_rows(seed):
+    """A rank's block of free rows of a A + b B (the distributed backends), split into its
+    free and fixed columns, equals those rows of the whole blocks; A and B are unchanged
+    and no fixed row is taken."""
+    from signorini.linalg.sparse import principal_rows
+
+    rng = np.random.default_rng(seed)
+    m = symmetric(10, 0.3, rng) + sp.identity(10, format="csr")
+    A, B = sp.kron(m, sp.identity(3), format="csr"), symmetric(30, 0.3, rng)
+    A0, B0 = A.copy(), B.copy()
+    fixed = np.sort(rng.choice(30, int(rng.integers(0, 8)), replace=False))
+    free = np.setdiff1d(np.arange(30), fixed)
+    lo, hi = np.sort(rng.integers(0, free.size + 1, 2))
+    Kf, KD = principal_rows(1.5, A, 0.25, B, free, fixed, free[lo:hi])
+    K = (1.5 * A + 0.25 * B).tocsr()
+    assert Kf.shape == (hi - lo, free.size) and KD.shape == (hi - lo, fixed.size)
+    np.testing.assert_allclose(Kf.toarray(), K[free[lo:hi]][:, free].toarray(), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(KD.toarray(), K[free[lo:hi]][:, fixed].toarray(), rtol=0, atol=1e-14)
+    assert Kf.has_canonical_format and (A != A0).nnz == 0 and (B != B0).nnz == 0
+
+
 def test_a_zero_coefficient_keeps_the_other_pattern_and_complex_coefficients_work():
     """A mass-only operator 1 M + 0 S keeps M's pattern (not S's zeros); complex
     coefficients give complex matrices."""
