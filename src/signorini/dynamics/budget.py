@@ -27,7 +27,8 @@ in progress is counted in both terms: an upper estimate by one run's fields.
 
 On P MPI ranks (backends ``petsc``, ``petsc-cg``; docs/parallel.md) every rank assembles
 and holds its own copy of the mesh, M, S, the state and the history (the step operator
-K only by rows), and the factor is spread over the ranks.  The estimate is for this machine, with the L ranks that run on it (the
+K only by rows), and the factor is spread over the ranks.  The estimate is for this
+machine, with the L ranks that run on it (the
 process manager's local count, ``MPI_LOCALNRANKS`` or ``OMPI_COMM_WORLD_LOCAL_SIZE``,
 else P): L times the set-up and the history, plus L/P of MUMPS's factor (estimated as a
 nested-dissection Cholesky, as Pardiso's; measured 4.0 GB on bar3d n = 24 against 6.6 GB

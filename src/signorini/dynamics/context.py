@@ -84,9 +84,15 @@ def _row_blocks(op: Operator, ctx: Context) -> tuple[RowBlock, RowBlock]:
     """This rank's rows of K_ff and K_fD (the free rows in blocks of whole nodes, so that a
     contact node's rows and its projection stay on one rank)."""
     f, D = ctx.free, ctx.fixed
-    bounds = node_row_bounds(ctx.disc.space.dofmap.nodes_of(f), ctx.comm.size)
-    rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
-    Kf, KD = principal_rows(op.mass, ctx.M, op.stiffness, ctx.S, f, D, rows)
+    if isinstance(ctx.M, RowBlock):  # M and S by rows: the free rows among this rank's own
+        bounds = np.searchsorted(f, ctx.M.bounds).astype(np.int64)
+        rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
+        M, S, rows = ctx.M.local, ctx.S.local, rows - ctx.M.lo
+    else:
+        bounds = node_row_bounds(ctx.disc.space.dofmap.nodes_of(f), ctx.comm.size)
+        rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
+        M, S = ctx.M, ctx.S
+    Kf, KD = principal_rows(op.mass, M, op.stiffness, S, f, D, rows)
     return RowBlock(Kf, bounds, ctx.comm), RowBlock(KD, bounds, ctx.comm)
 
 
@@ -209,7 +215,9 @@ class Context:
         """``S @ x`` on all cores (large matrices; solver option ``spmv``)."""
         return self._product(self.S)
 
-    def _product(self, A: sp.spmatrix) -> Any:
+    def _product(self, A: sp.spmatrix | RowBlock) -> Any:
+        if isinstance(A, RowBlock):  # already by rows (a distributed backend)
+            return A
         # general storage, A's own arrays: a symmetric copy (as CG's K) made bar3d n = 32's
         # steps 6% faster but its set-up 5 s longer and its peak 0.6 GB higher
         if self.comm.size > 1:  # each rank its block of rows (replicated vectors, no halo), views of A's

@@ -57,6 +57,7 @@ import scipy.sparse as sp
 from ..errors import InputError
 from ..fem.assembly import assemble_vector, element_mass_matrices, lumped_mass_matrix, scalar_mass_matrix, vectorize
 from ..fem.mesh import Mesh
+from ..linalg.row_block import RowBlock
 from ..linalg.sparse import count_per_row
 from ..registry import Registry
 from .extrapolation import extrapolation_operator, nearest_free_nodes
@@ -168,8 +169,12 @@ def redistribute(
     return Redistribution(name, mass_matrix(name, mesh, rho, contact_nodes, normals))
 
 
-def massless_dofs(M: sp.spmatrix) -> np.ndarray:
-    """Dofs whose row of ``M`` is identically zero."""
+def massless_dofs(M: sp.spmatrix | RowBlock) -> np.ndarray:
+    """Dofs whose row of ``M`` is identically zero (of every rank's rows, for a
+    :class:`~signorini.linalg.row_block.RowBlock`)."""
+    if isinstance(M, RowBlock):
+        mine = massless_dofs(M.local) + M.lo
+        return np.concatenate(M.comm.gather(mine)).astype(np.int64)
     M = sp.csr_matrix(M)
     return np.flatnonzero(count_per_row(M.data != 0.0, M.indptr) == 0)
 

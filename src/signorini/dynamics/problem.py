@@ -29,6 +29,7 @@ from ..fem.mesh import Mesh
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
 from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
 from .mass_effect import mass_effect
+from .owned_rows import mass_rows, stiffness_rows
 
 
 @dataclass
@@ -290,8 +291,12 @@ def check_finite_data(**arrays: np.ndarray) -> None:
             )
 
 
-def discretize(problem: Problem, mass: str = DEFAULT_MASS) -> Discretization:
-    """Assemble S, the chosen mass variant, loads, contact set and initial data."""
+def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discretization:
+    """Assemble S, the chosen mass variant, loads, contact set and initial data.
+
+    ``comm``: the ranks of a distributed backend (:class:`~signorini.parallel.MPIComm`);
+    S and M are then each rank's rows, :class:`~signorini.linalg.row_block.RowBlock` s
+    assembled from the cells near its nodes (:mod:`~signorini.dynamics.owned_rows`)."""
     mass = MASS_VARIANTS.resolve(mass)
     t0 = time.perf_counter()
     mesh = problem.mesh
@@ -299,15 +304,22 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS) -> Discretization:
     space = VectorSpace(mesh)
     cons = Constraints(space, problem.dirichlet)
     contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
-    S = stiffness_matrix(mesh, problem.material)
-    red = redistribute(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+    if comm is None:
+        S = stiffness_matrix(mesh, problem.material)
+        red = redistribute(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+    else:
+        S = stiffness_rows(mesh, problem.material, comm)
+        red = mass_rows(mass, mesh, problem.material.rho, contact.nodes, contact.normals, comm)
     M = red.M
     t1 = time.perf_counter()
     F, varying = _load_parts(problem, mesh, space.n_dofs, red)
     U0 = space.interpolate(problem.u0)
     U0[cons.fixed] = cons.values
     V0 = space.interpolate(problem.v0)
-    check_finite_data(S=S.data, M=M.data, F=F, U0=U0, V0=V0, gaps=contact.gaps, dirichlet=cons.values)
+    if comm is not None and not (S.all_finite() and M.all_finite()):  # the verdict of all ranks
+        raise NonFiniteError("non-finite value in S or M before the first step; check the material and the mesh")
+    operators = {} if comm is not None else {"S": S.data, "M": M.data}
+    check_finite_data(**operators, F=F, U0=U0, V0=V0, gaps=contact.gaps, dirichlet=cons.values)
     check_magnitude(
         **{"initial displacement": U0, "initial velocity": V0, "gaps": contact.gaps, "Dirichlet values": cons.values}
     )

@@ -32,8 +32,9 @@ import scipy.sparse.linalg as spla
 from ..errors import ConvergenceError, InputError, check_positive
 from ..linalg import solver_options as validate_solver_options
 from ..linalg.base import memory_info, total_memory
+from ..linalg.row_block import RowBlock
 from ..linalg.threads import blas_threads
-from ..parallel import peak_memory_bytes
+from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from ..signals import handled
 from .context import Context
 from .history import COUNTER_KEYS, History
@@ -114,20 +115,25 @@ def initial_state(ctx: Context) -> State:
     keep[ctx.massless] = False
     keep[ctx.fixed] = False
     idx = np.flatnonzero(keep)
-    smax = float(max(ctx.S.data.max(), -ctx.S.data.min())) if ctx.S.nnz else 0.0  # |S|_max, no copy of S
+    by_rows = isinstance(ctx.S, RowBlock)  # a distributed backend: S and M by rows
+    if by_rows:
+        smax = ctx.S.abs_max()
+    else:
+        smax = float(max(ctx.S.data.max(), -ctx.S.data.min())) if ctx.S.nnz else 0.0  # |S|_max, no copy of S
     scale = np.abs(F).max(initial=0.0) + smax * np.abs(U).max(initial=0.0)
     if idx.size and np.abs(r[idx]).max(initial=0.0) > 1e-13 * scale:
-        Mrr = ctx.M[idx][:, idx].tocsr()
+        Mrr = ctx.M.principal(idx) if by_rows else ctx.M[idx][:, idx].tocsr()
         d = Mrr.diagonal()
         pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
+        op = spla.LinearOperator(Mrr.shape, matvec=lambda x: Mrr @ x) if by_rows else Mrr
         if ctx.rotated_kernel:  # singular: the least-squares solution of least norm
-            sol = spla.minres(Mrr, r[idx], rtol=1e-14, maxiter=20000)[0]
+            sol = spla.minres(op, r[idx], rtol=1e-14, maxiter=20000)[0]
             ctx.initial_acceleration = "minres (massless normal directions)"
         else:
-            sol, info = spla.cg(Mrr, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
+            sol, info = spla.cg(op, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
             ctx.initial_acceleration = "cg"
             if info != 0:  # fall back to a direct solve (reported in summary.json: initial_acceleration)
-                sol = spla.spsolve(Mrr.tocsc(), r[idx])
+                sol = spla.spsolve((Mrr.whole() if by_rows else Mrr).tocsc(), r[idx])
                 ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
     lam_t = np.zeros((disc.contact.size, ctx.components - 1)) if ctx.components > 1 else None
@@ -285,7 +291,9 @@ def set_up(
     starter = make_scheme(scheme.starter) if scheme.starter else None
     N = number_of_steps(dt, T)
     check_history_fits(N)
-    disc = problem if isinstance(problem, Discretization) else discretize(problem, mass)
+    # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
+    comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
+    disc = problem if isinstance(problem, Discretization) else discretize(problem, mass, comm)
     ctx = prepare_context(disc, dt, opts, (scheme, starter))
     return Run(ctx, scheme, N, float(dt), initial_state(ctx), disc.problem), starter
 

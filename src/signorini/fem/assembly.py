@@ -228,7 +228,7 @@ def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
         if i + 1 < dim:
             dest += step
             col += 1
-    out = sp.csr_matrix((dim * nn, dim * nn), dtype=data.dtype)
+    out = sp.csr_matrix((dim * nn, dim * m.shape[1]), dtype=data.dtype)
     out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
     out.has_canonical_format = canonical
     out.has_sorted_indices = True

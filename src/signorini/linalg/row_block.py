@@ -96,18 +96,54 @@ class RowBlock:
         return np.diff(self.bounds)
 
     def gather(self, local: np.ndarray) -> np.ndarray:
-        """The whole (n,) vector from every rank's (hi - lo,) rows, on every rank."""
+        """The whole (n,) or (n, k) array from every rank's (hi - lo,) or (hi - lo, k) rows,
+        on every rank."""
         local = np.ascontiguousarray(local, dtype=np.float64)
         if self.comm.size == 1:
             return local
-        out = np.empty(self.shape[0])
-        counts = self.counts
+        k = 1 if local.ndim == 1 else local.shape[1]
+        out = np.empty((self.shape[0],) + local.shape[1:])
+        counts = self.counts * k
         self.comm.comm.Allgatherv(local, [out, counts, counts.cumsum() - counts, self.comm.MPI.DOUBLE])
         return out
 
     def __matmul__(self, x: np.ndarray) -> np.ndarray:
-        """A @ x (n,) on every rank, from x (m,) given on every rank."""
+        """A @ x, (n,) or (n, k) on every rank, from x (m,) or (m, k) given on every rank."""
         return self.gather(self.local @ x)
+
+    def __getitem__(self, idx: np.ndarray) -> RowBlock:
+        """The rows ``idx`` (sorted, unique) of A, still a block of rows per rank (A[D] @ x)."""
+        idx = np.asarray(idx, dtype=np.int64)
+        if idx.size > 1 and not np.all(np.diff(idx) > 0):
+            raise ValueError("the rows of a RowBlock are taken in increasing order, without repeats")
+        cut = np.searchsorted(idx, self.bounds)
+        mine = idx[cut[self.comm.rank] : cut[self.comm.rank + 1]]
+        return RowBlock(self.local[mine - self.lo], cut.astype(np.int64), self.comm)
+
+    def principal(self, idx: np.ndarray) -> RowBlock:
+        """A[idx][:, idx] (``idx`` sorted, unique), a block of rows per rank."""
+        sub = self[idx]
+        return RowBlock(sub.local[:, idx].tocsr(), sub.bounds, self.comm)
+
+    def _allmax(self, value: float) -> float:
+        return float(max(self.comm.gather(float(value))))
+
+    @property
+    def nnz(self) -> int:
+        """Stored entries over all ranks."""
+        return int(sum(self.comm.gather(int(self.local.nnz))))
+
+    def abs_max(self) -> float:
+        """max |A_ij| over all ranks (0 without entries)."""
+        return self._allmax(np.abs(self.local.data).max(initial=0.0))
+
+    def all_finite(self) -> bool:
+        """Whether every entry on every rank is finite (the same answer on every rank)."""
+        return self._allmax(0.0 if np.all(np.isfinite(self.local.data)) else 1.0) == 0.0
+
+    def whole(self) -> sp.csr_matrix:
+        """All of A on every rank (a fallback of set-up: memory nnz(A) per rank)."""
+        return self.rows(np.arange(self.shape[0]))
 
     def diagonal(self) -> np.ndarray:
         """The diagonal (n,) of a square A, on every rank."""

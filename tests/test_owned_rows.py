@@ -1,0 +1,83 @@
+"""S and every mass variant by rows (:mod:`signorini.dynamics.owned_rows`): each simulated
+rank's rows, built from the cells near its nodes, equal the whole mesh's matrices' rows,
+on generated bars, the Hertz ball's curved contact, and gmsh parts with their whole skin
+in contact (tetrahedra, triangles)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from signorini.contact.contact_set import ContactSet
+from signorini.dynamics.mass import MASS_VARIANTS, redistribute
+from signorini.dynamics.owned_rows import cells_near, dof_bounds, mass_rows, stiffness_rows
+from signorini.fem.assembly import stiffness_matrix
+from signorini.fem.space import Constraints, VectorSpace
+from signorini.io.config import load_case
+from signorini.studies.benchmarks import get_benchmark
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _problem(which: str):
+    if which.endswith(".toml"):
+        return load_case(EXAMPLES / which).problem
+    name, n = which.split(":")
+    return get_benchmark(name).problem(int(n), {})
+
+
+def _contact(problem):
+    space = VectorSpace(problem.mesh)
+    cons = Constraints(space, problem.dirichlet)
+    return ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
+
+
+CASES = ["bar2d:6", "bar3d:3", "hertz2d:4", "hertz3d:3", "block3d_tetra.toml", "cylinder_drop.toml"]
+
+
+def _each_rank(size: int):
+    return [SimpleNamespace(rank=r, size=size) for r in range(size)]
+
+
+def _rank_rows(problem, variant, contact, ranks):
+    """The stacked rows of every simulated rank (S, M) and the first rank's extrapolation."""
+    S = sp.vstack([stiffness_rows(problem.mesh, problem.material, c).local for c in ranks]).tocsr()
+    reds = [mass_rows(variant, problem.mesh, problem.material.rho, contact.nodes, contact.normals, c) for c in ranks]
+    return S, sp.vstack([r.M.local for r in reds]).tocsr(), reds[0].T
+
+
+@pytest.mark.parametrize("which", CASES)
+@pytest.mark.parametrize("size", [2, 3])
+def test_every_variant_by_rows_equals_the_whole_matrix(which, size):
+    problem = _problem(which)
+    mesh, rho = problem.mesh, problem.material.rho
+    contact = _contact(problem)
+    S_whole = stiffness_matrix(mesh, problem.material)
+    for variant in [e.name for e in MASS_VARIANTS]:
+        try:
+            whole = redistribute(variant, mesh, rho, contact.nodes, contact.normals)
+        except Exception as exc:  # noqa: BLE001 - a variant that refuses this mesh must refuse it by rows too
+            with pytest.raises(type(exc)):
+                _rank_rows(problem, variant, contact, _each_rank(size))
+            continue
+        S, M, T = _rank_rows(problem, variant, contact, _each_rank(size))
+        scale = abs(whole.M).max()
+        assert M.shape == whole.M.shape and S.shape == S_whole.shape
+        assert abs(M - whole.M).max() <= 1e-13 * scale, (which, variant)
+        assert abs(S - S_whole).max() <= 1e-13 * abs(S_whole).max(), which
+        assert (T is None) == (whole.T is None)
+
+
+def test_the_rows_of_a_rank_cover_its_nodes_dofs_and_its_halo_is_small():
+    mesh = get_benchmark("bar3d").problem(4, {}).mesh
+    b = dof_bounds(mesh, 3)
+    assert b[0] == 0 and b[-1] == 3 * mesh.n_nodes and np.all(b % 3 == 0)
+    own = np.arange(b[1] // 3, b[2] // 3)
+    one, two = cells_near(mesh, own, 1), cells_near(mesh, own, 2)
+    assert set(one) < set(two) and two.size < mesh.n_cells  # a slab and its neighbours, not the mesh
+    touching = np.flatnonzero(np.isin(mesh.cells, own).any(axis=1))
+    np.testing.assert_array_equal(one, touching)
