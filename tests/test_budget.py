@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from signorini.dynamics.budget import estimate_run
+from signorini.dynamics.budget import BASE_BYTES, estimate_run
 from signorini.linalg.base import estimate_factor_bytes
 from signorini.parallel import local_ranks
 
@@ -19,11 +19,12 @@ def test_a_serial_backend_ignores_the_ranks():
 
 
 @pytest.mark.parametrize("P, L", [(1, 1), (2, 2), (4, 2), (8, 1)])
-def test_each_local_rank_holds_its_own_copy_and_a_share_of_the_factor(P, L):
+def test_each_local_rank_holds_its_history_and_a_share_of_the_assembly_and_the_factor(P, L):
     e = estimate_run(*COUNTS, 100, backend="petsc", ranks=(P, L))
     assert (e.ranks, e.local_ranks) == (P, L)
     assert e.factor_bytes == estimate_factor_bytes(3 * COUNTS[0], 3, "pardiso")  # MUMPS: nested dissection
-    expected = L * (e.setup_bytes + e.history_bytes) + e.factor_bytes * L / P
+    per_rank = BASE_BYTES + (e.setup_bytes - BASE_BYTES) / P  # each rank assembles its own rows
+    expected = L * (per_rank + e.history_bytes) + e.factor_bytes * L / P
     assert e.total_bytes == pytest.approx(expected, rel=1e-15, abs=0.0)
     if P > 1:
         assert f"{L} of {P} MPI ranks" in e.describe()

@@ -25,12 +25,12 @@ fields) plus the fields the parent holds until the errors against a 2D/3D refere
 measured (every returned run's, the reference's included).  In a serial compare the run
 in progress is counted in both terms: an upper estimate by one run's fields.
 
-On P MPI ranks (backends ``petsc``, ``petsc-cg``; docs/parallel.md) every rank assembles
-and holds its own copy of the mesh, M, S, the state and the history (the step operator
-K only by rows), and the factor is spread over the ranks.  The estimate is for this
-machine, with the L ranks that run on it (the
-process manager's local count, ``MPI_LOCALNRANKS`` or ``OMPI_COMM_WORLD_LOCAL_SIZE``,
-else P): L times the set-up and the history, plus L/P of MUMPS's factor (estimated as a
+On P MPI ranks (backends ``petsc``, ``petsc-cg``; docs/parallel.md) every rank holds its
+own copy of the mesh, the state and the history, and assembles S, M and K by rows (the
+cells near its own nodes), and the factor is spread over the ranks.  The estimate is for
+this machine, with the L ranks that run on it (the process manager's local count,
+``MPI_LOCALNRANKS`` or ``OMPI_COMM_WORLD_LOCAL_SIZE``, else P): L times the history, the
+base and 1/P of the assembly's triplets, plus L/P of MUMPS's factor (estimated as a
 nested-dissection Cholesky, as Pardiso's; measured 4.0 GB on bar3d n = 24 against 6.6 GB
 estimated), nothing for ``petsc-cg``.  The kept fields are rank 0's only.
 
@@ -77,21 +77,29 @@ class RunEstimate:
     @property
     def total_bytes(self) -> float:
         """Peak on this machine while the run is in progress (kept fields twice: stacked at
-        the end; set-up and history once per local rank; the local share of the factor)."""
+        the end; per local rank its history, the base and 1/P of the assembly; the local
+        share of the factor)."""
         share = self.local_ranks / self.ranks
         return (
-            self.local_ranks * (self.setup_bytes + self.history_bytes)
+            self.local_ranks * (self.rank_setup_bytes + self.history_bytes)
             + share * self.factor_bytes
             + (2 * self.fields_bytes)
         )
+
+    @property
+    def rank_setup_bytes(self) -> float:
+        """The set-up of one rank: the base and its share of the assembly (each rank
+        assembles S and M from the cells near its own nodes, docs/parallel.md)."""
+        base = min(BASE_BYTES, self.setup_bytes)
+        return base + (self.setup_bytes - base) / self.ranks
 
     def describe(self) -> str:
         fields = f", kept fields {_gib(self.fields_bytes)} GiB" if self.fields_bytes else ""
         on = ""
         if self.ranks > 1:
             on = (
-                f" on this machine for {self.local_ranks} of {self.ranks} MPI ranks, each with its own copy of the "
-                f"set-up and history{', the factor spread over the ranks' if self.factor_bytes else ''}"
+                f" on this machine for {self.local_ranks} of {self.ranks} MPI ranks, each with its own history and "
+                f"1/{self.ranks} of the set-up{', the factor spread over the ranks' if self.factor_bytes else ''}"
             )
         return (
             f"{self.steps:,} steps, {self.dofs:,} dofs, {self.contact_nodes:,} contact nodes, "
