@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from signorini.dynamics.budget import BASE_BYTES, estimate_run
+from signorini.dynamics.budget import BASE_BYTES, COLUMNS_BUDGET, estimate_run
 from signorini.linalg.base import estimate_factor_bytes
 from signorini.parallel import local_ranks
 
@@ -24,7 +24,9 @@ def test_each_local_rank_holds_its_history_and_a_share_of_the_assembly_and_the_f
     assert (e.ranks, e.local_ranks) == (P, L)
     assert e.factor_bytes == estimate_factor_bytes(3 * COUNTS[0], 3, "pardiso")  # MUMPS: nested dissection
     per_rank = BASE_BYTES + (e.setup_bytes - BASE_BYTES) / P  # each rank assembles its own rows
-    expected = L * (per_rank + e.history_bytes) + e.factor_bytes * L / P
+    columns = min(8.0 * e.dofs * COUNTS[4], COLUMNS_BUDGET * P)  # the lazy Delassus columns, spread as the factor
+    assert e.columns_bytes == columns
+    expected = L * (per_rank + e.history_bytes) + (e.factor_bytes + columns) * L / P
     assert e.total_bytes == pytest.approx(expected, rel=1e-15, abs=0.0)
     if P > 1:
         assert f"{L} of {P} MPI ranks" in e.describe()
@@ -33,7 +35,7 @@ def test_each_local_rank_holds_its_history_and_a_share_of_the_assembly_and_the_f
 def test_petsc_cg_has_no_factor_and_cg_neither():
     for backend in ("petsc-cg", "cg"):
         e = estimate_run(*COUNTS, 100, backend=backend, ranks=(2, 2))
-        assert e.factor_bytes == 0.0
+        assert e.factor_bytes == 0.0 and e.columns_bytes == 0.0
 
 
 def test_local_ranks_from_the_process_manager(monkeypatch):

@@ -32,7 +32,8 @@ this machine, with the L ranks that run on it (the process manager's local count
 ``MPI_LOCALNRANKS`` or ``OMPI_COMM_WORLD_LOCAL_SIZE``, else P): L times the history, the
 base and 1/P of the assembly's triplets, plus L/P of MUMPS's factor (estimated as a
 nested-dissection Cholesky, as Pardiso's; measured 4.0 GB on bar3d n = 24 against 6.6 GB
-estimated), nothing for ``petsc-cg``.  The kept fields are rank 0's only.
+estimated) and of the lazy Delassus columns Z = K^-1 B^T (8 n x contact nodes bytes, at
+most ``condense_budget`` per rank); nothing of either for ``petsc-cg``.  The kept fields are rank 0's only.
 
 A run whose number of steps or estimated memory exceeds the limits is refused with the
 estimate unless it is confirmed (``--yes`` or ``[limits] yes = true``).
@@ -50,6 +51,8 @@ from ..parallel import DISTRIBUTED_BACKENDS
 BASE_BYTES = 80e6
 TRIPLET_BYTES = 32.0
 SCALAR_SERIES = 11  # per-level scalar series of a History (see the module docstring)
+#: the default solver option ``condense_budget`` [bytes per rank]: the Z rows a rank keeps
+COLUMNS_BUDGET = 2e9
 FIELD_BYTES = 16.0  # U and V of one dof at one level (float64), kept for error computation
 DEFAULT_MAX_STEPS = 1_000_000
 
@@ -72,6 +75,7 @@ class RunEstimate:
     factor_bytes: float = 0.0  # the sparse factor of the run's backend (``auto``: the one it would choose)
     ranks: int = 1  # MPI ranks of the run
     local_ranks: int = 1  # of them on this machine, each with its own set-up and history
+    columns_bytes: float = 0.0  # petsc: the Delassus columns Z, spread over the ranks as the factor
     what: ClassVar[str] = "run"
 
     @property
@@ -82,7 +86,7 @@ class RunEstimate:
         share = self.local_ranks / self.ranks
         return (
             self.local_ranks * (self.rank_setup_bytes + self.history_bytes)
-            + share * self.factor_bytes
+            + share * (self.factor_bytes + self.columns_bytes)
             + (2 * self.fields_bytes)
         )
 
@@ -95,6 +99,7 @@ class RunEstimate:
 
     def describe(self) -> str:
         fields = f", kept fields {_gib(self.fields_bytes)} GiB" if self.fields_bytes else ""
+        columns = f", Delassus columns {_gib(self.columns_bytes)} GiB" if self.columns_bytes else ""
         on = ""
         if self.ranks > 1:
             on = (
@@ -104,7 +109,7 @@ class RunEstimate:
         return (
             f"{self.steps:,} steps, {self.dofs:,} dofs, {self.contact_nodes:,} contact nodes, "
             f"estimated memory {_gib(self.total_bytes)} GiB{on} (set-up {_gib(self.setup_bytes)} GiB, "
-            f"factor {_gib(self.factor_bytes)} GiB, history {_gib(self.history_bytes)} GiB{fields})"
+            f"factor {_gib(self.factor_bytes)} GiB{columns}, history {_gib(self.history_bytes)} GiB{fields})"
         )
 
 
@@ -138,7 +143,10 @@ def estimate_run(
     if backend not in DISTRIBUTED_BACKENDS:
         ranks = (1, 1)
     P, L = max(1, int(ranks[0])), max(1, min(int(ranks[1]), int(ranks[0])))
-    return RunEstimate(int(steps), n, int(n_contact), setup, history, fields, factor, P, L)
+    # petsc: the lazy Delassus columns Z = K^-1 B^T (n x contact nodes at most), each rank
+    # its rows, up to the default condense_budget per rank (2.1 GiB of bar3d n = 24's 9.7)
+    columns = min(8.0 * n * n_contact, COLUMNS_BUDGET * P) if backend == "petsc" else 0.0
+    return RunEstimate(int(steps), n, int(n_contact), setup, history, fields, factor, P, L, columns)
 
 
 @dataclass(frozen=True)
