@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from signorini.contact.contact_set import ContactSet
 from signorini.dynamics.mass import MASS_VARIANTS, redistribute
-from signorini.dynamics.owned_rows import cells_near, dof_bounds, mass_rows, stiffness_rows
+from signorini.dynamics.owned_rows import cells_near, dof_bounds, mass_rows, rank_cells, stiffness_rows
 from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.space import Constraints, VectorSpace
 from signorini.io.config import load_case
@@ -81,3 +81,13 @@ def test_the_rows_of_a_rank_cover_its_nodes_dofs_and_its_halo_is_small():
     assert set(one) < set(two) and two.size < mesh.n_cells  # a slab and its neighbours, not the mesh
     touching = np.flatnonzero(np.isin(mesh.cells, own).any(axis=1))
     np.testing.assert_array_equal(one, touching)
+
+
+@pytest.mark.parametrize("which", ["bar3d:3", "cylinder_drop.toml"])
+@pytest.mark.parametrize("size", [1, 2, 3])
+def test_rank_cells_counts_the_cells_touching_each_ranks_nodes(which, size):
+    mesh = _problem(which).mesh
+    b = dof_bounds(mesh, size) // mesh.dim
+    expected = [cells_near(mesh, np.arange(b[r], b[r + 1]), 1).size for r in range(size)]
+    assert rank_cells(mesh, size) == expected
+    assert sum(expected) >= mesh.n_cells

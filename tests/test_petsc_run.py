@@ -113,6 +113,7 @@ def check_summary(ref: Path, par: Path, ranks: int, rtol: float = 1e-8) -> dict:
     for key in ("rank_setup_seconds", "rank_step_seconds", "rank_peak_memory_bytes"):
         assert len(p[key]) == ranks and all(v > 0 for v in p[key])
     assert sum(p["rank_contact_dofs"]) > 0 and len(p["rank_contact_dofs"]) == ranks
+    assert len(p["rank_cells"]) == ranks and sum(p["rank_cells"]) >= 1 and "rank_cells" not in s
     for k, v in s.items():  # the same figures, up to timings, ranks and backend
         if any(w in k for w in RUN_DEPENDENT) or k in ("message",):
             continue

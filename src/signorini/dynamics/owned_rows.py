@@ -59,6 +59,14 @@ def cells_near(mesh: Mesh, nodes: np.ndarray, layers: int) -> np.ndarray:
     return np.flatnonzero(near)
 
 
+def rank_cells(mesh: Mesh, size: int) -> list[int]:
+    """Per rank, the cells touching its own nodes: those it assembles for S (summary.json
+    ``rank_cells``; n_cells / P plus the interfaces when the node numbers are local)."""
+    node_rank = np.searchsorted(row_bounds(mesh.n_nodes, size), np.arange(mesh.n_nodes), side="right") - 1
+    pairs = np.unique(np.arange(mesh.n_cells)[:, None] * size + node_rank[mesh.cells])
+    return np.bincount(pairs % size, minlength=size).astype(int).tolist()
+
+
 def submesh(mesh: Mesh, cells: np.ndarray) -> Mesh:
     """The mesh of the cells ``cells`` on all of ``mesh``'s points (node numbers unchanged)."""
     return Mesh(mesh.points, mesh.cells[cells], mesh.cell_type)

@@ -41,6 +41,7 @@ from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS
 from .mass_effect import effect_warning
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
+from .owned_rows import rank_cells
 from .problem import Discretization, Problem, discretize
 from .schemes import Scheme, State, friction_schemes, make_scheme
 from .untagged import UntaggedContact
@@ -230,6 +231,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
         **rank_contact_dofs(main),
+        **({"rank_cells": rank_cells(disc.space.mesh, disc.S.comm.size)} if isinstance(disc.S, RowBlock) else {}),
         **{f"{k}_seconds": v for k, v in {**disc.timings, **main.timings}.items()},
     }
 
