@@ -51,7 +51,7 @@ def _rank_rows(problem, variant, contact, ranks):
 
 
 @pytest.mark.parametrize("which", CASES)
-@pytest.mark.parametrize("size", [2, 3])
+@pytest.mark.parametrize("size", [2, 3, 6, 8])
 def test_every_variant_by_rows_equals_the_whole_matrix(which, size):
     problem = _problem(which)
     mesh, rho = problem.mesh, problem.material.rho

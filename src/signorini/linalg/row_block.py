@@ -116,6 +116,8 @@ class RowBlock:
         idx = np.asarray(idx, dtype=np.int64)
         if idx.size > 1 and not np.all(np.diff(idx) > 0):
             raise ValueError("the rows of a RowBlock are taken in increasing order, without repeats")
+        if idx.size and (idx[0] < 0 or idx[-1] >= self.shape[0]):
+            raise IndexError(f"rows {idx[0]}..{idx[-1]} out of 0..{self.shape[0] - 1}")
         cut = np.searchsorted(idx, self.bounds)
         mine = idx[cut[self.comm.rank] : cut[self.comm.rank + 1]]
         return RowBlock(self.local[mine - self.lo], cut.astype(np.int64), self.comm)
