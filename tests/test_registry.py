@@ -92,3 +92,13 @@ def test_unknown_names_never_fall_through():
         reg.get("a").options({"k": -1}, where="widget a")
     with pytest.raises(ValueError, match="already registered"):
         reg.register("aa", 2, "clash")
+
+
+@pytest.mark.parametrize("kind", [float, int])
+def test_an_integer_beyond_double_precision_is_a_clear_input_error(kind):
+    """TOML integers have no size limit: 10**400 as an option (found by the case fuzzer as
+    ``time.stiffness``) is refused with the field's name, not an OverflowError."""
+    p = Parameter("stiffness", kind(1), "a number", kind, 0)
+    with pytest.raises(InputError, match=r"'time.stiffness' must be a finite number .* an integer of 401 digits"):
+        p.convert(10**400, "time")
+    assert p.convert(10**15, "time") == kind(10**15)

@@ -84,10 +84,15 @@ class Parameter:
             raise InputError(f"'{key}' must be a number, got {value!r}")
         try:
             v = self.kind(float(value)) if self.kind is int and isinstance(value, str) else self.kind(value)
+            integral = self.kind is not int or float(value) == v
         except (TypeError, ValueError):
             what = "an integer" if self.kind is int else "a number"
             raise InputError(f"'{key}' must be {what}, got {value!r}") from None
-        if self.kind is int and float(value) != v:
+        except OverflowError:  # an integer beyond double precision (TOML has them)
+            digits = len(str(abs(int(value)))) if isinstance(value, int) else None
+            got = f"an integer of {digits} digits" if digits else repr(value)
+            raise InputError(f"'{key}' must be a finite number (|x| < 1.8e308), got {got}") from None
+        if not integral:
             raise InputError(f"'{key}' must be an integer, got {value!r}")
         if isinstance(v, float) and not math.isfinite(v):
             raise InputError(f"'{key}' must be finite, got {value!r}")
