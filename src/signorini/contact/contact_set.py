@@ -99,9 +99,11 @@ class ContactSet:
         gaps, normals = obstacle.gaps_and_normals(mesh.points[nodes])
         weights = facet_weights(mesh, tag)[nodes]
         if not np.all(weights > 0) or not np.all(np.isfinite(weights)):
-            i = int(np.flatnonzero(~(weights > 0))[0]) if not np.all(weights > 0) else 0
+            bad = np.flatnonzero(~(weights > 0)) if not np.all(weights > 0) else np.arange(nodes.size)
+            i = int(bad[mesh.first_by_id(nodes[bad])])
             raise InputError(
-                f"contact tag {tag!r}: node {int(nodes[i])} at {np.round(mesh.points[nodes[i]], 6).tolist()} has "
+                f"contact tag {tag!r}: node {mesh.node_id(nodes[i])} at "
+                f"{np.round(mesh.points[nodes[i]], 6).tolist()} has "
                 "zero contact area (its tagged facets are degenerate: zero length or area); fix the mesh"
             )
         dofs = space.dofs(nodes)
@@ -112,9 +114,10 @@ class ContactSet:
             fixed[constraints.fixed] = True
             clash = (fixed[dofs] & (np.abs(normals) > 1e-12)).any(axis=1)
             if clash.any():
+                e = nodes[clash][mesh.first_by_id(nodes[clash])]
                 raise InputError(
                     f"contact tag {tag!r}: {int(clash.sum())} contact node(s) are fixed by a Dirichlet "
-                    f"condition in the normal direction (e.g. node {int(nodes[clash][0])}); "
+                    f"condition in the normal direction (e.g. node {mesh.node_id(e)}); "
                     "remove them from the Dirichlet or the contact tag"
                 )
         return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle, dofs)

@@ -116,9 +116,10 @@ def _padded(R: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
 def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, n_free: int) -> InputError:
     pts = mesh.points[nodes]
     lo, hi = np.round(pts.min(axis=0), 6).tolist(), np.round(pts.max(axis=0), 6).tolist()
+    e = mesh.first_by_id(nodes)
     return InputError(
-        f"mass {name!r}: {nodes.size} contact node(s) in the box {lo} .. {hi} (e.g. node {int(nodes[0])} at "
-        f"{np.round(pts[0], 6).tolist()}) cannot be extrapolated: the body's {n_free} non-contact nodes do not "
+        f"mass {name!r}: {nodes.size} contact node(s) in the box {lo} .. {hi} (e.g. node {mesh.node_id(nodes[e])} at "
+        f"{np.round(pts[e], 6).tolist()}) cannot be extrapolated: the body's {n_free} non-contact nodes do not "
         f"span {mesh.dim + 1} affinely independent points; refine the mesh through the thickness, restrict the "
         "contact nodes ([contact] where = ...), or choose the mass 'seed' or 'standard'"
     )

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fem.mesh import Mesh
+from ..fem.node_order import to_user_dofs, user_order_of
 from .diagnostics import impact_impulses, oscillation_index, oscillation_indices, penetration
 
 HISTORY_COLUMNS = (
@@ -198,6 +200,25 @@ class History:
             "impulse": _or_nan(self.impulse, self.t.size),
             "untagged_penetration": _or_nan(self.untagged_penetration, self.t.size),
         }
+
+    def to_user_order(self, mesh: Mesh, contact_nodes: np.ndarray) -> None:
+        """Put the per-contact-node arrays (nc axis) and the snapshots of a run on a
+        renumbered ``mesh`` (:mod:`~signorini.fem.node_order`) in the user's node order,
+        the order of a run on the user's mesh; nothing to do otherwise."""
+        if mesh.node_ids is None:
+            return
+        p = user_order_of(mesh, contact_nodes)
+        for name in ("gap", "lam", "lam_t", "slip", "contact_status"):
+            a = getattr(self, name)
+            if a is not None:
+                setattr(self, name, a[:, p])
+        for name in ("coordinates", "weights", "tangents"):
+            a = getattr(self, name)
+            if a is not None:
+                setattr(self, name, a[p])
+        for name in ("u", "v"):
+            if name in self.snapshots:
+                self.snapshots[name] = to_user_dofs(mesh, self.snapshots[name])
 
     def write_csv(self, path: str | Path) -> None:
         cols = self.columns()

@@ -217,7 +217,7 @@ def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> 
     ob, mesh = problem.obstacle, problem.mesh
     node = int(contact.nodes[i])
     g = float(contact.gaps[i])
-    where = f"contact node {node} at {np.round(mesh.points[node], 6).tolist()}"
+    where = f"contact node {mesh.node_id(node)} at {np.round(mesh.points[node], 6).tolist()}"
     if g < 0:  # the reference configuration itself is inside the obstacle
         if isinstance(ob, PlaneObstacle):
             inside = np.mean(ob.gaps(mesh.points, 0.0) < 0)
@@ -331,7 +331,10 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
-        raise InputError(_penetration_message(problem, contact, disc.B @ U0, int(np.argmax(viol))))
+        worst = np.flatnonzero(viol == viol.max())  # at a tie, the node the user numbered first
+        raise InputError(
+            _penetration_message(problem, contact, disc.B @ U0, int(worst[mesh.first_by_id(contact.nodes[worst])]))
+        )
     _check_body_side(problem)
     disc.timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
     return disc

@@ -19,6 +19,7 @@ The levels computed before the stop are kept; observers are closed in every case
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import signal
 import time
@@ -30,6 +31,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, check_positive
+from ..fem.node_order import choose_order, in_order
 from ..linalg import solver_options as validate_solver_options
 from ..linalg.base import memory_info, total_memory
 from ..linalg.row_block import RowBlock
@@ -231,8 +233,18 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
         **rank_contact_dofs(main),
-        **({"rank_cells": rank_cells(disc.space.mesh, disc.S.comm.size)} if isinstance(disc.S, RowBlock) else {}),
+        **(distributed_meta(disc) if isinstance(disc.S, RowBlock) else {}),
         **{f"{k}_seconds": v for k, v in {**disc.timings, **main.timings}.items()},
+    }
+
+
+def distributed_meta(disc: Discretization) -> dict:
+    """``node_order`` (the numbers split over the ranks: ``mesh`` or ``morton``) and
+    ``rank_cells`` of a run whose S is assembled by rows on each rank."""
+    mesh = disc.space.mesh
+    return {
+        "node_order": "mesh" if mesh.node_ids is None else "morton",
+        "rank_cells": rank_cells(mesh, disc.S.comm.size),
     }
 
 
@@ -295,6 +307,10 @@ def set_up(
     check_history_fits(N)
     # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
+    if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
+        order = choose_order(opts.get("node_order", "auto"), problem.mesh, comm.size)
+        if order != "mesh":
+            problem = dataclasses.replace(problem, mesh=in_order(problem.mesh, order))
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass, comm)
     ctx = prepare_context(disc, dt, opts, (scheme, starter))
     return Run(ctx, scheme, N, float(dt), initial_state(ctx), disc.problem), starter
@@ -394,6 +410,7 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
         "in_loop_condensation_seconds": columns,
     }
     H = assemble_history(run, n_last, recorder, energies, snaps, timings)
+    H.to_user_order(run.ctx.disc.space.mesh, run.ctx.disc.contact.nodes)  # a renumbered mesh's results
     H.meta.update(rank_figures(run.ctx.comm, timings))
     return H
 

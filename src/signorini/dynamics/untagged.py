@@ -51,6 +51,7 @@ class UntaggedContact(Observer):
         mesh = disc.problem.mesh
         self.nodes = np.setdiff1d(boundary_nodes(mesh), disc.contact.nodes)
         self.X = mesh.points[self.nodes]
+        self.mesh = mesh
         self.d = mesh.dim
         self.tolerance = UNTAGGED_TOLERANCE * body_size(mesh)
         self.obstacle = disc.problem.obstacle
@@ -62,7 +63,8 @@ class UntaggedContact(Observer):
             return
         x = self.X + s.U.reshape(-1, self.d)[self.nodes]
         phi = self.obstacle.gaps(x, s.t)
-        j = int(np.argmin(phi))
+        ties = np.flatnonzero(phi == phi.min())  # at a tie, the node the user numbered first
+        j = int(ties[self.mesh.first_by_id(self.nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
         p = max(0.0, -float(phi[j]))
         self.series[n] = p
         if p > self.worst[0]:
@@ -85,7 +87,8 @@ class UntaggedContact(Observer):
         p, node, t = self.worst
         where = np.round(self.X[np.searchsorted(self.nodes, node)], 6).tolist()
         return (
-            f"boundary node {node} at {where}, not a contact node, is {p:.3g} inside the obstacle at t = {t:.6g} "
+            f"boundary node {self.mesh.node_id(node)} at {where}, not a contact node, is {p:.3g} inside the "
+            f"obstacle at t = {t:.6g} "
             f"(tolerance {self.tolerance:.2g}): contact is enforced on the tagged nodes only; tag this part of "
             "the boundary for contact ([contact] tag, where)"
         )

@@ -41,6 +41,9 @@ class Mesh:
     grid : for structured tensor-product meshes made by the generators, the 1D node
         coordinates along x, y (, z); node ``i + (nx+1) (j + (ny+1) k)`` sits at
         ``(grid[0][i], grid[1][j], grid[2][k])``.  ``None`` for general meshes.
+    node_ids : (n_nodes,) int array or None: the user's number of every node when the mesh
+        was renumbered for a run on several ranks (:mod:`signorini.fem.node_order`);
+        messages name nodes by it (:meth:`node_id`).  ``None``: the numbers are the user's.
     """
 
     points: np.ndarray
@@ -48,6 +51,7 @@ class Mesh:
     cell_type: str
     facets: dict[str, np.ndarray] = field(default_factory=dict)
     grid: tuple[np.ndarray, ...] | None = None
+    node_ids: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=float)
@@ -72,6 +76,16 @@ class Mesh:
             raise MeshError("cells reference nodes that do not exist")
         self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}
         self._cache: dict = {}
+
+    def node_id(self, i: int) -> int:
+        """The user's number of node ``i`` (its index in the mesh file or generator)."""
+        return int(i) if self.node_ids is None else int(self.node_ids[i])
+
+    def first_by_id(self, nodes: np.ndarray) -> int:
+        """The position in ``nodes`` (node indices) of the node with the lowest user's number:
+        the example a message names, the same whatever the run's node order."""
+        nodes = np.asarray(nodes)
+        return int(np.argmin(nodes if self.node_ids is None else self.node_ids[nodes]))
 
     @property
     def dim(self) -> int:

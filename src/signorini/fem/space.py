@@ -137,10 +137,12 @@ class Constraints:
             if clash.any():
                 i = int(np.flatnonzero(clash)[0])
                 j = int(owner[d[i]])
+                node, c = divmod(int(d[i]), self.space.dim)
+                node = self.space.mesh.node_id(node)
                 raise InputError(
                     f"Dirichlet conditions on tags {self._parts[j][0].tag!r} and {bc.tag!r} prescribe different values "
-                    f"({seen[d[i]]:g} and {v[i]:g}) on the dof {int(d[i])} they share "
-                    f"(node {int(d[i]) // self.space.dim}); make them agree there"
+                    f"({seen[d[i]]:g} and {v[i]:g}) on the dof {node * self.space.dim + c} they share "
+                    f"(node {node}); make them agree there"
                 )
             seen[d], owner[d] = v, k
 

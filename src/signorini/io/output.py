@@ -37,6 +37,7 @@ import numpy as np
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
 from ..fem.assembly import von_mises
+from ..fem.node_order import to_user_nodes
 
 #: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
 HEADROOM = 4 * 2**20
@@ -106,7 +107,8 @@ class FieldWriter(Observer):
         # during a write) costs the fields, not the run (:mod:`signorini.io.field_process`)
         self._writer = FieldProcess(self.path)
         try:
-            self._writer.mesh(pts, mesh.cell_type, mesh.cells)
+            cells = mesh.cells if mesh.node_ids is None else mesh.node_ids[mesh.cells]  # the user's numbers
+            self._writer.mesh(to_user_nodes(mesh, pts), mesh.cell_type, cells)
         except OSError:
             self._writer = None
             self._release_reserve()
@@ -134,6 +136,7 @@ class FieldWriter(Observer):
         status[self._nodes] = info_status if info_status is not None else np.where(s.lam < 0, 2.0, 0.0)
         data = {"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p,
                 "contact_traction": traction, "contact_status": status}  # fmt: skip
+        data = {k: to_user_nodes(mesh, a) for k, a in data.items()}  # a renumbered mesh: the user's order
         try:
             self._writer.data(float(s.t), data)
         except OSError:  # the child failed or died: it never touches the file again

@@ -136,6 +136,17 @@ CG_PARAMETERS = (
     Parameter("spmv_threads", 0, "threads of the products K @ x in CG (0: one per usable core; 1: not split)", int, 0),
 )
 
+#: the node order of a distributed run (:mod:`signorini.fem.node_order`)
+NODE_ORDER = Parameter(
+    "node_order",
+    "auto",
+    "the node numbers whose even split gives each rank its rows: mesh (the mesh's own), morton (the Z-order "
+    "curve of the coordinates: compact pieces per rank); auto: morton on several ranks unless the mesh is a "
+    "generated grid; the results are written in the mesh's own order",
+    str,
+    choices=("auto", "mesh", "morton"),
+)
+
 BACKENDS = Registry("linear solver backend")
 BACKENDS.register(
     "auto",
@@ -163,6 +174,8 @@ BACKENDS.register(
     ".petsc.factor:PetscFactor",
     "parallel MUMPS Cholesky through PETSc on the ranks of mpiexec (extra 'mpi', scripts/mpi-env.sh); "
     "options petsc.NAME=VALUE pass through as -signorini_NAME",
+    (),
+    (NODE_ORDER,),
 )
 BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
 PETSC_CG_PARAMETERS = (
@@ -175,6 +188,7 @@ PETSC_CG_PARAMETERS = (
         choices=("auto", "jacobi", "gamg"),
     ),
     *CG_PARAMETERS[1:4],
+    NODE_ORDER,
 )
 BACKENDS.register(
     "petsc-cg",
