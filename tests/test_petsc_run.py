@@ -182,6 +182,20 @@ def test_two_ranks_match_the_serial_run(references, tmp_path, name):
         assert min(p["rank_contact_dofs"]) > 0
 
 
+def test_friction_on_a_renumbered_grid_is_written_in_the_users_order(references, tmp_path):
+    """``node_order=morton`` on the Coulomb side impact (a generated grid, kept in its own
+    order under ``auto``): the tangential multipliers, slips, statuses and frames of
+    contact.npz come back in the user's node order, equal to the serial run's."""
+    args = [*CASES["side-impact-coulomb"], "--solver-option", "node_order=morton"]
+    r = mpirun(2, [*args, "--out", str(tmp_path / "par"), "--quiet"], tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert compare_runs(references["side-impact-coulomb"], tmp_path / "par") <= TOLERANCE
+    compare_contact(references["side-impact-coulomb"], tmp_path / "par")
+    assert {"lambda_t", "slip", "status", "tangents"} <= set(np.load(tmp_path / "par" / "contact.npz").files)
+    p = check_summary(references["side-impact-coulomb"], tmp_path / "par", 2)
+    assert p["node_order"] == "morton" and min(p["rank_contact_dofs"]) > 0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("ranks", [1, 3])
 @pytest.mark.parametrize("name", list(CASES))
