@@ -171,7 +171,7 @@ def _check_case(references, tmp_path, name: str, ranks: int) -> dict:
     compare_contact(references[name], tmp_path / "par")
     check_identities(tmp_path / "par")
     p = check_summary(references[name], tmp_path / "par", ranks)
-    assert p["node_order"] == ("morton" if name in RENUMBERED and ranks > 1 else "mesh")
+    assert p["node_order"] == ("morton" if name in RENUMBERED else "mesh")
     return p
 
 

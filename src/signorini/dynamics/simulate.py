@@ -308,7 +308,7 @@ def set_up(
     # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
     if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
-        order = choose_order(opts.get("node_order", "auto"), problem.mesh, comm.size)
+        order = choose_order(opts.get("node_order", "auto"), problem.mesh)
         if order != "mesh":
             problem = dataclasses.replace(problem, mesh=in_order(problem.mesh, order))
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass, comm)

@@ -1,4 +1,4 @@
-"""Node orders for a run on several ranks: a locality order, and the way back to the user's.
+"""Node orders for a distributed run: a locality order, and the way back to the user's.
 
 On the distributed backends rank r owns an even split [a_r, a_{r+1}) of the node
 numbers (:mod:`signorini.dynamics.owned_rows`) and assembles the cells that touch them.
@@ -79,13 +79,15 @@ def renumber(mesh: Mesh, old_of_new: np.ndarray) -> Mesh:
     )
 
 
-def choose_order(name: str, mesh: Mesh, ranks: int) -> str:
-    """The order a run uses: ``auto`` is ``morton`` on several ranks for a mesh that is not
-    a generated grid (a grid's own numbering is already slabs), else ``mesh``."""
+def choose_order(name: str, mesh: Mesh) -> str:
+    """The order a distributed run uses: ``auto`` is ``morton`` for a mesh that is not a
+    generated grid (a grid's own numbering is already slabs), else ``mesh``.  On any number
+    of ranks, 1 included: the order then does not depend on P, and the products are faster
+    in it (petsc-cg on one rank: 806 against 1,160 ms per step on a 232k-dof gmsh part)."""
     if name not in NODE_ORDERS:
         raise ValueError(f"node order must be one of {', '.join(NODE_ORDERS)}, got {name!r}")
     if name == "auto":
-        return "morton" if ranks > 1 and mesh.grid is None and mesh.n_nodes > 1 else "mesh"
+        return "morton" if mesh.grid is None and mesh.n_nodes > 1 else "mesh"
     return name
 
 

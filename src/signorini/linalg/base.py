@@ -141,8 +141,8 @@ NODE_ORDER = Parameter(
     "node_order",
     "auto",
     "the node numbers whose even split gives each rank its rows: mesh (the mesh's own), morton (the Z-order "
-    "curve of the coordinates: compact pieces per rank); auto: morton on several ranks unless the mesh is a "
-    "generated grid; the results are written in the mesh's own order",
+    "curve of the coordinates: compact pieces per rank); auto: morton unless the mesh is a generated grid; the "
+    "results are written in the mesh's own order",
     str,
     choices=("auto", "mesh", "morton"),
 )
