@@ -50,3 +50,21 @@ def test_local_ranks_from_the_process_manager(monkeypatch):
     assert local_ranks() == (8, 2)
     monkeypatch.setenv("MPI_LOCALNRANKS", "junk")
     assert local_ranks() == (8, 8)
+
+
+def test_petscs_columns_follow_the_runs_condense_budget(monkeypatch):
+    """The Delassus columns are bounded by the run's ``condense_budget`` per rank, as given
+    on the command line or in the case file; a value that the options' validation will
+    refuse counts as the default here (the refusal comes from the validation)."""
+    small = estimate_run(*COUNTS, 100, backend="petsc", ranks=(2, 2), condense_budget=1e6)
+    assert small.columns_bytes == 2e6
+    seen = []
+    monkeypatch.setattr("signorini.dynamics.budget.check_run_size", lambda est, *a: seen.append(est))
+    from signorini.io.run_command import check_size
+
+    monkeypatch.setattr("signorini.parallel.local_ranks", lambda: (2, 2))
+    default = min(8.0 * 3 * COUNTS[0] * COUNTS[4], 2 * COLUMNS_BUDGET)
+    for given, expected in ((1e6, 2e6), ("junk", default), (-1.0, default), (float("inf"), default), (None, default)):
+        solver = {"backend": "petsc"} if given is None else {"backend": "petsc", "condense_budget": given}
+        check_size(COUNTS, 0.1, 1.0, {}, solver)
+        assert seen[-1].columns_bytes == expected, given

@@ -127,9 +127,11 @@ def estimate_run(
     kept_fields: bool = False,
     backend: str = "auto",
     ranks: tuple[int, int] = (1, 1),
+    condense_budget: float = COLUMNS_BUDGET,
 ) -> RunEstimate:
     """The estimate of the module docstring from mesh counts, without building anything;
-    ``ranks`` = (P, L): the run's MPI ranks and those on this machine (:func:`~signorini.parallel.local_ranks`)."""
+    ``ranks`` = (P, L): the run's MPI ranks and those on this machine (:func:`~signorini.parallel.local_ranks`);
+    ``condense_budget``: the run's solver option [bytes per rank], which bounds petsc's Z rows."""
     k = nodes_per_cell * dim
     setup = BASE_BYTES + TRIPLET_BYTES * float(n_cells) * k * k
     history = 8.0 * (steps + 1) * (2 * n_contact + SCALAR_SERIES)
@@ -144,8 +146,8 @@ def estimate_run(
         ranks = (1, 1)
     P, L = max(1, int(ranks[0])), max(1, min(int(ranks[1]), int(ranks[0])))
     # petsc: the lazy Delassus columns Z = K^-1 B^T (n x contact nodes at most), each rank
-    # its rows, up to the default condense_budget per rank (2.1 GiB of bar3d n = 24's 9.7)
-    columns = min(8.0 * n * n_contact, COLUMNS_BUDGET * P) if backend == "petsc" else 0.0
+    # its rows, up to condense_budget per rank (2.1 GiB of bar3d n = 24's 9.7 by default)
+    columns = min(8.0 * n * n_contact, float(condense_budget) * P) if backend == "petsc" else 0.0
     return RunEstimate(int(steps), n, int(n_contact), setup, history, fields, factor, P, L, columns)
 
 

@@ -367,9 +367,9 @@ def _read(path: Path) -> dict:
 def load_case(path: str | Path, limits: dict | None = None, size_check=None, backend: str | None = None) -> Case:
     """Read and validate a case file; raises :class:`InputError` on any problem.
 
-    ``limits`` override the file's ``[limits]``; ``size_check(counts, dt, T, limits, backend)``
+    ``limits`` override the file's ``[limits]``; ``size_check(counts, dt, T, limits, solver)``
     (the command line's run-size check) is called before a generated mesh is built, with
-    ``backend`` (the command line's) or else the file's ``[solver] backend``.
+    the file's ``[solver]`` options and ``backend`` (the command line's) or else the file's.
     """
     path = Path(path)
     data = _read(path)
@@ -381,8 +381,10 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
         named = solver.get("backend") if isinstance(solver, dict) else None
         chosen = backend or (named if named in BACKENDS.names() else None)  # a misspelling: refused later
 
+        options = {**(solver if isinstance(solver, dict) else {}), "backend": chosen}
+
         def guard(counts):
-            size_check(counts, dt, T, limits, chosen)
+            size_check(counts, dt, T, limits, options)
 
     mesh = _mesh(data["mesh"], path.parent, guard)
     dim = mesh.dim

@@ -62,19 +62,29 @@ def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
 
 
 def check_size(
-    counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict, backend: str | None = None
+    counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict, solver: dict | None = None
 ) -> None:
     """Refuse (exit 2, with the estimate) a run over the step or memory limit unless confirmed.
 
     ``counts`` = (nodes, cells, nodes per cell, dim, contact nodes), known before meshing
-    for a benchmark; ``backend`` (None: ``auto``) decides the factor and, on the ranks of
-    ``mpiexec``, the copies on this machine.
+    for a benchmark; ``solver``, the solver options as given: ``backend`` (None: ``auto``)
+    decides the factor and, on the ranks of ``mpiexec``, the copies on this machine;
+    ``condense_budget`` bounds petsc's Delassus columns (a value the options' validation
+    will refuse counts as the default here).
     """
-    from ..dynamics.budget import check_run_size, estimate_run
+    from ..dynamics.budget import COLUMNS_BUDGET, check_run_size, estimate_run
     from ..dynamics.simulate import number_of_steps
     from ..parallel import local_ranks
 
-    est = estimate_run(*counts, number_of_steps(dt, T), backend=str(backend or "auto"), ranks=local_ranks())
+    solver = solver or {}
+    try:
+        budget = float(solver.get("condense_budget", COLUMNS_BUDGET))
+    except (TypeError, ValueError, OverflowError):
+        budget = COLUMNS_BUDGET
+    if not 0.0 <= budget < float("inf"):
+        budget = COLUMNS_BUDGET
+    backend = str(solver.get("backend") or "auto")
+    est = estimate_run(*counts, number_of_steps(dt, T), backend=backend, ranks=local_ranks(), condense_budget=budget)
     mem = limits.get("max_memory")
     check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
 
@@ -117,9 +127,7 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     limits = _limits(args, {})
     sch, sol = _options(args, {}, {})
     nodes, cells, per_cell = bench.mesh_counts(n, overrides)
-    check_size(
-        (nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol.get("backend")
-    )
+    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol)
     problem = with_friction(bench.problem(n, overrides), args.friction)
     params = bench.params(overrides)
     meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
@@ -148,7 +156,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     if every < 0:
         raise InputError(f"--snapshot-every must be >= 0, got {every}")
     limits = _limits(args, case.limits)
-    check_size(mesh_counts(case.problem), case.dt, case.T, limits, sol.get("backend"))
+    check_size(mesh_counts(case.problem), case.dt, case.T, limits, sol)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
     problem = with_friction(case.problem, args.friction)
     return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
