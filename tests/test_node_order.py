@@ -158,3 +158,39 @@ def test_messages_name_the_users_node():
             discretize(type(problem)(**{**problem.__dict__, "mesh": mesh, "obstacle": plane}))
         said.append(str(err.value))
     assert f"node {node} " in said[0] and said[0] == said[1]
+
+
+@pytest.mark.parametrize("which", ["cylinder", "hertz3d", "disc_on_ball"])
+def test_every_mass_variant_is_the_users_permuted(which):
+    """No variant depends on the node numbers (a tie broken by index would change the
+    physics with the order): on the renumbered mesh, M is Q M Q^T, or the same refusal."""
+    from signorini.contact.contact_set import ContactSet
+    from signorini.dynamics.mass import MASS_VARIANTS, redistribute
+    from signorini.fem.space import Constraints, VectorSpace
+    from signorini.studies.benchmarks import get_benchmark
+
+    if which == "hertz3d":
+        problem = get_benchmark("hertz3d").problem(3, {})
+    else:
+        problem = load_case(EXAMPLES / f"{which if which != 'cylinder' else 'cylinder_drop'}.toml").problem
+    ren = in_order(problem.mesh, "morton")
+    Q = _permutation_matrix(ren.node_ids, problem.mesh.dim)
+
+    def variant(mesh, name):
+        space = VectorSpace(mesh)
+        cons = Constraints(space, problem.dirichlet)
+        c = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
+        try:
+            return redistribute(name, mesh, problem.material.rho, c.nodes, c.normals).M
+        except InputError as exc:
+            return str(exc)
+
+    built = 0
+    for name in MASS_VARIANTS.names(aliases=False):
+        a, b = variant(problem.mesh, name), variant(ren, name)
+        if isinstance(a, str):
+            assert a == b, name
+            continue
+        assert abs(Q @ a @ Q.T - b).max() <= 1e-12 * abs(a).max(), name
+        built += 1
+    assert built >= len(MASS_VARIANTS.names(aliases=False)) - 1  # only the tensor form needs a grid
