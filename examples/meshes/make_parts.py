@@ -7,8 +7,11 @@
 * ``plate_hole.msh``: a triangular plate 0.2 x 0.1 m with a hole, whole boundary ``skin``.
 
 Run from the repository root: ``python3 examples/meshes/make_parts.py``.
+``--cylinder-h H --out DIR`` writes only the cylinder, meshed at size H [m], into DIR
+(h = 0.002 gives the 232k-dof part of docs/performance.md's node-order table).
 """
 
+import argparse
 from pathlib import Path
 
 import gmsh
@@ -16,7 +19,7 @@ import gmsh
 HERE = Path(__file__).parent
 
 
-def _finish(name: str, dim: int, h: float, extra=None) -> None:
+def _finish(name: str, dim: int, h: float, extra=None, where: Path = HERE) -> None:
     occ = gmsh.model.occ
     occ.synchronize()
     body = gmsh.model.getEntities(dim)
@@ -29,10 +32,17 @@ def _finish(name: str, dim: int, h: float, extra=None) -> None:
     gmsh.option.setNumber("Mesh.MeshSizeMin", h / 2)
     gmsh.model.mesh.generate(dim)
     gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.write(str(HERE / name))
+    gmsh.write(str(where / name))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cylinder-h", type=float, default=None, help="only the cylinder, at this mesh size [m]")
+    ap.add_argument("--out", type=Path, default=HERE, help="directory of the .msh files")
+    a = ap.parse_args(argv)
+    if a.cylinder_h is not None and not 1e-4 <= a.cylinder_h <= 0.05:
+        ap.error(f"--cylinder-h must be between 1e-4 and 0.05 m, got {a.cylinder_h}")
+    a.out.mkdir(parents=True, exist_ok=True)
     gmsh.initialize(["-noenv"], readConfigFiles=False)
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.NumThreads", 1)
@@ -47,6 +57,10 @@ def main() -> None:
         lows = [t for t in skin if gmsh.model.getBoundingBox(2, t)[5] < 1e-6]
         gmsh.model.addPhysicalGroup(2, lows, name="bottom")
 
+    if a.cylinder_h is not None:
+        _finish("cylinder.msh", 3, a.cylinder_h, bottom, a.out)
+        gmsh.finalize()
+        return
     _finish("cylinder.msh", 3, 0.015, bottom)
 
     gmsh.model.add("bracket")
