@@ -115,6 +115,7 @@ def check_summary(ref: Path, par: Path, ranks: int, rtol: float = 1e-8) -> dict:
     assert sum(p["rank_contact_dofs"]) > 0 and len(p["rank_contact_dofs"]) == ranks
     assert len(p["rank_cells"]) == ranks and sum(p["rank_cells"]) >= 1 and "rank_cells" not in s
     assert p["node_order"] in ("mesh", "morton") and "node_order" not in s
+    assert p["warnings"] == s["warnings"]  # the same words, the same nodes named (the user's numbers)
     for k, v in s.items():  # the same figures, up to timings, ranks and backend
         if any(w in k for w in RUN_DEPENDENT) or k in ("message",):
             continue
@@ -346,6 +347,10 @@ def test_ctrl_c_on_mpiexec_keeps_the_partial_results(tmp_path):
          "auto, which took jacobi: the operator is mass-dominated"),
         (["run", "bar3d", "--n", "2", "--backend", "petsc-cg", "--scheme", "moreau-jean", "--mass",
           "standard"], "not cg or petsc-cg"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--mass", "moment-preserving-tensor", "--solver-option",
+          "node_order=morton"], "use node_order=mesh or auto"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "node_order=hilbert"],
+         "auto, mesh, morton"),
     ],
 )  # fmt: skip
 def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, args, says):

@@ -67,6 +67,8 @@ from .extrapolation import extrapolation_operator, nearest_free_nodes
 DEFAULT_MASS = "moment-preserving"
 #: the variants written M_red = T^T M T with an affine extrapolation T (loads follow T)
 EXTRAPOLATED = ("moment-preserving",)
+#: the variants that read a generated grid's node numbering (``Mesh.grid``): a renumbered grid cannot carry them
+GRID_MASSES = ("moment-preserving-tensor",)
 
 
 def _needs_contact(name: str, contact_nodes: np.ndarray | None) -> np.ndarray:

@@ -11,6 +11,7 @@ work of the reaction forces on the fixed dofs (see :mod:`signorini.dynamics.sche
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from ..fem.assembly import body_load, stiffness_matrix, surface_load
 from ..fem.fields import at_time, is_time_dependent
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh
+from ..fem.node_order import in_order
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
 from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
 from .mass_effect import mass_effect
@@ -98,6 +100,24 @@ def check_friction_schemes(friction: Friction, schemes: Sequence[str]) -> None:
                 f"scheme {name} cannot carry friction ({friction.label}): {why}; "
                 f"schemes that do: {', '.join(friction_schemes())}"
             )
+
+
+def in_node_order(problem: Problem, order: str) -> Problem:
+    """``problem`` on its mesh in the node order ``order`` (:mod:`signorini.fem.node_order`;
+    ``mesh``: itself): the mesh renumbered, with the initial data given as nodal arrays
+    ((n_nodes, d) or (n_nodes d,)) permuted along; every other datum is a tag, a constant
+    or a function of x, which follows the mesh by itself."""
+    if order == "mesh":
+        return problem
+    mesh = in_order(problem.mesh, order)
+    n, d = mesh.n_nodes, mesh.dim
+
+    def nodal(value):
+        if callable(value) or np.ndim(value) == 0 or np.size(value) != n * d or np.shape(value) == (d,):
+            return value
+        return np.asarray(value, dtype=float).reshape(n, d)[mesh.node_ids]
+
+    return dataclasses.replace(problem, mesh=mesh, u0=nodal(problem.u0), v0=nodal(problem.v0))
 
 
 def time_derivatives(f: Callable[[float], np.ndarray], h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -331,7 +351,8 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
-        worst = np.flatnonzero(viol == viol.max())  # at a tie, the node the user numbered first
+        # at a tie (to round-off), the node the user numbered first: the same on any node order
+        worst = np.flatnonzero(viol >= viol.max() - 1e-3 * tol)
         raise InputError(
             _penetration_message(problem, contact, disc.B @ U0, int(worst[mesh.first_by_id(contact.nodes[worst])]))
         )

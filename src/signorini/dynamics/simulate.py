@@ -19,7 +19,6 @@ The levels computed before the stop are kept; observers are closed in every case
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import signal
 import time
@@ -31,7 +30,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from ..errors import ConvergenceError, InputError, check_positive
-from ..fem.node_order import choose_order, in_order
+from ..fem.node_order import choose_order
 from ..linalg import solver_options as validate_solver_options
 from ..linalg.base import memory_info, total_memory
 from ..linalg.row_block import RowBlock
@@ -40,11 +39,11 @@ from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from ..signals import handled
 from .context import Context
 from .history import COUNTER_KEYS, History
-from .mass import DEFAULT_MASS
+from .mass import DEFAULT_MASS, GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
-from .problem import Discretization, Problem, discretize
+from .problem import Discretization, Problem, discretize, in_node_order
 from .schemes import Scheme, State, friction_schemes, make_scheme
 from .untagged import UntaggedContact
 
@@ -309,8 +308,12 @@ def set_up(
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
     if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
         order = choose_order(opts.get("node_order", "auto"), problem.mesh)
-        if order != "mesh":
-            problem = dataclasses.replace(problem, mesh=in_order(problem.mesh, order))
+        if order != "mesh" and problem.mesh.grid is not None and MASS_VARIANTS.resolve(mass) in GRID_MASSES:
+            raise InputError(
+                f"mass {MASS_VARIANTS.resolve(mass)!r} reads the generated grid's node numbering: it cannot run with "
+                f"solver option node_order={order!r}; use node_order=mesh or auto"
+            )
+        problem = in_node_order(problem, order)
     disc = problem if isinstance(problem, Discretization) else discretize(problem, mass, comm)
     ctx = prepare_context(disc, dt, opts, (scheme, starter))
     return Run(ctx, scheme, N, float(dt), initial_state(ctx), disc.problem), starter

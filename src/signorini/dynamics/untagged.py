@@ -26,6 +26,8 @@ from .schemes import State
 #: penetration of an untagged node, relative to the body's size, that is reported as contact
 UNTAGGED_TOLERANCE = 1e-9
 UNTAGGED_MODES = ("warn", "fail")
+#: penetrations within this fraction of the body's size are a tie for the node a message names
+TIE = 1e-12
 
 
 def boundary_nodes(mesh: Mesh) -> np.ndarray:
@@ -54,6 +56,7 @@ class UntaggedContact(Observer):
         self.mesh = mesh
         self.d = mesh.dim
         self.tolerance = UNTAGGED_TOLERANCE * body_size(mesh)
+        self.tie = TIE * body_size(mesh)
         self.obstacle = disc.problem.obstacle
         self.series = np.zeros(run.n_steps + 1)
         self._put(0, run.initial)
@@ -63,12 +66,17 @@ class UntaggedContact(Observer):
             return
         x = self.X + s.U.reshape(-1, self.d)[self.nodes]
         phi = self.obstacle.gaps(x, s.t)
-        ties = np.flatnonzero(phi == phi.min())  # at a tie, the node the user numbered first
+        # at a tie (to TIE x the body's size: round-off differs between node orders and ranks),
+        # the node the user numbered first, so that the message does not depend on them
+        ties = np.flatnonzero(phi <= phi.min() + self.tie)
         j = int(ties[self.mesh.first_by_id(self.nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
         p = max(0.0, -float(phi[j]))
         self.series[n] = p
-        if p > self.worst[0]:
-            self.worst = (p, int(self.nodes[j]), float(s.t))
+        if p > self.worst[0]:  # the largest value; its node and time change beyond a tie only
+            if p > self.worst[0] + self.tie or self.worst[1] < 0:
+                self.worst = (p, int(self.nodes[j]), float(s.t))
+            else:
+                self.worst = (p, *self.worst[1:])
         if self.mode == "fail" and p > self.tolerance:
             if n == 0:  # the data put it there: an input error, before anything is computed
                 raise InputError(f"{self.message()} (at t = 0: the initial state)")

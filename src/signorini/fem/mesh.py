@@ -78,7 +78,8 @@ class Mesh:
         self._cache: dict = {}
 
     def node_id(self, i: int) -> int:
-        """The user's number of node ``i`` (its index in the mesh file or generator)."""
+        """The user's number of node ``i``: its index in the mesh as read (meshio's points,
+        unused points dropped) or as generated, whatever order the run uses."""
         return int(i) if self.node_ids is None else int(self.node_ids[i])
 
     def first_by_id(self, nodes: np.ndarray) -> int:

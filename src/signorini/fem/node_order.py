@@ -9,9 +9,9 @@ first, so on a part with its whole skin tagged one rank touches every cell
 
 ``morton`` renumbers the nodes along the Z-order (Morton) curve of their coordinates:
 the coordinates are quantized on a 2^b grid of the bounding box's largest side
-(isotropic) and their bits interleaved (x, y, z, x, y, z, ...), b = 63 // d; nodes in one
-grid cell keep the mesh's order.  Any even split of a Z-order is a set of compact pieces
-of the part, so the cells a rank touches are about n_cells / P plus its interfaces
+(isotropic) and their bits interleaved (x, y, z, x, y, z, ...), b = 63 // d (52 in 1D,
+where 2^63 - 1 is not a double); nodes in one grid cell keep the mesh's order.  Any even
+split of a Z-order is a set of compact pieces of the part, so the cells a rank touches are about n_cells / P plus its interfaces
 (measured against reverse Cuthill-McKee and PT-Scotch's partition in docs/parallel.md).
 The order does not depend on P.
 
@@ -40,7 +40,7 @@ def morton_order(points: np.ndarray) -> np.ndarray:
     n, d = points.shape
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    bits = 63 // d
+    bits = min(63 // d, 52)  # 2^bits - 1 exact in a double (1D: 52, not 63)
     lo = points.min(axis=0)
     span = float((points.max(axis=0) - lo).max())
     if span <= 0.0:

@@ -135,10 +135,13 @@ class Constraints:
             both = ~np.isnan(seen[d])
             clash = both & ~np.isclose(seen[d], v, rtol=1e-12, atol=1e-300)
             if clash.any():
-                i = int(np.flatnonzero(clash)[0])
+                cand = np.flatnonzero(clash)  # name the clash at the dof the user numbered first
+                mesh, dim = self.space.mesh, self.space.dim
+                ids = d[cand] // dim if mesh.node_ids is None else mesh.node_ids[d[cand] // dim]
+                i = int(cand[np.argmin(ids * dim + d[cand] % dim)])
                 j = int(owner[d[i]])
-                node, c = divmod(int(d[i]), self.space.dim)
-                node = self.space.mesh.node_id(node)
+                node, c = divmod(int(d[i]), dim)
+                node = mesh.node_id(node)
                 raise InputError(
                     f"Dirichlet conditions on tags {self._parts[j][0].tag!r} and {bc.tag!r} prescribe different values "
                     f"({seen[d[i]]:g} and {v[i]:g}) on the dof {node * self.space.dim + c} they share "

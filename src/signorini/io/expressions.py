@@ -218,13 +218,17 @@ class Expression:
 
 
 def check_finite(key: str, text: str, values: np.ndarray, points: np.ndarray | None, t: float) -> np.ndarray:
-    """``values`` (n,) if all finite; else an error naming the key, the expression and one point."""
+    """``values`` (n,) if all finite; else an error naming the key, the expression and one point:
+    the first bad point in lexicographic order of its coordinates (x, then y, then z), which
+    does not depend on the order of the nodes (a renumbered mesh names the same point)."""
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size == 0:
         return values
     i = int(bad[0])
     where = ""
     if points is not None and len(points):
+        pts = np.asarray(points)[bad].reshape(bad.size, -1)
+        i = int(bad[np.lexsort(pts.T[::-1])[0]])
         where = " at (" + ", ".join(f"{c}={v:.6g}" for c, v in zip("xyz", points[i], strict=False)) + ")"
     raise InputError(
         f"'{key}': {text!r} is {float(values[i])}{where}, t = {t:g}: not finite "
