@@ -12,8 +12,8 @@ the coordinates are quantized on a 2^b grid of the bounding box's largest side
 (isotropic) and their bits interleaved (x, y, z, x, y, z, ...), b = 63 // d (52 in 1D,
 where 2^63 - 1 is not a double); nodes in one grid cell keep the mesh's order.  Any even
 split of a Z-order is a set of compact pieces of the part, so the cells a rank touches
-are about n_cells / P plus its interfaces (measured against reverse Cuthill-McKee and PT-Scotch's partition in docs/parallel.md).
-The order does not depend on P.
+are about n_cells / P plus its interfaces (measured against reverse Cuthill-McKee and
+PT-Scotch's partition in docs/parallel.md).  The order does not depend on P.
 
 A renumbered mesh remembers the user's number of every node (``Mesh.node_ids``); the
 run maps what it writes back (:func:`to_user_nodes`), and its messages name the user's
