@@ -20,9 +20,10 @@ Rank r owns the nodes [a_r, a_{r+1}) (an even split of the node numbers,
   per rank, S still by rows.
 
 A rank's memory for S and M is then about nnz / P plus its halo cells, instead of the
-whole matrices on every rank.  With the mesh's own node order the blocks are slabs of a
-generated bar; a mesh numbered at random would give every rank a large halo (correct,
-but less memory saved): DMPlex's partitioning is what replaces the even split.
+whole matrices on every rank, when the node numbers are local: a generated grid's are
+slabs, and any other mesh is renumbered along the Z-order curve before a distributed run
+(:mod:`signorini.fem.node_order`).  A mesh numbered at random would give every rank a
+large halo (correct, but less memory saved).
 """
 
 from __future__ import annotations
