@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import os
 import resource
+import signal
+import sys
+import threading
 from typing import Any
 
 from .errors import InputError
@@ -71,6 +74,21 @@ def mark_unshared() -> None:
     UNSHARED_END[0] = True
 
 
+#: whether MPI has started in this process (the first :class:`MPIComm`): until then, on
+#: several ranks, the command line defers SIGINT and SIGTERM (``signorini.io.entry.DEFERRED``),
+#: since a rank that left then would leave the others spinning in MPI_Init forever
+_STARTED = [False]
+
+
+def deferring() -> bool:
+    """Whether this process is one of several ranks whose MPI has not started yet."""
+    return launched()[1] > 1 and not _STARTED[0]
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def peak_memory_bytes() -> int:
     """Peak resident memory of this process (``getrusage``, kilobytes on Linux) [bytes]."""
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
@@ -114,6 +132,23 @@ class MPIComm(Comm):
         self.MPI = MPI
         self.comm = MPI.COMM_WORLD
         self.rank, self.size = self.comm.rank, self.comm.size
+        if not _STARTED[0]:
+            _STARTED[0] = True
+            self._start()
+
+    def _start(self) -> None:
+        """MPI has started (the first MPIComm, at the same point on every rank): the signals
+        deferred until now stop every rank together, as a KeyboardInterrupt (exit 130,
+        nothing written); later ones raise it at once, as in a serial run."""
+        entry = sys.modules.get("signorini.io.entry")
+        deferred = list(entry.DEFERRED) if entry is not None else []
+        got = self.max(max(deferred, default=0))
+        if entry is not None and threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                if signal.getsignal(s) is entry._early:
+                    signal.signal(s, _interrupt)
+        if got or (entry is not None and len(entry.DEFERRED) > len(deferred)):  # one during the agreement
+            raise KeyboardInterrupt
 
     def any(self, flag: bool) -> bool:
         return bool(self.comm.allreduce(bool(flag), op=self.MPI.LOR))

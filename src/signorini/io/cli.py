@@ -18,19 +18,24 @@ import argparse
 import os
 import signal
 import sys
+import time
 import traceback
 import warnings
 
 import numpy as np
 
 from ..errors import ConvergenceError, InputError
-from ..parallel import UNSHARED_END, is_root, launched, mark_unshared
+from ..parallel import UNSHARED_END, deferring, is_root, launched, mark_unshared
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .messages import one_line
 from .parser import build_parser
 from .results_dir import ResultConflict
 from .streams import guarded_stdio
 from .summary import factorization_tip  # noqa: F401 - used by tests and docs
+
+#: on an interrupt, how long a rank other than 0 waits before MPI_Abort, so that rank 0
+#: (which the signal reached too) prints its line first (its abort ends the wait)
+ROOT_FIRST_SECONDS = 2.0
 
 
 def _sigterm(signum, frame):
@@ -57,6 +62,8 @@ def _end_ranks(code: int) -> int:
     if unshared and launched()[1] > 1 and "mpi4py.MPI" in sys.modules:
         for stream in (sys.stdout, sys.stderr):
             stream.flush()
+        if code == 130 and not is_root():  # Ctrl-C reaches every rank: let rank 0 say so and abort
+            time.sleep(ROOT_FIRST_SECONDS)
         sys.modules["mpi4py.MPI"].COMM_WORLD.Abort(code)
     return code
 
@@ -86,7 +93,8 @@ def _report_warnings(caught: list) -> None:
 
 def _dispatch(args: argparse.Namespace) -> int:
     """Run the command; map every exception to its exit code and a one-line message."""
-    old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" else None
+    # (on several ranks before MPI starts, SIGTERM stays deferred: signorini.parallel)
+    old = signal.signal(signal.SIGTERM, _sigterm) if sys.platform != "win32" and not deferring() else None
     try:
         # every quantity is checked for finiteness where it matters, so numpy's floating-point
         # flags are off; Python warnings are collected and counted in one line (not hidden)

@@ -4,7 +4,9 @@ A Ctrl-C or SIGTERM that arrives while Python imports numpy, scipy and the packa
 otherwise print a traceback (SIGINT) or kill the process without a word (SIGTERM).  The
 handlers installed here, before any heavy import, end the process with one line and exit
 code 130; nothing has been written at that point.  :func:`signorini.io.cli.main` installs
-its own handlers once it runs.
+its own handlers once it runs.  On several MPI ranks a signal is deferred until MPI has
+started, where every rank stops together (:data:`DEFERRED`): a rank that left alone
+before would leave the others spinning in ``MPI_Init``.
 """
 
 from __future__ import annotations
@@ -13,8 +15,25 @@ import os
 import signal
 import sys
 
+#: the signals that reached one of several MPI ranks before MPI started (read by
+#: :class:`signorini.parallel.MPIComm`, where every rank stops together)
+DEFERRED: list[int] = []
+
+
+def _several_ranks() -> bool:
+    """Started by mpiexec as one of several ranks: the process manager's size variables (those
+    of :func:`signorini.parallel.launched`), read without importing anything."""
+    for var in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE"):
+        value = os.environ.get(var, "")
+        if value.isdigit() and int(value) > 1:
+            return True
+    return False
+
 
 def _early(signum, frame) -> None:
+    if _several_ranks():  # a rank that left alone now would leave the others in MPI_Init forever
+        DEFERRED.append(int(signum))
+        return
     try:
         os.write(2, b"signorini: interrupted during start-up; nothing written\n")
     except OSError:
@@ -56,8 +75,9 @@ def main() -> int:
     _quiet_followers()
     from .cli import main as cli_main
 
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, _interrupt)
+    if not _several_ranks():  # several: _early defers until MPI starts (signorini.parallel)
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, _interrupt)
     try:
         code = cli_main()
     except KeyboardInterrupt:
