@@ -140,6 +140,7 @@ def test_history_of_a_renumbered_run_comes_back_in_the_users_order():
     nodes = discretize(ren).contact.nodes
     assert np.any(user_order_of(ren.mesh, nodes) != np.arange(nodes.size))  # the run's order is not the user's
     assert np.array_equal(H.coordinates, a.coordinates) and np.array_equal(H.weights, a.weights)
+    assert np.array_equal(H.nodes, a.nodes) and np.array_equal(a.nodes, problem.mesh.nodes_of("skin"))
     gap = float(np.abs(a.gap).max())
     assert np.abs(H.gap - a.gap).max() <= 1e-10 * gap
     assert np.abs(H.lam - a.lam).max() <= 1e-9 * np.abs(a.lam).max()

@@ -384,6 +384,7 @@ def test_ctrl_c_during_the_start_up_ends_every_rank_with_one_line(tmp_path, dela
           "node_order=morton"], "use node_order=mesh or auto"),
         (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "node_order=hilbert"],
          "auto, mesh, morton"),
+        (["run", "bar3d", "--n", "2", "--backend", "petsc-gc"], "unknown solver.backend 'petsc-gc'; allowed:"),
     ],
 )  # fmt: skip
 def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, args, says):

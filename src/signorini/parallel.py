@@ -175,6 +175,11 @@ def run_comm(backend: str) -> Comm:
         return MPIComm()
     rank, size = launched()
     if size > 1:
+        from .linalg.base import BACKENDS
+
+        if backend not in BACKENDS.names():  # a misspelling: say so, as a serial run does
+            allowed = ", ".join(BACKENDS.names(aliases=False))
+            raise InputError(f"unknown solver.backend {backend!r}; allowed: {allowed}")
         raise InputError(
             f"started as {size} MPI ranks with backend {backend!r}: only backends 'petsc' and 'petsc-cg' run on "
             "several ranks (add --backend petsc or petsc-cg, or run without mpiexec)"

@@ -118,6 +118,8 @@ class History:
     contact_status: np.ndarray | None = None
     friction_work: np.ndarray | None = None
     tangents: np.ndarray | None = None
+    #: (nc,) the mesh's number of each contact node (the user's, whatever the run's order)
+    nodes: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
     counters: dict = field(default_factory=dict)
@@ -216,6 +218,8 @@ class History:
             a = getattr(self, name)
             if a is not None:
                 setattr(self, name, a[p])
+        if self.nodes is not None:
+            self.nodes = mesh.node_ids[self.nodes][p]
         for name in ("u", "v"):
             if name in self.snapshots:
                 self.snapshots[name] = to_user_dofs(mesh, self.snapshots[name])
@@ -230,12 +234,13 @@ class History:
                 w.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else int(v) for v in row])
 
     def write_contact_npz(self, path: str | Path) -> None:
-        """``t``, ``gap``, ``lam`` (= ``lambda_n``), ``coordinates``, ``weights``; with friction also
+        """``t``, ``gap``, ``lam`` (= ``lambda_n``), ``coordinates``, ``weights``, ``nodes`` (the mesh's
+        number of each contact node, when known); with friction also
         ``lambda_t`` (N+1, nc, d - 1), ``slip`` (N+1, nc, d - 1), ``status`` (N+1, nc: 0 separated,
         1 stick, 2 slip) and ``tangents`` (nc, d - 1, d), the nodal frames' tangent vectors."""
-        extra = {}
+        extra = {} if self.nodes is None else {"nodes": self.nodes}
         if self.lam_t is not None:
-            extra = {"lambda_t": self.lam_t, "slip": self.slip, "status": self.contact_status}
+            extra.update(lambda_t=self.lam_t, slip=self.slip, status=self.contact_status)
             if self.tangents is not None:
                 extra["tangents"] = self.tangents
         np.savez_compressed(

@@ -511,6 +511,7 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         **work,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
+        nodes=np.asarray(disc.contact.nodes, dtype=np.int64),
         tangents=disc.contact.tangents if ctx.components > 1 else None,
         snapshots=snaps.snapshots() if snaps is not None else {},
         meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),

@@ -140,7 +140,8 @@ CG_PARAMETERS = (
 NODE_ORDER = Parameter(
     "node_order",
     "auto",
-    "the node numbers whose even split gives each rank its rows: mesh (the mesh's own), morton (the Z-order "
+    "petsc and petsc-cg only: the node numbers whose even split gives each rank its rows: mesh (the mesh's own), "
+    "morton (the Z-order "
     "curve of the coordinates: compact pieces per rank); auto: morton unless the mesh is a generated grid; the "
     "results are written in the mesh's own order",
     str,
