@@ -347,8 +347,11 @@ def test_ctrl_c_during_the_start_up_ends_every_rank_with_one_line(tmp_path, dela
         p.kill()
         p.communicate()
         pytest.fail(f"mpiexec hung after a Ctrl-C at {delay} s")
-    if p.returncode == 130 and (tmp_path / "out").exists():  # the loop had started: partial results
-        assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "interrupted"
+    if p.returncode in (0, 130) and (tmp_path / "out").exists():
+        # 130: the loop had started, partial results; 0: hydra had not started the ranks when
+        # the Ctrl-C came and did not pass it on (seen under load), so the run finished
+        status = json.loads((tmp_path / "out" / "summary.json").read_text())["status"]
+        assert status == ("interrupted" if p.returncode == 130 else "finished"), (p.returncode, status)
         return
     assert p.returncode == 130, err[-2000:]
     lines = [ln for ln in err.splitlines() if ln.startswith("signorini:")]

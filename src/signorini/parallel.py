@@ -142,6 +142,8 @@ class MPIComm(Comm):
         nothing written); later ones raise it at once, as in a serial run."""
         entry = sys.modules.get("signorini.io.entry")
         deferred = list(entry.DEFERRED) if entry is not None else []
+        if deferred:
+            signal.alarm(0)  # MPI has started: the start-up alarm of a deferred signal is off
         got = self.max(max(deferred, default=0))
         if entry is not None and threading.current_thread() is threading.main_thread():
             for s in (signal.SIGINT, signal.SIGTERM):
@@ -175,11 +177,6 @@ def run_comm(backend: str) -> Comm:
         return MPIComm()
     rank, size = launched()
     if size > 1:
-        from .linalg.base import BACKENDS
-
-        if backend not in BACKENDS.names():  # a misspelling: say so, as a serial run does
-            allowed = ", ".join(BACKENDS.names(aliases=False))
-            raise InputError(f"unknown solver.backend {backend!r}; allowed: {allowed}")
         raise InputError(
             f"started as {size} MPI ranks with backend {backend!r}: only backends 'petsc' and 'petsc-cg' run on "
             "several ranks (add --backend petsc or petsc-cg, or run without mpiexec)"

@@ -18,6 +18,8 @@ import sys
 #: the signals that reached one of several MPI ranks before MPI started (read by
 #: :class:`signorini.parallel.MPIComm`, where every rank stops together)
 DEFERRED: list[int] = []
+#: a rank that deferred a signal and has not started MPI after this long ends (SIGALRM)
+STARTUP_ALARM_SECONDS = 60
 
 
 def _several_ranks() -> bool:
@@ -33,6 +35,10 @@ def _several_ranks() -> bool:
 def _early(signum, frame) -> None:
     if _several_ranks():  # a rank that left alone now would leave the others in MPI_Init forever
         DEFERRED.append(int(signum))
+        # and if another rank died before it could defer (still in CPython's start-up), this
+        # one may spin in MPI_Init: SIGALRM's default action ends it whatever MPI holds
+        # (signorini.parallel cancels the alarm once MPI has started)
+        signal.alarm(STARTUP_ALARM_SECONDS)
         return
     try:
         os.write(2, b"signorini: interrupted during start-up; nothing written\n")

@@ -216,10 +216,14 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     Started by ``mpiexec`` (backend ``petsc``), rank 0 does this and the other ranks run
     the same simulation writing nothing (:func:`execute_follower`)."""
     from ..dynamics.simulate import simulate
+    from ..linalg.base import BACKENDS
     from ..parallel import launched, run_comm
 
     rank, _ = launched()
-    comm = run_comm(str(spec.solver_options.get("backend", "auto")))  # a serial backend on P > 1: refused
+    backend = str(spec.solver_options.get("backend", "auto"))
+    if backend not in BACKENDS.names():  # a misspelling on several ranks: say so, as a serial run does
+        raise InputError(f"unknown solver.backend {backend!r}; allowed: {', '.join(BACKENDS.names(aliases=False))}")
+    comm = run_comm(backend)  # a serial backend on P > 1: refused
     if rank != 0:
         return execute_follower(spec, comm)
     try:
