@@ -35,6 +35,25 @@ def _cylinder():
     return load_case(EXAMPLES / "cylinder_drop.toml").problem
 
 
+def _refusals(problem) -> tuple[str, str]:
+    """The messages of discretizing ``problem`` on the user's mesh and on the Z-ordered one
+    (both must refuse, InputError)."""
+    said = []
+    for p in (problem, in_node_order(problem, "morton")):
+        with pytest.raises(InputError) as err:
+            discretize(p)
+        said.append(str(err.value))
+    return said[0], said[1]
+
+
+def _cylinder_case(tmp_path, edit):
+    """examples/cylinder_drop.toml with its mesh path made absolute, edited by ``edit`` (text -> text)."""
+    text = (EXAMPLES / "cylinder_drop.toml").read_text().replace('"meshes/', f'"{EXAMPLES}/meshes/')
+    path = tmp_path / "case.toml"
+    path.write_text(edit(text))
+    return load_case(path).problem
+
+
 def _permutation_matrix(old_of_new: np.ndarray, d: int) -> sp.csr_matrix:
     """Q with (Q x)_new = x_old: row d*i + c of the renumbered dofs is dof d*old_of_new[i] + c."""
     cols = (d * old_of_new[:, None] + np.arange(d)).ravel()
@@ -157,12 +176,8 @@ def test_messages_name_the_users_node():
     skin = problem.mesh.nodes_of("skin")
     node = int(skin[np.argmin(problem.mesh.points[skin] @ n)])
     plane = PlaneObstacle(problem.mesh.points[node] + 1e-6 * n, n)
-    said = []
-    for mesh in (problem.mesh, in_order(problem.mesh, "morton")):
-        with pytest.raises(InputError) as err:
-            discretize(type(problem)(**{**problem.__dict__, "mesh": mesh, "obstacle": plane}))
-        said.append(str(err.value))
-    assert f"node {node} " in said[0] and said[0] == said[1]
+    user, ordered = _refusals(dataclasses.replace(problem, obstacle=plane))
+    assert f"node {node} " in user and user == ordered
 
 
 @pytest.mark.parametrize("which", ["cylinder", "hertz3d", "disc_on_ball"])
@@ -201,12 +216,6 @@ def test_every_mass_variant_is_the_users_permuted(which):
     assert built >= len(MASS_VARIANTS.names(aliases=False)) - 1  # only the tensor form needs a grid
 
 
-def _case(text: str, tmp_path):
-    path = tmp_path / "case.toml"
-    path.write_text(text)
-    return load_case(path).problem
-
-
 def test_nodal_initial_data_follow_the_renumbering():
     """u0 and v0 given as nodal arrays, (n_nodes, d) or (n_nodes d,), are permuted with the
     mesh: the renumbered problem's U0 and V0 are the user's, permuted."""
@@ -226,30 +235,21 @@ def test_nodal_initial_data_follow_the_renumbering():
 
 
 def test_conflicting_dirichlet_values_name_the_same_dof(tmp_path):
-    text = (EXAMPLES / "cylinder_drop.toml").read_text().replace('"meshes/', f'"{EXAMPLES}/meshes/')
-    text += (
-        '[[dirichlet]]\ntag = "bottom"\nvalue = [0.0, 0.0, 0.0]\n[[dirichlet]]\ntag = "skin"\nvalue = [0.0, 0.0, 1.0]\n'
-    )
-    text = text.replace('tag = "skin"\nobstacle', 'tag = "skin"\nwhere = "z > 0.05"\nobstacle')
-    problem = _case(text, tmp_path)
-    said = []
-    for p in (problem, in_node_order(problem, "morton")):
-        with pytest.raises(InputError) as err:
-            discretize(p)
-        said.append(str(err.value))
-    assert "prescribe different values" in said[0] and said[0] == said[1]
+    def edit(text):
+        text += '[[dirichlet]]\ntag = "bottom"\nvalue = [0.0, 0.0, 0.0]\n'
+        text += '[[dirichlet]]\ntag = "skin"\nvalue = [0.0, 0.0, 1.0]\n'
+        return text.replace('tag = "skin"\nobstacle', 'tag = "skin"\nwhere = "z > 0.05"\nobstacle')
+
+    user, ordered = _refusals(_cylinder_case(tmp_path, edit))
+    assert "prescribe different values" in user and user == ordered
 
 
 def test_a_non_finite_expression_names_the_same_point(tmp_path):
-    text = (EXAMPLES / "cylinder_drop.toml").read_text().replace('"meshes/', f'"{EXAMPLES}/meshes/')
-    text = text.replace("velocity = [0.0, 0.0, -1.0]", 'velocity = [0.0, 0.0, "log(z)"]')
-    problem = _case(text, tmp_path)
-    said = []
-    for p in (problem, in_node_order(problem, "morton")):
-        with pytest.raises(InputError) as err:
-            discretize(p)
-        said.append(str(err.value))
-    assert "not finite" in said[0] and said[0] == said[1]
+    problem = _cylinder_case(
+        tmp_path, lambda t: t.replace("velocity = [0.0, 0.0, -1.0]", 'velocity = [0.0, 0.0, "log(z)"]')
+    )
+    user, ordered = _refusals(problem)
+    assert "not finite" in user and user == ordered
 
 
 def test_an_untagged_penetration_names_the_same_node():
