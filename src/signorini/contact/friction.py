@@ -192,9 +192,13 @@ def _jacobian_blocks(z: np.ndarray, mu: float, radius: np.ndarray | None, fixed:
     return D
 
 
-def _status(lam: np.ndarray, r: np.ndarray, norm: np.ndarray) -> np.ndarray:
+def _status(lam: np.ndarray, r: np.ndarray, norm: np.ndarray, fixed: bool = False) -> np.ndarray:
+    """SEPARATED, STICK or SLIP per node: touching is a compressive normal force, or with a
+    fixed (Tresca) radius a tangential one (a node of the fallback's union at zero pressure)."""
     status = np.full(lam.shape[0], SEPARATED, dtype=np.int8)
     touching = lam[:, 0] < 0.0
+    if fixed:
+        touching |= np.any(lam[:, 1:] != 0.0, axis=1)
     status[touching] = np.where(norm[touching] > r[touching], SLIP, STICK)
     return status
 
@@ -329,11 +333,19 @@ def _solve(
                 f"the frictional contact solve did not converge (semismooth Newton then {sweeps} Gauss-Seidel "
                 f"sweeps; residual {res:.3g}); reduce the time step, or the friction coefficient or threshold"
             )
+    # exact zeros where the projection says so (no round-off multipliers on separated nodes):
+    # the normal force where it is not compressive, the tangential one where the disc's
+    # radius is zero there (a fixed Tresca radius keeps its force: zeroing it would leave
+    # x inconsistent with lambda, a node pushed into the obstacle), then v from that lambda
+    free = lam[:, 0] >= 0.0
+    lam[free, 0] = 0.0
+    if radius is None or not fixed:
+        lam[free, 1:] = 0.0
+    else:
+        lam[free & (radius <= 0.0), 1:] = 0.0
     v = (b + W @ lam.ravel()).reshape(m, d)
     _, r, norm = _project(lam - rho * v, mu, radius, fixed)
-    # exact zeros where the projection says so (no round-off multipliers on separated nodes)
-    lam[lam[:, 0] >= 0.0] = 0.0
-    return ConeResult(lam, v, _status(lam, r, norm), it, fallback, res)
+    return ConeResult(lam, v, _status(lam, r, norm, fixed), it, fallback, res)
 
 
 def _gauss_seidel(W, b, lam, rho, mu, radius, fixed, tol, scale, max_sweeps, d) -> tuple[np.ndarray, int]:

@@ -168,6 +168,9 @@ class ContactSolver:
 
 #: a frictional candidate must penetrate by more than this times the gap scale (round-off)
 GRAZING = 1e-13
+#: a frictional solve whose answer violates a constraint by more than this times the gap
+#: scale is a failure (ConvergenceError), never a result
+ADMISSIBLE = 1e-9
 
 CONDENSATIONS = ("auto", "lazy", "full", "schur")
 #: ``auto`` takes the Schur condensation from this many contact nodes: below, the lazy
@@ -398,6 +401,14 @@ class CondensedContactSolver(ContactSolver):
             in_P[np.flatnonzero(~in_P)[joining]] = True
         x = self.delassus.complete(state, lam.ravel())
         v = (self.B @ x - bound).reshape(nc, d) if sol is not None else v_free
+        # a solve (a fallback included) never returns a point that violates the constraints
+        worst = float(np.max(v[idx, 0], initial=0.0))
+        if worst > ADMISSIBLE * max(scale, float(np.max(np.abs(bound.reshape(nc, d)[idx, 0]), initial=0.0))):
+            node = int(idx[np.argmax(v[idx, 0])])
+            raise ConvergenceError(
+                f"the frictional contact solve left contact node {node} {worst:.3g} beyond its constraint "
+                f"(residual {residual:.3g}); reduce the time step"
+            )
         status = np.zeros(nc, dtype=np.int8)
         if sol is not None:
             status[idx[in_P]] = sol.status

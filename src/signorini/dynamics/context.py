@@ -154,6 +154,11 @@ class _System:
         return self._lift
 
 
+#: relative size of a gap that is contact (:attr:`Context.touch_tolerance`): 1e4 times the
+#: round-off of a coordinate, 1e-12 of the body
+TOUCH = 1e-12
+
+
 class Context:
     """Operators, data of time t and the contact solver of one run (see module doc)."""
 
@@ -240,6 +245,15 @@ class Context:
     def gaps(self, t: float) -> np.ndarray:
         """Gaps g(t) (nc,) of the obstacle at time t."""
         return self.disc.gaps(t)
+
+    @functools.cached_property
+    def touch_tolerance(self) -> float:
+        """A gap within this of zero is contact [length]: :data:`TOUCH` times the largest of the
+        body's size and its coordinates (round-off of a gap is ~1e-16 of those).  A decision
+        taken on the sign of a gap (an index set) is taken against it, so that a node resting
+        on the obstacle is in contact whatever the machine's round-off."""
+        X = self.disc.problem.mesh.points
+        return TOUCH * max(float(np.linalg.norm(np.ptp(X, axis=0))), float(np.max(np.abs(X), initial=0.0)), 1e-300)
 
     # -- linear algebra ------------------------------------------------------------
     def prepare(self, op: Operator) -> None:

@@ -2,12 +2,16 @@
 
     M (V^{n+1} - V^n) = dt [theta (F^{n+1} - S U^{n+1}) + (1 - theta)(F^n - S U^n)] + B^T P^{n+1}
     U^{n+1} = U^n + dt [theta V^{n+1} + (1 - theta) V^n]
-    I = {i : g_i(t_n + dt/2) - nu_i . (U^n + dt/2 V^n)_i <= 0}           (predicted gap)
+    I = {i : g_i(t_n + dt/2) - nu_i . (U^n + dt/2 V^n)_i <= tol}         (predicted gap)
     for i in I:   0 >= nu.V^{n+1}_i + e nu.V^n_i - (1 + e) gdot_i  ⊥  P_i <= 0,
     for i not in I:  P_i = 0,
 
-with the obstacle's normal velocity gdot_i = (g_i(t_{n+1}) - g_i(t_n))/dt (zero for a
-fixed obstacle) and the restitution coefficient e.  Eliminating U^{n+1}:
+with tol = 1e-12 of the body's size (:attr:`~signorini.dynamics.context.Context.touch_tolerance`):
+a node resting on the obstacle is in I whatever the sign of its gap's round-off (with 0,
+a corner node sliding on a plane left I at a step where its gap rounded to +6e-36 and
+fell 6e-5 into the plane, a result that changed with the machine), the obstacle's
+normal velocity gdot_i = (g_i(t_{n+1}) - g_i(t_n))/dt (zero for a fixed obstacle) and the
+restitution coefficient e.  Eliminating U^{n+1}:
 
     (M + theta^2 dt^2 S) V^{n+1} = M V^n + dt (F_theta - S U^n) - theta (1 - theta) dt^2 S V^n + B^T P,
 
@@ -77,7 +81,7 @@ class MoreauJean(Scheme):
         if th != 1.0:
             rhs -= th * (1 - th) * dt * dt * (ctx.S @ s.V)
         BV0 = ctx.B @ s.V
-        index = ctx.gaps(t0 + 0.5 * dt) - ctx.B @ (s.U + 0.5 * dt * s.V) <= 0.0
+        index = ctx.gaps(t0 + 0.5 * dt) - ctx.B @ (s.U + 0.5 * dt * s.V) <= ctx.touch_tolerance
         gdot = (ctx.gaps(t1) - ctx.gaps(t0)) / dt if ctx.disc.contact.moving else 0.0
         bound = (1 + e) * gdot - e * BV0
         fixed = None
