@@ -160,10 +160,11 @@ mode, steps = sys.argv[1], int(sys.argv[2])
 b = get_benchmark("bar3d")
 dt = b.h(8) / 2
 stream = [FieldWriter(Path(tempfile.mkdtemp()) / "f.xdmf", 1)] if mode == "stream" else []
-# cg to a loose tolerance and no energy bookkeeping: only the memory matters here
-H = simulate(b.problem(8), "cn", dt, steps * dt, observers=stream, backend="cg", solver_options={"rtol": 1e-6},
-             energy=False, snapshot_every=1 if mode == "buffer" else 0)
-assert H.status == "finished"
+# cg at its own tolerance (at rtol = 1e-6 its active set cycled at step 64 on some machines:
+# a loose tolerance makes the contact decisions noisy) and no energy bookkeeping
+H = simulate(b.problem(8), "cn", dt, steps * dt, observers=stream, backend="cg", energy=False,
+             snapshot_every=1 if mode == "buffer" else 0)
+assert H.status == "finished", H.message
 # VmHWM: the peak of this process's own memory (ru_maxrss would include the parent's
 # peak at fork, kept across exec by Linux)
 print(next(int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM:")))
@@ -183,10 +184,12 @@ def test_streaming_fields_do_not_grow_memory():
         pytest.skip("needs Linux's /proc/self/status (VmHWM)")
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     runs = [(m, n) for m in ("stream", "buffer") for n in (50, 150)]
-    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, str(n)], env=env, stdout=subprocess.PIPE, text=True)
+    procs = [subprocess.Popen([sys.executable, "-c", PEAK, m, str(n)], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
              for m, n in runs]  # fmt: skip
-    peak = dict(zip(runs, (int(p.communicate(timeout=300)[0].split()[-1]) for p in procs), strict=True))
-    assert all(p.returncode == 0 for p in procs)
+    out = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [err for _, err in out]
+    peak = dict(zip(runs, (int(o.split()[-1]) for o, _ in out), strict=True))
     level_kb = 2 * 19_683 * 8 / 1024  # u and v of bar3d n = 8, kB
     assert peak["stream", 150] - peak["stream", 50] <= 0.25 * 100 * level_kb, peak
     assert peak["buffer", 150] - peak["buffer", 50] >= 0.5 * 100 * level_kb, peak
