@@ -104,3 +104,25 @@ def test_static_plane_given_as_function_of_time_matches_constant():
     p.obstacle = PlaneObstacle(lambda t: [0.0, 0.0], [0.0, 1.0])
     H2 = simulate(p, "cn", b.h(2) / 2, 1.0)
     assert np.array_equal(H1.lam, H2.lam)
+
+
+@pytest.mark.parametrize("scheme", DISTINCT_SCHEMES)
+def test_free_fall_has_no_elastic_energy(scheme):
+    """A free disc-shaped block falling under gravity towards a plane far below (no contact
+    in the run): every mass variant's M g makes it fall without stress, so ``elastic_energy``
+    (1/2 U.SU) stays at round-off while ``load_potential`` (-U.F) is -m g dy, and ``energy``
+    is still their sum with the kinetic energy, its identity closed to round-off."""
+    b = get_benchmark("bar2d")
+    p = b.problem(2, {"velocity": 0.0, "gap": 0.0})
+    p.dirichlet = []
+    p.u0, p.v0 = 0.0, 0.0
+    p.obstacle = PlaneObstacle([0.0, -100.0], [0.0, 1.0])
+    p.body_force = [0.0, -9.81]
+    mass = "seed" if SCHEMES.get(scheme).obj.massless_dofs_allowed else "standard"
+    H = simulate(p, scheme, b.h(2) / 2, 0.5, mass=mass)
+    assert H.status == "finished" and H.active.max() == 0
+    E_load = np.abs(H.load_potential).max()
+    assert E_load > 1e-3 and np.all(H.load_potential[1:] < 0)  # the block falls: -U.F = -m g dy < 0
+    assert np.abs(H.elastic_energy).max() <= 1e-12 * E_load
+    assert np.allclose(H.energy, H.kinetic_energy + H.elastic_energy + H.load_potential, rtol=0, atol=1e-14 * E_load)
+    assert_identity(H, E_load)

@@ -37,11 +37,14 @@ HISTORY_COLUMNS = (
 #: (one per space dimension: x; x, y; x, y, z), then the friction columns
 FORCE_COLUMNS = ("contact_force_x", "contact_force_y", "contact_force_z")
 FRICTION_COLUMNS = ("stick_nodes", "slip_nodes", "friction_dissipation")
+#: columns added after the friction ones (newer columns go last: a reader of an older
+#: file finds every column it knew where it was)
+LATER_COLUMNS = ("load_potential",)
 
 
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions."""
-    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS
+    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS
 
 
 STATUSES = ("finished", "interrupted", "failed")
@@ -58,9 +61,10 @@ class History:
     t : (N+1,) times [s].
     gap : (N+1, nc) g_i - nu_i.u_i (>= 0) [length].
     lam : (N+1, nc) nodal multipliers lambda_i (<= 0, force).
-    kinetic_energy, elastic_energy, energy : (N+1,) the scheme's discrete energy
-        (``meta['energy_definition']``; for CN and BE E = 1/2 V.MV + 1/2 U.SU - U.F,
-        spec eq. 6) split into its kinetic part and the rest [energy].
+    kinetic_energy, elastic_energy, load_potential, energy : (N+1,) the scheme's discrete
+        energy (``meta['energy_definition']``; for CN and BE E = 1/2 V.MV + 1/2 U.SU - U.F,
+        spec eq. 6) and its three parts: kinetic, elastic (1/2 U.SU; the scheme's strain
+        energy) and the loads' potential (-U.F(t); ``Scheme.load_potential``) [energy].
     predicted_increment : (N+1,) right-hand side of the scheme's energy identity for the
         step ending at t_n (nan at n = 0 or when the scheme has none for that step).
     external_work, contact_work, numerical_dissipation : (N+1,) cumulative sums of the
@@ -117,6 +121,7 @@ class History:
     slip: np.ndarray | None = None
     contact_status: np.ndarray | None = None
     friction_work: np.ndarray | None = None
+    load_potential: np.ndarray | None = None
     tangents: np.ndarray | None = None
     #: (nc,) the mesh's number of each contact node (the user's, whatever the run's order)
     nodes: np.ndarray | None = None
@@ -131,7 +136,10 @@ class History:
 
     @property
     def energy(self) -> np.ndarray:
-        return self.kinetic_energy + self.elastic_energy
+        """kinetic + elastic + load potential: the scheme's energy (``energy_definition``)."""
+        if self.load_potential is None:
+            return self.kinetic_energy + self.elastic_energy
+        return self.kinetic_energy + self.elastic_energy + self.load_potential
 
     @property
     def steps(self) -> int:
@@ -179,6 +187,7 @@ class History:
             "stick_nodes": stick,
             "slip_nodes": slip,
             "friction_dissipation": -fw,
+            "load_potential": _or_nan(self.load_potential, self.t.size),
         }
 
     def _base_columns(self) -> dict[str, np.ndarray]:

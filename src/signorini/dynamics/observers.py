@@ -102,7 +102,8 @@ def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:
 class EnergyRecorder(Observer):
     """The scheme's discrete energy per level and the three parts of its identity."""
 
-    KEYS = ("kinetic_energy", "elastic_energy", "predicted_increment", "external", "contact", "numerical", "friction")
+    KEYS = ("kinetic_energy", "elastic_energy", "load_potential", "predicted_increment", "external", "contact",
+            "numerical", "friction")  # fmt: skip
     PARTS = ("external", "contact", "numerical", "friction")
 
     def start(self, run: Run) -> None:
@@ -110,14 +111,19 @@ class EnergyRecorder(Observer):
         self.series = {k: np.full(n, np.nan) for k in self.KEYS}
         for k in self.PARTS:
             self.series[k][0] = 0.0
-        self.series["kinetic_energy"][0], self.series["elastic_energy"][0] = _finite_energy(
-            run.scheme.energy(run.ctx, run.initial), 0
-        )
+        self._put(run, 0, run.initial)
         self._prev = run.initial
+
+    def _put(self, run: Run, n: int, state: State) -> None:
+        """Level n's kinetic energy, and its potential split into the loads' part and the rest."""
+        S = self.series
+        S["kinetic_energy"][n], potential = _finite_energy(run.scheme.energy(run.ctx, state), n)
+        S["load_potential"][n] = run.scheme.load_potential(run.ctx, state)
+        S["elastic_energy"][n] = potential - S["load_potential"][n]
 
     def record(self, run: Run, n: int, state: State) -> None:
         S = self.series
-        S["kinetic_energy"][n], S["elastic_energy"][n] = _finite_energy(run.scheme.energy(run.ctx, state), n)
+        self._put(run, n, state)
         parts = run.scheme.energy_increment(run.ctx, self._prev, state)
         if parts is not None:
             S["predicted_increment"][n] = parts.total

@@ -211,6 +211,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "scheme": scheme.label,
         "scheme_options": dict(scheme.options),
         "energy_definition": scheme.energy_definition,
+        "energy_parts": "energy = kinetic_energy + elastic_energy + load_potential (history.csv)",
         "mass": disc.mass_name,
         "mass_effect": dict(disc.mass_effect),
         "friction": disc.friction.describe(),
@@ -499,12 +500,14 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
     if energies is not None:
         E = energies.series
         series.update(kinetic_energy=E["kinetic_energy"], elastic_energy=E["elastic_energy"])
+        series["load_potential"] = E["load_potential"]
         series["predicted_increment"] = E["predicted_increment"]
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
         work["friction_work"] = E["friction"]  # zeros without friction
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())
+        series["load_potential"] = nan.copy()
     return History(
         t=np.arange(n_last + 1) * run.dt,
         **series,

@@ -192,6 +192,14 @@ class Scheme:
         """(kinetic, potential): 1/2 V.MV and 1/2 U.SU - U.F(t) by default."""
         return mechanical_energy(ctx, state)
 
+    def load_potential(self, ctx: Context, state: State) -> float:
+        """The loads' part of :meth:`energy`'s potential: -U.F(t) by default [energy].
+
+        The history splits the potential into ``elastic_energy`` (the rest: 1/2 U.SU) and
+        ``load_potential`` (this); a scheme whose potential weighs the loads otherwise
+        (Paoli-Schatzman's mean of two levels) overrides it."""
+        return -float(state.U @ ctx.load(state.t))
+
     def energy_increment(self, ctx: Context, old: State, new: State) -> EnergyParts | None:
         return None
 

@@ -140,6 +140,11 @@ class PaoliSchatzman(Scheme):
         Fbar = 0.5 * (ctx.load(s.t) + ctx.load(s.t - dt))
         return 0.5 * float(D @ MD), 0.5 * float(Ubar @ SUbar) - float(Ubar @ Fbar)
 
+    def load_potential(self, ctx, s: State) -> float:
+        """-Ubar.Fbar, the loads' part of :meth:`energy` (means of the two levels)."""
+        Ubar = 0.5 * (s.U + self._previous(ctx, s))
+        return -float(Ubar @ (0.5 * (ctx.load(s.t) + ctx.load(s.t - ctx.dt))))
+
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         dt = ctx.dt
         Up = self._previous(ctx, old)
