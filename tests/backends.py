@@ -1,4 +1,7 @@
-"""The direct backends the tests run on: each optional one only when its package is installed."""
+"""The direct backends the tests run on, and the guards of the other optional packages: each
+optional test runs only when its package is installed (the plain install skips it, with the reason)."""
+
+import importlib.util
 
 import pytest
 
@@ -13,3 +16,12 @@ DIRECT = [
         "cholmod", marks=pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
     ),
 ]
+
+#: gmsh (extra 'mesh'): the Hertz benchmarks' meshes and the parts made by make_parts.py
+HAS_GMSH = importlib.util.find_spec("gmsh") is not None
+needs_gmsh = pytest.mark.skipif(not HAS_GMSH, reason="gmsh not installed (extra 'mesh')")
+
+
+def gmsh_param(value, *, id: str | None = None):
+    """A parameter that needs gmsh (a Hertz benchmark): skipped with the reason without it."""
+    return pytest.param(value, id=id or str(value), marks=needs_gmsh)

@@ -1,7 +1,6 @@
 """Hertz impact benchmarks: the quasi-static predictions, the pole-refined meshes, and the
 computed contact duration, peak force and approach against them (docs/verification.md)."""
 
-import importlib.util
 import json
 import math
 import sys
@@ -9,11 +8,11 @@ import sys
 import numpy as np
 import pytest
 
+from backends import needs_gmsh
 from signorini.errors import InputError
 from signorini.studies import hertz
 from signorini.studies.benchmarks import get_benchmark
 
-needs_gmsh = pytest.mark.skipif(importlib.util.find_spec("gmsh") is None, reason='needs pip install ".[mesh]"')
 OTHER = {"R": 0.5, "E": 2.0, "velocity": 0.001}  # a non-default (R, E, velocity)
 
 

@@ -173,6 +173,7 @@ class DistributedCGSolver(ActiveSetCGSolver):
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(self._spmv, n)
+        self._bare = {"bare_spmv": (self._spmv, n)}
 
     def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
         """K's rows at active contact dofs, from the replicated contact rows (no rank holds K)."""

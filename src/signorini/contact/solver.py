@@ -165,6 +165,15 @@ class ContactSolver:
     def set_guess(self, x: np.ndarray) -> None:
         """An estimate (n,) of the next solve's x; a direct solve has no use for it."""
 
+    def remeasure_bare(self) -> None:
+        """Time the bare operation (a solve, or CG's SpMV) again after the loop, in the loop's
+        conditions, and keep the best of both: a step that contains that operation is then
+        never reported cheaper than it (measured at set-up only, under another run's load,
+        compare showed a step of 0.77 x solve).  Serial solvers only (a distributed one's
+        operation is collective)."""
+        for key, (op, n) in getattr(self, "_bare", {}).items():
+            self.timings[key] = min(self.timings[key], _best_time(op, n))
+
 
 #: a frictional candidate must penetrate by more than this times the gap scale (round-off)
 GRAZING = 1e-13
@@ -253,6 +262,7 @@ class CondensedContactSolver(ContactSolver):
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": t1 - t0, "condensation": time.perf_counter() - t1}
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
+        self._bare = {"bare_solve": (self.factor.solve, n)}
         self._setup_solves = self.factor.solves
         self._setup_columns, self._setup_seconds = self.delassus.count, self.delassus.seconds
         self.factor_bytes = self.factor.nbytes
@@ -479,6 +489,7 @@ class ActiveSetCGSolver(ContactSolver):
         self.gap_scale = max(gap_scale, 1e-300)
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(lambda x: self.Kop @ x, self.K.shape[0])
+        self._bare = {"bare_spmv": (lambda x: self.Kop @ x, self.K.shape[0])}
 
     def set_guess(self, x: np.ndarray) -> None:
         """CG starts the next solve from x instead of the last solution (a scheme's

@@ -407,6 +407,9 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
     # contact columns computed inside the loop (lazy condensation) are set-up work: reported
     # apart (in_loop_condensation_seconds), not in the time per step
     columns = sum(s.timings.get("condensation_in_loop", 0.0) for s in run.ctx.solvers)
+    if run.ctx.comm.size == 1:
+        for s in run.ctx.solvers:
+            s.remeasure_bare()
     timings = {
         "setup_seconds": setup_seconds,
         "loop_seconds": loop,

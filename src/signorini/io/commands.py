@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..registry import parse_assignments
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .results_dir import run_into
-from .run_command import _limits, check_size
+from .run_command import _limits, _options, check_size
 
 
 def check_study_size(bench, levels: list[int], args: argparse.Namespace, overrides: dict) -> None:
@@ -104,10 +104,11 @@ def compare_plan(args: argparse.Namespace):
                 raise InputError(f"--{flag} does not apply to a case file (one level: its mesh, dt and T)")
         if args.set:
             raise InputError("--set does not apply to a case file; edit the file")
-        case = load_case(args.target, limits, check_size)
+        case = load_case(args.target, limits, check_size, args.backend)
         load = functools.partial(case_problem, str(args.target))
+        _, sol = _options(args, {}, case.solver_options)
         target = cmp.CaseTarget(
-            Path(args.target).name, load, case.dt, case.T, tuple(sorted(case.solver_options.items())),
+            Path(args.target).name, load, case.dt, case.T, tuple(sorted(_checked(sol).items())),
             friction=args.friction,
         )  # fmt: skip
         plan = cmp.plan_case(target, pairs, case.problem)
@@ -117,9 +118,19 @@ def compare_plan(args: argparse.Namespace):
     ref = cmp.parse_reference(args.reference) if args.reference is not None else None
     levels = cmp.DEFAULT_LEVELS if args.levels is None else args.levels
     ratio = cmp.DEFAULT_RATIO if args.ratio is None else args.ratio
-    plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref, args.friction)
+    _, sol = _options(args, {}, {})
+    plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref, args.friction,
+                              _checked(sol))  # fmt: skip
     check_compare_size(plan, args.jobs, _limits(args, {}))
     return plan
+
+
+def _checked(given: dict) -> dict:
+    """The solver options as given, validated (an unknown name or value: exit 2 before any run)."""
+    from ..linalg.base import solver_options
+
+    solver_options(given, "--solver-option")
+    return given
 
 
 def check_compare_size(plan, jobs: int | None, limits: dict) -> None:

@@ -84,9 +84,25 @@ def _solver_option_names() -> str:
     return ", ".join([p.name for p in SOLVER_OPTIONS] + sorted({p.name for e in BACKENDS for p in e.parameters}))
 
 
+def add_solver_arguments(group, scope: str) -> None:
+    """``--backend`` and ``--solver-option`` (run, compare); ``scope`` ends their help."""
+    tail = f"; {scope}" if scope else ""
+    group.add_argument(
+        "--backend",
+        default=None,
+        help=f"linear solver: {'; '.join(f'{e.name}: {e.description}' for e in BACKENDS)} (default auto{tail})",
+    )
+    group.add_argument(
+        "--solver-option",
+        action="append",
+        metavar="NAME=VALUE",
+        help=f"a solver option (repeatable): {_solver_option_names()}{tail}",
+    )
+
+
 def _add_run(sub) -> None:
     """The sub-command ``signorini run``."""
-    benchmarks, solver_opts = _benchmarks(), _solver_option_names()
+    benchmarks = _benchmarks()
     r = add_command(
         sub,
         "run",
@@ -119,17 +135,7 @@ def _add_run(sub) -> None:
         "mass, centre of mass and inertia; or the case file's)",
     )
     add_friction_argument(both, "(default frictionless, or the case file's)")
-    both.add_argument(
-        "--backend",
-        default=None,
-        help=f"linear solver: {'; '.join(f'{e.name}: {e.description}' for e in BACKENDS)} (default auto)",
-    )
-    both.add_argument(
-        "--solver-option",
-        action="append",
-        metavar="NAME=VALUE",
-        help=f"a solver option (repeatable): {solver_opts}",
-    )
+    add_solver_arguments(both, "")
     bench = r.add_argument_group("benchmarks only (errors with a case file: set these in the file)")
     bench.add_argument(
         "--n",
@@ -255,6 +261,7 @@ def _add_compare(sub) -> None:
         help=f"comma-separated mass variants: {', '.join(MASS_VARIANTS.names())}",
     )
     add_friction_argument(cp, "for every run of the matrix (default frictionless, or the case file's)")
+    add_solver_arguments(cp, "for every run of the matrix and the reference (override the case file's)")
     cb = cp.add_argument_group("benchmarks only (errors with a case file)")
     cb.add_argument("--levels", type=int, default=None, help="number of nested levels n0 2^k (default 3)")
     cb.add_argument("--n0", type=int, default=None, help="coarsest level (default 20 in 1D, 1 in 2D/3D)")

@@ -95,7 +95,7 @@ def mesh_counts(problem) -> tuple[int, int, int, int, int]:
 
 
 def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:
-    sch = {**scheme_options, **parse_assignments(args.scheme_option, "--scheme-option")}
+    sch = {**scheme_options, **parse_assignments(getattr(args, "scheme_option", None), "--scheme-option")}
     given = parse_assignments(args.solver_option, "--solver-option")
     sol = {**solver_options, **given}
     if args.backend is not None:

@@ -105,6 +105,7 @@ def collect(plan: Plan, outcomes: dict, reference: Reference | None) -> dict:
         "contact_norm": contact_norm,
         "length_scale": plan.length_scale,
         "friction": plan.friction,
+        "solver_options": dict(plan.solver_options),
         "pairs": pairs,
     }
     return rank_result(result)
@@ -134,6 +135,7 @@ def _pair_entry(plan: Plan, pair: Pair, runs: list[dict], finest: int, contact_n
         "mass_kept": (s.get("mass_effect") or {}).get("mass_ratio"),
         "untagged_penetration_max": s.get("untagged_penetration_max"),
         "changes_physics": bool((s.get("mass_effect") or {}).get("changes_physics")),
+        "inertia_change": (s.get("mass_effect") or {}).get("inertia_change"),
         "energy_final": s["energy_final"],
         "step_ms": 1e3 * s["step_seconds"],
         "step_over_bare": s["step_seconds"] / bare if bare else None,

@@ -114,9 +114,11 @@ def plan_benchmark(
     overrides: dict | None = None,
     reference: tuple | Reference | None = None,
     friction: str | None = None,
+    solver_options: dict | None = None,
 ) -> Plan:
     """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + seed
-    ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level).  Raises InputError."""
+    ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level); ``solver_options`` (the
+    backend among them) for every run.  Raises InputError."""
     b = get_benchmark(name)
     b.require_nested("signorini compare")
     params = b.params(overrides)
@@ -154,7 +156,8 @@ def plan_benchmark(
     problem = target.problem(ns[0])  # parameters, mesh and friction valid before anything runs
     check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
     return Plan(
-        target, list(pairs), ns, dts, T, ratio, hs, ref, (), _length_scale(problem),
+        target, list(pairs), ns, dts, T, ratio, hs, ref, tuple(sorted((solver_options or {}).items())),
+        _length_scale(problem),
         friction=problem.friction.describe(),
     )  # fmt: skip
 

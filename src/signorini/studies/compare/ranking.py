@@ -7,6 +7,7 @@ import math
 # (metric, relative tolerance, absolute tolerance, where the absolute one is x the length scale)
 RANK_KEYS = (
     ("violates_contact", 0.0, 0.0, False),
+    ("changes_body", 0.0, 0.0, False),
     ("error_u", 0.10, 0.0, False),
     ("energy_drift", 0.10, 1e-9, False),
     ("oscillation_index", 0.0, 0.05, False),
@@ -15,8 +16,15 @@ RANK_KEYS = (
 #: a penetration (contact or untagged boundary nodes) above this x the body's size violates
 #: the contact constraint: such a run ranks below every run that respects it
 CONTACT_TOLERANCE = 1e-6
+#: a mass variant that keeps less (or more) than 1 -+ this of the body's mass, or changes
+#: its inertia tensor by more than INERTIA_BOUND, models another body: its runs rank below
+#: every run within both bounds (the paper's bar, where ``seed`` removes 1 layer of 80
+#: cells, 1.25% of the mass, keeps its ranking; a whole-skin bracket where it keeps 32.8%
+#: does not)
+MASS_BOUND, INERTIA_BOUND = 0.05, 0.10
 RANK_LABELS = {
     "violates_contact": "penetration beyond the contact tolerance",
+    "changes_body": "mass variant that changes the body (mass > 5% or inertia > 10%)",
     "error_u": "error",
     "energy_drift": "energy drift",
     "oscillation_index": "oscillation index",
@@ -24,7 +32,10 @@ RANK_LABELS = {
 }
 RANKING_RULE = (
     "First, a run whose contact or untagged boundary nodes penetrate the obstacle by more than 1e-6 x the body's size "
-    "violates the constraint and ranks below every run that respects it. Then lexicographic with tolerance bands: "
+    "violates the constraint and ranks below every run that respects it. Next, a run whose mass variant changes the "
+    "body (keeps less than 95% or more than 105% of its mass, or changes its inertia tensor by more than 10%: "
+    "summary.json mass_effect) ranks below every run whose mass models the body. Then lexicographic with tolerance "
+    "bands: "
     "sort by the error of u in L2(0,T; H1) at the finest level; pairs within "
     "10% of the best error of their band are tied and ordered by the energy drift max|E - E0|/E0 (tied within 10% "
     "or both below 1e-9), then by the oscillation index of the first impact (tied within 0.05), then by the maximum "
@@ -36,12 +47,19 @@ RANKING_RULE = (
 )
 RANKING_RULE_CASE = (
     "Case file (one level, no error): the same rule without the error key, i.e. runs that penetrate the obstacle "
-    "by more than 1e-6 x the body's size (contact or untagged boundary nodes) last, then lexicographic with "
+    "by more than 1e-6 x the body's size (contact or untagged boundary nodes) last, then the runs whose mass changes "
+    "the body (mass outside 95-105% or inertia changed by more than 10%), then lexicographic with "
     "tolerance bands on "
     "the energy drift max|E - E0|/E0 (tied within 10% or both below 1e-9), the oscillation index of the first impact "
     "(tied within 0.05) and the maximum penetration (tied within 10% or both below 1e-12 x the body's size); ties "
     "share a rank, n/a sorts last, the time per step is shown but not ranked."
 )
+
+
+def changes_body(metrics: dict) -> bool:
+    """Whether a run's mass variant models another body (:data:`MASS_BOUND`, :data:`INERTIA_BOUND`)."""
+    kept, inertia = metrics.get("mass_kept"), metrics.get("inertia_change")
+    return bool((_finite(kept) and abs(kept - 1.0) > MASS_BOUND) or (_finite(inertia) and inertia > INERTIA_BOUND))
 
 
 def _finite(v) -> bool:
@@ -101,6 +119,7 @@ def rank_result(result: dict) -> dict:
         m = p["metrics"]
         worst = max(m.get("penetration_max") or 0.0, m.get("untagged_penetration_max") or 0.0)
         m["violates_contact"] = float(worst > CONTACT_TOLERANCE * result["length_scale"])
+        m["changes_body"] = float(changes_body(m))
     ranking = rank_pairs([p["metrics"] for p in avail], keys, result["length_scale"])
     order = []
     for r in ranking:

@@ -30,6 +30,9 @@ def setup_text(result: dict) -> str:
     friction = "" if law["law"] == "frictionless" else (
         f"  Contact law: {law['law']} ({', '.join(f'{k} {v:g}' for k, v in law.items() if k != 'law')}) in every run."
     )  # fmt: skip
+    given = result.get("solver_options") or {}
+    if given:
+        friction += "  Solver: " + ", ".join(f"{k} = {v}" for k, v in sorted(given.items())) + " in every run."
     if result["kind"] != "benchmark":
         return f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}.{friction}"
     levels = ", ".join(str(n) for n in result["levels"])
