@@ -115,3 +115,29 @@ def test_environment_failures_and_bugs_are_one_line(tmp_path, capsys, monkeypatc
     assert rc == code
     assert err.count("\n") == 1 and text in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "source, message",
+    [("import sys\nsys.exit(0)\n", "called sys.exit(0)"), ("import sys\nsys.exit('bye')\n", "called sys.exit('bye')"),
+     ("raise ValueError('boom')\n", "raised ValueError: boom"), ("x = 1 / 0\n", "raised ZeroDivisionError"),
+     ("import no_such_module_here\n", "cannot import it"), ("class X:\n    pass\n", "not a subclass")],
+)  # fmt: skip
+def test_a_scheme_plugin_that_fails_on_import_is_an_input_error_naming_scheme(tmp_path, capsys, source, message):
+    """The user's module exiting or raising while imported is their input's failure: exit 2,
+    one line naming --scheme and why, nothing written (not exit 0 with no result, nor an
+    internal error of signorini)."""
+    plugin = tmp_path / "plugin.py"
+    plugin.write_text(source)
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--scheme", f"{plugin}:X", "--out", str(tmp_path / "o")])
+    assert rc == 2
+    _one_line(err)
+    assert "--scheme" in err and message in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("scheme", ["", "  "])
+def test_an_empty_scheme_is_refused_not_the_default(tmp_path, capsys, scheme):
+    rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--scheme", scheme, "--out", str(tmp_path / "o")])
+    assert rc == 2 and "--scheme must not be empty" in err and "crank-nicolson" in err
+    assert not (tmp_path / "o").exists()

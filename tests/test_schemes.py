@@ -9,13 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from custom_scheme import MyTheta  # tests/ is on sys.path (pytest's rootdir-relative import)
 from distinct_schemes import REPEATS
 from signorini.dynamics.schemes import SCHEMES, make_scheme
 from signorini.dynamics.simulate import simulate
 from signorini.errors import InputError
 from signorini.io.cli import main
+from signorini.io.plugins import load_scheme
 from signorini.studies.benchmarks import get_benchmark
+
+#: the scheme of your own of the README and docs/schemes.md, imported from its file
+EXAMPLE = Path(__file__).parents[1] / "examples" / "my_schemes.py"
+MyTheta = load_scheme(f"{EXAMPLE}:MyTheta")
 
 
 def _bar2d(n=2):
@@ -58,7 +62,7 @@ def test_external_scheme_by_import_path_on_the_cli(tmp_path):
     cli = _signorini_cli(tmp_path)
     work = tmp_path / "work"
     work.mkdir()
-    (work / "my_schemes.py").write_text((Path(__file__).parent / "custom_scheme.py").read_text())
+    (work / "my_schemes.py").write_text(EXAMPLE.read_text())
     src = str(Path(signorini.__file__).parents[1])  # the package under test, not the cwd
     env = {**os.environ, "PYTHONPATH": src, "OMP_NUM_THREADS": "1"}
     args = ["run", "bar2d", "--n", "2", "--T", "0.6", "--quiet", "--scheme-option", "theta=0.6"]

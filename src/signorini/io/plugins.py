@@ -74,6 +74,11 @@ def load_scheme(name: str):
             f"--scheme {name!r}: cannot import it ({exc}); allowed: {', '.join(SCHEMES.names())}, "
             "module:Class (module importable from the working directory) or path/to/file.py:Class"
         ) from None
+    except SystemExit as exc:  # the user's module ended the process on import: its error, not a result
+        raise InputError(f"--scheme {name!r}: importing it called sys.exit({exc.code!r}); a scheme module must "
+                         "not exit when imported") from None  # fmt: skip
+    except Exception as exc:  # any other failure of the user's own code on import
+        raise InputError(f"--scheme {name!r}: importing it raised {type(exc).__name__}: {exc}") from None
     if not (isinstance(obj, type) and issubclass(obj, Scheme)):
         raise InputError(f"--scheme {name!r} is not a subclass of signorini.dynamics.schemes.Scheme")
     return obj

@@ -110,6 +110,11 @@ def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dic
 def _check_out_given(args: argparse.Namespace) -> None:
     if args.out is not None and not args.out.strip():
         raise InputError("--out must not be empty (omit it for the default)")
+    if getattr(args, "scheme", None) is not None and not args.scheme.strip():
+        from ..dynamics.schemes import SCHEMES
+
+        raise InputError(f"--scheme must not be empty; allowed: {', '.join(SCHEMES.names())}, module:Class or "
+                         "path/to/file.py:Class (omit it for the default)")  # fmt: skip
 
 
 def benchmark_spec(args: argparse.Namespace) -> RunSpec:

@@ -1,7 +1,10 @@
-"""A time scheme written outside the package, through the public contract only.
+"""A time scheme of your own, written outside the package through the public contract only.
 
-Used by tests/test_schemes.py (by class and by import path from the command line).
-It is the theta-method written from scratch, without reusing the package's Theta.
+    signorini run bar2d --scheme examples/my_schemes.py:MyTheta --out out/mine
+
+It is the theta-method written from scratch, without reusing the package's Theta
+(docs/schemes.md, "Writing a new scheme"); tests/test_schemes.py imports it and checks
+that it reproduces the registered ``theta``.
 """
 
 from signorini.dynamics.context import Operator
