@@ -32,8 +32,9 @@ def add_output_arguments(p, default: str | None, out_help: str, quiet_help: str)
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace an output directory that signorini wrote (it holds the marker .signorini and nothing "
-        "else); any other non-empty directory is refused",
+        help="replace an empty directory or a result that signorini wrote (it holds the marker .signorini and "
+        "only the files that marker lists); any other directory, the working directory and its parents are "
+        "refused (exit 2, nothing touched)",
     )
     p.add_argument("--quiet", action="store_true", help=quiet_help)
 

@@ -110,16 +110,29 @@ def is_result_directory(path: Path) -> bool:
     """True when ``path`` holds this tool's marker (a regular file) and nothing that the
     marker's manifest does not list: a file the user put into a result directory makes it
     theirs again (``--overwrite`` refuses it)."""
+    return not_a_result_directory(path) is None
+
+
+def not_a_result_directory(path: Path) -> str | None:
+    """Why ``--overwrite`` may not replace ``path`` (None: it may), in words for a message."""
     m = Path(path) / MARKER
     try:
+        if not m.exists() and not m.is_symlink():
+            return f"it has no {MARKER} marker"
         if not m.is_file() or m.is_symlink():
-            return False
+            return f"its {MARKER} is not a regular file"
         info = json.loads(m.read_text())
-        if info.get("written_by") != "signorini" or not isinstance(info.get("manifest"), list):
-            return False
-        return _files(Path(path)) - {MARKER} <= set(info["manifest"])
-    except (OSError, ValueError, AttributeError, TypeError):
-        return False
+        if info.get("written_by") != "signorini":
+            return f"its {MARKER} marker was not written by signorini"
+        if not isinstance(info.get("manifest"), list):
+            return f"its {MARKER} marker lists no files: a run was still writing it"
+        extra = sorted(_files(Path(path)) - {MARKER} - set(info["manifest"]))
+        if extra:
+            more = f" and {len(extra) - 1} more" if len(extra) > 1 else ""
+            return f"it holds {extra[0]!r}{more}, which signorini did not write there"
+        return None
+    except (OSError, ValueError, AttributeError, TypeError) as exc:
+        return f"its {MARKER} marker cannot be read ({exc})"
 
 
 def _is_empty_dir(path: Path) -> bool:
@@ -212,9 +225,10 @@ def resolve_output(out: Path | str, overwrite: bool, flag: str = "--out") -> Pat
         if not _is_empty_dir(real):
             if not overwrite:
                 raise InputError(f"output directory {shown} is not empty; pass --overwrite to replace it")
-            if not is_result_directory(real):
+            why = not_a_result_directory(real)
+            if why:
                 raise InputError(
-                    f"--overwrite refused: {shown} was not written by signorini (no {MARKER} marker); "
+                    f"--overwrite refused: {shown} is not a result of signorini ({why}); "
                     "remove it yourself or choose another --out"
                 )
     if not base.is_dir():
@@ -356,8 +370,8 @@ class ResultDirectory:
                     raise
             if not self.overwrite:
                 reason = "was written by another run meanwhile (no --overwrite)"
-            elif not is_result_directory(self.out):
-                reason = f"was replaced meanwhile by something signorini did not write (no {MARKER} marker)"
+            elif why := not_a_result_directory(self.out):
+                reason = f"was replaced meanwhile by something that is not a result of signorini ({why})"
             if reason:
                 break
             aside = Path(tempfile.mkdtemp(prefix=_OLD_PREFIX, dir=self.out.parent))

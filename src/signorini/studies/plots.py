@@ -378,7 +378,7 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
             rf"total contact force $-\sum_i \lambda_i$ ({units})",
             "total contact force (> 0: compression)",
         ),
-        "penetration": ("penetration", rf"penetration $\max_i \max(0, -g_i)$ ({units})", "penetration"),
+        "penetration": ("penetration", f"max penetration, max(0, -gap) ({units})", "penetration"),
     }[quantity]
     pairs = [p for p in result["pairs"] if p["label"] in series]
     styles = _pair_styles(result["pairs"])
