@@ -54,6 +54,13 @@ class Problem:
     friction : the contact law (:mod:`signorini.contact.friction`): None or ``"frictionless"``,
         ``"coulomb:0.3"``, ``"tresca:0.01"``, ``{"law": "coulomb", "coefficient": 0.3}`` or a
         :class:`~signorini.contact.friction.Friction` (normalized to one).
+    follow_mass : True (default): a uniform body force f is applied as M_used f / rho, so that
+        the body falls at g with every mass variant; False: the consistent load int f phi
+        whatever the mass (GetFEM's and most codes' convention; with a redistributed mass the
+        body is then not in free fall without stress) [``[loads] follow_mass``].
+    initial_acceleration : ``"equilibrium"`` (default): A0 solves M A0 = F(0) - S U0;
+        ``"zero"``: A0 = 0 (GetFEM's Newmark start), the level-0 imbalance entering the
+        energy identity as work [``[initial] acceleration``].
     """
 
     mesh: Mesh
@@ -68,6 +75,8 @@ class Problem:
     name: str = "problem"
     contact_where: Callable[[np.ndarray], np.ndarray] | None = None
     friction: Friction | str | dict | None = None
+    follow_mass: bool = True
+    initial_acceleration: str = "equilibrium"
 
     def __post_init__(self) -> None:
         from .validate import check_problem
@@ -217,6 +226,8 @@ def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tu
     rho = problem.material.rho
 
     def body(f):
+        if not problem.follow_mass:  # the consistent load int f phi, whatever the mass
+            return body_load(mesh, f)
         return red.body_load(body_load(mesh, f), _uniform(f, mesh), rho)
 
     sources = [(body, problem.body_force)] if problem.body_force is not None else []

@@ -123,7 +123,10 @@ def initial_state(ctx: Context) -> State:
     else:
         smax = float(max(ctx.S.data.max(), -ctx.S.data.min())) if ctx.S.nnz else 0.0  # |S|_max, no copy of S
     scale = np.abs(F).max(initial=0.0) + smax * np.abs(U).max(initial=0.0)
-    if idx.size and np.abs(r[idx]).max(initial=0.0) > 1e-13 * scale:
+    zero = disc.problem.initial_acceleration == "zero"
+    if zero:  # A0 = 0 as given (GetFEM's start): the imbalance of the free dofs is R0 below
+        ctx.initial_acceleration = "zero (initial_acceleration = 'zero')"
+    elif idx.size and np.abs(r[idx]).max(initial=0.0) > 1e-13 * scale:
         Mrr = ctx.M.principal(idx) if by_rows else ctx.M[idx][:, idx].tocsr()
         d = Mrr.diagonal()
         pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
@@ -145,6 +148,8 @@ def initial_state(ctx: Context) -> State:
     R0[ml] = -r[ml]
     if ctx.rotated_kernel and idx.size:  # out of equilibrium along the massless normals
         R0[idx] = ctx.M[idx] @ A - r[idx]
+    if zero:
+        R0[idx] = -r[idx]
     if np.any(R0 != 0.0):
         state.extra["R0"] = R0
     return state
@@ -230,6 +235,13 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "total_memory_bytes": memory_info()[0],
         "total_memory_source": memory_info()[1],
         "initial_acceleration": getattr(ctx, "initial_acceleration", "none"),
+        "conventions": {
+            "follow_mass": bool(disc.problem.follow_mass),
+            "body_force": "M_used f / rho (follows the mass variant)"
+            if disc.problem.follow_mass
+            else "consistent int f phi (whatever the mass)",
+            "initial_acceleration": disc.problem.initial_acceleration,
+        },
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
         **timings,
         **rank_contact_dofs(main),

@@ -74,6 +74,10 @@ def check_dirichlet(conditions: object, dim: int) -> None:
             )
 
 
+#: how the acceleration at t = 0 is set (Problem.initial_acceleration, [initial] acceleration)
+INITIAL_ACCELERATIONS = ("equilibrium", "zero")
+
+
 def check_problem(problem) -> None:
     """Raise :class:`InputError` naming the first field of ``problem`` that cannot be used."""
     if not isinstance(problem.mesh, Mesh):
@@ -99,5 +103,10 @@ def check_problem(problem) -> None:
         if not isinstance(k, str):
             raise InputError(f"tractions: the key {_short(k)} is not a tag name")
         vector_value(f"tractions[{k!r}]", v, dim)
+    if not isinstance(problem.follow_mass, (bool, np.bool_)):
+        raise InputError(f"follow_mass must be True or False, got {_short(problem.follow_mass)}")
+    if problem.initial_acceleration not in INITIAL_ACCELERATIONS:
+        raise InputError(f"initial_acceleration must be one of {', '.join(INITIAL_ACCELERATIONS)}, "
+                         f"got {_short(problem.initial_acceleration)}")  # fmt: skip
     if problem.contact_where is not None and not callable(problem.contact_where):
         raise InputError(f"contact_where must be a function of the points or None, got {_short(problem.contact_where)}")

@@ -76,6 +76,7 @@ from ..contact.obstacles import OBSTACLES, RigidObstacle
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
+from ..dynamics.validate import INITIAL_ACCELERATIONS
 from ..errors import InputError, check_choice, check_positive
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
@@ -404,14 +405,21 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     for key, f in (("initial.displacement", u0), ("initial.velocity", v0)):
         if getattr(f, "time_dependent", False):
             raise InputError(f"'{key}' cannot depend on t (it is the state at t = 0)")
+    acceleration = init.get("acceleration", "equilibrium")
+    if acceleration not in INITIAL_ACCELERATIONS:
+        raise InputError(f"'initial.acceleration' must be one of {', '.join(map(repr, INITIAL_ACCELERATIONS))}, "
+                         f"got {acceleration!r}")  # fmt: skip
     loads = data.get("loads", {})
     _keys("loads", loads, SECTIONS["loads"])
     body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
+    follow_mass = loads.get("follow_mass", True)
+    if not isinstance(follow_mass, bool):
+        raise InputError(f"'loads.follow_mass' must be true or false, got {follow_mass!r}")
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every = _output(data.get("output", {}))
     problem = Problem(
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
-        friction=friction,
+        friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)

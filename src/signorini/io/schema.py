@@ -137,12 +137,17 @@ SECTIONS: tuple[Section, ...] = (
                 _ex("[0.2]", "[0.0, 0.2]", "[0.0, 0.0, 0.2]")),
             Key("velocity", f"array of {EXPR}s", "zeros", "length / time", "v0",
                 _ex('["-0.5"]', "[0.0, -0.5]", "[0.0, 0.0, -0.5]")),
+            Key("acceleration", '"equilibrium" or "zero"', "equilibrium", "",
+                "A0: from M A0 = F(0) - S U0, or zero (GetFEM's Newmark start); summary.json conventions"),
         ),
     ),
     Section(
         "loads",
         "Volume loads.",
-        (Key("body_force", f"array of {EXPR}s", "none", "force / length^d", "may depend on x, y, z, t"),),
+        (Key("body_force", f"array of {EXPR}s", "none", "force / length^d", "may depend on x, y, z, t"),
+         Key("follow_mass", "true or false", "true", "",
+             "true: a uniform body force is applied as M_used f / rho (the body falls at g with every mass); "
+             "false: the consistent load int f phi whatever the mass (GetFEM's convention)")),
     ),
     Section(
         "time",
