@@ -141,3 +141,70 @@ def test_an_empty_scheme_is_refused_not_the_default(tmp_path, capsys, scheme):
     rc, err = _run(tmp_path, capsys, ["run", "bar1d", "--scheme", scheme, "--out", str(tmp_path / "o")])
     assert rc == 2 and "--scheme must not be empty" in err and "crank-nicolson" in err
     assert not (tmp_path / "o").exists()
+
+
+def _case_with(tmp_path, **replace) -> str:
+    text = BAR1D
+    for old, new in replace.items():
+        text = text.replace(old, new)
+    path = tmp_path / "case.toml"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("where", ["x", "x + 1", "2", "not x", "x < 1 and y"])
+def test_where_must_be_a_condition(tmp_path, capsys, where):
+    """A number is not taken as ``!= 0``: ``where`` is a comparison or and/or/not of them."""
+    case = _case_with(tmp_path, **{'tag = "xmin"\n': f'tag = "xmin"\nwhere = "{where}"\n'})
+    rc, err = _run(tmp_path, capsys, ["run", case, "--out", str(tmp_path / "o")])
+    assert rc == 2 and "'contact.where' must be a condition" in err
+    _one_line(err)
+    assert not (tmp_path / "o").exists()
+
+
+def _mesh_case(tmp_path, mesh_name: str) -> str:
+    gen = '[mesh]\ngenerator = "interval"\ncells = [8]\nsize = [1.0]\n'
+    return _case_with(tmp_path, **{gen: f'[mesh]\nfile = "{mesh_name}"\n'})
+
+
+@pytest.mark.parametrize(
+    "kind, message",
+    [("empty", "the file is empty"), ("directory", "is a directory, not a mesh file"),
+     ("fifo", "is a named pipe (FIFO)"), ("missing", "does not exist"),
+     ("huge-header", "a corrupt header or a truncated file"), ("huge-header-22", "a corrupt header")],
+)  # fmt: skip
+def test_a_mesh_file_that_is_not_one_says_what_it_is(tmp_path, capsys, kind, message):
+    """Exit 2 and the real reason: not 'does not exist' for a directory or a FIFO, not 'out of
+    memory' for a header that declares 1e12 nodes in a 93-byte file."""
+    import os
+
+    m = tmp_path / "part.msh"
+    if kind == "empty":
+        m.write_bytes(b"")
+    elif kind == "directory":
+        m.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(m)
+    elif kind == "huge-header":
+        m.write_text(
+            "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 999999999999 1 999999999999\n2 1 0 999999999999\n1\n"
+        )
+    elif kind == "huge-header-22":
+        m.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n99999999999999\n1 0 0 0\n")
+    rc, err = _run(tmp_path, capsys, ["run", _mesh_case(tmp_path, "part.msh"), "--out", str(tmp_path / "o")])
+    assert rc == 2 and message in err, err
+    _one_line(err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_simulate_refuses_what_is_not_a_problem_and_a_float32_step():
+    import numpy as np
+
+    from signorini.dynamics.simulate import simulate
+    from signorini.errors import InputError
+    from signorini.studies.benchmarks import get_benchmark
+
+    with pytest.raises(InputError, match="must be a signorini Problem or Discretization, got NoneType"):
+        simulate(None, "cn", 0.1, 1.0)
+    with pytest.raises(InputError, match=r"got float32 0\.1, which is 0\.10000000149011612 in double"):
+        simulate(get_benchmark("bar1d").problem(10), "cn", np.float32(0.1), 1.0)

@@ -55,3 +55,23 @@ class NonFiniteError(ConvergenceError):
 
     A run stops with ``status = "failed"``; the command line exits with code 3.
     """
+
+
+def not_a_file(p, what: str) -> str:
+    """Why path ``p`` is not a regular file, in words (it does not exist, or what it is instead);
+    ``what`` names the file expected, e.g. "a mesh file"."""
+    import stat
+    from pathlib import Path
+
+    p = Path(p)
+    try:
+        mode = p.stat().st_mode
+    except FileNotFoundError:
+        return "does not exist" if not p.is_symlink() else "is a symbolic link to a file that does not exist"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if stat.S_ISDIR(mode):
+        return f"is a directory, not {what}"
+    if stat.S_ISFIFO(mode):
+        return f"is a named pipe (FIFO), not {what}: give a regular file"
+    return f"is not a regular file (a device or a socket): give {what}"

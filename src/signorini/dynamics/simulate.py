@@ -58,6 +58,11 @@ def number_of_steps(dt: float, T: float) -> int:
     Otherwise an :class:`InputError` names both and the two nearest valid time steps
     T/floor(T/dt) and T/ceil(T/dt) (a run never silently ends after T).
     """
+    for name, v in (("dt", dt), ("T", T)):
+        if isinstance(v, np.floating) and np.finfo(v).bits < 64:  # its decimal form is not its value
+            short = np.format_float_positional(v)
+            raise InputError(f"{name} must be a double (a Python float or numpy.float64), got {type(v).__name__} "
+                             f"{short}, which is {float(v)!r} in double; pass the intended value, e.g. {short}")  # fmt: skip
     dt = check_positive("dt", dt)
     T = check_positive("T", T)
     if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
@@ -388,6 +393,9 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
+    if not isinstance(problem, (Problem, Discretization)):
+        raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
+                         f"{type(problem).__name__}")  # fmt: skip
     number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
     sch = make_scheme(scheme, scheme_options)
     opts = run_options(snapshot_every, backend, memory_budget, solver_options)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import MeshError, not_a_file
 from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
 
 
@@ -350,11 +350,21 @@ def read_mesh(path: str | Path) -> Mesh:
 
     p = Path(path)
     if not p.is_file():
-        raise MeshError(f"mesh file {str(p)!r} does not exist")
+        raise MeshError(f"mesh file {str(p)!r} {not_a_file(p, 'a mesh file')}")
+    if p.stat().st_size == 0:
+        raise MeshError(f"cannot read mesh file {str(p)!r}: the file is empty (0 bytes)")
     try:  # meshio raises many types, prints to stdout and may call sys.exit on unknown formats
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             m = meshio.read(p)
-    except MemoryError:
+    except MemoryError as exc:
+        # an array far larger than the file can fill: a header that declares counts the
+        # file does not hold (corrupt), not a mesh too large for the machine
+        wanted, size = getattr(exc, "_total_size", None), p.stat().st_size
+        if wanted is not None and wanted > CORRUPT_RATIO * max(size, 1):
+            raise MeshError(
+                f"cannot read mesh file {str(p)!r}: it declares {wanted / 2**30:.3g} GiB of data in a file of "
+                f"{size:,} bytes (a corrupt header or a truncated file)"
+            ) from None
         raise
     except (Exception, SystemExit) as exc:
         reason = str(exc) if not isinstance(exc, SystemExit) else "not a mesh in a format meshio reads"
@@ -403,6 +413,11 @@ def read_mesh(path: str | Path) -> Mesh:
     mesh.check_cells()
     _check_facets(p.name, mesh)
     return mesh
+
+
+#: a mesh file whose arrays would need more than this times its size in memory is corrupt (an
+#: ASCII Gmsh node takes ~30 bytes for 24 in memory; a binary one 8 bytes per value)
+CORRUPT_RATIO = 64
 
 
 def _check_indices(name: str, what: str, idx: np.ndarray, n_points: int) -> None:

@@ -77,7 +77,7 @@ from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
 from ..dynamics.validate import INITIAL_ACCELERATIONS
-from ..errors import InputError, check_choice, check_positive
+from ..errors import InputError, check_choice, check_positive, not_a_file
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
@@ -160,6 +160,9 @@ def _where(table: dict):
     if not isinstance(text, str):
         raise InputError(f"'contact.where' must be an expression string such as \"z < 0.2\", got {_short(text)}")
     ex = Expression("contact.where", text, conditions=True)
+    if not ex.is_condition:  # a number would be taken as "!= 0": say what is expected instead
+        raise InputError(f"'contact.where' must be a condition, a comparison such as \"z < 0.2\" (< <= > >= == !=, "
+                         f"combined with and, or, not), got {text!r}")  # fmt: skip
     if "t" in ex.variables:
         raise InputError("'contact.where' may use x, y and z only (the contact nodes do not change in time)")
     return lambda p: check_finite("contact.where", text, ex(p), p, 0.0) != 0
@@ -347,7 +350,7 @@ def _limits(lim: Any) -> dict:
 
 def _read(path: Path) -> dict:
     if not path.is_file():
-        raise InputError(f"case file {str(path)!r} does not exist")
+        raise InputError(f"case file {str(path)!r} {not_a_file(path, 'a case file')}")
     try:
         data = tomllib.loads(path.read_text())
     except OSError as exc:

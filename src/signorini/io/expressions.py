@@ -186,6 +186,17 @@ def _compile(
     raise bad(f"'{type(node).__name__}'")
 
 
+def _is_condition(node: ast.AST) -> bool:
+    """A comparison, ``not`` of a condition, or and/or of conditions (a truth value, not a number)."""
+    if isinstance(node, ast.Compare):
+        return True
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+        return _is_condition(node.operand)
+    if isinstance(node, ast.BoolOp):
+        return all(_is_condition(v) for v in node.values)
+    return False
+
+
 class Expression:
     """A parsed expression; ``variables`` lists the names of x, y, z, t it uses."""
 
@@ -201,6 +212,8 @@ class Expression:
         used: set[str] = set()
         self._f = _compile(tree, key, text, used, conditions)
         self.variables = used
+        #: whether the expression is a condition (a comparison, or and/or/not of them)
+        self.is_condition = _is_condition(tree.body)
 
     @property
     def time_dependent(self) -> bool:
