@@ -62,7 +62,8 @@ def number_of_steps(dt: float, T: float) -> int:
         if isinstance(v, np.floating) and np.finfo(v).bits < 64:  # its decimal form is not its value
             short = np.format_float_positional(v)
             raise InputError(f"{name} must be a double (a Python float or numpy.float64), got {type(v).__name__} "
-                             f"{short}, which is {float(v)!r} in double; pass the intended value, e.g. {short}")  # fmt: skip
+                             f"{short}, which is {float(v)!r} in double; pass the intended value, "
+                             f"e.g. {short}")  # fmt: skip
     dt = check_positive("dt", dt)
     T = check_positive("T", T)
     if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
