@@ -18,11 +18,32 @@ first argument (a JSON text or the path of a JSON file) or on stdin (no argument
                 ``contact`` (a physical name or a list of them), ``params`` rho, lam, mu,
                 velocity: a free body (no Dirichlet condition), u0 = 0, v0 = -velocity e_d
                 (the Hertz disc/ball of ``hertz2d``/``hertz3d``)
+    block       or ``{"counts": [nx, ny(, nz)], "sizes": [lx, ly(, lz)]}``: the grid of
+                ``rectangle``/``box`` (Q1), free, contact on the face x_d = 0 (the
+                ``incline2d``/``incline3d`` block), ``params`` rho, lam, mu
     mass        ``standard`` (consistent) or ``seed`` (the seed paper's M_mod, GetFEM's
                 ``singular_mass=1``: the mass brick only on the elements that touch no
                 contact node, so the contact nodes are massless in every component)
     scheme      ``cn`` (Newmark 1/4, 1/2) or ``be`` (theta-method, theta = 1)
     dt, T       time step and final time (round(T/dt) steps)
+
+optional in every case:
+
+    u0, v0      constant initial displacement and velocity vectors (the defaults above)
+    plane       the obstacle is {x_d <= plane} (default 0; signed distance x_d - plane)
+    gravity     g (a vector): the body force rho g, as GetFEM's source term brick, i.e. the
+                consistent load int rho g . phi over the whole body whatever the mass
+                variant (signorini's ``follow_mass=False``)
+    friction    ``{"law": "coulomb", "coefficient": mu, "slip": "increment"}`` (default
+                frictionless).  ``slip`` says which tangential displacement the nodal
+                Alart-Curnier law acts on: ``increment`` (default) is the slip of the step,
+                B_T (U^{n+1} - U^n), signorini's law (docs/friction.md): GetFEM's basic
+                contact brick given the rigid-obstacle brick's own B_N, B_T, gap and alpha,
+                with its dynamic term gamma = -1, wt = U^n (the brick's augmented tangential
+                multiplier is lambda_t - r alpha B_T (u + gamma wt)); ``total`` is GetFEM's
+                frictional rigid-obstacle brick as it is, whose law acts on B_T u, the
+                displacement since t = 0 (a stick means u_T = 0: a quasi-static law)
+    solver      overrides of the spec's ``solver`` for this case
 
 and ``solver`` may set ``max_res`` (Newton's residual target, default 1e-13), ``max_iter``
 (50), ``r`` (the augmentation parameter, 1) and ``aug_version`` (1: non-symmetric
@@ -34,9 +55,10 @@ rectangular cells), nodes numbered x fastest, then y (, then z), top face clampe
 u = gap e_d (Dirichlet with simplification), u0 = gap e_d, v0 = -velocity e_d on the
 free dofs and 0 on the clamped ones; for a mesh file P1 simplices (FEM_PK, a rule exact
 for degree 2); plane strain in 2D (GetFEM's isotropic linearized elasticity brick with
-the Lame coefficients in 2D); A0 = 0 (S u0 = 0, no load).  Contact: the nodes of the
-contact faces against the rigid obstacle x_d >= 0 (signed distance ``y`` / ``z``), i.e.
-u_d >= -x_d, with GetFEM's nodal contact brick with a rigid obstacle (Alart-Curnier
+the Lame coefficients in 2D); A0 = 0 (GetFEM's start, signorini's
+``initial_acceleration="zero"``; for the bars S u0 = 0 and there is no load).  Contact: the nodes of the
+contact faces against the rigid obstacle x_d >= plane (signed distance ``y`` / ``z``), i.e.
+u_d >= plane - x_d, with GetFEM's nodal contact brick with a rigid obstacle (Alart-Curnier
 augmented Lagrangian, solved by the semismooth Newton method of ``Model.solve`` at every
 step).  Time integration: GetFEM's own schemes on ``Dot2_u`` (``add_Newmark_scheme``,
 ``add_theta_method_for_second_order``: the spec's sections 6.1 and 6.2), shifted by
@@ -49,12 +71,22 @@ list), then one line per time level n = 0..N::
 
     {"case": i, "step": n, "t": t_n, "lambda_sum": sum_i lambda_i, "lambda": [lambda_i],
      "normal_displacement": [u_d(a_i)], "energy": E_n, "kinetic": ..., "elastic": ...,
+     "load_potential": -U.F, "lambda_t": [[lambda_t,ik]], "tangential_force": [[..d]],
+     "contact_force": [..d], "slip": [[..d]], "displacement": [[u(a_i)]],
      "newton_iterations": k, "converged": true}
 
 lambda_i are GetFEM's nodal contact forces (<= 0 in compression, signorini's sign),
 u_d(a_i) the d-th displacement of contact node i (signorini's gap g_i - nu_i.u_i when the
-node starts on the plane, g_i = 0), E = 1/2 V.M V + 1/2 U.S U with GetFEM's matrices (M of
-the mass variant) and V = Dot_u of GetFEM's scheme.
+node starts on the plane, g_i = 0), E = 1/2 V.M V + 1/2 U.S U - U.F with GetFEM's matrices
+(M of the mass variant), F the source term's vector and V = Dot_u of GetFEM's scheme.  The
+header also has ``normals`` un_i = -e_d and ``tangents`` t_ik (the brick's frames: t = e_1
+(, e_2), Gram-Schmidt on the coordinate axes); ``lambda_t`` are the tangential multipliers in
+them, ``tangential_force`` = sum_k lambda_t,ik t_ik and ``contact_force`` = sum_i (lambda_i
+un_i + tangential_force_i) are global components (the force on the body), and ``slip`` is
+the tangential part of the contact node's U^n - U^{n-1} (0 at n = 0).  GetFEM's Newton
+stops when min(|residual| / |external load|, |dU|_1 / |U|_1) <= max_res: on a sliding block
+|U|_1 is mostly the rigid motion, and with an impact the contact forces are far larger than
+the load, so 1e-13 may sit below the round-off floor (then ``converged`` is false).
 """
 
 from __future__ import annotations
@@ -73,15 +105,16 @@ CLAMP, CONTACT, MASS_REGION = 101, 102, 103
 
 
 # ----------------------------------------------------------------------------- geometry
-def bar_mesh(dim: int, n: int, width: float, length: float) -> tuple[gf.Mesh, np.ndarray]:
-    """The bar of ``signorini.fem.mesh.rectangle``/``box``, with signorini's node numbering.
+def grid_mesh(counts: list[int], sizes: list[float]) -> tuple[gf.Mesh, np.ndarray]:
+    """The grid of ``signorini.fem.mesh.rectangle``/``box`` ([0, sizes] with ``counts`` Q1
+    cells), with signorini's node numbering; regions CLAMP (the face x_d = max) and
+    CONTACT (the face x_d = 0).
 
     The points are added first in signorini's order (x fastest), so GetFEM's point ids
     are signorini's node indices; the cells are then given by coordinates in GetFEM's QK
     vertex order (x fastest in the reference cell), which GetFEM merges with those points.
     """
-    counts = [n] * (dim - 1) + [10 * n]
-    sizes = [width] * (dim - 1) + [length]
+    dim = len(counts)
     axes = [np.linspace(0.0, s, c + 1) for s, c in zip(sizes, counts, strict=True)]
     grids = np.meshgrid(*axes[::-1], indexing="ij")  # (z,) y, x
     pts = np.column_stack([g.ravel() for g in grids[::-1]])  # x fastest
@@ -101,6 +134,11 @@ def bar_mesh(dim: int, n: int, width: float, length: float) -> tuple[gf.Mesh, np
     m.set_region(CLAMP, m.outer_faces_with_direction(e_d, 0.01))
     m.set_region(CONTACT, m.outer_faces_with_direction(-e_d, 0.01))
     return m, pts
+
+
+def bar_mesh(dim: int, n: int, width: float, length: float) -> tuple[gf.Mesh, np.ndarray]:
+    """The seed paper's bar: n x 10 n (x n) Q1 cells on [0, w] x [0, L] (x [0, w])."""
+    return grid_mesh([n] * (dim - 1) + [10 * n], [width] * (dim - 1) + [length])
 
 
 def gmsh_nodes(path: str) -> np.ndarray:
@@ -161,22 +199,66 @@ def dof_nodes(mf: gf.MeshFem, pts: np.ndarray, dim: int) -> tuple[np.ndarray, np
 
 
 # ----------------------------------------------------------------------------- one run
+def plane_frames(dim: int, nc: int) -> tuple[np.ndarray, np.ndarray]:
+    """(un, ut) of GetFEM's rigid-obstacle brick for the obstacle {x_d <= p}: the unit normal
+    un = -grad(x_d - p) = -e_d of every contact node (nc, d) and its tangents ut (nc, d-1, d)
+    by the brick's Gram-Schmidt on e_1, e_2, ... (``orthonormal_basis_to_unit_vec`` of
+    getfem_contact_and_friction_nodal.cc; e_1 (, e_2) here)."""
+    un = -np.eye(dim)[-1]
+    ut = []
+    for k in range(dim):
+        if len(ut) == dim - 1:
+            break
+        v = np.eye(dim)[k] - (un @ np.eye(dim)[k]) * un
+        for w in ut:
+            v = v - (w @ v) * w
+        if np.linalg.norm(v) < 1e-3:
+            continue
+        ut.append(v / np.linalg.norm(v))
+    return np.tile(un, (nc, 1)), np.tile(np.array(ut), (nc, 1, 1))
+
+
+def spmat(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]) -> gf.Spmat:
+    """A GetFEM sparse matrix (CSC) from triplets."""
+    out = gf.Spmat("empty", *shape)
+    for r, c, v in zip(rows, cols, vals, strict=True):
+        out.add(int(r), int(c), float(v))
+    out.to_csc()
+    return out
+
+
 def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     """GetFEM's run of one case: (header, one row per time level)."""
+    solver = {**solver, **case.get("solver", {})}
     if "benchmark" in case:
         dim = {"bar2d": 2, "bar3d": 3}[case["benchmark"]]
         p = {**BAR_DEFAULTS, **case.get("params", {})}
         m, pts = bar_mesh(dim, int(case["n"]), p["width"], p["length"])
         fem, integ = f"FEM_QK({dim},1)", f"IM_GAUSS_PARALLELEPIPED({dim},3)"
-        u0, clamped = p["gap"], True
+        u0, v0, clamped = p["gap"] * np.eye(dim)[-1], -p["velocity"] * np.eye(dim)[-1], True
+    elif "block" in case:
+        p = dict(case["params"])
+        m, pts = grid_mesh(list(case["block"]["counts"]), list(case["block"]["sizes"]))
+        dim = m.dim()
+        fem, integ = f"FEM_QK({dim},1)", f"IM_GAUSS_PARALLELEPIPED({dim},3)"
+        u0, v0, clamped = np.zeros(dim), np.zeros(dim), False
     else:
         p = dict(case["params"])
         m, pts = file_mesh(case["mesh"], case["contact"])
         dim = m.dim()
         fem, integ = f"FEM_PK({dim},1)", f"IM_{'TRIANGLE' if dim == 2 else 'TETRAHEDRON'}(2)"
-        u0, clamped = 0.0, False
+        u0, v0, clamped = np.zeros(dim), -p["velocity"] * np.eye(dim)[-1], False
+    u0 = np.asarray(case.get("u0", u0), dtype=float)
+    v0 = np.asarray(case.get("v0", v0), dtype=float)
+    plane = float(case.get("plane", 0.0))
+    gravity = case.get("gravity")
+    friction = dict(case.get("friction") or {"law": "frictionless"})
+    law, slip_law = friction["law"], friction.get("slip", "increment")
+    if law not in ("frictionless", "coulomb"):
+        raise ValueError(f"unknown friction law {law!r}; allowed: frictionless, coulomb")
+    if slip_law not in ("increment", "total"):
+        raise ValueError(f"unknown slip {slip_law!r}; allowed: increment, total")
     dt, steps = float(case["dt"]), round(float(case["T"]) / float(case["dt"]))
-    e_d = np.eye(dim)[-1]
 
     mf = gf.MeshFem(m, dim)
     mf.set_fem(gf.Fem(fem))
@@ -213,8 +295,19 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
         raise ValueError(f"unknown mass {mass!r}; allowed: standard, seed")
     M.scale(p["rho"])
 
+    F = np.zeros(ndof)
+    if gravity is not None:  # the consistent load int rho g . phi over the whole body, whatever the mass
+        md.add_initialized_data("body_force", p["rho"] * np.asarray(gravity, dtype=float))
+        md.add_source_term_brick(mim, "u", "body_force")
+        md_f = gf.Model("real")
+        md_f.add_fem_variable("u", mf)
+        md_f.add_initialized_data("body_force", p["rho"] * np.asarray(gravity, dtype=float))
+        md_f.add_source_term_brick(mim, "u", "body_force")
+        md_f.assembly("build_rhs")
+        F = np.asarray(md_f.rhs()).copy()
+
     if clamped:
-        md.add_initialized_data("clamp", p["gap"] * e_d)
+        md.add_initialized_data("clamp", p["gap"] * np.eye(dim)[-1])
         md.add_Dirichlet_condition_with_simplification("u", CLAMP, "clamp")
 
     contact_dofs = np.sort(np.asarray(mf.basic_dof_on_region(CONTACT)).ravel())
@@ -224,12 +317,39 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     mult_order = np.argsort(mult_nodes)
     if contact_dofs.size != nc * dim or not np.array_equal(mult_nodes[mult_order], contact_nodes):
         raise RuntimeError("unexpected dof layout on the contact boundary")
+    if not np.all(np.diff(contact_dofs.reshape(nc, dim), axis=1) == 1):
+        raise RuntimeError("the components of a contact node are not consecutive dofs")
+    un, ut = plane_frames(dim, nc)  # in the brick's (dof) order
     md.add_variable("lambda_n", nc)
     md.add_initialized_data("r", [solver["r"]])
-    obstacle = "xyz"[dim - 1]  # signed distance to the obstacle {x_d <= 0}
-    md.add_nodal_contact_with_rigid_obstacle_brick(
-        mim, "u", "lambda_n", "r", CONTACT, obstacle, int(solver["aug_version"])
-    )
+    obstacle = "xyz"[dim - 1] + (f" - ({plane!r})" if plane else "")  # signed distance to {x_d <= plane}
+    aug = int(solver["aug_version"])
+    if law == "coulomb":
+        md.add_variable("lambda_t", nc * (dim - 1))
+        md.add_initialized_data("friction_coeff", [float(friction["coefficient"])])
+    if law == "frictionless":
+        md.add_nodal_contact_with_rigid_obstacle_brick(mim, "u", "lambda_n", "r", CONTACT, obstacle, aug)
+    elif slip_law == "total":  # GetFEM's own frictional brick: Alart-Curnier on B_T u (the total displacement)
+        md.add_nodal_contact_with_rigid_obstacle_brick(
+            mim, "u", "lambda_n", "lambda_t", "r", "friction_coeff", CONTACT, obstacle, aug
+        )
+    else:  # the same brick's B_N, B_T, gap and alpha, given to the basic brick with its dynamic term
+        first = contact_dofs[::dim]
+        cols = first[:, None] + np.arange(dim)[None, :]
+        BN = spmat(np.repeat(np.arange(nc), dim), cols.ravel(), un.ravel(), (nc, ndof))
+        rows_t = np.repeat(np.arange(nc * (dim - 1)), dim)
+        cols_t = np.repeat(cols, dim - 1, axis=0).ravel()
+        BT = spmat(rows_t, cols_t, ut.reshape(-1), (nc * (dim - 1), ndof))
+        boundary_mass = gf.asm_mass_matrix(mim, mf, mf, CONTACT)
+        extent = float(np.ptp(pts, axis=0).max())
+        alpha = np.array([boundary_mass[int(i), int(i)] for i in first]) / extent  # the brick's alpha
+        md.add_initialized_data("gap", pts[node[first], dim - 1] - plane)
+        md.add_initialized_data("alpha", alpha)
+        md.add_initialized_data("gamma", [-1.0])  # B_T (u + gamma wt): the slip of the step
+        md.add_initialized_data("wt", np.zeros(ndof))
+        md.add_basic_contact_brick(
+            "u", "lambda_n", "lambda_t", "r", BN, BT, "friction_coeff", "gap", "alpha", aug, "gamma", "wt"
+        )
 
     # stiffness alone (for the energy), from the same brick
     md_s = gf.Model("real")
@@ -240,53 +360,75 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     md_s.assembly("build_matrix")
     S = md_s.tangent_matrix()
 
-    U0 = np.zeros(ndof)
-    U0[comp == dim - 1] = u0
-    V0 = np.zeros(ndof)
-    V0[comp == dim - 1] = -p["velocity"]
+    U0 = u0[comp].copy()
+    V0 = v0[comp].copy()
     if clamped:  # the clamped dofs are at rest
         V0[np.asarray(mf.basic_dof_on_region(CLAMP)).ravel()] = 0.0
     md.set_variable("u", U0)
     md.set_variable("Previous_u", U0)
     md.set_variable("Previous_Dot_u", V0)
-    md.set_variable("Previous_Dot2_u", np.zeros(ndof))  # M A0 = -S U0 = 0
+    md.set_variable("Previous_Dot2_u", np.zeros(ndof))  # A0 = 0: GetFEM's start
+    if law == "coulomb" and slip_law == "increment":
+        md.set_variable("wt", U0)
 
-    normal_dof = np.empty(len(pts), dtype=np.int64)
-    normal_dof[node[comp == dim - 1]] = np.flatnonzero(comp == dim - 1)
-    cdofs = normal_dof[contact_nodes]
+    dofs_of = np.empty((len(pts), dim), dtype=np.int64)
+    dofs_of[node, comp] = np.arange(ndof)
+    cd = dofs_of[contact_nodes]  # (nc, d) the contact nodes' dofs, signorini's order
+    un, ut = un[mult_order], ut[mult_order]  # frames in signorini's order (all equal here)
     header = {
         "contact_points": pts[contact_nodes].tolist(),
         "contact_nodes": contact_nodes.tolist(),
+        "normals": un.tolist(),
+        "tangents": ut.tolist(),
         "dofs": int(ndof),
         "getfem": getfem_version(),
         "solver": solver,
     }
 
-    def level(step: int, U: np.ndarray, V: np.ndarray, lam: np.ndarray, its: int, conv: bool) -> dict:
+    def level(step: int, U: np.ndarray, U_prev: np.ndarray, V: np.ndarray, its: int, conv: bool) -> dict:
         kinetic = 0.5 * float(V @ M.mult(V))
         elastic = 0.5 * float(U @ S.mult(U))
+        potential = -float(U @ F)
+        lam = np.asarray(md.variable("lambda_n"))[mult_order] if step else np.zeros(nc)
+        if law == "coulomb" and step:
+            lam_t = np.asarray(md.variable("lambda_t")).reshape(nc, dim - 1)[mult_order]
+        else:
+            lam_t = np.zeros((nc, dim - 1))
+        tangential = np.einsum("ik,ikd->id", lam_t, ut)  # global components, per node
+        nodal = lam[:, None] * un + tangential
+        dU = U[cd] - U_prev[cd]
+        slip = np.einsum("ikd,ik->id", ut, np.einsum("ikd,id->ik", ut, dU))  # tangential part of the step's dU
         return {
             "step": step,
             "t": step * dt,
             "lambda_sum": float(lam.sum()),
             "lambda": lam.tolist(),
-            "normal_displacement": U[cdofs].tolist(),
-            "energy": kinetic + elastic,
+            "lambda_t": lam_t.tolist(),
+            "tangential_force": tangential.tolist(),
+            "contact_force": nodal.sum(axis=0).tolist(),
+            "slip": slip.tolist(),
+            "normal_displacement": U[cd[:, -1]].tolist(),
+            "displacement": U[cd].tolist(),
+            "energy": kinetic + elastic + potential,
             "kinetic": kinetic,
             "elastic": elastic,
+            "load_potential": potential,
             "newton_iterations": its,
             "converged": conv,
         }
 
-    rows = [level(0, U0, V0, np.zeros(nc), 0, True)]
+    rows = [level(0, U0, U0, V0, 0, True)]
+    U_prev = U0
     for k in range(1, steps + 1):
         md.set_time(k * dt)
         its, conv = md.solve("max_res", float(solver["max_res"]), "max_iter", int(solver["max_iter"]))
         md.shift_variables_for_time_integration()  # Previous_* := the new level's u, Dot_u, Dot2_u
-        U = np.asarray(md.variable("u"))
+        U = np.asarray(md.variable("u")).copy()
         V = np.asarray(md.variable("Previous_Dot_u"))
-        lam = np.asarray(md.variable("lambda_n"))[mult_order]
-        rows.append(level(k, U, V, lam, int(its), bool(conv)))
+        rows.append(level(k, U, U_prev, V, int(its), bool(conv)))
+        if law == "coulomb" and slip_law == "increment":
+            md.set_variable("wt", U)  # the next step's slip is B_T (u - U^k)
+        U_prev = U
     return header, rows
 
 
