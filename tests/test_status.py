@@ -193,3 +193,41 @@ def test_streaming_fields_do_not_grow_memory():
     level_kb = 2 * 19_683 * 8 / 1024  # u and v of bar3d n = 8, kB
     assert peak["stream", 150] - peak["stream", 50] <= 0.25 * 100 * level_kb, peak
     assert peak["buffer", 150] - peak["buffer", 50] >= 0.5 * 100 * level_kb, peak
+
+
+def test_a_second_sigint_late_in_the_loop_keeps_every_level(tmp_path):
+    """Two Ctrl-C 50 ms apart late in the loop: the first stops the loop after its step, the
+    second arrives while the history is assembled and written.  Only a step in progress may
+    be aborted by it, so the run ends exit 130 with its levels (it printed "interrupted
+    before the time loop; nothing written" and lost every level)."""
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "signorini.io.cli", "run", "bar1d", "--n", "400", "--T", "500", "--quiet"]
+    proc = subprocess.Popen(cmd + ["--snapshot-every", "1000", "--out", str(out)], stderr=subprocess.PIPE, text=True)
+    deadline = time.perf_counter() + 60
+
+    def started() -> bool:  # the field writer has written the mesh: the loop runs
+        return any(p.name.startswith(".signorini-new.") and (p / "fields.h5").exists() for p in tmp_path.iterdir())
+
+    while not started() and time.perf_counter() < deadline:
+        time.sleep(0.05)
+    time.sleep(1.5)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130, err
+    assert "nothing written" not in err and "partial results" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and 0 < s["steps"] < 400000
+
+
+def test_the_second_sigint_aborts_only_a_step_in_progress():
+    from signorini.dynamics.simulate import _Interrupts
+
+    flag = _Interrupts()
+    flag.handler(signal.SIGINT, None)
+    flag.handler(signal.SIGINT, None)  # between steps: only the flag
+    assert flag.signal_name == "SIGINT"
+    flag.in_step = True
+    with pytest.raises(KeyboardInterrupt):
+        flag.handler(signal.SIGINT, None)

@@ -170,9 +170,12 @@ class _Interrupts:
         #: a second SIGINT aborts the step in progress; never on several ranks, where one rank
         #: leaving a collective solve would leave the others waiting in it
         self.abort_on_second = True
+        #: a step is in progress (only a step can be aborted: between steps, in the observers
+        #: and while the history is assembled a second SIGINT must not lose the levels computed)
+        self.in_step = False
 
     def handler(self, signum, frame) -> None:
-        if self.signal_name is not None and signum == signal.SIGINT and self.abort_on_second:
+        if self.signal_name is not None and signum == signal.SIGINT and self.abort_on_second and self.in_step:
             raise KeyboardInterrupt
         self.signal_name = signal.Signals(signum).name
         self.signum = int(signum)
@@ -486,6 +489,7 @@ def advance(
                     status, message = "interrupted", f"{interrupts.signal_name} after step {n - 1} of {N}"
                     break
                 try:
+                    interrupts.in_step = True
                     new = _one_step(run, starter, state, n)
                 except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
@@ -493,6 +497,8 @@ def advance(
                 except KeyboardInterrupt:
                     status, message = "interrupted", f"SIGINT during step {n} of {N}"
                     break
+                finally:
+                    interrupts.in_step = False
                 if not new.is_finite():
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): non-finite value in the state"
                     break
