@@ -26,6 +26,7 @@ CPU for the reproduction, about 20 s here).  What is checked:
 
 import csv
 import itertools
+import json
 import math
 import re
 import struct
@@ -327,3 +328,30 @@ def test_section_1_table_is_errors_1d_of_the_runs(reproduced):
     want = [e["u_H1"], e["u_L2"], e["v_L2"], e["stress"], float(H.energy[-1])]
     for got, value in zip(cells, want, strict=True):
         assert abs(got - value) <= 0.5e-4 + 1e-12, (got, value)
+
+
+def test_an_interrupted_reproduce_keeps_and_names_the_sections_it_finished(tmp_path, monkeypatch):
+    """A SIGINT inside a run of the second section: that run raises (no section goes on with a
+    truncated history), the report keeps the first section and says where it stopped."""
+    import os
+    import signal
+
+    from signorini.dynamics.simulate import simulate
+    from signorini.studies import report
+
+    def first(cfg, out, summary, ctx):
+        (out / "first.txt").write_text("done")
+        return ["## first", ""]
+
+    def second(cfg, out, summary, ctx):
+        b = report.get_benchmark("bar1d")
+        simulate(b.problem(20), "cn", b.h(20) / 2, 50.0, progress=lambda n, N: n == 10 and os.kill(os.getpid(),
+                                                                                               signal.SIGINT))  # fmt: skip
+        raise AssertionError("the interrupted run returned a truncated history")
+
+    monkeypatch.setattr(report, "SECTIONS", [first, second])
+    s = report.reproduce(tmp_path, "tiny")
+    assert s["status"] == "interrupted" and s["interrupted_in"] == "second" and s["sections_done"] == ["first"]
+    text = (tmp_path / "report.md").read_text()
+    assert "## first" in text and "**Interrupted**" in text and "during `second`" in text
+    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "interrupted"

@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
+import contextvars
 import signal
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: inside :func:`interrupts_raise`, an interrupted simulation raises KeyboardInterrupt instead
+#: of returning its partial history (a study built of many runs must not use a truncated one)
+_RAISE = contextvars.ContextVar("signorini_interrupts_raise", default=False)
+
+
+@contextmanager
+def interrupts_raise() -> Iterator[None]:
+    """Within the block, ``simulate`` interrupted by SIGINT/SIGTERM raises KeyboardInterrupt."""
+    token = _RAISE.set(True)
+    try:
+        yield
+    finally:
+        _RAISE.reset(token)
+
+
+def interrupts_must_raise() -> bool:
+    """Whether an interrupted run must raise (see :func:`interrupts_raise`)."""
+    return _RAISE.get()
 
 
 @contextmanager

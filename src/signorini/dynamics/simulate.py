@@ -36,7 +36,7 @@ from ..linalg.base import memory_info, total_memory
 from ..linalg.row_block import RowBlock
 from ..linalg.threads import blas_threads
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
-from ..signals import handled
+from ..signals import handled, interrupts_must_raise
 from .context import Context
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS, GRID_MASSES, MASS_VARIANTS
@@ -424,6 +424,8 @@ def simulate(
         if interrupts.signal_name and status == "finished":  # after the last step: every step kept
             status, message = "interrupted", f"{interrupts.signal_name} after the time loop (all {n_last} steps kept)"
     H.status, H.message = status, message
+    if status == "interrupted" and interrupts_must_raise():  # a study of many runs: not a truncated one
+        raise KeyboardInterrupt(message)
     return H
 
 

@@ -182,6 +182,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     holder = {}
     run_into(out, args.overwrite, lambda tmp: holder.update(s=reproduce(tmp, size)))
+    if holder["s"].get("status") == "interrupted":
+        done = holder["s"]["sections_done"]
+        print(f"signorini: interrupted during {holder['s']['interrupted_in']}: {out / 'report.md'} holds the "
+              f"{len(done)} section(s) finished ({', '.join(done) or 'none'})", file=sys.stderr)  # fmt: skip
+        return EXIT_CODES["interrupted"]
     if not args.quiet:
         h = holder["s"]["bar2d_histories"]
         print(f"report written to {out / 'report.md'} in {time.perf_counter() - t0:.1f}s")

@@ -34,6 +34,7 @@ import numpy as np
 from ..dynamics.diagnostics import impact_windows, oscillation_index  # noqa: F401 (re-exported)
 from ..dynamics.history import _json_default, finite_json
 from ..dynamics.simulate import simulate
+from ..signals import interrupts_raise
 from ..studies.benchmarks import get_benchmark
 from ..studies.reference_study import (
     DEFAULT_REFERENCE_FACTOR,
@@ -795,13 +796,26 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
     matplotlib.use("Agg")
     t0 = time.perf_counter()
     cfg = SIZES[size]
-    summary: dict = {"size": size, "config": cfg, "section_seconds": {}}
+    summary: dict = {"size": size, "config": cfg, "section_seconds": {}, "status": "finished"}
     ctx: dict = {}
     md = _header(size, cfg)
-    for section in SECTIONS:
-        ts = time.perf_counter()
-        md += section(cfg, out, summary, ctx)
-        summary["section_seconds"][section.__name__] = time.perf_counter() - ts
+    current = "the start"
+    try:
+        with interrupts_raise():  # an interrupted run stops the study: no section uses a truncated history
+            for section in SECTIONS:
+                ts = time.perf_counter()
+                current = section.__name__
+                md += section(cfg, out, summary, ctx)
+                summary["section_seconds"][current] = time.perf_counter() - ts
+    except KeyboardInterrupt:
+        done = list(summary["section_seconds"])
+        summary.update(status="interrupted", interrupted_in=current, sections_done=done)
+        md += ["", f"**Interrupted** (SIGINT or SIGTERM) during `{current}`: this report holds the "
+               f"{len(done)} section(s) finished before it ({', '.join(done) or 'none'}); files that section "
+               "had written are left as they were.", ""]  # fmt: skip
+        (out / "report.md").write_text("\n".join(md))
+        (out / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
+        return summary
     md += findings(summary)
     summary["seconds"] = time.perf_counter() - t0
     md += [
