@@ -345,8 +345,12 @@ def test_an_interrupted_reproduce_keeps_and_names_the_sections_it_finished(tmp_p
 
     def second(cfg, out, summary, ctx):
         b = report.get_benchmark("bar1d")
-        simulate(b.problem(20), "cn", b.h(20) / 2, 50.0, progress=lambda n, N: n == 10 and os.kill(os.getpid(),
-                                                                                               signal.SIGINT))  # fmt: skip
+
+        def interrupt(n, N):
+            if n == 10:
+                os.kill(os.getpid(), signal.SIGINT)
+
+        simulate(b.problem(20), "cn", b.h(20) / 2, 50.0, progress=interrupt)
         raise AssertionError("the interrupted run returned a truncated history")
 
     monkeypatch.setattr(report, "SECTIONS", [first, second])
