@@ -208,3 +208,13 @@ def test_simulate_refuses_what_is_not_a_problem_and_a_float32_step():
         simulate(None, "cn", 0.1, 1.0)
     with pytest.raises(InputError, match=r"got float32 0\.1, which is 0\.10000000149011612 in double"):
         simulate(get_benchmark("bar1d").problem(10), "cn", np.float32(0.1), 1.0)
+
+
+def test_memory_failures_are_recognized_whatever_their_type():
+    from signorini.errors import is_memory_failure
+
+    assert is_memory_failure(MemoryError())
+    assert is_memory_failure(ImportError("libgfortran.so.5: failed to map segment from shared object"))
+    assert is_memory_failure(OSError(errno.ENOMEM, "Cannot allocate memory"))
+    assert not is_memory_failure(ImportError("No module named 'gmsh'"))
+    assert not is_memory_failure(OSError(errno.ENOENT, "No such file"))

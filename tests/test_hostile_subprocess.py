@@ -82,3 +82,38 @@ def test_signal_at_a_random_moment_leaves_one_result_or_none(tmp_path, seed):
 @pytest.mark.parametrize("seed", range(4, 40))
 def test_signal_at_a_random_moment_many(tmp_path, seed):
     _attack(tmp_path, seed)
+
+
+def _limited_run(tmp_path, resource_name: str, value: int, *extra: str) -> subprocess.CompletedProcess:
+    import resource
+
+    which = getattr(resource, resource_name)
+
+    def limit() -> None:
+        resource.setrlimit(which, (value, resource.getrlimit(which)[1]))
+
+    cmd = [sys.executable, "-m", "signorini", "run", "bar2d", "--snapshot-every", "1", *extra, "--quiet"]
+    return subprocess.run(cmd + ["--out", str(tmp_path / "o")], cwd=tmp_path, preexec_fn=limit, capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+
+
+@pytest.mark.parametrize("limit", [8, 11, 13])
+def test_a_small_descriptor_limit_is_one_line_exit_4_and_leaves_nothing(tmp_path, limit):
+    """ulimit -n too small for the run (the field writer's pipes, HDF5): one line naming the
+    limit, exit 4, and no hidden temporary directory left behind (its clean-up had no
+    descriptor left for rmtree)."""
+    r = _limited_run(tmp_path, "RLIMIT_NOFILE", limit)
+    assert r.returncode == 4, r.stderr
+    assert r.stderr.count("\n") == 1 and "too many open files" in r.stderr and f"open {limit} files" in r.stderr
+    time.sleep(0.5)  # the watchdog, if it had to
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("mib", [64, 300])
+def test_a_small_address_space_limit_is_one_line_exit_4_at_start_up(tmp_path, mib):
+    """ulimit -v below what numpy and scipy take to load: one line, exit 4 (it was a 30-line
+    ImportError traceback and exit 1, or OpenBLAS's own message)."""
+    r = _limited_run(tmp_path, "RLIMIT_AS", mib * 2**20)
+    assert r.returncode == 4, r.stderr
+    assert r.stderr.count("\n") == 1 and "address-space limit" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()

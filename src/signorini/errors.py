@@ -75,3 +75,17 @@ def not_a_file(p, what: str) -> str:
     if stat.S_ISFIFO(mode):
         return f"is a named pipe (FIFO), not {what}: give a regular file"
     return f"is not a regular file (a device or a socket): give {what}"
+
+
+#: what the dynamic loader or the kernel says when an address-space or memory limit stops it
+_MEMORY_WORDS = ("failed to map segment", "cannot allocate memory", "out of memory", "cannot map")
+
+
+def is_memory_failure(exc: BaseException) -> bool:
+    """Whether ``exc`` is the machine's memory limit, not a bug: a MemoryError, or an
+    ImportError/OSError of a shared library that could not be mapped (``ulimit -v``)."""
+    if isinstance(exc, MemoryError):
+        return True
+    if isinstance(exc, OSError) and exc.errno == 12:  # ENOMEM
+        return True
+    return isinstance(exc, (ImportError, OSError)) and any(w in str(exc).lower() for w in _MEMORY_WORDS)

@@ -15,6 +15,7 @@ Ctrl-C during the set-up) ends every rank with ``MPI_Abort`` and that code.
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import signal
 import sys
@@ -24,7 +25,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, InputError, is_memory_failure
 from ..parallel import UNSHARED_END, deferring, is_root, launched, mark_unshared
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .messages import one_line
@@ -121,29 +122,50 @@ def _dispatch(args: argparse.Namespace) -> int:
     except ConvergenceError as exc:
         _print(f"signorini: failed: {one_line(exc)}")
         return EXIT_CODES["failed"]
-    except MemoryError as exc:
-        why = f" ({one_line(exc)})" if str(exc) else ""
-        print(
-            f"signorini: error: out of memory{why} (try a smaller size, --backend cg, or a larger machine)",
-            file=sys.stderr,
-        )
-        return EXIT_ENVIRONMENT
-    except OSError as exc:
+    except (MemoryError, ImportError, OSError) as exc:
+        if not is_memory_failure(exc) and not isinstance(exc, OSError):
+            return _internal_error(exc)  # an ImportError that is not the memory limit: a bug
+        if is_memory_failure(exc):  # MemoryError, ENOMEM, or a library that could not be mapped (ulimit -v)
+            why = f" ({one_line(exc)})" if str(exc) else ""
+            print(
+                f"signorini: error: out of memory{why} (try a smaller size, --backend cg, or a larger machine)",
+                file=sys.stderr,
+            )
+            return EXIT_ENVIRONMENT
         where = f" {exc.filename!r}" if exc.filename else ""
+        if getattr(exc, "errno", None) in (errno.EMFILE, errno.ENFILE):
+            print(f"signorini: error: too many open files: {open_files_hint()}", file=sys.stderr)
+            return EXIT_ENVIRONMENT
         print(f"signorini: error: file system:{one_line(where)} {exc.strerror or exc}", file=sys.stderr)
         return EXIT_ENVIRONMENT
     except Exception as exc:  # a bug: one line, the traceback on request
-        if os.environ.get("SIGNORINI_TRACEBACK"):
-            traceback.print_exc()
-        print(
-            f"signorini: internal error: {type(exc).__name__}: {one_line(exc)} "
-            "(please report it; SIGNORINI_TRACEBACK=1 shows the traceback)",
-            file=sys.stderr,
-        )
-        return 1
+        return _internal_error(exc)
     finally:
         if old is not None:
             signal.signal(signal.SIGTERM, old)
+
+
+def open_files_hint() -> str:
+    """The descriptor limit in words, for EMFILE/ENFILE."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+        return f"this process may open {soft} files (ulimit -n); signorini needs about 20: raise the limit"
+    except (ImportError, OSError, ValueError):
+        return "raise the limit of open files (ulimit -n)"
+
+
+def _internal_error(exc: BaseException) -> int:
+    """A bug: one line (the traceback with SIGNORINI_TRACEBACK=1), exit 1."""
+    if os.environ.get("SIGNORINI_TRACEBACK"):
+        traceback.print_exc()
+    print(
+        f"signorini: internal error: {type(exc).__name__}: {one_line(exc)} "
+        "(please report it; SIGNORINI_TRACEBACK=1 shows the traceback)",
+        file=sys.stderr,
+    )
+    return 1
 
 
 if __name__ == "__main__":

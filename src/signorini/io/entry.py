@@ -47,6 +47,27 @@ def _early(signum, frame) -> None:
     os._exit(130)
 
 
+#: the address space that loading numpy, scipy and their BLAS takes [bytes]: measured 350-400
+#: MiB (below it OpenBLAS ends the process itself, exit 1, with its own message)
+MIN_ADDRESS_SPACE = 512 * 2**20
+
+
+def _address_space_too_small() -> str:
+    """A one-line message when ``ulimit -v`` leaves less than :data:`MIN_ADDRESS_SPACE`, else ''."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, OSError, ValueError):
+        return ""
+    if soft == resource.RLIM_INFINITY or soft >= MIN_ADDRESS_SPACE:
+        return ""
+    return (
+        f"signorini: error: cannot start: the address-space limit (ulimit -v) is {soft / 2**20:.0f} MiB, "
+        f"less than the {MIN_ADDRESS_SPACE / 2**20:.0f} MiB that loading numpy and scipy takes; raise it\n"
+    )
+
+
 def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
@@ -79,7 +100,29 @@ def main() -> int:
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, _early)
     _quiet_followers()
-    from .cli import main as cli_main
+    short = _address_space_too_small()
+    if short:
+        try:
+            os.write(2, short.encode())
+        except OSError:
+            pass
+        return 4
+    try:
+        from .cli import main as cli_main
+    except (ImportError, OSError, MemoryError) as exc:  # numpy, scipy or a library failed to load
+        from ..errors import is_memory_failure
+
+        memory = is_memory_failure(exc)
+        why = (
+            "out of memory while loading its libraries (a memory or address-space limit: ulimit -v?)"
+            if memory
+            else f"a library failed to load ({type(exc).__name__}: {exc}); reinstall with pip install ."
+        )
+        try:
+            os.write(2, f"signorini: error: cannot start: {' '.join(why.split())}\n".encode())
+        except OSError:
+            pass
+        return 4 if memory else 1
 
     if not _several_ranks():  # several: _early defers until MPI starts (signorini.parallel)
         for s in (signal.SIGINT, signal.SIGTERM):
@@ -94,15 +137,6 @@ def main() -> int:
         code = 130
     for s in (signal.SIGINT, signal.SIGTERM):  # the exit code is decided: a signal now changes nothing
         signal.signal(s, signal.SIG_IGN)
-    from . import output
-
-    if output.ABANDONED:  # an HDF5 file failed mid-write: end without HDF5's deallocation (it can crash)
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError, AttributeError):
-                pass
-        os._exit(code)
     return code
 
 

@@ -41,9 +41,6 @@ from ..fem.node_order import to_user_nodes
 
 #: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
 HEADROOM = 4 * 2**20
-#: kept for :mod:`signorini.io.entry`: HDF5 writers given up in this process (none since the
-#: writer runs in a child process, :mod:`signorini.io.field_process`)
-ABANDONED: list = []
 
 
 def _free_bytes(path: Path) -> int:

@@ -46,6 +46,8 @@ from pathlib import Path
 from .. import __version__
 from ..errors import InputError
 
+#: descriptors reserved for the clean-up of a failed run (rmtree of a shallow directory)
+SPARE_FDS = 2
 #: name of the marker file written in every result directory
 MARKER = ".signorini"
 _NEW_PREFIX = ".signorini-new."
@@ -276,6 +278,25 @@ class ResultDirectory:
         self.tmp: Path | None = None
         self.created: list[Path] = []  # parent directories made by this run, deepest first
         self._watchdog: subprocess.Popen | None = None
+        #: descriptors held in reserve, released for the clean-up: under a tight descriptor
+        #: limit (ulimit -n) the run may use them all, and rmtree needs some to remove the
+        #: temporary directory (it was left behind)
+        self._spare: list[int] = []
+
+    def _reserve(self) -> None:
+        for _ in range(SPARE_FDS - len(self._spare)):
+            try:
+                self._spare.append(os.open(os.devnull, os.O_RDONLY))
+            except OSError:
+                break
+
+    def _release(self) -> None:
+        for fd in self._spare:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._spare = []
 
     def create(self) -> Path:
         """Make the parents and the temporary directory with its marker (once); returns the latter."""
@@ -284,6 +305,7 @@ class ResultDirectory:
         # the watchdog first, told of each directory as soon as it exists: a SIGKILL at any
         # moment leaves nothing behind (it used to start after them, a window that a kill
         # right after the temporary directory appeared could hit on a loaded machine)
+        self._reserve()
         self._start_watchdog()
         try:
             missing = []
@@ -303,8 +325,8 @@ class ResultDirectory:
             write_marker(self.tmp, manifest=False)  # being written: not replaceable until committed
         except OSError as exc:
             self.abort()
-            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
-                raise
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EMFILE, errno.ENFILE):
+                raise  # the machine's limits (exit 4), not the user's --out
             raise InputError(f"{self.flag} {str(self.shown)!r} cannot be created: {exc.strerror or exc}") from None
         return self.tmp
 
@@ -357,6 +379,7 @@ class ResultDirectory:
     def commit(self) -> None:
         """Publish the temporary directory as ``out`` (see the module's guarantees)."""
         tmp = self.create()
+        self._release()  # the descriptors kept for this moment (and for abort)
         write_marker(tmp)  # with the manifest of what this run wrote
         self._tell("commit")
         asides: list[Path] = []
@@ -397,17 +420,22 @@ class ResultDirectory:
         self._stop_watchdog(done=not any(a.exists() for a in asides))
 
     def abort(self) -> None:
-        """Remove the temporary directory and the parents this run created (never ``out``)."""
+        """Remove the temporary directory and the parents this run created (never ``out``);
+        what cannot be removed here is left to the watchdog (not told it is done)."""
+        self._release()
+        left = False
         if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
+            left = self.tmp.exists()
             self.tmp = None
         for d in self.created:
             try:
                 d.rmdir()
             except OSError:
+                left = left or d.exists()
                 break
         self.created = []
-        self._stop_watchdog(done=True)
+        self._stop_watchdog(done=not left)
 
     def __enter__(self) -> ResultDirectory:
         return self
