@@ -11,8 +11,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..optional import optional_import
+from . import ordering as _ordering
 from .base import Factor
-from .ordering import fill_reducing_order
 
 
 def _resident_bytes() -> int:
@@ -36,7 +36,7 @@ class CholmodFactor(Factor):
         optional_import("cvxopt.cholmod", "backend 'cholmod'", "cholmod")
         self._cvxopt = cvxopt = optional_import("cvxopt", "backend 'cholmod'", "cholmod")
         K = sp.csc_matrix(K)
-        perm, self.ordering = fill_reducing_order(K)
+        perm, self.ordering = _ordering.fill_reducing_order(K)
         low = sp.tril(K, format="coo")
         A = cvxopt.spmatrix(low.data, low.row.astype(int), low.col.astype(int), K.shape)
         before = _resident_bytes()

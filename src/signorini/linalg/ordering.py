@@ -159,9 +159,20 @@ def metis_nested_dissection(A: sp.spmatrix) -> np.ndarray:
     return np.argsort(rank[groups], kind="stable")
 
 
-def fill_reducing_order(A: sp.spmatrix) -> tuple[np.ndarray, str]:
-    """(permutation, name): METIS nested dissection when pymetis is installed, else
-    :func:`nested_dissection`."""
-    if has_metis():
+#: the ordering :func:`fill_reducing_order` uses when not told: ``auto`` (METIS when pymetis
+#: loads, else :func:`nested_dissection`), or one of :data:`ORDERINGS` (benchmarks set it)
+ORDERING = "auto"
+ORDERINGS = ("metis", "nd")
+
+
+def fill_reducing_order(A: sp.spmatrix, method: str | None = None) -> tuple[np.ndarray, str]:
+    """(permutation, name of the ordering): ``method`` (default :data:`ORDERING`) ``auto`` is
+    METIS nested dissection when pymetis is installed, else :func:`nested_dissection`."""
+    method = method or ORDERING
+    if method == "auto":
+        method = "metis" if has_metis() else "nd"
+    if method == "metis":
         return metis_nested_dissection(A), "metis"
-    return nested_dissection(A), "nd"
+    if method == "nd":
+        return nested_dissection(A), "nd"
+    raise ValueError(f"unknown ordering {method!r}; known: auto, {', '.join(ORDERINGS)}")

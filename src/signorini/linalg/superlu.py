@@ -6,8 +6,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from . import ordering as _ordering
 from .base import Factor
-from .ordering import fill_reducing_order
 
 ND_MIN_DOFS = 15_000  # below this (bar3d n <= 6), or on 2D-like patterns, MMD fills less than nested dissection
 ND_MIN_ROW_NNZ = 30.0  # mean entries per row: 3D elements (Q1 81, P1 ~45) vs 2D (Q1 18, P1 ~14)
@@ -38,7 +38,7 @@ class SuperLUFactor(Factor):
         permc = "MMD_AT_PLUS_A"
         self.ordering = "mmd"
         if use_nested_dissection(K):
-            self.perm, self.ordering = fill_reducing_order(K)
+            self.perm, self.ordering = _ordering.fill_reducing_order(K)
             K = sp.csc_matrix(K[self.perm][:, self.perm])
             permc = "NATURAL"
         self._lu = spla.splu(K, permc_spec=permc, diag_pivot_thresh=0.0, options={"SymmetricMode": True})

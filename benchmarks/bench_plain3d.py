@@ -1,0 +1,191 @@
+"""3D set-up and step time of each direct backend and ordering, on the plain install and with the extras.
+
+Usage (from the repository root)::
+
+    python -m benchmarks.bench_plain3d --prepare                 # needs gmsh: writes the cases once
+    python -m benchmarks.bench_plain3d --variants auto superlu:nd superlu:metis cholmod:metis pardiso
+    python -m benchmarks.bench_plain3d --python /tmp/v/bin/python --variants auto   # a plain venv
+
+Cases: ``hertz3d-9`` (the benchmark's ball at n = 9, about 34k dofs, pickled so that an
+install without gmsh can run it) and ``bracket-35k`` (``examples/bracket_drop.toml`` on the
+bracket of ``examples/meshes/make_parts.py`` meshed at size 0.0043 m: about 35k dofs,
+its whole skin in contact).  Variants: ``BACKEND`` or ``BACKEND:ORDERING`` (``ordering``
+of :func:`signorini.linalg.ordering.fill_reducing_order`: metis, nd, ...); ``auto`` is
+what a run chooses.  Each (case, variant) runs in a fresh process of ``--python``, CN
+for ``--steps`` steps; it prints the backend and ordering used, the set-up (assembly,
+factorization, Delassus columns, also those computed inside the loop) and the time per
+step (without the columns), and the largest difference of the contact-force and energy
+histories against the first variant's.  Writes ``plain3d.json`` into ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pickle
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+CACHE = Path("out/bench/plain3d")
+ROOT = Path(__file__).resolve().parents[1]
+BRACKET_H = 0.0043  # about 11.6k nodes, 35k dofs
+CASES = ("hertz3d-9", "bracket-35k")
+
+
+def prepare(cache: Path = CACHE) -> None:
+    """Write the cases: the Hertz ball's Problem (pickled) and the fine bracket's mesh and case file."""
+    import gmsh
+
+    from signorini.studies.benchmarks import get_benchmark
+
+    cache.mkdir(parents=True, exist_ok=True)
+    b = get_benchmark("hertz3d")
+    dt, _ = b.run_times(9)
+    with open(cache / "hertz3d-9.pkl", "wb") as fh:  # the mesh: the Problem holds closures
+        pickle.dump({"mesh": b.problem(9).mesh, "dt": dt}, fh)
+
+    gmsh.initialize(["-noenv"], readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.NumThreads", 1)
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    occ = gmsh.model.occ
+    gmsh.model.add("bracket")
+    box = occ.addBox(0, 0, 0, 0.2, 0.1, 0.05)
+    h1 = occ.addCylinder(0.05, 0.05, -0.01, 0, 0, 0.07, 0.02)
+    h2 = occ.addCylinder(0.15, 0.05, -0.01, 0, 0, 0.07, 0.02)
+    occ.cut([(3, box)], [(3, h1), (3, h2)])
+    occ.synchronize()
+    body = gmsh.model.getEntities(3)
+    skin = [t for _, t in gmsh.model.getBoundary(body, combined=True, oriented=False)]
+    gmsh.model.addPhysicalGroup(3, [t for _, t in body], name="body")
+    gmsh.model.addPhysicalGroup(2, skin, name="skin")
+    gmsh.option.setNumber("Mesh.MeshSizeMax", BRACKET_H)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", BRACKET_H / 2)
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(str(cache / "bracket-35k.msh"))
+    gmsh.finalize()
+    text = (ROOT / "examples" / "bracket_drop.toml").read_text()
+    text = text.replace('"meshes/bracket.msh"', '"bracket-35k.msh"')
+    (cache / "bracket-35k.toml").write_text(text)
+    print(f"cases written to {cache}")
+
+
+def load(case: str, cache: Path) -> tuple:
+    """(problem, dt, mass) of a case."""
+    if case == "hertz3d-9":
+        from signorini.studies import hertz
+        from signorini.studies.benchmarks import get_benchmark
+
+        with open(cache / "hertz3d-9.pkl", "rb") as fh:
+            data = pickle.load(fh)
+        hertz.pole_refined_ball = lambda *args: data["mesh"]  # the ball gmsh made at --prepare
+        return get_benchmark("hertz3d").problem(9), data["dt"], "seed"
+    if case == "bracket-35k":
+        from signorini.io.config import load_case
+
+        c = load_case(cache / "bracket-35k.toml")
+        return c.problem, c.dt, c.mass
+    raise SystemExit(f"unknown case {case!r}; known: {', '.join(CASES)}")
+
+
+def measure(case: str, variant: str, steps: int, cache: Path) -> dict:
+    """One (case, variant) in this process."""
+    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.simulate import simulate
+    from signorini.linalg import ordering
+
+    backend, _, order = variant.partition(":")
+    if order:
+        ordering.ORDERING = order
+    problem, dt, mass = load(case, cache)
+    t0 = time.perf_counter()
+    disc = discretize(problem, mass)
+    t_disc = time.perf_counter() - t0
+    used: list[str] = []
+    chooser = ordering.fill_reducing_order
+
+    def spy(A, method=None):
+        perm, name = chooser(A, method)
+        used.append(name)
+        return perm, name
+
+    ordering.fill_reducing_order = spy
+    H = simulate(disc, "cn", dt, steps * dt, solver_options={"backend": backend})
+    m = H.meta
+    in_loop = m.get("condensation_in_loop_seconds", 0.0)
+    return {
+        "case": case,
+        "variant": variant,
+        "dofs": m["free_dofs"],
+        "contact_nodes": m["contact_nodes"],
+        "backend": m["backend"],
+        "ordering": used[-1] if used else "own",
+        "discretize_s": t_disc,
+        "factorization_s": m["factorization_seconds"],
+        "columns_s": m["condensation_seconds"],
+        "columns": H.counters.get("delassus_columns", 0),
+        "setup_s": t_disc + m["setup_seconds"] + in_loop,
+        "step_ms": 1e3 * m["step_seconds"],
+        "factor_MB": m["factor_bytes"] / 1e6,
+        "steps": H.steps,
+        "lam": np.asarray(H.lam).tolist(),
+        "energy": np.asarray(H.energy).tolist(),
+    }
+
+
+def run(python: str, case: str, variant: str, steps: int, cache: Path) -> dict:
+    cmd = [python, "-m", "benchmarks.bench_plain3d", "--one", case, variant, "--steps", str(steps)]
+    cmd += ["--cache", str(cache)]
+    out = subprocess.check_output(cmd, cwd=ROOT).decode()
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_plain3d", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--prepare", action="store_true", help="write the cases (needs gmsh)")
+    ap.add_argument("--cases", nargs="+", default=list(CASES))
+    ap.add_argument("--variants", nargs="+", default=["auto"])
+    ap.add_argument("--python", default=sys.executable, help="interpreter of the measured install")
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--cache", type=Path, default=CACHE)
+    ap.add_argument("--out", type=Path, default=Path("out/bench"))
+    ap.add_argument("--tag", default="", help="label of this install in the output")
+    ap.add_argument("--one", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.prepare:
+        prepare(a.cache)
+        return 0
+    if a.one:
+        print(json.dumps(measure(a.one[0], a.one[1], a.steps, a.cache)))
+        return 0
+    rows = []
+    for case in a.cases:
+        first = None
+        for variant in a.variants:
+            r = run(a.python, case, variant, a.steps, a.cache)
+            r["tag"] = a.tag
+            lam, energy = np.asarray(r.pop("lam")), np.asarray(r.pop("energy"))
+            if first is None:
+                first = (lam, energy)
+            r["lam_diff"] = float(np.abs(lam - first[0]).max() / max(np.abs(first[0]).max(), 1e-300))
+            r["energy_diff"] = float(np.abs(energy - first[1]).max() / max(np.abs(first[1]).max(), 1e-300))
+            rows.append(r)
+            print(
+                f"{a.tag} {case} {variant}: {r['dofs']} dofs, {r['contact_nodes']} contact nodes, {r['backend']} + "
+                f"{r['ordering']}, set-up {r['setup_s']:.2f} s (factor {r['factorization_s']:.2f}, "
+                f"{r['columns']} columns {r['columns_s']:.2f}), {r['step_ms']:.1f} ms/step, "
+                f"factor {r['factor_MB']:.0f} MB, histories differ by {r['lam_diff']:.1e} / {r['energy_diff']:.1e}",
+                flush=True,
+            )
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / f"plain3d{'-' + a.tag if a.tag else ''}.json").write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
