@@ -23,7 +23,6 @@ from ..dynamics.history import History
 from ..dynamics.problem import Problem
 from ..studies.exact import ExactBar1D
 
-
 #: sample values per block of time levels in :func:`errors_1d` (bounded memory)
 ERROR_BLOCK = 2_000_000
 
