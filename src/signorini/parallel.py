@@ -20,11 +20,11 @@ from __future__ import annotations
 import os
 import resource
 import signal
-import sys
 import threading
 from typing import Any
 
 from .errors import InputError
+from .signals import DEFERRED, STARTUP_HANDLERS
 
 INSTALL_HINT = (
     "the backends petsc and petsc-cg need petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
@@ -75,7 +75,7 @@ def mark_unshared() -> None:
 
 
 #: whether MPI has started in this process (the first :class:`MPIComm`): until then, on
-#: several ranks, the command line defers SIGINT and SIGTERM (``signorini.io.entry.DEFERRED``),
+#: several ranks, the command line defers SIGINT and SIGTERM (``signorini.signals.DEFERRED``),
 #: since a rank that left then would leave the others spinning in MPI_Init forever
 _STARTED = [False]
 
@@ -140,16 +140,15 @@ class MPIComm(Comm):
         """MPI has started (the first MPIComm, at the same point on every rank): the signals
         deferred until now stop every rank together, as a KeyboardInterrupt (exit 130,
         nothing written); later ones raise it at once, as in a serial run."""
-        entry = sys.modules.get("signorini.io.entry")
-        deferred = list(entry.DEFERRED) if entry is not None else []
+        deferred = list(DEFERRED)
         if deferred:
             signal.alarm(0)  # MPI has started: the start-up alarm of a deferred signal is off
         got = self.max(max(deferred, default=0))
-        if entry is not None and threading.current_thread() is threading.main_thread():
+        if threading.current_thread() is threading.main_thread():
             for s in (signal.SIGINT, signal.SIGTERM):
-                if signal.getsignal(s) is entry._early:
+                if signal.getsignal(s) in STARTUP_HANDLERS:
                     signal.signal(s, _interrupt)
-        if got or (entry is not None and len(entry.DEFERRED) > len(deferred)):  # one during the agreement
+        if got or len(DEFERRED) > len(deferred):  # one during the agreement
             raise KeyboardInterrupt
 
     def any(self, flag: bool) -> bool:

@@ -9,6 +9,13 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: the signals that reached one of several MPI ranks before MPI started (appended by the
+#: command line's start-up handler, :mod:`signorini.io.entry`; read by
+#: :class:`signorini.parallel.MPIComm`, where every rank stops together)
+DEFERRED: list[int] = []
+#: the start-up handlers that defer signals (registered by :mod:`signorini.io.entry`): MPI's
+#: start replaces them by the KeyboardInterrupt of a serial run
+STARTUP_HANDLERS: list[Callable] = []
 #: inside :func:`interrupts_raise`, an interrupted simulation raises KeyboardInterrupt instead
 #: of returning its partial history (a study built of many runs must not use a truncated one)
 _RAISE = contextvars.ContextVar("signorini_interrupts_raise", default=False)

@@ -41,7 +41,6 @@ from ..registry import Parameter, Registry
 
 #: node statuses reported in contact.npz and the fields
 SEPARATED, STICK, SLIP = 0, 1, 2
-STATUS_NAMES = ("separated", "stick", "slip")
 #: Newton stops here (relative residual), or where it stalls below the tolerance
 ROUND_OFF = 1e-15
 #: Tresca: contact sets tried per step (each one convex problem)

@@ -120,7 +120,7 @@ class StepInfo:
 
     With friction also ``lam_t`` (nc, d - 1) the tangential multipliers [force],
     ``slip`` (nc, d - 1) the slip v_t = T x - c_t at the solution [length] and ``status``
-    (nc,) separated / stick / slip (:data:`~signorini.contact.friction.STATUS_NAMES`).
+    (nc,) separated / stick / slip (codes 0, 1, 2: :data:`~signorini.contact.friction.SEPARATED`, ``STICK``, ``SLIP``).
     """
 
     iterations: int

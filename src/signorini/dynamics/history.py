@@ -47,7 +47,6 @@ def history_columns(dim: int) -> tuple[str, ...]:
     return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS
 
 
-STATUSES = ("finished", "interrupted", "failed")
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
 COUNTER_KEYS = ("steps", "factorizations", "linear_solves", "contact_iterations", "fallbacks")
 

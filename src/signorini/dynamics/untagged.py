@@ -25,7 +25,6 @@ from .schemes import State
 
 #: penetration of an untagged node, relative to the body's size, that is reported as contact
 UNTAGGED_TOLERANCE = 1e-9
-UNTAGGED_MODES = ("warn", "fail")
 #: penetrations within this fraction of the body's size are a tie for the node a message names
 TIE = 1e-12
 

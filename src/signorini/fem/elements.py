@@ -38,7 +38,6 @@ class ReferenceElement:
     dN : (nq, nv, dim) reference gradients at the quadrature points.
     facets : local node indices of each facet, ordered so that the facet normal
         computed from them points outwards (used when extracting boundaries).
-    facet_type : meshio name of the facet cell type.
     """
 
     name: str
@@ -49,7 +48,6 @@ class ReferenceElement:
     N: np.ndarray
     dN: np.ndarray
     facets: tuple[tuple[int, ...], ...]
-    facet_type: str
 
     @property
     def n_nodes(self) -> int:
@@ -95,7 +93,6 @@ def reference_element(name: str) -> ReferenceElement:
             np.ones((1, 1)),
             np.zeros((1, 1, 0)),
             (),
-            "",
         )
     if name == "line":
         nodes = np.array([[0.0], [1.0]])
@@ -103,13 +100,13 @@ def reference_element(name: str) -> ReferenceElement:
         w = np.full(2, 0.5)
         N = np.column_stack([1.0 - pts[:, 0], pts[:, 0]])
         dN = np.broadcast_to(np.array([[-1.0], [1.0]]), (2, 2, 1)).copy()
-        return ReferenceElement(name, 1, nodes, pts, w, N, dN, ((0,), (1,)), "vertex")
+        return ReferenceElement(name, 1, nodes, pts, w, N, dN, ((0,), (1,)))
     if name == "quad":
         nodes = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
         pts, w = _tensor_gauss(2)
         N, dN = _q1(nodes, pts)
         facets = ((0, 1), (1, 2), (2, 3), (3, 0))
-        return ReferenceElement(name, 2, nodes, pts, w, N, dN, facets, "line")
+        return ReferenceElement(name, 2, nodes, pts, w, N, dN, facets)
     if name == "hexahedron":
         b = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
         nodes = np.vstack([np.column_stack([b, -np.ones(4)]), np.column_stack([b, np.ones(4)])])
@@ -123,13 +120,13 @@ def reference_element(name: str) -> ReferenceElement:
             (2, 3, 7, 6),
             (3, 0, 4, 7),
         )
-        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets, "quad")
+        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets)
     if name == "triangle":
         nodes = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
         pts = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])
         w = np.full(3, 1 / 6)
         N, dN = _p1(2, pts)
-        return ReferenceElement(name, 2, nodes, pts, w, N, dN, ((0, 1), (1, 2), (2, 0)), "line")
+        return ReferenceElement(name, 2, nodes, pts, w, N, dN, ((0, 1), (1, 2), (2, 0)))
     if name == "tetra":
         nodes = np.vstack([np.zeros(3), np.eye(3)])
         a, b = 0.5854101966249685, 0.1381966011250105
@@ -137,7 +134,7 @@ def reference_element(name: str) -> ReferenceElement:
         w = np.full(4, 1 / 24)
         N, dN = _p1(3, pts)
         facets = ((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))
-        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets, "triangle")
+        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets)
     raise KeyError(name)
 
 

@@ -113,8 +113,6 @@ class Constraints:
         self.fixed = np.flatnonzero(fixed)
         self.free = np.flatnonzero(~fixed)
         self.time_dependent = any(is_time_dependent(bc.value) for bc, _, _ in self._parts)
-        self._full_to_free = -np.ones(space.n_dofs, dtype=np.int64)
-        self._full_to_free[self.free] = np.arange(self.free.size)
         self.values = self.values_at(0.0)
         self._check_agreement(0.0)
 
@@ -167,7 +165,3 @@ class Constraints:
     @property
     def n_free(self) -> int:
         return self.free.size
-
-    def free_index(self, dofs: np.ndarray) -> np.ndarray:
-        """Position among free dofs of full ``dofs`` (-1 for fixed dofs)."""
-        return self._full_to_free[np.asarray(dofs)]

@@ -15,9 +15,8 @@ import os
 import signal
 import sys
 
-#: the signals that reached one of several MPI ranks before MPI started (read by
-#: :class:`signorini.parallel.MPIComm`, where every rank stops together)
-DEFERRED: list[int] = []
+from ..signals import DEFERRED, STARTUP_HANDLERS  # signal, threading and contextvars only: cheap
+
 #: a rank that deferred a signal and has not started MPI after this long ends (SIGALRM)
 STARTUP_ALARM_SECONDS = 60
 
@@ -66,6 +65,9 @@ def _address_space_too_small() -> str:
         f"signorini: error: cannot start: the address-space limit (ulimit -v) is {soft / 2**20:.0f} MiB, "
         f"less than the {MIN_ADDRESS_SPACE / 2**20:.0f} MiB that loading numpy and scipy takes; raise it\n"
     )
+
+
+STARTUP_HANDLERS.append(_early)
 
 
 def _interrupt(signum, frame) -> None:

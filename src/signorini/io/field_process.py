@@ -16,6 +16,7 @@ import contextlib
 import errno
 import multiprocessing
 import os
+import re
 import signal
 from pathlib import Path
 from typing import Any
@@ -57,10 +58,21 @@ def _serve(conn, path: str) -> None:
                 os._exit(0)
             conn.send(("ok",))
         except BaseException as exc:  # noqa: BLE001 (reported to the parent, which decides)
-            space = isinstance(exc, OSError) or "space" in str(exc).lower()
+            space = _disk_full(exc)
             with contextlib.suppress(BaseException):
                 conn.send(("error", type(exc).__name__, str(exc)[:500], space))
             os._exit(0)  # never close an HDF5 file after a failed write
+
+
+def _disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` is a full disk or quota: errno ENOSPC or EDQUOT, on the exception or,
+    for HDF5's errors (an OSError whose errno is None), in its ``errno = N`` detail."""
+    codes = {errno.ENOSPC, errno.EDQUOT}
+    if not isinstance(exc, OSError):
+        return False
+    if exc.errno is not None:
+        return exc.errno in codes
+    return any(int(n) in codes for n in re.findall(r"errno = (\d+)", str(exc)))
 
 
 class FieldProcess:

@@ -38,7 +38,6 @@ from ..fem.assembly import mass_matrix, stiffness_matrix
 from ..studies.benchmarks import get_benchmark
 
 DEFAULT_REFERENCE_FACTOR = 4
-ERROR_KEYS = ("u_H1", "v_L2", "v_Linf", "force", "energy_L2", "energy_Linf")
 _CHUNK_VALUES = 4_000_000  # floats per block of (dofs x time levels) in the error sums
 _TOL = 1e-9
 

@@ -53,7 +53,6 @@ from .plan import (  # noqa: F401
     DEFAULT_N0,
     DEFAULT_RATIO,
     DEFAULT_T,
-    ERROR_NORMS,
     BenchmarkTarget,
     CaseTarget,
     Plan,

@@ -21,7 +21,6 @@ DEFAULT_RATIO = 0.5
 DEFAULT_LEVELS = 3
 DEFAULT_N0 = {1: 20, 2: 1, 3: 1}
 DEFAULT_T = {1: 3.0, 2: 1.0, 3: 1.0}  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
-ERROR_NORMS = {"u_H1": "u L2(0,T; H1)", "v_L2": "v L2(0,T; L2)"}
 CONTACT_NORM = {1: "stress", 2: "force", 3: "force"}  # contact error of errors_1d / relative_errors
 
 
