@@ -41,6 +41,15 @@ class ContactSet:
     points: np.ndarray | None = None
     obstacle: RigidObstacle | None = None
     dofs: np.ndarray | None = None
+    #: (nc,) the contact pair of each row (-1: the rigid obstacle), :mod:`~.pairs`
+    pair: np.ndarray | None = None
+    #: (nc,) the master facet of each pair row (-1 on obstacle rows)
+    master_facet: np.ndarray | None = None
+    #: every node whose inertia the mass variant redistributes: the obstacle's contact nodes,
+    #: the slave nodes and the nodes of the master tags (None: ``nodes``)
+    inertia_nodes: np.ndarray | None = None
+    #: per pair: its tags, rows and inactive slave nodes (summary.json ``pairs``)
+    pair_info: list | None = None
 
     @property
     def tangents(self) -> np.ndarray:
@@ -128,10 +137,57 @@ class ContactSet:
         return bool(self.obstacle is not None and self.obstacle.moving)
 
     def gaps_at(self, t: float) -> np.ndarray:
-        """Gaps g_i(t) (nc,) for the obstacle's position at time t [length]."""
+        """Gaps g_i(t) (nc,) for the obstacle's position at time t [length] (a pair's rows:
+        their gaps at t = 0, the pairing is frozen)."""
         if not self.moving:
             return self.gaps
-        return np.asarray(self.obstacle.gaps(self.points, t), dtype=float)
+        if self.pair is None or not (self.pair >= 0).any():
+            return np.asarray(self.obstacle.gaps(self.points, t), dtype=float)
+        g = self.gaps.copy()
+        rigid = self.pair < 0
+        g[rigid] = np.asarray(self.obstacle.gaps(self.points[rigid], t), dtype=float)
+        return g
+
+    @property
+    def mass_nodes(self) -> np.ndarray:
+        """The nodes that carry no contact inertia under a redistributed mass (sorted)."""
+        return self.nodes if self.inertia_nodes is None else self.inertia_nodes
+
+    @classmethod
+    def empty(cls, space: VectorSpace) -> ContactSet:
+        """No rigid obstacle: a set of no rows, to which pairs are added."""
+        d = space.dim
+        z = np.zeros(0)
+        B = sp.csr_matrix((0, space.n_dofs))
+        none = np.zeros(0, dtype=np.int64)
+        return cls(none, np.zeros((0, d)), z, z.copy(), B, np.zeros((0, d)), None, np.zeros((0, d), dtype=np.int64))
+
+    def with_pairs(self, space: VectorSpace, pairs: Sequence) -> ContactSet:
+        """This set (the rigid obstacle's rows, maybe none) followed by the rows of ``pairs``
+        (:class:`~.pairs.ContactPair`), pair k's rows tagged k in :attr:`pair`."""
+        from .pairs import pair_rows
+
+        mesh = space.mesh
+        parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
+        nr = self.nodes.size
+        nodes = np.concatenate([self.nodes] + [r.nodes for r in parts])
+        info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive}
+                for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
+        inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([r.nodes, r.master_nodes]) for r in parts]))
+        return ContactSet(
+            nodes,
+            np.vstack([self.normals] + [r.normals for r in parts]),
+            np.concatenate([self.gaps] + [r.gaps for r in parts]),
+            np.concatenate([self.weights] + [r.weights for r in parts]),
+            sp.vstack([self.B] + [r.B for r in parts]).tocsr(),
+            mesh.points[nodes],
+            self.obstacle,
+            space.dofs(nodes),
+            np.concatenate([np.full(nr, -1)] + [np.full(r.nodes.size, k) for k, r in enumerate(parts)]),
+            np.concatenate([np.full(nr, -1)] + [r.facet for r in parts]),
+            inertia,
+            info,
+        )
 
     @property
     def size(self) -> int:

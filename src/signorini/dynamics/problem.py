@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from ..contact.contact_set import ContactSet
 from ..contact.friction import Friction, make_friction
 from ..contact.obstacles import RigidObstacle
+from ..contact.pairs import ContactPair
 from ..errors import InputError, NonFiniteError
 from ..fem.assembly import body_load, stiffness_matrix, surface_load
 from ..fem.fields import at_time, is_time_dependent
@@ -40,11 +41,14 @@ class Problem:
 
     Parameters
     ----------
-    mesh, material : geometry and isotropic material.
-    contact_tag : boundary tag of Gamma_C, or a list of tags (their union).
+    mesh, material : geometry and isotropic material.  The mesh may hold several bodies (its
+        connected components), in contact through ``pairs``.
+    contact_tag : boundary tag of Gamma_C facing the rigid obstacle, or a list of tags (their
+        union); None with ``obstacle=None`` when only ``pairs`` are in contact.
     contact_where : optional condition on the points (m, d) -> (m,) that restricts the
         contact nodes to part of the tagged boundary (``[contact] where``).
-    obstacle : the rigid obstacle (fixed, or moving: a position that is a function of t).
+    obstacle : the rigid obstacle (fixed, or moving: a position that is a function of t), or
+        None (no rigid obstacle: ``pairs`` only).
     dirichlet : Dirichlet conditions; a value may be a function of (x, t).
     u0, v0 : initial displacement and velocity (constant vector or function of x);
         the Dirichlet values override ``u0`` and ``v0`` on fixed dofs (the velocity of a
@@ -58,6 +62,8 @@ class Problem:
         the body falls at g with every mass variant; False: the consistent load int f phi
         whatever the mass (GetFEM's and most codes' convention; with a redistributed mass the
         body is then not in free fall without stress) [``[loads] follow_mass``].
+    pairs : contact between deformable surfaces, :class:`~signorini.contact.pairs.ContactPair`
+        (slave facet tag, master facet tag) each (docs/bodies.md); frictionless.
     initial_acceleration : ``"equilibrium"`` (default): A0 solves M A0 = F(0) - S U0;
         ``"zero"``: A0 = 0 (GetFEM's Newmark start), the level-0 imbalance entering the
         energy identity as work [``[initial] acceleration``].
@@ -65,8 +71,8 @@ class Problem:
 
     mesh: Mesh
     material: IsotropicElastic
-    contact_tag: str | Sequence[str]
-    obstacle: RigidObstacle
+    contact_tag: str | Sequence[str] | None
+    obstacle: RigidObstacle | None
     dirichlet: Sequence[Dirichlet] = ()
     u0: Value = 0.0
     v0: Value = 0.0
@@ -77,6 +83,7 @@ class Problem:
     friction: Friction | str | dict | None = None
     follow_mass: bool = True
     initial_acceleration: str = "equilibrium"
+    pairs: Sequence[ContactPair] = ()
 
     def __post_init__(self) -> None:
         from .validate import check_problem
@@ -322,6 +329,16 @@ def check_finite_data(**arrays: np.ndarray) -> None:
             )
 
 
+def _check_pairs(problem: Problem, mass: str) -> None:
+    """What contact pairs do not carry yet: friction and ``seed-normal`` (InputError)."""
+    if problem.friction.frictional:
+        raise InputError(f"friction ({problem.friction.label}) on contact pairs is not implemented yet; pairs are "
+                         "frictionless (docs/bodies.md)")  # fmt: skip
+    if mass == "seed-normal":
+        raise InputError("mass 'seed-normal' needs one normal per contact node; with contact pairs use 'seed', "
+                         "'moment-preserving' or another variant")  # fmt: skip
+
+
 def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discretization:
     """Assemble S, the chosen mass variant, loads, contact set and initial data.
 
@@ -334,13 +351,20 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     mesh.check_cells()  # inverted or bow-tie cells (the command line checks meshes it reads)
     space = VectorSpace(mesh)
     cons = Constraints(space, problem.dirichlet)
-    contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
+    if problem.obstacle is not None:
+        contact = ContactSet.from_tag(space, problem.contact_tag, problem.obstacle, cons, problem.contact_where)
+    else:
+        contact = ContactSet.empty(space)
+    if problem.pairs:
+        _check_pairs(problem, mass)
+        contact = contact.with_pairs(space, list(problem.pairs))
+    normals = None if problem.pairs else contact.normals  # seed-normal only, refused with pairs
     if comm is None:
         S = stiffness_matrix(mesh, problem.material)
-        red = redistribute(mass, mesh, problem.material.rho, contact.nodes, contact.normals)
+        red = redistribute(mass, mesh, problem.material.rho, contact.mass_nodes, normals)
     else:
         S = stiffness_rows(mesh, problem.material, comm)
-        red = mass_rows(mass, mesh, problem.material.rho, contact.nodes, contact.normals, comm)
+        red = mass_rows(mass, mesh, problem.material.rho, contact.mass_nodes, normals, comm)
     M = red.M
     t1 = time.perf_counter()
     F, varying = _load_parts(problem, mesh, space.n_dofs, red)
@@ -357,16 +381,23 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
     disc.mass_effect = mass_effect(M, mesh, problem.material.rho)
     if red.T is not None:  # the largest |w|_1 of an extrapolated contact node (1 for a node's own value)
-        rows = np.asarray(abs(red.T[contact.nodes]).sum(axis=1)).ravel()
+        rows = np.asarray(abs(red.T[contact.mass_nodes]).sum(axis=1)).ravel()
         disc.mass_effect["max_extrapolation_weight"] = float(rows.max(initial=0.0))
     viol = disc.B @ U0 - contact.gaps
     tol = 1e-10 * max(1.0, float(np.max(np.abs(contact.gaps))) if contact.size else 1.0)
     if np.any(viol > tol):
         # at a tie (to round-off), the node the user numbered first: the same on any node order
         worst = np.flatnonzero(viol >= viol.max() - 1e-3 * tol)
-        raise InputError(
-            _penetration_message(problem, contact, disc.B @ U0, int(worst[mesh.first_by_id(contact.nodes[worst])]))
-        )
-    _check_body_side(problem)
+        i = int(worst[mesh.first_by_id(contact.nodes[worst])])
+        if contact.pair is not None and contact.pair[i] >= 0:
+            p = problem.pairs[int(contact.pair[i])]
+            raise InputError(
+                f"contact pair {p.slave!r} / {p.master!r}: slave node {mesh.node_id(contact.nodes[i])} at "
+                f"{np.round(mesh.points[contact.nodes[i]], 6).tolist()} starts {viol[i]:.3g} inside the master "
+                "surface (with the initial displacement); the bodies must start apart or touching"
+            )
+        raise InputError(_penetration_message(problem, contact, disc.B @ U0, i))
+    if problem.obstacle is not None:
+        _check_body_side(problem)
     disc.timings = {"assembly": t1 - t0, "reduction": time.perf_counter() - t1}
     return disc

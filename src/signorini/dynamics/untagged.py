@@ -50,7 +50,9 @@ class UntaggedContact(Observer):
     def start(self, run: Run) -> None:
         disc = run.ctx.disc
         mesh = disc.problem.mesh
-        self.nodes = np.setdiff1d(boundary_nodes(mesh), disc.contact.nodes)
+        rigid = disc.contact.nodes if disc.contact.pair is None else disc.contact.nodes[disc.contact.pair < 0]
+        # no rigid obstacle (contact pairs only): nothing to watch against (docs/bodies.md)
+        self.nodes = np.setdiff1d(boundary_nodes(mesh), rigid) if disc.problem.obstacle is not None else rigid[:0]
         self.X = mesh.points[self.nodes]
         self.mesh = mesh
         self.d = mesh.dim

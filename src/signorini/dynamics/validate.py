@@ -84,14 +84,26 @@ def check_problem(problem) -> None:
         raise InputError(f"mesh must be a signorini.fem.mesh.Mesh, got {_short(problem.mesh)}")
     if not isinstance(problem.material, IsotropicElastic):
         raise InputError(f"material must be an IsotropicElastic, got {_short(problem.material)}")
-    if not isinstance(problem.obstacle, RigidObstacle):
-        raise InputError(
-            f"obstacle must be a rigid obstacle (PlaneObstacle, SphereObstacle), got {_short(problem.obstacle)}"
-        )
-    tag = problem.contact_tag
-    tags = [tag] if isinstance(tag, str) else tag
-    if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):
-        raise InputError(f"contact_tag must be a tag or a non-empty list of tags, got {_short(tag)}")
+    from ..contact.pairs import ContactPair
+
+    pairs = problem.pairs
+    if not isinstance(pairs, Sequence) or not all(isinstance(p, ContactPair) for p in pairs):
+        raise InputError(f"pairs must be a list of signorini.contact.pairs.ContactPair, got {_short(pairs)}")
+    for p in pairs:
+        for tag in (p.slave, p.master):
+            problem.mesh.facets_of(tag)  # an unknown or empty tag: its own error
+    rigid = problem.obstacle is not None or problem.contact_tag is not None
+    if rigid or not pairs:
+        if not isinstance(problem.obstacle, RigidObstacle):
+            extra = "" if pairs else "; or contact pairs with obstacle=None and contact_tag=None"
+            raise InputError(
+                f"obstacle must be a rigid obstacle (PlaneObstacle, SphereObstacle), got {_short(problem.obstacle)}"
+                + extra
+            )
+        tag = problem.contact_tag
+        tags = [tag] if isinstance(tag, str) else tag
+        if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):
+            raise InputError(f"contact_tag must be a tag or a non-empty list of tags, got {_short(tag)}")
     dim, n = problem.mesh.dim, problem.mesh.n_nodes
     check_dirichlet(problem.dirichlet, dim)
     vector_value("u0", problem.u0, dim, n)

@@ -183,6 +183,34 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
     return faces[counts[inv] == 1]
 
 
+def join(parts: dict[str, Mesh]) -> Mesh:
+    """One mesh of several bodies: the parts' nodes and cells side by side (no node shared),
+    each part's facet tag ``t`` renamed ``<part>_<t>``.  The parts must have one cell type."""
+    meshes = list(parts.values())
+    if not meshes or len({m.cell_type for m in meshes}) != 1:
+        raise MeshError("join needs one or more meshes of one cell type")
+    offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
+    facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
+              for t, f in m.facets.items()}  # fmt: skip
+    return Mesh(np.vstack([m.points for m in meshes]), np.vstack([m.cells + o for m, o in zip(meshes, offsets,
+                strict=False)]), meshes[0].cell_type, facets)  # fmt: skip
+
+
+def bodies(mesh: Mesh) -> np.ndarray:
+    """The body (connected component of the cells) of every node, (n_nodes,) int, numbered in
+    the order of their first node; a node of no cell is a body of its own."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = mesh.cells
+    rows = np.repeat(c[:, 0], c.shape[1])
+    A = coo_matrix((np.ones(rows.size), (rows, c.ravel())), shape=(mesh.n_nodes, mesh.n_nodes))
+    _, label = connected_components(A, directed=False)
+    first = np.full(label.max(initial=-1) + 1, mesh.n_nodes)
+    np.minimum.at(first, label, np.arange(mesh.n_nodes))
+    return np.argsort(np.argsort(first))[label]
+
+
 def tag_sides(points: np.ndarray, facets: np.ndarray) -> dict[str, np.ndarray]:
     """Split boundary facets of an axis-aligned box into ``xmin``, ``xmax``, ... tags."""
     dim = points.shape[1]

@@ -1,0 +1,233 @@
+"""Contact between two deformable surfaces: node-to-facet rows of B for a (slave, master) pair.
+
+A :class:`ContactPair` names two facet tags.  Every slave node s is projected at t = 0 onto
+the closest master facet (candidates from a KD-tree over the facet centres, then the exact
+closest point of each candidate: a vertex in 1D, a segment in 2D, a triangle or a bilinear
+quadrilateral in 3D).  With n_m the master facet's outward unit normal at the projection
+p = sum_j N_j(xi) x_j, the discrete condition of the node is
+
+    g_s - B_s u >= 0,   g_s = (x_s - p) . n_m,
+    B_s u = -n_m . u_s + sum_j N_j(xi) n_m . u_j        (j: the master facet's nodes)
+
+the linearized gap of small deformations: the relative normal displacement of the slave
+node against the master surface at the point it faces.  The pairing (facet, xi, n_m) is
+frozen at t = 0 (small sliding without re-pairing; docs/bodies.md says where this holds).
+A slave node whose closest point lies outside the master surface (laterally off it by more
+than 1e-6 of the pair's size) faces nothing: it gets no row (counted as ``inactive``).
+
+Sign conventions as for a rigid obstacle (:mod:`signorini.contact.obstacles`): the row's
+normal nu_s = -n_m points out of the slave body, lambda_s <= 0 is the normal force on the
+slave node (and -N_j lambda_s n_m its share on master node j): the pair's forces balance,
+so that the total momentum of the bodies is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from ..fem.assembly import facet_weights
+from ..fem.elements import reference_element
+from ..fem.mesh import Mesh
+
+#: master facets tried per slave node (the nearest centres); more cost more, fewer may miss
+#: the closest facet of a coarse master next to a fine slave
+CANDIDATES = 8
+#: a slave node laterally off the master surface by more than this x the pair's size is inactive
+OFF_SURFACE = 1e-6
+
+
+@dataclass(frozen=True)
+class ContactPair:
+    """Two facet tags in contact: the nodes of ``slave`` against the facets of ``master``."""
+
+    slave: str
+    master: str
+
+    def __post_init__(self) -> None:
+        for name in ("slave", "master"):
+            v = getattr(self, name)
+            if not isinstance(v, str) or not v:
+                raise InputError(f"contact pair {name} must be a facet tag (a non-empty string), got {v!r}")
+        if self.slave == self.master:
+            raise InputError(f"contact pair: slave and master are the same tag {self.slave!r}")
+
+
+@dataclass
+class PairRows:
+    """The discrete condition of one pair (see the module docstring)."""
+
+    nodes: np.ndarray  # (m,) slave nodes with a row
+    normals: np.ndarray  # (m, d) nu_s = -n_m, out of the slave body
+    gaps: np.ndarray  # (m,) g_s at t = 0 [length]
+    weights: np.ndarray  # (m,) slave contact areas
+    B: sp.csr_matrix  # (m, n_dofs)
+    facet: np.ndarray  # (m,) index of the master facet in the master tag's facets
+    xi: np.ndarray  # (m, nfv) the master facet's shape functions at the projection
+    master_nodes: np.ndarray  # (k,) every node of the master tag (their inertia is redistributed too)
+    inactive: int  # slave nodes that face no master facet
+
+
+def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outward unit normals (nf, d) of boundary facets and the facets' nodes in the owning
+    cell's outward orientation (nf, nfv), whatever the orientation they were given in.
+
+    Each facet is matched (as a set of nodes) to the face of the one cell it bounds; the
+    reference element lists faces outward (:class:`~signorini.fem.elements.ReferenceElement`).
+    """
+    ref = reference_element(mesh.cell_type)
+    loc = np.array(ref.facets)
+    faces = mesh.cells[:, loc].reshape(-1, loc.shape[1])  # every cell face, outward order
+    key_faces = _keys(faces, mesh.n_nodes)
+    key_tag = _keys(facets, mesh.n_nodes)
+    order = np.argsort(key_faces, kind="stable")
+    pos = np.searchsorted(key_faces[order], key_tag)
+    pos = np.minimum(pos, order.size - 1)
+    found = key_faces[order][pos] == key_tag
+    if not found.all():
+        i = int(np.flatnonzero(~found)[0])
+        raise InputError(f"contact pair: facet {facets[i].tolist()} is not a face of any cell of the mesh")
+    oriented = faces[order[pos]]
+    X = mesh.points
+    d = mesh.dim
+    if d == 1:  # a vertex: outward is away from the other node of its cell
+        cell = order[pos] // loc.shape[0]
+        other = mesh.cells[cell].sum(axis=1) - oriented[:, 0]
+        n = np.sign(X[oriented[:, 0], 0] - X[other, 0])[:, None]
+        return n.astype(float), oriented
+    if d == 2:
+        t = X[oriented[:, 1]] - X[oriented[:, 0]]
+        n = np.column_stack([t[:, 1], -t[:, 0]])
+    else:
+        a, b, c = X[oriented[:, 0]], X[oriented[:, 1]], X[oriented[:, -1]]
+        n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    return n, oriented
+
+
+def _keys(f: np.ndarray, nn: int) -> np.ndarray:
+    """One integer per facet from its sorted nodes (the first three: enough to tell faces apart)."""
+    s = np.sort(f, axis=1)[:, :3]
+    key = np.zeros(len(f), dtype=np.int64)
+    for k in range(s.shape[1]):
+        key = key * nn + s[:, k]
+    return key
+
+
+def _closest_on_facets(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points (m, d) of points x (m, d) on facets P (m, nfv, d) and the facets' shape
+    functions there (m, nfv): a vertex, a segment, a triangle or a bilinear quadrilateral."""
+    if kind == "vertex":
+        return P[:, 0], np.ones((x.shape[0], 1))
+    if kind == "line":
+        a, b = P[:, 0], P[:, 1]
+        e = b - a
+        s = np.clip(np.einsum("md,md->m", x - a, e) / np.einsum("md,md->m", e, e), 0.0, 1.0)
+        return a + s[:, None] * e, np.column_stack([1 - s, s])
+    if kind == "triangle":
+        return _closest_on_triangles(x, P)
+    return _closest_on_quads(x, P)
+
+
+def _closest_on_triangles(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a, b, c = P[:, 0], P[:, 1], P[:, 2]
+    e1, e2 = b - a, c - a
+    G = np.stack([np.stack([np.einsum("md,md->m", e1, e1), np.einsum("md,md->m", e1, e2)], -1),
+                  np.stack([np.einsum("md,md->m", e2, e1), np.einsum("md,md->m", e2, e2)], -1)], -2)  # fmt: skip
+    r = np.stack([np.einsum("md,md->m", x - a, e1), np.einsum("md,md->m", x - a, e2)], -1)
+    st = np.linalg.solve(G, r[..., None])[..., 0]
+    N = np.column_stack([1 - st.sum(axis=1), st[:, 0], st[:, 1]])
+    inside = (N >= 0).all(axis=1)
+    best = np.einsum("mk,mkd->md", N, P)
+    if not inside.all():  # outside: the closest point of the three edges
+        dist = np.full(x.shape[0], np.inf)
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            p, w = _closest_on_facets(x, P[:, [i, j]], "line")
+            dd = np.linalg.norm(x - p, axis=1)
+            better = ~inside & (dd < dist)
+            dist[better] = dd[better]
+            best[better] = p[better]
+            Nn = np.zeros_like(N)
+            Nn[:, i], Nn[:, j] = w[:, 0], w[:, 1]
+            N[better] = Nn[better]
+    return best, N
+
+
+def _closest_on_quads(x: np.ndarray, P: np.ndarray, iterations: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Projected Gauss-Newton on (xi, eta) in [-1, 1]^2 of the bilinear map (exact for a
+    parallelogram in one step; a warped face converges in a few)."""
+    ref = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    q = np.zeros((x.shape[0], 2))
+    for _ in range(iterations):
+        N = 0.25 * (1 + q[:, None, 0] * ref[:, 0]) * (1 + q[:, None, 1] * ref[:, 1])
+        dN = np.stack([0.25 * ref[:, 0] * (1 + q[:, None, 1] * ref[:, 1]),
+                       0.25 * ref[:, 1] * (1 + q[:, None, 0] * ref[:, 0])], axis=-1)  # fmt: skip
+        p = np.einsum("mk,mkd->md", N, P)
+        J = np.einsum("mka,mkd->mda", dN, P)  # (m, d, 2)
+        JtJ = np.einsum("mda,mdb->mab", J, J)
+        step = np.linalg.solve(JtJ, np.einsum("mda,md->ma", J, x - p)[..., None])[..., 0]
+        q = np.clip(q + step, -1.0, 1.0)
+    N = 0.25 * (1 + q[:, None, 0] * ref[:, 0]) * (1 + q[:, None, 1] * ref[:, 1])
+    return np.einsum("mk,mkd->md", N, P), N
+
+
+def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
+    """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring)."""
+    d = mesh.dim
+    slave = mesh.nodes_of(pair.slave)
+    facets = mesh.facets_of(pair.master)
+    if np.intersect1d(slave, np.unique(facets)).size:
+        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
+                         "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
+    normals_f, oriented = facet_owner_normals(mesh, facets)
+    X = mesh.points
+    P = X[oriented]  # (nf, nfv, d)
+    centres = P.mean(axis=1)
+    kind = {1: "vertex", 2: "line"}.get(d, "triangle" if oriented.shape[1] == 3 else "quad")
+    k = min(CANDIDATES, len(facets))
+    _, cand = cKDTree(centres).query(X[slave], k=k)
+    cand = np.asarray(cand).reshape(slave.size, k)
+    xs = np.repeat(X[slave], k, axis=0)
+    p, N = _closest_on_facets(xs, P[cand.ravel()], kind)
+    dist = np.linalg.norm(xs - p, axis=1).reshape(slave.size, k)
+    best = np.argmin(dist, axis=1)
+    pick = np.arange(slave.size) * k + best
+    facet, p, N = cand.ravel()[pick], p[pick], N[pick]
+    if kind == "quad":  # the normal of the bilinear face at the projection, outward as the facet's
+        nq = _quad_normal(P[facet], N)
+        normals_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[facet]))[:, None]
+    else:
+        normals_m = normals_f[facet]
+    delta = X[slave] - p
+    gaps = np.einsum("md,md->m", delta, normals_m)
+    lateral = np.linalg.norm(delta - gaps[:, None] * normals_m, axis=1)
+    size = float(np.linalg.norm(np.ptp(np.vstack([X[slave], centres]), axis=0))) or 1.0
+    on = lateral <= OFF_SURFACE * size
+    slave, facet, N, normals_m, gaps = slave[on], facet[on], N[on], normals_m[on], gaps[on]
+    m, nfv = slave.size, oriented.shape[1]
+    rows = np.repeat(np.arange(m), d * (1 + nfv))
+    master = oriented[facet]  # (m, nfv)
+    nodes_all = np.concatenate([slave[:, None], master], axis=1)  # (m, 1 + nfv)
+    coef = np.concatenate([-np.ones((m, 1)), N], axis=1)  # (m, 1 + nfv)
+    dofs = (nodes_all[:, :, None] * d + np.arange(d)).reshape(m, -1)
+    vals = (coef[:, :, None] * normals_m[:, None, :]).reshape(m, -1)
+    B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
+    B.sum_duplicates()
+    weights = facet_weights(mesh, pair.slave)[slave]
+    return PairRows(slave, -normals_m, gaps, weights, B, facet, N, np.unique(facets), int((~on).sum()))
+
+
+def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Unit normal of bilinear faces P (m, 4, 3) at the points of shape functions N (m, 4)."""
+    ref = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    # recover (xi, eta) from N: N_1 + N_2 - N_0 - N_3 = xi (bilinear), N_2 + N_3 - N_0 - N_1 = eta
+    xi = N[:, 1] + N[:, 2] - N[:, 0] - N[:, 3]
+    eta = N[:, 2] + N[:, 3] - N[:, 0] - N[:, 1]
+    dxi = np.einsum("mk,mkd->md", 0.25 * ref[:, 0] * (1 + eta[:, None] * ref[:, 1]), P)
+    deta = np.einsum("mk,mkd->md", 0.25 * ref[:, 1] * (1 + xi[:, None] * ref[:, 0]), P)
+    n = np.cross(dxi, deta)
+    return n / np.linalg.norm(n, axis=1)[:, None]
