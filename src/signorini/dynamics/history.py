@@ -40,11 +40,13 @@ FRICTION_COLUMNS = ("stick_nodes", "slip_nodes", "friction_dissipation")
 #: columns added after the friction ones (newer columns go last: a reader of an older
 #: file finds every column it knew where it was)
 LATER_COLUMNS = ("load_potential",)
+#: the total linear momentum 1^T M V of all bodies per component, after those
+MOMENTUM_COLUMNS = ("momentum_x", "momentum_y", "momentum_z")
 
 
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions."""
-    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS
+    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
 
 
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
@@ -85,6 +87,8 @@ class History:
         slip of the step ending at t_n (relative to the obstacle; a slip rate for
         velocity-level schemes) [length]; None without friction.
     contact_status : (N+1, nc) int8, 0 separated, 1 stick, 2 slip (None without friction).
+    momentum : (N+1, d) total linear momentum 1_k^T M V of all bodies per component
+        [mass x length / time]; no contact force changes it (the pairs' forces balance).
     friction_work : (N+1,) cumulative work of the tangential forces in the scheme's
         energy identity (<= 0 when friction dissipates); ``friction_dissipation`` = minus it.
     tangents : (nc, d - 1, d) the tangent vectors of the nodal frames (None without friction).
@@ -121,6 +125,7 @@ class History:
     contact_status: np.ndarray | None = None
     friction_work: np.ndarray | None = None
     load_potential: np.ndarray | None = None
+    momentum: np.ndarray | None = None
     tangents: np.ndarray | None = None
     #: (nc,) the mesh's number of each contact node (the user's, whatever the run's order)
     nodes: np.ndarray | None = None
@@ -187,7 +192,9 @@ class History:
             "slip_nodes": slip,
             "friction_dissipation": -fw,
             "load_potential": _or_nan(self.load_potential, self.t.size),
-        }
+            **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
+               for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
+        }  # fmt: skip
 
     def _base_columns(self) -> dict[str, np.ndarray]:
         return {
@@ -343,6 +350,7 @@ def empty_series(levels: int, n_contact: int, dim: int = 1, tangential: int = 0)
     return {
         **friction,
         "contact_force": np.zeros((levels, dim)),
+        "momentum": np.zeros((levels, dim)),
         "gap": np.empty((levels, n_contact)),
         "lam": np.zeros((levels, n_contact)),
         "kinetic_energy": np.empty(levels),

@@ -66,6 +66,9 @@ class HistoryRecorder(Observer):
     def _put(self, run: Run, n: int, s: State) -> None:
         S = self.series
         S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
+        # total linear momentum 1_k^T M V per component (the product the energy uses, computed once)
+        S["momentum"][n] = s.product("MV", lambda: run.ctx.Mop @ s.V).reshape(-1, S["momentum"].shape[1]).sum(axis=0)
+        self.last = s
         S["lam"][n] = s.lam
         S["active"][n] = int(np.count_nonzero(s.lam))
         S["contact_force"][n] = run.ctx.disc.contact.force_components(s.lam, s.lam_t)

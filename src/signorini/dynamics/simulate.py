@@ -37,6 +37,7 @@ from ..linalg.row_block import RowBlock
 from ..linalg.threads import blas_threads
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from ..signals import handled, interrupts_must_raise
+from .bodies import body_summaries
 from .context import Context
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS, GRID_MASSES, MASS_VARIANTS
@@ -443,6 +444,10 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
         "in_loop_condensation_seconds": columns,
     }
     H = assemble_history(run, n_last, recorder, energies, snaps, timings)
+    disc = run.ctx.disc
+    last = getattr(recorder, "last", None)
+    H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.problem.material.rho,
+                                      None if last is None else last.V)  # fmt: skip
     H.to_user_order(run.ctx.disc.space.mesh, run.ctx.disc.contact.nodes)  # a renumbered mesh's results
     H.meta.update(rank_figures(run.ctx.comm, timings))
     return H

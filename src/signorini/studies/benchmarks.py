@@ -25,6 +25,11 @@ the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/
                 touching it at t = 0 with speed ``velocity``; compared with Hertz's
                 quasi-static impact (:mod:`signorini.studies.hertz`).
 ``hertz2d``     the same with a disc (P1 triangles, plane strain, per unit thickness).
+``collision1d`` two equal free bars (0, L) and (L + gap, 2L + gap), the first moving at
+                ``velocity`` towards the second at rest, in contact through a contact pair
+                (:mod:`signorini.studies.collision`): contact for 2L/c with the force
+                rho c v / 2, then the velocities exchanged.  Parameters ``L``=1, ``gap``=0.1,
+                ``velocity``=0.5, ``E``=1, ``rho``=1; n cells per bar (default 40).
 ``incline2d``   an elastic block on a plane under a gravity tilted by ``angle`` degrees,
 ``incline3d``   Coulomb friction ``mu``; the closed-form sliding acceleration
                 g (sin a - mu cos a) (0 when tan a <= mu) is printed beside the computed
@@ -54,7 +59,7 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import hertz, incline
+from ..studies import collision, hertz, incline
 from ..studies.exact import ExactBar1D
 
 
@@ -117,9 +122,11 @@ class Benchmark:
     def require_nested(self, command: str) -> None:
         """InputError for a command that measures errors against a finer nested level."""
         if not self.nested:
+            how = "is meshed by gmsh and compared with Hertz's theory" if self.name.startswith("hertz") else (
+                "prints its closed-form values beside the computed ones")  # fmt: skip
             raise InputError(
-                f"{command} needs nested structured levels (the bars); {self.name!r} is meshed by gmsh and "
-                f"compared with Hertz's theory by: signorini run {self.name} [--n N] [--set NAME=VALUE]"
+                f"{command} needs nested structured levels with an exact solution or a reference (the bars); "
+                f"{self.name!r} {how} by: signorini run {self.name} [--n N] [--set NAME=VALUE]"
             )
 
     def n_default(self) -> int:
@@ -274,6 +281,9 @@ for _b in (
                 f"elastic {'ball' if d == 3 else 'disc (plane strain)'} hitting a rigid plane vs Hertz's impact theory",
                 hertz.DEFAULT_LEVEL[d], hertz.sizes(d), hertz.run_times(d), hertz.measure(d), hertz.check_params)
       for d in (2, 3)),
+    Benchmark("collision1d", 1, dict(collision.COLLISION_DEFAULTS), collision.build, None,
+              "two equal free bars colliding (contact pair): duration 2L/c, force rho c v/2, velocities exchanged",
+              40, collision.sizes, collision.run_times, collision.measure(), collision.check_params),
     *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
                 "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
                 2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params, True)

@@ -1,0 +1,61 @@
+"""The bodies of a run (the connected components of its mesh): what each one is and does.
+
+``summary.json`` ``bodies``: one object per body, numbered in the order of their first node,
+
+* ``nodes`` (count), ``mass`` [mass] (1^T M 1 along x, the mass the run uses) and
+  ``mass_effect`` (:func:`~signorini.dynamics.mass_effect.mass_effect` of the body's own
+  block of M against its consistent mass: what the mass variant does to *this* body);
+* at the last level, ``momentum`` (d,) = 1_k^T M V over the body's dofs [mass x length / time]
+  and ``kinetic_energy`` 1/2 V_b . M_bb V_b [energy].
+
+The mass variants never couple two bodies (their neighbourhoods follow the cells), so M is
+block diagonal over the bodies and these add up to the run's totals.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..fem.mesh import Mesh, bodies
+from .mass_effect import mass_effect
+
+
+def body_meshes(mesh: Mesh) -> list[tuple[np.ndarray, Mesh]]:
+    """(nodes, mesh of that body alone) per body; a single body is the mesh itself."""
+    label = bodies(mesh)
+    if label.max(initial=0) == 0:
+        return [(np.arange(mesh.n_nodes), mesh)]
+    out = []
+    cell_body = label[mesh.cells[:, 0]]
+    for b in range(int(label.max()) + 1):
+        nodes = np.flatnonzero(label == b)
+        renum = np.full(mesh.n_nodes, -1)
+        renum[nodes] = np.arange(nodes.size)
+        cells = renum[mesh.cells[cell_body == b]]
+        out.append((nodes, Mesh(mesh.points[nodes], cells, mesh.cell_type)))
+    return out
+
+
+def body_summaries(mesh: Mesh, M, rho: float, V: np.ndarray | None) -> list[dict]:
+    """``summary.json`` ``bodies`` (see the module docstring); ``M`` the run's vector mass
+    (a sparse matrix; a distributed one's rows give no per-body effect: None), ``V`` the
+    last level's velocity (None: no level)."""
+    d = mesh.dim
+    out = []
+    local = sp.issparse(M)
+    MV = M @ V if V is not None and local else None
+    for nodes, sub in body_meshes(mesh):
+        dofs = (nodes[:, None] * d + np.arange(d)).ravel()
+        entry: dict = {"regions": [], "nodes": int(nodes.size)}
+        if local:
+            Mb = M[dofs][:, dofs].tocsr()
+            entry["mass"] = float(Mb[0::d].sum())
+            entry["mass_effect"] = mass_effect(Mb, sub, rho)
+        else:
+            entry["mass"] = entry["mass_effect"] = None
+        if MV is not None:
+            entry["momentum"] = [float(MV[dofs][k::d].sum()) for k in range(d)]
+            entry["kinetic_energy"] = 0.5 * float(V[dofs] @ MV[dofs])
+        out.append(entry)
+    return out
