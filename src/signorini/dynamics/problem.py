@@ -329,6 +329,14 @@ def check_finite_data(**arrays: np.ndarray) -> None:
             )
 
 
+def contact_node_count(problem: Problem) -> int:
+    """Rows of B before discretizing: the rigid obstacle's contact nodes and the pairs' slave
+    nodes (for the run-size estimate)."""
+    m = problem.mesh
+    rigid = m.nodes_of(problem.contact_tag).size if problem.contact_tag is not None else 0
+    return rigid + sum(m.nodes_of(p.slave).size for p in problem.pairs)
+
+
 def _check_pairs(problem: Problem, mass: str) -> None:
     """What contact pairs do not carry yet: friction and ``seed-normal`` (InputError)."""
     if problem.friction.frictional:

@@ -152,6 +152,28 @@ def _contact_tags(mesh: Mesh, table: dict) -> str | tuple[str, ...]:
     return _tag(mesh, "contact", table)
 
 
+def _pairs(mesh: Mesh, table: dict) -> list:
+    """``[contact] pairs = [{ slave = "...", master = "..." }, ...]``: facet tags in contact."""
+    from ..contact.pairs import ContactPair
+
+    given = table.get("pairs", [])
+    if not isinstance(given, list) or not all(isinstance(p, dict) for p in given):
+        raise InputError(f"'contact.pairs' must be a list of tables {{ slave = \"tag\", master = \"tag\" }}, "
+                         f"got {_short(given)}")  # fmt: skip
+    out = []
+    for k, p in enumerate(given):
+        extra = sorted(set(p) - {"slave", "master"})
+        if extra or not {"slave", "master"} <= set(p):
+            raise InputError(f"'contact.pairs[{k}]' needs the keys slave and master (facet tags) only; got "
+                             f"{sorted(p)} (friction on pairs is not implemented yet)")  # fmt: skip
+        for side in ("slave", "master"):
+            if not isinstance(p[side], str):
+                raise InputError(f"'contact.pairs[{k}].{side}' must be a facet tag, got {_short(p[side])}")
+            mesh.facets_of(p[side])
+        out.append(ContactPair(p["slave"], p["master"]))
+    return out
+
+
 def _where(table: dict):
     """``[contact] where``: a condition on x, y, z restricting the contact nodes, or None."""
     if "where" not in table:
@@ -397,9 +419,11 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     tractions = _tractions(data.get("traction", []), mesh)
     c = data["contact"]
     _keys("contact", c, SECTIONS["contact"])
-    tag = _contact_tags(mesh, c)
-    where = _where(c)
-    obstacle = _obstacle(c.get("obstacle"), dim)
+    pairs = _pairs(mesh, c)
+    rigid = not pairs or "tag" in c or "obstacle" in c
+    tag = _contact_tags(mesh, c) if rigid else None
+    where = _where(c) if rigid else None
+    obstacle = _obstacle(c.get("obstacle"), dim) if rigid else None
     friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])
@@ -422,7 +446,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     out, every = _output(data.get("output", {}))
     problem = Problem(
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
-        friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration,
+        friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..dynamics.mass import DEFAULT_MASS
-from ..dynamics.problem import with_friction
+from ..dynamics.problem import contact_node_count, with_friction
 from ..errors import ConvergenceError, InputError
 from ..parallel import mark_unshared
 from ..registry import parse_assignments
@@ -91,7 +91,7 @@ def check_size(
 
 def mesh_counts(problem) -> tuple[int, int, int, int, int]:
     m = problem.mesh
-    return m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size
+    return m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, contact_node_count(problem)
 
 
 def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:

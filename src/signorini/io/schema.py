@@ -115,14 +115,17 @@ SECTIONS: tuple[Section, ...] = (
         "obstacle, towards the body; the body stays outside a sphere.  Positions may be expressions of t "
         "(a moving obstacle).",
         (
-            Key("tag", "string or list of strings", "required", "",
+            Key("tag", "string or list of strings", "required (unless pairs)", "",
                 "boundary tag(s) of Gamma_C (a list: their union)", _ex('"xmin"', '"ymin"', '"zmin"')),
             Key("where", "string", "all tagged nodes", "",
                 "condition on x, y, z that restricts the contact nodes, e.g. \"z < 0.2\" (< <= > >=, and, or, not)"),
-            Key("obstacle", "inline table", "required", "length", "{ type = ..., parameters of the type }",
+            Key("obstacle", "inline table", "required (unless pairs)", "length", "{ type = ..., parameters of the type }",
                 _ex('{ type = "plane", point = [0.0], normal = [1.0] }',
                     '{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }',
                     '{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }')),
+            Key("pairs", "array of inline tables", "none", "",
+                "contact between deformable surfaces: [{ slave = \"tag\", master = \"tag\" }, ...] (facet tags; "
+                "frictionless; docs/bodies.md); with pairs, tag and obstacle are optional (both or neither)"),
             Key("friction", "inline table", "frictionless", "",
                 "{ law = \"coulomb\", coefficient = mu } or { law = \"tresca\", threshold = s } "
                 "(s: force / length^(d-1)); 2D and 3D only (docs/friction.md)"),

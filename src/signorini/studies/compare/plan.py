@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
-from ...dynamics.problem import check_friction_schemes, with_friction
+from ...dynamics.problem import check_friction_schemes, contact_node_count, with_friction
 from ...dynamics.simulate import number_of_steps
 from ...errors import InputError, check_positive
 from ..benchmarks import get_benchmark
@@ -169,7 +169,7 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     problem = target.problem(None) if problem is None or target.friction else problem
     check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
     m = problem.mesh
-    counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, m.nodes_of(problem.contact_tag).size)
+    counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, contact_node_count(problem))
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
                 length_scale=_length_scale(problem), counts=counts, friction=problem.friction.describe())  # fmt: skip
 
