@@ -76,14 +76,18 @@ def test_closest_points_on_the_facet_kinds():
     x = np.array([[0.25, 0.5, 1.0], [2.0, 2.0, 0.3]])
     tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]] * 2)
     p, N = _closest_on_facets(x, tri, "triangle")
-    assert np.allclose(p, [[0.25, 0.5, 0.0], [0.5, 0.5, 0.0]]) and np.allclose(N.sum(axis=1), 1)
-    assert np.allclose(np.einsum("mk,mkd->md", N, tri), p)
+    assert np.allclose(p, [[0.25, 0.5, 0.0], [0.5, 0.5, 0.0]], rtol=0, atol=1e-12) and np.allclose(
+        N.sum(axis=1), 1, rtol=0, atol=1e-12
+    )
+    assert np.allclose(np.einsum("mk,mkd->md", N, tri), p, rtol=0, atol=1e-12)
     quad = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 1.0, 0.0]]] * 2)
     p, N = _closest_on_facets(x, quad, "quad")
-    assert np.allclose(p, [[0.25, 0.5, 0.0], [2.0, 1.0, 0.0]]) and np.allclose(np.einsum("mk,mkd->md", N, quad), p)
+    assert np.allclose(p, [[0.25, 0.5, 0.0], [2.0, 1.0, 0.0]], rtol=0, atol=1e-12) and np.allclose(
+        np.einsum("mk,mkd->md", N, quad), p, rtol=0, atol=1e-12
+    )
     seg = np.array([[[0.0, 0.0], [1.0, 0.0]]])
     p, N = _closest_on_facets(np.array([[0.3, 2.0]]), seg, "line")
-    assert np.allclose(p, [[0.3, 0.0]]) and np.allclose(N, [[0.7, 0.3]])
+    assert np.allclose(p, [[0.3, 0.0]], rtol=0, atol=1e-12) and np.allclose(N, [[0.7, 0.3]], rtol=0, atol=1e-12)
 
 
 def test_the_rows_balance_and_a_node_off_the_master_is_inactive():
@@ -95,9 +99,11 @@ def test_the_rows_balance_and_a_node_off_the_master_is_inactive():
     b.points[:, 0] -= 0.1
     m = join({"a": a, "b": b})
     r = pair_rows(m, ContactPair("b_ymin", "a_ymax"), 2 * m.n_nodes)
-    assert np.allclose(np.asarray(r.B[:, 1::2].sum(axis=1)).ravel(), 0.0)  # y components: -1 + sum N_j = 0
+    assert np.allclose(
+        np.asarray(r.B[:, 1::2].sum(axis=1)).ravel(), 0.0, rtol=0, atol=1e-15
+    )  # y components: -1 + sum N_j = 0
     assert r.inactive == 4 and r.nodes.size == 1  # b's bottom nodes x = -0.1, -0.025, 0.125, 0.2: off [0, 0.1]
-    assert np.allclose(r.gaps, 0.05) and np.allclose(r.normals, [0.0, -1.0])
+    assert np.allclose(r.gaps, 0.05, rtol=0, atol=1e-12) and np.allclose(r.normals, [0.0, -1.0], rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize(

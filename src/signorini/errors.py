@@ -64,6 +64,8 @@ def not_a_file(p, what: str) -> str:
     from pathlib import Path
 
     p = Path(p)
+    if "\x00" in str(p):
+        return "is not a valid path (it contains a NUL character)"
     try:
         mode = p.stat().st_mode
     except FileNotFoundError:
