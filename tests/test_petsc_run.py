@@ -74,7 +74,9 @@ def scale(key: str, col: np.ndarray, h: dict) -> float:
         return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("contact_force"))
     if "penetration" in key or key.startswith("gap"):
         return float(np.abs(h["gap_mean"]).max())
-    if "energy" in key or "work" in key or "dissipation" in key or "increment" in key:
+    if key.startswith("momentum"):  # a component that is round-off: the momentum's scale
+        return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("momentum"))
+    if "energy" in key or "work" in key or "dissipation" in key or "increment" in key or "potential" in key:
         return float(np.abs(h["energy"]).max())
     return float(np.nanmax(np.abs(col), initial=0.0))
 
