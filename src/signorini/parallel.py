@@ -23,8 +23,8 @@ import signal
 import threading
 from typing import Any
 
+from . import signals as _signals
 from .errors import InputError
-from .signals import DEFERRED, STARTUP_HANDLERS
 
 INSTALL_HINT = (
     "the backends petsc and petsc-cg need petsc4py and mpi4py (Python >= 3.12): run `bash scripts/mpi-env.sh` from the "
@@ -140,15 +140,15 @@ class MPIComm(Comm):
         """MPI has started (the first MPIComm, at the same point on every rank): the signals
         deferred until now stop every rank together, as a KeyboardInterrupt (exit 130,
         nothing written); later ones raise it at once, as in a serial run."""
-        deferred = list(DEFERRED)
+        deferred = list(_signals.DEFERRED)
         if deferred:
             signal.alarm(0)  # MPI has started: the start-up alarm of a deferred signal is off
         got = self.max(max(deferred, default=0))
         if threading.current_thread() is threading.main_thread():
             for s in (signal.SIGINT, signal.SIGTERM):
-                if signal.getsignal(s) in STARTUP_HANDLERS:
+                if signal.getsignal(s) in _signals.STARTUP_HANDLERS:
                     signal.signal(s, _interrupt)
-        if got or len(DEFERRED) > len(deferred):  # one during the agreement
+        if got or len(_signals.DEFERRED) > len(deferred):  # one during the agreement
             raise KeyboardInterrupt
 
     def any(self, flag: bool) -> bool:

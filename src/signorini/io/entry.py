@@ -15,7 +15,9 @@ import os
 import signal
 import sys
 
-from ..signals import DEFERRED, STARTUP_HANDLERS  # signal, threading and contextvars only: cheap
+#: the signals that reached one of several MPI ranks before MPI started; main() hands this
+#: list to :mod:`signorini.signals` (imported after the handlers are in place)
+DEFERRED: list[int] = []
 
 #: a rank that deferred a signal and has not started MPI after this long ends (SIGALRM)
 STARTUP_ALARM_SECONDS = 60
@@ -67,9 +69,6 @@ def _address_space_too_small() -> str:
     )
 
 
-STARTUP_HANDLERS.append(_early)
-
-
 def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
@@ -101,6 +100,10 @@ def main() -> int:
     """
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, _early)
+    from .. import signals  # after the handlers: a signal during this import is handled
+
+    signals.DEFERRED = DEFERRED
+    signals.STARTUP_HANDLERS.append(_early)
     _quiet_followers()
     short = _address_space_too_small()
     if short:
