@@ -110,7 +110,7 @@ def measure(case: str, variant: str, steps: int, cache: Path) -> dict:
     chooser = ordering.fill_reducing_order
 
     def spy(A, method=None):
-        perm, name = chooser(A, method)
+        perm, name = chooser(A) if method is None else chooser(A, method)  # an older install: no method
         used.append(name)
         return perm, name
 
