@@ -69,11 +69,12 @@ def test_patch_test_linear_field_exact(kind, rng):
     cons = Constraints(space, [Dirichlet(t, exact) for t in mesh.tags])
     S = assembly.stiffness_matrix(mesh, MAT)
     u = _static_solve(S, np.zeros(S.shape[0]), cons)
-    # docs/verification.md: linear fields and constant stresses exact to 1e-11 (measured 1.8e-15 and 4.9e-15)
-    assert np.allclose(u, space.interpolate(exact), rtol=0, atol=1e-11)
+    # docs/verification.md: linear fields and constant stresses exact to round-off (measured 1.8e-15 and
+    # 4.9e-15 on values up to 6.1 and 2.3; bounds about 100x that)
+    assert np.allclose(u, space.interpolate(exact), rtol=0, atol=2e-13)
     sig = assembly.stress(mesh, MAT, u, nodal=False)
     eps = 0.5 * (G + G.T)
-    assert np.allclose(sig, MAT.stress(eps)[None], rtol=0, atol=1e-11)
+    assert np.allclose(sig, MAT.stress(eps)[None], rtol=0, atol=5e-13)
 
 
 def _manufactured(dim):
@@ -127,21 +128,31 @@ def _static_errors(mesh):
 
 
 @pytest.mark.parametrize(
-    "make, levels",
+    "make, levels, finest",
     [
-        (lambda n: rectangle(n, n), (4, 8, 16)),
-        (lambda n: rectangle(n, n, cell="triangle"), (4, 8, 16)),
-        (lambda n: box(n, n, n), (2, 4, 8)),
-        (lambda n: box(n, n, n, cell="tetra"), (2, 4, 8)),
+        (lambda n: rectangle(n, n), (4, 8, 16), (1.8e-3, 0.14)),
+        (lambda n: rectangle(n, n, cell="triangle"), (4, 8, 16), (6.1e-3, 0.24)),
+        (lambda n: box(n, n, n), (2, 4, 8), (5.2e-3, 0.24)),
+        (lambda n: box(n, n, n, cell="tetra"), (2, 4, 8), (2.7e-2, 0.53)),
     ],
     ids=["quad", "triangle", "hexahedron", "tetra"],
 )
-def test_manufactured_static_convergence_rates(make, levels):
+def test_manufactured_static_convergence_rates(make, levels, finest):
+    """Static P1/Q1 solves against the exact manufactured solution u = (prod_i sin(pi x_i), 0[, 0])
+    on the unit square/cube, clamped all round (no reference run: the errors are against the
+    closed form, at the quadrature points).  The rate of the last pair (h -> h/2) is checked
+    two-sided around the theory (L2 ~ 2, H1 ~ 1), and the finest level's errors are bounded
+    (10% above the measured ones).
+
+    Measured (L2, H1): rates quad (1.99, 1.00), triangle (1.95, 0.99), hexahedron (1.98,
+    0.99), tetra (1.78, 0.93, still pre-asymptotic at n = 8); finest errors quad (1.66e-3,
+    0.126), triangle (5.58e-3, 0.218), hexahedron (4.74e-3, 0.218), tetra (2.49e-2, 0.480).
+    """
     errs = np.array([_static_errors(make(n)) for n in levels])
     rates = np.log2(errs[:-1] / errs[1:])
-    assert np.all(rates[-1, 0] > 1.7), rates  # L2 ~ 2
-    assert np.all(rates[-1, 1] > 0.85), rates  # H1 ~ 1
-    assert rates[-1, 1] < 1.3
+    assert 1.7 <= rates[-1, 0] <= 2.3, rates  # L2 ~ 2
+    assert 0.85 <= rates[-1, 1] <= 1.15, rates  # H1 ~ 1
+    assert errs[-1, 0] <= finest[0] and errs[-1, 1] <= finest[1], errs[-1]
 
 
 def test_bar_1d_static_exact():

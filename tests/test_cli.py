@@ -145,8 +145,9 @@ def test_run_fields_last_level_and_summary_counters(tmp_path):
     assert np.allclose(t, np.array([0, 7, 14, 21, 24]) * H.t[1], rtol=1e-14, atol=0)
     assert np.allclose(H.snapshots["t"], t, rtol=1e-14, atol=0)
     for (_, pd, _), u, v in zip(levels, H.snapshots["u"], H.snapshots["v"], strict=True):
-        assert np.allclose(pd["displacement"][:, :2], u.reshape(-1, 2), rtol=1e-12, atol=1e-15)
-        assert np.allclose(pd["velocity"][:, :2], v.reshape(-1, 2), rtol=1e-12, atol=1e-15)
+        # the same doubles written and read back: measured 0
+        assert np.allclose(pd["displacement"][:, :2], u.reshape(-1, 2), rtol=1e-14, atol=1e-15)
+        assert np.allclose(pd["velocity"][:, :2], v.reshape(-1, 2), rtol=1e-14, atol=1e-15)
     assert np.allclose(levels[-1][1]["displacement"][:, :2], H.snapshots["u"][-1].reshape(-1, 2), rtol=0, atol=0)
     s = json.loads((out / "summary.json").read_text())
     assert set(COUNTER_KEYS) <= set(s["counters"])

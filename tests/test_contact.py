@@ -62,5 +62,5 @@ def test_condense_budget_bounds_the_memory_without_changing_results():
     dt = b.h(2) / 2
     a = simulate(p, "cn", dt, 1.0, solver_options={"backend": "superlu"})
     c = simulate(p, "cn", dt, 1.0, solver_options={"backend": "superlu", "condense_budget": 0})
-    assert np.abs(a.lam - c.lam).max() <= 1e-10 * np.abs(a.lam).max()
+    assert np.abs(a.lam - c.lam).max() <= 5e-13 * np.abs(a.lam).max()  # measured 6.9e-15 relative
     assert c.counters["linear_solves"] > a.counters["linear_solves"]  # the extra solve per contact step

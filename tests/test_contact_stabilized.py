@@ -20,7 +20,8 @@ def _run(name, scheme, mass="standard", T=3.0, params=None):
 def test_no_penetration_identity_and_bounded_energy(name, mass):
     H = _run(name, "csn", mass)
     assert H.status == "finished" and H.impacts >= 1
-    assert H.summary()["penetration_max"] <= 1e-12 and H.lam.max() <= 0
+    # measured 3.5e-18 (gaps of order 0.1-1): bound 1e-14, the round-off floor
+    assert H.summary()["penetration_max"] <= 1e-14 and H.lam.max() <= 0
     ok = np.isfinite(H.predicted_increment)
     assert ok[1:].all()
     assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 1e-12 * H.energy[0]

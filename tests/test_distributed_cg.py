@@ -24,8 +24,8 @@ def test_rigid_body_modes_span_the_kernel_of_the_stiffness(dim):
     R = space.rigid_body_modes(dofs)
     k = 3 if dim == 2 else 6
     assert R.shape == (space.n_dofs, k)
-    assert np.abs(R.T @ R - np.eye(k)).max() <= 1e-13  # orthonormal
-    assert np.abs(S @ R).max() <= 1e-12 * abs(S).max()  # rigid motions store no energy
+    assert np.abs(R.T @ R - np.eye(k)).max() <= 5e-14  # orthonormal; measured 5.6e-16
+    assert np.abs(S @ R).max() <= 1e-14 * abs(S).max()  # rigid motions store no energy; measured 4.6e-17
     # a Dirichlet condition holding the z-translation removes its column (and not the others)
     free = dofs[dofs % dim != dim - 1]
     held = space.rigid_body_modes(free)

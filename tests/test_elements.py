@@ -12,10 +12,10 @@ def test_jacobians_match_einsum(cell):
     X = np.random.default_rng(0).standard_normal((7, ref.nodes.shape[0], ref.dim))
     J = jacobians(ref.dN, X)
     assert J.shape == (7, ref.dN.shape[0], ref.dim, ref.dim)
-    assert np.allclose(J, np.einsum("qak,eai->eqik", ref.dN, X), rtol=0, atol=1e-13)
+    assert np.allclose(J, np.einsum("qak,eai->eqik", ref.dN, X), rtol=0, atol=2e-14)  # measured 2.2e-16 (|J| <= 3.7)
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4])
 def test_determinants_match_lapack(n):
     J = np.random.default_rng(n).standard_normal((5, 6, n, n))
-    assert np.allclose(determinants(J), np.linalg.det(J), rtol=1e-12, atol=1e-13)
+    assert np.allclose(determinants(J), np.linalg.det(J), rtol=0, atol=5e-14)  # measured 8.9e-16 (|det| <= 14)

@@ -35,9 +35,9 @@ def test_complementarity_and_bounded_energy(scheme, options, mass):
     H = _run("bar2d", scheme, mass, options, T=3.0)
     assert H.status == "finished"
     scale = np.abs(H.gap[0]).max()
-    assert H.gap.min() >= -1e-10 * scale
+    assert H.gap.min() >= -1e-14 * scale  # measured -5e-17 relative: the round-off floor
     assert H.lam.max() <= 0.0
-    assert np.abs(H.gap * H.lam).max() <= 1e-10 * scale * np.abs(H.lam).max()
+    assert np.abs(H.gap * H.lam).max() <= 1e-14 * scale * np.abs(H.lam).max()  # measured 5.2e-17 of it
     assert H.energy[-1] <= H.energy[0] * (1 + 1e-12)  # dissipative, never gains
 
 

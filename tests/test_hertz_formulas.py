@@ -142,7 +142,7 @@ def test_johnsons_printed_constants():
     c1 = tc * v / d
     c2 = tc / (m * m / (R * Es * Es * v)) ** 0.2
     assert abs(c1 - 2.94) <= 0.005 and abs(c2 - 2.87) <= 0.005, (c1, c2)
-    assert abs(c2 - c1 * (15 / 16) ** 0.4) <= 1e-12 * c2
+    assert abs(c2 - c1 * (15 / 16) ** 0.4) <= 2e-14 * c2  # measured 4.6e-16 relative
     assert abs(2.9432 / c2 - 1) > 0.02
 
 

@@ -15,7 +15,8 @@ def _stress_errors(mass):
     errs, hs = [], []
     for n in (20, 40, 80, 160):
         H = simulate(b.problem(n), "ps", b.h(n) / 2, 3.0, mass=mass)
-        assert H.gap.min() > -1e-12 and H.lam.max() <= 0 and H.residual.max() < 1e-10
+        # measured gap >= -3.5e-18 and residual 2.1e-16 (relative): bounds at the round-off floor
+        assert H.gap.min() > -1e-14 and H.lam.max() <= 0 and H.residual.max() < 1e-14
         sig = ex.contact_stress(H.t[1:])
         errs.append(np.sqrt(np.sum((H.lam[1:, 0] - sig) ** 2) / np.sum(sig**2)))
         hs.append(b.h(n))
@@ -23,10 +24,17 @@ def _stress_errors(mass):
 
 
 def test_paoli_schatzman_converges_with_standard_mass():
+    """The contact stress of bar1d (T = 3, dt = h/2, n = 20, 40, 80, 160) against the exact
+    d'Alembert contact stress (ExactBar1D, docs/exact_solutions.md; no reference run), in
+    the relative L2-in-time norm.  Rates are data, two-sided around the measured ones
+    (0.30, 0.22, 0.29; mean 0.27), with a bound on the finest error (measured 0.154)."""
     errs, rates, H = _stress_errors("standard")
-    assert errs[-1] < 0.6 * errs[0] and np.mean(rates) > 0.2
-    # dissipative at impacts with e = 0, but never gains energy
-    assert H.energy.max() <= H.energy[0] * (1 + 1e-12) and H.energy[-1] < H.energy[0]
+    assert np.all((0.15 <= np.asarray(rates)) & (np.asarray(rates) <= 0.4)), rates
+    assert 0.2 <= np.mean(rates) <= 0.35, rates
+    assert errs[-1] <= 0.17 and errs[-1] < 0.6 * errs[0], errs
+    # dissipative at impacts with e = 0, but never gains energy: up to round-off over the
+    # 960 steps (measured max E / E0 - 1 = 7.2e-13; bound 100x that), and 0.24% lost at the end
+    assert H.energy.max() <= H.energy[0] * (1 + 7e-11) and H.energy[-1] < H.energy[0]
 
 
 def test_paoli_schatzman_conserves_energy_without_contact():
@@ -38,7 +46,7 @@ def test_paoli_schatzman_conserves_energy_without_contact():
     H = simulate(p, "paoli-schatzman", b.h(2) / 2, 2.0, mass="standard")
     E = H.energy  # E^{n-1/2} from level 0 (virtual U^{-1}), across the CN start-up step
     assert abs(E[1] - E[0]) < 1e-13 * E[0]  # was a -0.77% jump with the Taylor U^{-1}
-    assert np.max(np.abs(E - E[0])) < 1e-12 * E[0] * H.steps
+    assert np.max(np.abs(E - E[0])) < 1e-14 * E[0] * H.steps  # measured 2.6e-16 (bound 9.6e-15)
     # the discrete energy is the physical one up to O(dt^2 |A|^2 + dt^2 |V|_S^2) (docs/schemes.md)
     physical = simulate(p, "cn", b.h(2) / 2, b.h(2) / 2, mass="standard").energy[0]
     assert 1e-3 < (physical - E[0]) / physical < 5e-3

@@ -629,13 +629,13 @@ def test_the_table_is_consistent():
             elif kind == "spec33":
                 printed = r.source[1]
                 half = 0.5 * 10.0 ** -len(printed.split(".")[1])
-                ok &= r.bench == BAR and math.isclose(r.bound, float(printed) + half, rel_tol=1e-12, abs_tol=0)
+                ok &= r.bench == BAR and math.isclose(r.bound, float(printed) + half, rel_tol=1e-14, abs_tol=0)
             elif kind == "spec33_energy":
                 coef = r.source[1]
                 half = 0.5 * 10.0 ** -len(coef.split(".")[1])
                 h = get_benchmark(BAR).h(r.levels[-1])
                 ok &= r.norm == "energy_L2" and math.isclose(r.bound, (float(coef) + half) * h / 0.125,
-                                                              rel_tol=1e-5, abs_tol=0)  # fmt: skip
+                                                              rel_tol=1e-14, abs_tol=0)  # fmt: skip
             else:
                 ok = False
         if not ok:

@@ -121,6 +121,7 @@ def test_cg_path_with_mkl_products_gives_the_same_histories(monkeypatch):
     assert runs["scipy"].counters["contact_iterations"] > runs["scipy"].steps
     for key in ("lam", "gap", "energy"):
         a, c = getattr(runs["scipy"], key), getattr(runs["mkl"], key)
+        # measured 8.3e-12 relative; kept at 1e-9: CG (rtol 1e-12) iterates differ with the product's round-off
         assert np.abs(a - c).max() <= 1e-9 * np.abs(a).max()
 
 
@@ -140,7 +141,7 @@ def test_mkl_block_storage_of_a_symmetric_matrix(b):
     x = rng.standard_normal(A.shape[0])
     P = MKLProduct(A, symmetric=True, block_size=b)
     assert P.storage == "bsr-upper"
-    assert np.abs(P @ x - A @ x).max() <= 1e-13 * np.abs(A @ x).max()
+    assert np.abs(P @ x - A @ x).max() <= 2e-14 * np.abs(A @ x).max()  # measured 4.8e-16 relative
     Q = MKLProduct(sp.diags(np.arange(1.0, 3 * b * 10 + 1)).tocsr(), symmetric=True, block_size=b)
     assert Q.storage == "csr-upper"  # diagonal: blocks b times fuller than the matrix
     y = np.ones(Q.shape[0])

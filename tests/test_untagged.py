@@ -33,7 +33,7 @@ def test_a_single_tagged_side_touching_elsewhere_is_reported_per_level():
     assert pen[0] == 0.0 and pen[-1] > 0.02  # the bottom side went ~0.04 into the floor
     s = H.summary()
     assert s["untagged_penetration_max"] == pytest.approx(pen.max(), rel=0, abs=0)
-    assert s["penetration_max"] < 1e-12  # the tagged nodes respect the constraint
+    assert s["penetration_max"] < 1e-14  # the tagged nodes respect the constraint; measured 0
     assert any("not a contact node" in w for w in s["warnings"])
 
 
