@@ -91,7 +91,7 @@ def test_compare_numbers_equal_those_of_run(bar1d_report, tmp_path):
     assert main(args) == 0
     s = json.loads((tmp_path / "r" / "summary.json").read_text())
     for key in ("energy_final", "penetration_max", "oscillation_index"):
-        assert finest["summary"][key] == pytest.approx(s[key], rel=1e-12, abs=1e-300), key
+        assert finest["summary"][key] == pytest.approx(s[key], rel=1e-14, abs=1e-300), key  # measured 0
     assert finest["summary"]["steps"] == s["steps"] == 80
 
 
@@ -267,12 +267,12 @@ def test_the_compare_estimate_counts_the_kept_fields():
     b = plan.target.bench
     jobs = cmp.make_jobs(plan)
     fields = [16.0 * b.mesh_counts(j.level)[0] * 2 * (round(j.T / j.dt) + 1) for j in jobs]  # U, V of every level
-    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-12, abs=0)
+    assert est.kept_fields_bytes == pytest.approx(sum(fields), rel=1e-14, abs=0)  # measured 0
     assert est.held_bytes == est.kept_fields_bytes  # 2D: every run's fields come back for the errors
     bare = [estimate_run(*b.mesh_counts(j.level), 2, b.contact_count(j.level), round(j.T / j.dt)) for j in jobs]
     assert est.total_bytes == pytest.approx(
-        max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-12, abs=0
-    )
+        max(r.total_bytes for r in bare) + 2 * max(fields) + sum(fields), rel=1e-14, abs=0
+    )  # measured 0
     longer = cmp.estimate_plan(cmp.plan_benchmark("bar2d", pairs, 2, T=1.0), 1)
     # grows with the levels kept (measured 8.2e-3: not exactly linear in T)
     assert longer.kept_fields_bytes == pytest.approx(2 * est.kept_fields_bytes, rel=0.01, abs=0)
@@ -334,7 +334,7 @@ def test_compare_bar3d_numbers_equal_those_of_run(bar3d_report, tmp_path, scheme
     s = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert finest["summary"]["steps"] == s["steps"] == 20
     for key in ("energy_final", "energy_max_relative_drift", "penetration_max", "oscillation_index", "impulse"):
-        assert finest["summary"][key] == pytest.approx(s[key], rel=1e-12, abs=1e-300), key
+        assert finest["summary"][key] == pytest.approx(s[key], rel=1e-14, abs=1e-300), key  # measured 0
     b = get_benchmark("bar3d")
     p_ref, p2 = b.problem(4), b.problem(2)
     H_ref = simulate(p_ref, "crank-nicolson", b.h(4) / 2, 0.5, mass="seed", snapshot_every=1)
@@ -343,4 +343,4 @@ def test_compare_bar3d_numbers_equal_those_of_run(bar3d_report, tmp_path, scheme
     H = simulate(p2, scheme, finest["dt"], 0.5, mass=mass, snapshot_every=1, scheme_options=opts)
     errors = relative_errors(H, p2.mesh, ref, 0.5)
     for key in ("u_H1", "v_L2", "force"):
-        assert finest["errors"][key] == pytest.approx(errors[key], rel=1e-12, abs=0), key  # measured 0
+        assert finest["errors"][key] == pytest.approx(errors[key], rel=1e-14, abs=0), key  # measured 0

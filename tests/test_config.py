@@ -16,7 +16,7 @@ def test_every_example_runs(tmp_path, path):
     out = tmp_path / "o"
     assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
-    assert s["steps"] > 0 and s["max_complementarity_residual"] < 1e-10
+    assert s["steps"] > 0 and s["max_complementarity_residual"] < 2e-14  # relative; measured 4.4e-16
     assert (out / "case.toml").read_text() == path.read_text()
 
 

@@ -43,7 +43,8 @@ CASES = {
 def _agree(a, c, what=("lam", "gap", "kinetic_energy", "elastic_energy")):
     for f in what:
         x, y = getattr(a, f), getattr(c, f)
-        assert np.abs(x - y).max() <= 1e-10 * max(np.abs(x).max(), 1e-300), f
+        # measured 8.2e-13 relative (round-off of the two condensations, carried over the steps)
+        assert np.abs(x - y).max() <= 5e-11 * max(np.abs(x).max(), 1e-300), f
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -103,12 +104,12 @@ def test_columns_equal_the_dense_delassus_matrix_and_budget_drops_Z(rng):
         assert cols.count == nc and cols.factor.solves == nc
         assert cols.keeps_Z is keeps
         P = np.array([6, 0, 3])
-        assert np.allclose(cols.block(P), W_dense[np.ix_(P, P)], rtol=1e-12, atol=0)
-        assert np.allclose(cols.W(np.arange(nc), P), W_dense[:, P], rtol=1e-12, atol=0)
+        assert np.allclose(cols.block(P), W_dense[np.ix_(P, P)], rtol=5e-13, atol=0)  # measured 8.4e-15
+        assert np.allclose(cols.W(np.arange(nc), P), W_dense[:, P], rtol=5e-13, atol=0)
         if keeps:
             lam = rng.normal(size=P.size)
             Zp = np.linalg.solve(K.toarray(), B.T.toarray()[:, P])
-            assert np.allclose(cols.Z_times(P, lam), Zp @ lam, rtol=1e-12, atol=1e-14)
+            assert np.allclose(cols.Z_times(P, lam), Zp @ lam, rtol=0, atol=5e-15)  # measured 5.6e-17 (|Z lam| <= 0.26)
 
 
 def test_a_block_is_topped_up_with_the_nearest_nodes():
@@ -142,4 +143,8 @@ def test_lazy_columns_are_not_counted_as_step_solves_or_step_time():
     assert H.counters["delassus_columns"] > 0
     m = H.meta
     assert m["in_loop_condensation_seconds"] > 0
-    assert abs(m["step_seconds"] * H.steps + m["in_loop_condensation_seconds"] - m["loop_seconds"]) < 1e-9
+    # an identity between the recorded times (not a bound on a time): measured 0
+    assert (
+        abs(m["step_seconds"] * H.steps + m["in_loop_condensation_seconds"] - m["loop_seconds"])
+        <= 1e-14 * m["loop_seconds"]
+    )

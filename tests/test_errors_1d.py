@@ -193,7 +193,7 @@ def test_the_midpoint_deficit_vanishes_with_more_samples():
     got = errors_1d(H, problem, exact, samples=400)
     for k in ("u_L2", "v_L2", "v_Linf"):
         assert coarse[k] != fine[k]  # the deficit is there at 8 samples ...
-        assert abs(got[k] - fine[k]) <= 1e-5 * fine[k]  # ... and O(1/400^2) at 400
+        assert abs(got[k] - fine[k]) <= 1e-6 * fine[k]  # ... and small at 400 (measured 1.0e-8 relative)
 
 
 def test_zero_perturbation_gives_zero_displacement_errors():
@@ -217,7 +217,7 @@ def test_errors_1d_needs_a_snapshot_at_every_level():
 def test_observed_rates_by_hand():
     """log(e_k/e_{k+1}) / log(h_k/h_{k+1}): exact power laws give their exponent; a zero error gives nan."""
     h = np.array([0.1, 0.05, 0.025, 0.0125])
-    assert np.allclose(observed_rates(3.0 * h**0.5, h), [0.5, 0.5, 0.5], rtol=0, atol=1e-12)
+    assert np.allclose(observed_rates(3.0 * h**0.5, h), [0.5, 0.5, 0.5], rtol=0, atol=1e-14)  # measured 1.1e-16
     e = [0.4, 0.1, 0.0, 0.01]
     r = observed_rates(e, h)
-    assert abs(r[0] - 2.0) <= 1e-12 and np.isnan(r[1]) and np.isnan(r[2])
+    assert abs(r[0] - 2.0) <= 1e-14 and np.isnan(r[1]) and np.isnan(r[2])  # measured 0

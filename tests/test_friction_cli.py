@@ -34,6 +34,7 @@ def test_incline_run_writes_the_friction_outputs(tmp_path, capsys):
     late = cols["t"] > 1.0
     assert abs(cols["contact_force_y"][late].mean() / (0.25 * np.cos(np.radians(30))) - 1) <= 0.01
     # gross slip: the tangential force is -mu times the normal one at every level
+    # measured 1.4e-17; kept at 1e-10: the friction Newton stops at its tolerance (1e-12 relative), not at round-off
     assert np.abs(cols["contact_force_x"][late] + 0.3 * cols["contact_force_y"][late]).max() <= 1e-10
     assert np.all(np.diff(cols["friction_dissipation"]) >= -1e-15)
     z = np.load(out / "contact.npz")
@@ -41,9 +42,9 @@ def test_incline_run_writes_the_friction_outputs(tmp_path, capsys):
     assert z["lambda_t"].shape == (z["t"].size, z["lam"].shape[1], 1)
     s = json.loads((out / "summary.json").read_text())
     assert s["friction"] == {"law": "coulomb", "coefficient": 0.3}
-    assert s["cone_residual_max"] <= 1e-12
+    assert s["cone_residual_max"] <= 1e-12  # the Newton's tolerance (measured 4.0e-16): kept
     assert s["counters"]["friction_iterations"] > 0 and s["counters"]["friction_fallbacks"] == 0
-    assert abs(s["incline"]["relative_deviation"]) <= 1e-3
+    assert abs(s["incline"]["relative_deviation"]) <= 1e-9  # measured 7.0e-12
 
 
 def test_frictionless_runs_have_the_new_columns(tmp_path):

@@ -24,7 +24,7 @@ def test_energy_never_increases_with_zero_restitution(mass, theta):
     assert H.energy[-1] < H.energy[0]
     ok = np.isfinite(H.predicted_increment)
     assert ok[1:].all()
-    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 1e-12 * H.energy[0]
+    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 2e-13 * H.energy[0]  # measured 2.9e-15
 
 
 def test_velocity_level_complementarity_on_the_index_set():
@@ -47,7 +47,7 @@ def test_velocity_level_complementarity_on_the_index_set():
         for (bv0, _), (bv1, P) in zip(obs.rows[:-1], obs.rows[1:], strict=True):
             w = bv1 + e * bv0
             assert P.max() <= 0.0
-            assert np.abs(w[P < 0]).max(initial=0.0) <= 1e-10  # complementarity: P < 0 => w = 0
+            assert np.abs(w[P < 0]).max(initial=0.0) <= 1e-14  # complementarity: P < 0 => w = 0; measured 1.4e-16
             acted += int((P < 0).any())
         assert acted >= 1
 
@@ -114,4 +114,4 @@ def test_energy_conserving_persistency():
     b = get_benchmark("bar1d-impact")
     obs = Rates()
     simulate(b.problem(40), "energy-conserving", b.h(40) / 2, 3.0, mass="standard", observers=[obs])
-    assert obs.acted >= 1 and obs.bad <= 1e-10
+    assert obs.acted >= 1 and obs.bad <= 2e-14  # measured 2.2e-16

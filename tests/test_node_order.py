@@ -139,9 +139,9 @@ def test_a_renumbered_part_discretizes_to_the_permuted_operators():
     Q = _permutation_matrix(ren.node_ids, 3)
     for A, B in ((a.S, b.S), (a.M, b.M)):
         diff = abs(Q @ A @ Q.T - B).max()
-        assert diff <= 1e-12 * abs(A).max()
+        assert diff <= 1e-13 * abs(A).max()  # measured 1.1e-15 relative
     Fa, Fb = a.load(0.0), b.load(0.0)
-    assert np.allclose(Q @ Fa, Fb, rtol=0, atol=1e-12 * np.abs(Fa).max())
+    assert np.allclose(Q @ Fa, Fb, rtol=0, atol=5e-14 * np.abs(Fa).max())  # measured 9.7e-16 relative
     assert np.array_equal(Q @ a.U0, b.U0) and np.array_equal(Q @ a.V0, b.V0)
     p = user_order_of(ren, b.contact.nodes)
     assert np.array_equal(ren.node_ids[b.contact.nodes[p]], a.contact.nodes)
@@ -162,11 +162,11 @@ def test_history_of_a_renumbered_run_comes_back_in_the_users_order():
     assert np.array_equal(H.coordinates, a.coordinates) and np.array_equal(H.weights, a.weights)
     assert np.array_equal(H.nodes, a.nodes) and np.array_equal(a.nodes, problem.mesh.nodes_of("skin"))
     gap = float(np.abs(a.gap).max())
-    assert np.abs(H.gap - a.gap).max() <= 1e-10 * gap
+    assert np.abs(H.gap - a.gap).max() <= 2e-12 * gap  # measured 4.6e-14 relative
     assert np.abs(H.lam - a.lam).max() <= 1e-9 * np.abs(a.lam).max()
     assert a.lam.min() < 0  # the part touched the plane: the multipliers were compared
     for k in ("u", "v"):
-        assert np.abs(H.snapshots[k] - a.snapshots[k]).max() <= 1e-9 * np.abs(a.snapshots[k]).max()
+        assert np.abs(H.snapshots[k] - a.snapshots[k]).max() <= 5e-10 * np.abs(a.snapshots[k]).max()  # measured 5.1e-12
 
 
 def test_messages_name_the_users_node():
@@ -212,7 +212,7 @@ def test_every_mass_variant_is_the_users_permuted(which):
         if isinstance(a, str):
             assert a == b, name
             continue
-        assert abs(Q @ a @ Q.T - b).max() <= 1e-12 * abs(a).max(), name
+        assert abs(Q @ a @ Q.T - b).max() <= 1e-13 * abs(a).max(), name  # measured 1.1e-15 relative
         built += 1
     assert built >= len(MASS_VARIANTS.names(aliases=False)) - 1  # only the tensor form needs a grid
 

@@ -22,7 +22,7 @@ def assert_energy_identity(H):
     dE = H.energy_increment[1:]
     pred = H.predicted_increment[1:]
     scale = H.energy[0]
-    assert np.max(np.abs(dE - pred)) <= 1e-11 * scale
+    assert np.max(np.abs(dE - pred)) <= 5e-12 * scale  # measured 6.6e-14 (max over the tests using it)
 
 
 def _levels(name, mass, scheme, levels, T=3.0, params=None):
@@ -114,8 +114,8 @@ def test_bar2d_symmetric_about_midline():
     key = np.lexsort((pts[:, 0], pts[:, 1]))
     key_m = np.lexsort((np.round(0.1 - pts[:, 0], 12), pts[:, 1]))
     u = H.snapshots["u"][-1].reshape(-1, 2)
-    assert np.allclose(u[key, 1], u[key_m, 1], rtol=0, atol=1e-12)
-    assert np.allclose(u[key, 0], -u[key_m, 0], rtol=0, atol=1e-12)
+    assert np.allclose(u[key, 1], u[key_m, 1], rtol=0, atol=4e-13)  # measured 4.2e-15 (u ~ 0.2)
+    assert np.allclose(u[key, 0], -u[key_m, 0], rtol=0, atol=4e-13)  # measured 7.7e-15
 
 
 def test_cn_seed_nearly_conservative_in_2d():
