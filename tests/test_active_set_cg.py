@@ -43,9 +43,11 @@ def _check_many_nodes(n: int, steps: int) -> None:
     assert len(set(touched[touched > 0])) > steps // 4  # the contact zone keeps changing
     # no cycling: a few active-set iterations per step (the counter includes the start)
     assert cg.counters["contact_iterations"] <= 4 * (steps + 1)
-    assert np.abs(cg.lam - direct.lam).max() <= 1e-8 * np.abs(direct.lam).max()
-    assert np.abs(cg.gap - direct.gap).max() <= 1e-8 * np.abs(direct.gap).max()
-    assert cg.residual.max() <= 1e-8
+    # CG (rtol 1e-12) against the direct solver: measured 3.5e-11 and 2.1e-11 relative
+    assert np.abs(cg.lam - direct.lam).max() <= 2e-9 * np.abs(direct.lam).max()
+    assert np.abs(cg.gap - direct.gap).max() <= 1e-9 * np.abs(direct.gap).max()
+    # measured 3.4e-16; 1e-10: with CG's solves the residual is CG's tolerance, not round-off
+    assert cg.residual.max() <= 1e-10
 
 
 def test_active_set_cg_with_hundreds_of_curved_contact_nodes():
@@ -64,8 +66,8 @@ def test_every_preconditioner_gives_the_same_history(pc):
     ref = _run(p, dt, 10, backend="superlu")
     H = _run(p, dt, 10, backend="cg", preconditioner=pc)
     assert np.abs(H.lam).max() > 0
-    assert np.abs(H.lam - ref.lam).max() <= 1e-8 * np.abs(ref.lam).max()  # measured 6e-12 to 9e-12
-    assert np.abs(H.gap - ref.gap).max() <= 1e-8 * np.abs(ref.gap).max()  # measured 1.5e-11
+    assert np.abs(H.lam - ref.lam).max() <= 5e-10 * np.abs(ref.lam).max()  # measured 6e-12 to 9e-12
+    assert np.abs(H.gap - ref.gap).max() <= 1e-9 * np.abs(ref.gap).max()  # measured 1.5e-11 to 1.8e-11
 
 
 def test_block_jacobi_inverts_the_nodal_blocks(rng):
@@ -81,7 +83,7 @@ def test_block_jacobi_inverts_the_nodal_blocks(rng):
     for blk in (slice(0, 3), slice(3, 5), slice(5, 7)):
         D[blk, blk] = K.toarray()[blk, blk]
     r = rng.normal(size=7)
-    assert np.allclose(P(r), np.linalg.solve(D, r), rtol=1e-13, atol=0)  # measured 2.1e-16 relative
+    assert np.allclose(P(r), np.linalg.solve(D, r), rtol=2e-14, atol=0)  # measured 2.1e-16 relative
 
 
 def test_preconditioner_names_come_from_the_registry():
@@ -120,8 +122,8 @@ def test_the_schemes_guess_saves_iterations_and_changes_nothing(scheme, monkeypa
     ref = simulate(p, scheme, dt, 12 * dt, solver_options={"backend": "cg"})
     assert np.abs(ref.lam).max() > 0
     assert H.counters["krylov_iterations"] < ref.counters["krylov_iterations"]  # 3-5% here, 8% on bar3d
-    assert np.abs(H.lam - ref.lam).max() <= 1e-8 * np.abs(ref.lam).max()
-    assert np.abs(H.gap - ref.gap).max() <= 1e-8 * np.abs(ref.gap).max()
+    assert np.abs(H.lam - ref.lam).max() <= 1e-9 * np.abs(ref.lam).max()  # CG's rtol 1e-12: measured 1.2e-11
+    assert np.abs(H.gap - ref.gap).max() <= 2e-9 * np.abs(ref.gap).max()  # measured 2.7e-11
 
 
 def test_a_guess_of_the_wrong_size_is_refused():

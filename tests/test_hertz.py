@@ -20,10 +20,11 @@ def test_sphere_closed_form_equals_the_integrated_impact():
     """delta*, F*, t_c of the closed form = the 1-dof impact integrated numerically."""
     p = hertz.hertz_prediction(3, 1.3, 2.0, 0.25, 0.7, 0.03)
     d, F, tc = hertz.impact_ode(lambda x: float(hertz.sphere_force(x, 1.3, p.E_star)), p.mass, 0.03)
-    # docs/verification.md: agree to 1e-8 (measured 3.2e-12, 4.9e-12, 8e-13)
-    assert d == pytest.approx(p.max_approach, rel=1e-8, abs=0)
-    assert F == pytest.approx(p.peak_force, rel=1e-8, abs=0)
-    assert tc == pytest.approx(p.duration, rel=1e-8, abs=0)
+    # docs/verification.md: agree to 1e-8 (measured 3.2e-12, 4.9e-12, 8e-13: solve_ivp's rtol 1e-11);
+    # bounds about 50x the measured
+    assert d == pytest.approx(p.max_approach, rel=2e-10, abs=0)
+    assert F == pytest.approx(p.peak_force, rel=2e-10, abs=0)
+    assert tc == pytest.approx(p.duration, rel=5e-11, abs=0)
     # the classical coefficient: t_c = 2.868 (m^2 / (R E*^2 v))^(1/5), to its printed digits (measured 2.7e-4)
     assert p.duration / (p.mass**2 / (1.3 * p.E_star**2 * 0.03)) ** 0.2 == pytest.approx(2.868, rel=0, abs=5e-4)
 
@@ -31,14 +32,14 @@ def test_sphere_closed_form_equals_the_integrated_impact():
 def test_disc_law_inverts_and_conserves_energy():
     R, Es = 1.0, 1.1
     for P in (1e-6, 1e-3, 0.05):
-        # measured 2.1e-15
-        assert hertz.cylinder_force(hertz.cylinder_approach(P, R, Es), R, Es) == pytest.approx(P, rel=1e-10, abs=0)
+        # measured 2.1e-15 (brentq's rtol 1e-14)
+        assert hertz.cylinder_force(hertz.cylinder_approach(P, R, Es), R, Es) == pytest.approx(P, rel=1e-13, abs=0)
     p = hertz.hertz_prediction(2, R, 1.0, 0.3, 1.0, 0.01)
     # work of the force up to delta* = initial kinetic energy
     d = np.linspace(0, p.max_approach, 4001)
     F = np.array([hertz.cylinder_force(x, R, p.E_star) for x in d])
     work = float(np.sum((F[1:] + F[:-1]) / 2 * np.diff(d)))
-    assert work == pytest.approx(0.5 * p.mass * 0.01**2, rel=1e-5, abs=0)  # trapezoid rule: measured 9.8e-9
+    assert work == pytest.approx(0.5 * p.mass * 0.01**2, rel=5e-7, abs=0)  # trapezoid rule: measured 9.8e-9
 
 
 def test_missing_gmsh_is_an_input_error_naming_the_extra(monkeypatch):
@@ -62,10 +63,10 @@ def test_pole_refined_mesh(dim):
 
     R, theta = 2.0, math.radians(30)
     mesh = pole_refined_ball(dim, R, theta, 0.1, 0.6, 0.5)
-    assert np.min(np.linalg.norm(mesh.points, axis=1)) < 1e-12  # the pole is a node
+    assert np.min(np.linalg.norm(mesh.points, axis=1)) < 1e-14  # the pole is a node (measured 1.2e-16)
     cap = mesh.points[mesh.nodes_of("cap")]
     polar = np.arctan2(np.linalg.norm(cap[:, :-1], axis=1), R - cap[:, -1])
-    assert polar.max() == pytest.approx(theta, rel=1e-9, abs=0)  # measured 2.1e-16
+    assert polar.max() == pytest.approx(theta, rel=1e-14, abs=0)  # measured 2.1e-16
     # the nodes lie on the sphere: measured 1.1e-16 relative
     assert np.allclose(np.linalg.norm(cap - np.eye(dim)[-1] * R, axis=1), R, rtol=1e-14, atol=0)
     X = mesh.points[mesh.cells]
