@@ -111,7 +111,8 @@ def test_gross_slip_impulse_ratio(oblique_cn):
     normal = H.contact_force[:, 1].sum()  # the plane pushes the block up (+y) and back (-x)
     tangential = -H.contact_force[:, 0].sum()
     assert normal > 0
-    assert abs(tangential / normal - 0.3) <= 1e-8 * 0.3
+    # measured 1.9e-16 relative; 1e-11: the friction Newton's tolerance (1e-12), with a margin
+    assert abs(tangential / normal - 0.3) <= 1e-11 * 0.3
 
 
 def test_cone_complementarity_every_step(oblique_cn):
@@ -119,12 +120,13 @@ def test_cone_complementarity_every_step(oblique_cn):
     H = oblique_cn
     scale = np.abs(H.lam).max()
     lt = H.lam_t[..., 0]
-    assert np.all(np.abs(lt) <= 0.3 * np.abs(H.lam) + 1e-10 * scale)
+    # the Newton's tolerance 1e-12 with a margin (measured 6.7e-17 relative on the sliding nodes)
+    assert np.all(np.abs(lt) <= 0.3 * np.abs(H.lam) + 1e-11 * scale)
     slip = H.contact_status == SLIP
     expected = -0.3 * np.abs(H.lam[slip]) * np.sign(H.slip[slip][:, 0])
-    assert np.abs(lt[slip] - expected).max() <= 1e-10 * scale
+    assert np.abs(lt[slip] - expected).max() <= 1e-11 * scale
     stick = H.contact_status == STICK
-    assert np.abs(H.slip[stick]).max(initial=0.0) <= 1e-10 * np.abs(H.slip).max()
+    assert np.abs(H.slip[stick]).max(initial=0.0) <= 1e-12 * np.abs(H.slip).max()  # measured 0
     assert np.all(H.lam_t[H.lam == 0] == 0)  # no force off contact
 
 
@@ -132,7 +134,7 @@ def test_energy_identity_with_friction_every_step(oblique_cn):
     """CN: E^{n+1} - E^n = contact + frictional work, to round-off at every step."""
     H = oblique_cn
     dE = H.energy_increment[1:] - H.predicted_increment[1:]
-    assert np.abs(dE).max() <= 1e-12 * np.abs(H.energy).max()
+    assert np.abs(dE).max() <= 5e-13 * np.abs(H.energy).max()  # measured 7.1e-15
     assert H.friction_work[-1] < 0  # friction dissipated
     assert H.summary()["friction"] == {"law": "coulomb", "coefficient": 0.3}
 
@@ -153,7 +155,7 @@ def test_every_friction_scheme_keeps_its_identity(scheme):
     """Each scheme that carries friction closes its energy identity with the frictional work."""
     H = run(block(friction="coulomb:0.3"), scheme=scheme)
     dE = H.energy_increment[1:] - H.predicted_increment[1:]
-    assert np.abs(dE).max() <= 1e-11 * np.abs(H.energy).max()
+    assert np.abs(dE).max() <= 1e-12 * np.abs(H.energy).max()  # measured 1.2e-14
     assert np.diff(H.friction_work).min() < 0
 
 
@@ -213,7 +215,7 @@ def test_incline2d_sliding_acceleration(scheme, mass):
     a = 2 * np.polyfit(H.t[keep], com.position[keep], 2)[0]
     m_t, m_n = directional_masses(discretize(bench.problem(2), mass).M, 2)
     if mass != "seed-normal":
-        assert abs(m_n / m_t - 1) <= 1e-12
+        assert abs(m_n / m_t - 1) <= 1e-14  # measured 0
     a_sin, a_cos = math.sin(math.radians(p["angle"])), math.cos(math.radians(p["angle"]))
     assert abs(a / (p["g"] * (a_sin - p["mu"] * m_n / m_t * a_cos)) - 1) <= 0.01
 
@@ -368,7 +370,7 @@ def test_tangent_prescribed_by_dirichlet(scheme):
     assert corner.size == 1 and (H.lam[:, corner] < 0).any()
     assert np.all(H.lam_t[:, corner] == 0.0)
     dE = H.energy_increment[1:] - H.predicted_increment[1:]
-    assert np.abs(dE).max() <= 1e-11 * np.abs(H.energy).max()
+    assert np.abs(dE).max() <= 5e-13 * np.abs(H.energy).max()  # measured 5.7e-15
 
 
 def tilted_block(friction=None) -> Problem:
@@ -407,7 +409,7 @@ def test_seed_normal_tilted_refused_by_axis_balanced_schemes(scheme):
 
 @pytest.mark.parametrize("condensation", ["full", "schur"])
 def test_condensations_agree_with_friction(condensation):
-    """lazy, full and schur Delassus condensations: the same frictional histories to 1e-10."""
+    """lazy, full and schur Delassus condensations: the same frictional histories to 2e-11 (measured 3.6e-13)."""
     from signorini.linalg import has_pardiso
 
     if condensation == "schur" and not has_pardiso():
@@ -417,8 +419,8 @@ def test_condensations_agree_with_friction(condensation):
     other = run(block(friction="coulomb:0.3"), scheme="cn", mass="moment-preserving", solver_options=options)
     assert other.meta["condensation"] == condensation and lazy.meta["condensation"] == "lazy"
     scale = np.abs(lazy.lam).max()
-    assert np.abs(other.lam - lazy.lam).max() <= 1e-10 * scale
-    assert np.abs(other.lam_t - lazy.lam_t).max() <= 1e-10 * scale
+    assert np.abs(other.lam - lazy.lam).max() <= 2e-11 * scale  # measured 3.6e-13
+    assert np.abs(other.lam_t - lazy.lam_t).max() <= 2e-11 * scale  # measured 1.1e-13
 
 
 def test_compare_runs_the_incline(tmp_path):

@@ -7,8 +7,8 @@ through the first impact):
 
 * the scheme's discrete energy identity (docs/schemes.md) at every step, to round-off:
   |energy_increment - predicted_increment| <= 1e-12 max|E| (measured <= 1.9e-14);
-* complementarity: the solver's relative residual <= 1e-12 at every step (measured
-  <= 6e-16), gap >= -1e-12 gap(0), lambda <= 0, |gap lambda| <= 1e-12 gap(0) max|lambda|;
+* complementarity: the solver's relative residual <= 5e-14 at every step (measured
+  <= 6e-16), gap >= -5e-14 gap(0), lambda <= 0, |gap lambda| <= 5e-14 gap(0) max|lambda|;
 * the first impact: the first level at which a contact node reaches the obstacle is
   within one step of the exact first contact time (1D: ``ExactBar1D.events``, t = L/c,
   measured 0.975 with ``seed``, 1.0 or 1.025 with the others, dt = 0.025; 2D: free flight,
@@ -34,7 +34,7 @@ from signorini.studies.benchmarks import get_benchmark
 MASSES = MASS_VARIANTS.names(aliases=False)
 WITH_MASS = {"standard", "lumped"}  # every dof keeps its inertia (kernel {0})
 IDENTITY_TOL = 1e-12
-COMPLEMENTARITY_TOL = 1e-12
+COMPLEMENTARITY_TOL = 5e-14  # measured 5.6e-16 (residual), 7e-17 (gap, gap lambda)
 
 # bench -> (n, final time as a multiple of the first contact time)
 CASES = {"bar1d": (20, 2.25), "bar2d": (2, 2.5)}
@@ -65,14 +65,14 @@ def _check_mass_effect(bench, mass, effect):
     (mass.py, README); on bar1d (L = rho = 1, h = 1/20) by hand: the seed mass drops the first
     cell, so it keeps 1 - h of the mass and moves the centre by h/2 (the bounding box is 1 long);
     the lumped mass integrates the second central moment 1/12 by the trapezoid rule, 1/12 + h^2/6,
-    an inertia change of 2 h^2."""
+    an inertia change of 2 h^2.  Exact to round-off: measured at most 2.8e-16 (bounds 2e-14)."""
     ratio, shift, inertia = effect["mass_ratio"], effect["centre_shift"], effect["inertia_change"]
     if mass in ("standard", "moment-preserving", "moment-preserving-tensor"):  # mass, centre, inertia exact
-        assert abs(ratio - 1) <= 1e-12 and shift <= 1e-12 and inertia <= 1e-12, effect
+        assert abs(ratio - 1) <= 2e-14 and shift <= 2e-14 and inertia <= 2e-14, effect
     elif mass in ("neighbour", "mass-free-surface"):  # the total mass is kept, the inertia is not
-        assert abs(ratio - 1) <= 1e-12 and shift > 1e-6 and inertia > 1e-6, effect
+        assert abs(ratio - 1) <= 2e-14 and shift > 1e-6 and inertia > 1e-6, effect
     elif mass == "lumped":
-        assert abs(ratio - 1) <= 1e-12 and shift <= 1e-12 and inertia > 1e-6, effect
+        assert abs(ratio - 1) <= 2e-14 and shift <= 2e-14 and inertia > 1e-6, effect
     else:  # seed, seed-normal: the contact cells' mass is removed
         assert ratio < 1 - 1e-6, effect
     if bench == "bar1d":
@@ -80,9 +80,9 @@ def _check_mass_effect(bench, mass, effect):
         h = b.h(CASES[bench][0])
         assert b.params()["L"] == 1.0 and b.params()["rho"] == 1.0
         if mass == "lumped":
-            assert abs(inertia - 2 * h * h) <= 1e-12, effect
+            assert abs(inertia - 2 * h * h) <= 2e-14, effect
         if mass in ("seed", "seed-normal"):
-            assert abs(ratio - (1 - h)) <= 1e-12 and abs(shift - h / 2) <= 1e-12, effect
+            assert abs(ratio - (1 - h)) <= 2e-14 and abs(shift - h / 2) <= 2e-14, effect
 
 
 def test_every_variant_is_covered():
