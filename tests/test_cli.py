@@ -110,7 +110,10 @@ def test_study_command_1d_and_2d(tmp_path, capsys):
     rows = list(csv.DictReader(open(out / "study.csv")))
     assert [int(r["n"]) for r in rows] == [20, 40, 80]
     e = [float(r["u_L2"]) for r in rows]
-    assert 1.7 < e[0] / e[1] < 2.3 and 1.7 < e[1] / e[2] < 2.3  # L2 rate ~ 1
+    # against the exact solution (no reference run): L2 rate ~ 1, measured ratios 1.88 and 2.13;
+    # the finest error measured 0.0141
+    assert 1.7 < e[0] / e[1] < 2.3 and 1.7 < e[1] / e[2] < 2.3
+    assert e[2] < 0.0155
     assert "rate 20->40" in (out / "study.md").read_text()
     out2 = tmp_path / "s2"
     assert main(["study", "bar2d", "--scheme", "be", "--levels", "2", "--out", str(out2), "--quiet"]) == 0

@@ -26,7 +26,7 @@ def test_cn_energy_identity_and_single_factorization():
     H = _run(40, 100.0)
     ok = np.isfinite(H.predicted_increment)
     assert ok[1:].all()
-    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 1e-12 * H.energy[0]
+    assert np.abs(H.energy_increment - H.predicted_increment)[ok].max() <= 5e-13 * H.energy[0]  # measured 9.7e-15
     assert H.counters["factorizations"] == 1 and H.lam.max() <= 0 and H.lam.min() < 0
 
 
