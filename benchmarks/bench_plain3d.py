@@ -3,8 +3,8 @@
 Usage (from the repository root)::
 
     python -m benchmarks.bench_plain3d --prepare                 # needs gmsh: writes the cases once
-    python -m benchmarks.bench_plain3d --variants auto superlu:nd superlu:metis cholmod:metis pardiso
-    python -m benchmarks.bench_plain3d --python /tmp/v/bin/python --variants auto   # a plain venv
+    python -m benchmarks.bench_plain3d --runs this:auto this:superlu:nd this:cholmod:metis this:pardiso
+    python -m benchmarks.bench_plain3d --python plain=/tmp/v/bin/python extras=python3 --repeat 2
 
 Cases: ``hertz3d-9`` (the benchmark's ball at n = 9, about 34k dofs, pickled so that an
 install without gmsh can run it) and ``bracket-35k`` (``examples/bracket_drop.toml`` on the
@@ -110,7 +110,7 @@ def measure(case: str, variant: str, steps: int, cache: Path) -> dict:
     chooser = ordering.fill_reducing_order
 
     def spy(A, method=None):
-        perm, name = chooser(A, method)
+        perm, name = chooser(A) if method is None else chooser(A, method)  # an older install: no method
         used.append(name)
         return perm, name
 
@@ -129,8 +129,10 @@ def measure(case: str, variant: str, steps: int, cache: Path) -> dict:
         "factorization_s": m["factorization_seconds"],
         "columns_s": m["condensation_seconds"],
         "columns": H.counters.get("delassus_columns", 0),
-        "setup_s": t_disc + m["setup_seconds"] + in_loop,
-        "step_ms": 1e3 * m["step_seconds"],
+        "setup_s": t_disc + m["setup_seconds"],  # before the loop, as a run reports it
+        "in_loop_columns_s": in_loop,
+        "step_ms": 1e3 * m["step_seconds"],  # without the columns computed in the loop
+        "total_s": t_disc + m["setup_seconds"] + H.steps * m["step_seconds"] + in_loop,
         "factor_MB": m["factor_bytes"] / 1e6,
         "steps": H.steps,
         "lam": np.asarray(H.lam).tolist(),
@@ -145,16 +147,65 @@ def run(python: str, case: str, variant: str, steps: int, cache: Path) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
+def _row_text(r: dict) -> str:
+    return (
+        f"{r['install']} {r['case']} {r['variant']}: {r['dofs']} dofs, {r['contact_nodes']} contact nodes, "
+        f"{r['backend']} + {r['ordering']}, set-up {r['setup_s']:.2f} s (factor {r['factorization_s']:.2f}), "
+        f"{r['columns']} columns ({r['in_loop_columns_s']:.2f} s in the loop), {r['step_ms']:.1f} ms/step, "
+        f"total {r['total_s']:.1f} s, factor {r['factor_MB']:.0f} MB, histories differ by {r['lam_diff']:.1e} "
+        f"(contact force) / {r['energy_diff']:.1e} (energy)"
+    )
+
+
+def summarize(rows: list[dict], best: str) -> list[str]:
+    """Markdown: the median of the repeats per (case, install, variant) and the ratios to the
+    fastest run of the install ``best`` (set-up and step separately)."""
+    md = [
+        "| case | install | variant | backend + ordering | set-up s | ms/step | total s | set-up / best | "
+        "step / best | histories differ by |",
+        "|" + "---|" * 10,
+    ]
+    for case in dict.fromkeys(r["case"] for r in rows):
+        keys = list(dict.fromkeys((r["install"], r["variant"]) for r in rows if r["case"] == case))
+        med = {}
+        for key in keys:
+            sel = [r for r in rows if r["case"] == case and (r["install"], r["variant"]) == key]
+            med[key] = {k: float(np.median([r[k] for r in sel])) for k in ("setup_s", "step_ms", "total_s")}
+            med[key].update(name=f"{sel[0]['backend']} + {sel[0]['ordering']}", n=len(sel))
+            med[key]["diff"] = max(max(r["lam_diff"], r["energy_diff"]) for r in sel)
+        ref = [m for (install, _), m in med.items() if install == best] or list(med.values())
+        s0, t0 = min(m["setup_s"] for m in ref), min(m["step_ms"] for m in ref)
+        for (install, variant), m in med.items():
+            md.append(
+                f"| {case} | {install} | {variant} | {m['name']} | {m['setup_s']:.2f} | {m['step_ms']:.1f} | "
+                f"{m['total_s']:.1f} | {m['setup_s'] / s0:.2f} | {m['step_ms'] / t0:.2f} | {m['diff']:.1e} |"
+            )
+    return md
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_plain3d", description=__doc__.split("\n\n")[0])
     ap.add_argument("--prepare", action="store_true", help="write the cases (needs gmsh)")
     ap.add_argument("--cases", nargs="+", default=list(CASES))
-    ap.add_argument("--variants", nargs="+", default=["auto"])
-    ap.add_argument("--python", default=sys.executable, help="interpreter of the measured install")
+    ap.add_argument(
+        "--python",
+        nargs="+",
+        default=[f"this={sys.executable}"],
+        metavar="INSTALL=PATH",
+        help="the interpreters of the installs compared (default: this one, named 'this')",
+    )
+    ap.add_argument(
+        "--runs",
+        nargs="+",
+        default=None,
+        metavar="INSTALL:VARIANT",
+        help="what to run, in this order (default: auto on every install); VARIANT is BACKEND[:ORDERING]",
+    )
+    ap.add_argument("--best", default="extras", help="the install whose fastest run the ratios divide by")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of the whole sequence (the table takes medians)")
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--cache", type=Path, default=CACHE)
     ap.add_argument("--out", type=Path, default=Path("out/bench"))
-    ap.add_argument("--tag", default="", help="label of this install in the output")
     ap.add_argument("--one", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.prepare:
@@ -163,27 +214,27 @@ def main(argv=None) -> int:
     if a.one:
         print(json.dumps(measure(a.one[0], a.one[1], a.steps, a.cache)))
         return 0
+    pythons = dict(item.split("=", 1) for item in a.python)
+    runs = [r.split(":", 1) for r in (a.runs or [f"{tag}:auto" for tag in pythons])]
     rows = []
-    for case in a.cases:
-        first = None
-        for variant in a.variants:
-            r = run(a.python, case, variant, a.steps, a.cache)
-            r["tag"] = a.tag
-            lam, energy = np.asarray(r.pop("lam")), np.asarray(r.pop("energy"))
-            if first is None:
-                first = (lam, energy)
-            r["lam_diff"] = float(np.abs(lam - first[0]).max() / max(np.abs(first[0]).max(), 1e-300))
-            r["energy_diff"] = float(np.abs(energy - first[1]).max() / max(np.abs(first[1]).max(), 1e-300))
-            rows.append(r)
-            print(
-                f"{a.tag} {case} {variant}: {r['dofs']} dofs, {r['contact_nodes']} contact nodes, {r['backend']} + "
-                f"{r['ordering']}, set-up {r['setup_s']:.2f} s (factor {r['factorization_s']:.2f}, "
-                f"{r['columns']} columns {r['columns_s']:.2f}), {r['step_ms']:.1f} ms/step, "
-                f"factor {r['factor_MB']:.0f} MB, histories differ by {r['lam_diff']:.1e} / {r['energy_diff']:.1e}",
-                flush=True,
-            )
+    for _ in range(a.repeat):
+        for case in a.cases:
+            first = None
+            for install, variant in runs:
+                r = run(pythons[install], case, variant, a.steps, a.cache)
+                r["install"] = install
+                lam, energy = np.asarray(r.pop("lam")), np.asarray(r.pop("energy"))
+                if first is None:
+                    first = (lam, energy)
+                r["lam_diff"] = float(np.abs(lam - first[0]).max() / max(np.abs(first[0]).max(), 1e-300))
+                r["energy_diff"] = float(np.abs(energy - first[1]).max() / max(np.abs(first[1]).max(), 1e-300))
+                rows.append(r)
+                print(_row_text(r), flush=True)
+    md = summarize(rows, a.best)
+    print("\n".join(md))
     a.out.mkdir(parents=True, exist_ok=True)
-    (a.out / f"plain3d{'-' + a.tag if a.tag else ''}.json").write_text(json.dumps(rows, indent=1))
+    (a.out / "plain3d.json").write_text(json.dumps(rows, indent=1))
+    (a.out / "plain3d.md").write_text("\n".join(md) + "\n")
     return 0
 
 

@@ -5,7 +5,7 @@ import pytest
 
 from backends import DIRECT
 from signorini.dynamics.simulate import simulate
-from signorini.linalg import choose_backend, estimate_factor_bytes, has_metis, has_pyamg
+from signorini.linalg import choose_backend, estimate_factor_bytes, has_cholmod, has_metis, has_pyamg
 from signorini.studies.benchmarks import get_benchmark
 
 # SuperLU gives the reference: comparing it with itself would be bit-identical, so it is not
@@ -78,6 +78,94 @@ def test_auto_prefers_cg_for_large_mass_dominated_3d_without_a_cholesky(monkeypa
     assert choose_backend(n, 3, big, cg_friendly=True) == "cholmod"  # a Cholesky beats both
 
 
+def test_auto_takes_a_cholesky_in_3d_from_a_few_thousand_dofs(monkeypatch):
+    """With CHOLMOD installed (the plain install where cvxopt has wheels) and no Pardiso:
+    3D from about 4k dofs, 2D from 30k; a small run never imports cvxopt; Pardiso first."""
+    import signorini.linalg.base as base
+
+    asked = []
+
+    def spy(name, value):
+        return lambda: asked.append(name) or value
+
+    big = 1e15
+    monkeypatch.setattr(base, "has_pardiso", spy("pardiso", False))
+    monkeypatch.setattr(base, "has_cholmod", spy("cholmod", True))
+    assert choose_backend(2_000, 3, big) == "superlu" and asked == []  # cvxopt not even imported
+    assert choose_backend(20_000, 2, big) == "superlu" and asked == []  # 2D: SuperLU below 30k
+    for n in (6_000, 20_000, 35_000, 140_000):
+        asked.clear()
+        assert choose_backend(n, 3, big) == "cholmod"
+        assert choose_backend(n, 3, big, cg_friendly=True) == "cholmod"
+        assert asked == ["pardiso", "cholmod"] * 2
+    assert choose_backend(100_000, 2, big) == "cholmod"
+    assert choose_backend(35_000, 3, 1e3) == "cg"  # no factor fits
+    monkeypatch.setattr(base, "has_pardiso", spy("pardiso", True))
+    assert choose_backend(20_000, 3, big) == "pardiso"
+    # where the crossing is: the first 3D size whose Cholesky estimate is below SuperLU's
+    first = next(n for n in range(1_000, 10_000, 100) if choose_backend(n, 3, big) != "superlu")
+    assert 3_000 <= first <= 5_000
+
+
+def _markers(extra: str | None = None) -> dict:
+    import tomllib
+    from pathlib import Path
+
+    from packaging.requirements import Requirement
+
+    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
+    listed = project["optional-dependencies"][extra] if extra else project["dependencies"]
+    return {r.name: r for r in map(Requirement, listed)}
+
+
+PLATFORMS = {  # (sys_platform, platform_machine, python_version): (cvxopt, pymetis) in the plain install
+    ("linux", "x86_64", "3.11"): (True, True),
+    ("linux", "x86_64", "3.14"): (True, True),
+    ("linux", "aarch64", "3.12"): (True, False),
+    ("win32", "AMD64", "3.13"): (True, False),
+    ("darwin", "arm64", "3.12"): (True, True),
+    ("darwin", "arm64", "3.13"): (False, True),  # no cvxopt wheel for macOS from Python 3.13
+    ("darwin", "x86_64", "3.11"): (True, True),
+    ("linux", "x86_64", "3.15"): (False, False),  # no wheels yet: never a source build
+    ("linux", "ppc64le", "3.12"): (False, False),
+    ("win32", "ARM64", "3.12"): (False, False),
+}
+
+
+@pytest.mark.parametrize("platform", PLATFORMS, ids="-".join)
+def test_plain_install_has_cholmod_and_metis_where_wheels_exist(platform):
+    core = _markers()
+    env = dict(zip(("sys_platform", "platform_machine", "python_version"), platform, strict=True))
+    got = tuple(core[name].marker.evaluate(env) for name in ("cvxopt", "pymetis"))
+    assert got == PLATFORMS[platform]
+
+
+def test_extras_cholmod_and_metis_still_install_them_anywhere():
+    assert _markers("cholmod")["cvxopt"].marker is None
+    assert _markers("metis")["pymetis"].marker is None
+    assert str(_markers("metis")["pymetis"].specifier) == str(_markers()["pymetis"].specifier)
+
+
+def test_fill_reducing_order_says_which(monkeypatch, bar3d_operator):
+    import signorini.linalg.ordering as ordering
+
+    monkeypatch.setattr(ordering, "has_metis", lambda: False)
+    assert ordering.fill_reducing_order(bar3d_operator)[1] == "nd"
+    monkeypatch.setattr(ordering, "ORDERING", "nd-levels")
+    assert ordering.fill_reducing_order(bar3d_operator)[1] == "nd-levels"
+    with pytest.raises(ValueError, match="unknown ordering 'amd'"):
+        ordering.fill_reducing_order(bar3d_operator, "amd")
+
+
+def test_factors_record_their_ordering(bar3d_operator):
+    from signorini.linalg import factorize
+
+    expected = "metis" if has_metis() else "nd"
+    assert factorize(bar3d_operator, "superlu").ordering == expected
+    if has_cholmod():
+        assert factorize(bar3d_operator, "cholmod").ordering == expected
+
+
 def test_stiffness_to_mass_ratio_scales_with_dt_squared():
     from signorini.dynamics.context import Context, stiffness_to_mass_ratio
     from signorini.dynamics.problem import discretize
@@ -140,6 +228,7 @@ def bar3d_operator():
 
 ORDERINGS = [
     "nd",
+    "nd-levels",
     pytest.param("metis", marks=pytest.mark.skipif(not has_metis(), reason="pymetis not installed (extra 'metis')")),
 ]
 
@@ -149,12 +238,13 @@ def test_nested_dissection_is_a_nodal_permutation_that_fills_less(bar3d_operator
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from signorini.linalg.ordering import metis_nested_dissection, nested_dissection, supervariables
+    from signorini.linalg.ordering import fill_reducing_order, supervariables
 
     K = bar3d_operator
     n = K.shape[0]
     assert np.array_equal(supervariables(K), np.arange(n) // 3)  # node-major dof triplets found
-    p = nested_dissection(K) if ordering == "nd" else metis_nested_dissection(K)
+    p, name = fill_reducing_order(K, ordering)
+    assert name == ordering
     assert np.array_equal(np.sort(p), np.arange(n))
     assert np.array_equal(p.reshape(-1, 3) % 3, np.tile([0, 1, 2], (n // 3, 1)))  # nodes stay together
     opts = dict(diag_pivot_thresh=0.0, options={"SymmetricMode": True})

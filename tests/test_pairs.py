@@ -108,7 +108,9 @@ def test_the_rows_balance_and_a_node_off_the_master_is_inactive():
 
 @pytest.mark.parametrize(
     "change, message",
-    [({"friction": "coulomb:0.3"}, "friction"), ({"pairs": [("left_ymax", "left_ymax")]}, "same tag"),
+    [({"friction": "tresca:0.01", "pairs": [("right_ymin", "left_ymax"), ("left_ymax", "right_ymin", "coulomb:0.3")]},
+      "share one law"),
+     ({"pairs": [("left_ymax", "left_ymax")]}, "same tag"),
      ({"pairs": [("right_ymin", "nope")]}, "unknown boundary tag"),
      ({"pairs": [("left_ymax", "left_xmax")]}, "share nodes")],
 )  # fmt: skip
@@ -117,7 +119,7 @@ def test_refusals(change, message):
 
     with pytest.raises(InputError, match=message):
         if "pairs" in change:
-            change = {"pairs": [ContactPair(*p) for p in change["pairs"]]}
+            change = {**change, "pairs": [ContactPair(*p) for p in change["pairs"]]}
         p = dataclasses.replace(bars(2, 1, 1), **change)
         simulate(p, "cn", 0.01, 0.02)
 

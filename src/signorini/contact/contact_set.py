@@ -31,6 +31,11 @@ class ContactSet:
     B : (nc, n_dofs) sparse, row i = nu_i^T on the dofs of node i.
     dofs : (nc, d) the dofs of the contact nodes.
     tangents : (nc, d - 1, d) unit tangents of the nodal frames (:mod:`~.frames`).
+
+    A contact pair's row (:mod:`~.pairs`, :meth:`with_pairs`) is the motion of its slave node
+    relative to the master point it faces: B's row is nu_i^T u_i - sum_j N_j(xi_i) nu_i^T u_j
+    over the master facet's nodes j (``master_dofs``, ``master_shape``), and so are its
+    tangential rows (t_ik instead of nu_i) in :meth:`tangential_matrix` and :meth:`frame_matrix`.
     """
 
     nodes: np.ndarray
@@ -48,8 +53,12 @@ class ContactSet:
     #: every node whose inertia the mass variant redistributes: the obstacle's contact nodes,
     #: the slave nodes and the nodes of the master tags (None: ``nodes``)
     inertia_nodes: np.ndarray | None = None
-    #: per pair: its tags, rows and inactive slave nodes (summary.json ``pairs``)
+    #: per pair: its tags, rows, inactive slave nodes and contact law (summary.json ``pairs``)
     pair_info: list | None = None
+    #: (nc, nfv, d) the dofs of the master facet's nodes of each pair row (-1 on obstacle rows)
+    master_dofs: np.ndarray | None = None
+    #: (nc, nfv) the master facet's shape functions N_j(xi) at the point a pair row faces (0 on obstacle rows)
+    master_shape: np.ndarray | None = None
 
     @property
     def tangents(self) -> np.ndarray:
@@ -58,23 +67,50 @@ class ContactSet:
             self._tangents = tangent_frames(self.normals)
         return self._tangents
 
+    @property
+    def has_pair_rows(self) -> bool:
+        """Whether some row is a contact pair's (a slave node against a master facet)."""
+        return self.pair is not None and self.master_dofs is not None and bool((self.pair >= 0).any())
+
+    def _row_frame(self, vectors: np.ndarray, n_dofs: int) -> sp.csr_matrix:
+        """The rows of ``vectors`` (nc, k, d) per contact row: on the contact node's dofs alone
+        (a rigid obstacle's row, :func:`~.frames.frame_rows` as for a set without pairs), and
+        for a pair's row also on the master facet's dofs with coefficients -N_j(xi):
+
+            row i k + l = v_il^T u_i - sum_j N_j(xi_i) v_il^T u_j.
+        """
+        if not self.has_pair_rows:
+            return frame_rows(self.dofs, vectors, n_dofs)
+        nc = self.size
+        dofs = np.concatenate([self.dofs[:, None, :], self.master_dofs], axis=1)  # (nc, 1 + nfv, d)
+        coef = np.concatenate([np.ones((nc, 1)), -self.master_shape], axis=1)  # (nc, 1 + nfv)
+        return frame_rows(dofs, vectors, n_dofs, coef)
+
     def tangential_matrix(self, n_dofs: int) -> sp.csr_matrix:
-        """T (nc (d - 1), n_dofs): row i (d - 1) + k = t_ik^T on the dofs of node i."""
-        return frame_rows(self.dofs, self.tangents, n_dofs)
+        """T (nc (d - 1), n_dofs): row i (d - 1) + k = t_ik^T on the dofs of node i; on a pair's
+        row, the slip relative to the master: t_ik^T u_i - sum_j N_j(xi_i) t_ik^T u_j."""
+        return self._row_frame(self.tangents, n_dofs)
 
     def frame_matrix(self, n_dofs: int) -> sp.csr_matrix:
-        """H (nc d, n_dofs) node-major: row i d = nu_i^T, rows i d + k = t_ik^T (k >= 1)."""
-        return frame_rows(self.dofs, np.concatenate([self.normals[:, None, :], self.tangents], axis=1), n_dofs)
+        """H (nc d, n_dofs) node-major: row i d = nu_i^T, rows i d + k = t_ik^T (k >= 1), on the
+        dofs of node i (and on a pair's row, minus N_j(xi_i) times them on master node j: row
+        i d is then B's row i)."""
+        return self._row_frame(np.concatenate([self.normals[:, None, :], self.tangents], axis=1), n_dofs)
 
     def obstacle_slip(self, t0: float, t1: float) -> np.ndarray:
-        """Tangential components (nc, d - 1) of the obstacle's translation from t0 to t1 [length]."""
+        """Tangential components (nc, d - 1) of the obstacle's translation from t0 to t1 [length];
+        zero on the rows of contact pairs (their slip is relative to the master body)."""
         shift = self.obstacle.translation(t0, t1) if self.obstacle is not None else np.zeros(0)
         if shift.size == 0 or not np.any(shift):
             return np.zeros(self.tangents.shape[:2])
-        return np.einsum("ikd,d->ik", self.tangents, shift)
+        slip = np.einsum("ikd,d->ik", self.tangents, shift)
+        if self.pair is not None:
+            slip[self.pair >= 0] = 0.0
+        return slip
 
     def force_components(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
-        """Global components (d,) of the total contact force sum_i lambda_i nu_i + lambda_t,i . t_i [force]."""
+        """Global components (d,) of the total contact force sum_i lambda_i nu_i + lambda_t,i . t_i [force]
+        on the contact nodes (a pair's row: the force on its slave node; the master gets its opposite)."""
         F = self.normals.T @ lam
         if lam_t is not None and lam_t.size:
             F = F + np.einsum("ik,ikd->d", lam_t, self.tangents)
@@ -169,8 +205,14 @@ class ContactSet:
 
         mesh = space.mesh
         parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
-        nr = self.nodes.size
+        nr, d = self.nodes.size, space.dim
         nodes = np.concatenate([self.nodes] + [r.nodes for r in parts])
+        nfv = parts[0].xi.shape[1]  # one cell type: the same facets for every pair
+        master_dofs = np.concatenate(
+            [np.full((nr, nfv, d), -1, dtype=np.int64)]
+            + [space.dofs(r.facet_nodes.ravel()).reshape(-1, nfv, d) for r in parts]
+        )
+        master_shape = np.concatenate([np.zeros((nr, nfv))] + [r.xi for r in parts])
         info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive}
                 for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
         inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([r.nodes, r.master_nodes]) for r in parts]))
@@ -187,6 +229,8 @@ class ContactSet:
             np.concatenate([np.full(nr, -1)] + [r.facet for r in parts]),
             inertia,
             info,
+            master_dofs,
+            master_shape,
         )
 
     @property

@@ -4,10 +4,10 @@ No factorization: for a factor that does not fit, the active-set (semismooth New
 iteration of :class:`~signorini.contact.solver.ActiveSetCGSolver` runs unchanged and
 replicated on every rank, and each of its linear solves
 
-    P K P w = P r,    P = I - B_A^T B_A  (the active nodes' normals, orthonormal rows),
+    P K P w = P r,    P = I - B_A^T B_A  (a rigid obstacle's orthonormal rows; pairs: below),
 
 is PETSc's conjugate gradients on the distributed K (MPIAIJ, each rank a block of whole
-nodes' rows), preconditioned by ``P G P`` with G one of
+nodes' rows), preconditioned by ``P Q P`` with Q one of
 
 * ``gamg``: PETSc's smoothed-aggregation algebraic multigrid with the rigid-body motions
   of the free dofs as near-null space (3 in 2D, 6 in 3D;
@@ -20,10 +20,15 @@ which ``auto`` picks the serial ``cg``) and ``gamg`` otherwise: on bar3d, 40 Jac
 iterations per solve cost half the time of 15 GAMG ones (docs/performance.md).
 
 The rows of one contact node stay on one rank (the row blocks end at node boundaries,
-:func:`node_row_bounds`), so the projection P is local: no communication beyond the
-products and dot products of CG itself.  CG stops as the serial one does, when
-|P (r - K w)| <= rtol |P r| (unpreconditioned 2-norm), started from the previous solution
-(``set_guess``: a scheme's predictor).
+:func:`node_row_bounds`), so for the orthonormal rows of a rigid obstacle the projection
+P = I - B_A^T B_A is local: no communication beyond the products and dot products of CG
+itself.  The rows of contact pairs (:mod:`~signorini.contact.pairs`: a slave node and a
+master facet's nodes, possibly on two ranks) are not orthonormal: there
+P = I - B_A^T G^-1 B_A with G = B_A B_A^T factored once per active set on every rank
+(:class:`~signorini.contact.solver.GramFactor`), and an application of P costs one
+``Allreduce`` of |A| numbers (the sum of the ranks' parts of B_A v).  CG stops as the
+serial one does, when |P (r - K w)| <= rtol |P r| (unpreconditioned 2-norm), started from
+the previous solution (``set_guess``: a scheme's predictor).
 
 The state vectors stay replicated (docs/parallel.md): a solve hands each rank its rows of
 the right-hand side and the start, and one ``Allgatherv`` gives every rank the solution.
@@ -43,7 +48,7 @@ from ..linalg.petsc import load
 from ..linalg.petsc.factor import PREFIX, _options_text
 from ..linalg.row_block import RowBlock, node_row_bounds
 from ..parallel import run_comm
-from .solver import ActiveSetCGSolver, ContactSolver, _best_time
+from .solver import ActiveSetCGSolver, ContactSolver, GramFactor, _best_time
 
 #: preconditioners of ``petsc-cg`` (PETSc PC types)
 PRECONDITIONERS = ("gamg", "jacobi")
@@ -51,7 +56,7 @@ PRECONDITIONERS = ("gamg", "jacobi")
 
 class _Projected:
     """``y = P Q P x`` with the solver's current local projection P around ``apply(x, y)``:
-    petsc4py's Python matrix (``mult``, Q = K) and Python preconditioner (``apply``, Q = G)."""
+    petsc4py's Python matrix (``mult``, Q = K) and Python preconditioner (``apply``, Q the inner PC)."""
 
     def __init__(self, apply, solver: DistributedCGSolver, vec):
         self.inner, self.solver = apply, solver
@@ -72,7 +77,8 @@ class DistributedCGSolver(ActiveSetCGSolver):
     Parameters
     ----------
     K : (n, n) the operator on the free dofs (the same scipy matrix on every rank).
-    B : (nc, n) the contact normals' rows, one per contact node.
+    B : (nc, n) the contact rows: a unit normal on one node's dofs (rigid obstacle), or a
+        slave node's and a master facet's (contact pairs, rows that may span two ranks).
     nodes : (n,) the mesh node of each row (row blocks end at node boundaries).
     modes : (n, k) orthonormal rigid-body motions of the rows (``gamg``'s near-null space).
     """
@@ -110,8 +116,8 @@ class DistributedCGSolver(ActiveSetCGSolver):
         row_of = np.repeat(np.arange(self.B.shape[0]), np.diff(self.B.indptr))
         split = np.zeros(self.B.shape[0], dtype=bool)
         np.logical_or.at(split, row_of, owner != owner[np.searchsorted(row_of, row_of)])
-        if split.any():  # pragma: no cover - nodal contact rows never straddle node-aligned blocks
-            raise RuntimeError("a contact row straddles two ranks' rows")
+        #: some row spans two ranks (a pair's slave and master nodes): the projection is shared
+        self.straddles = bool(split.any())
 
         bs = _block(nodes) if np.all(self.counts % _block(nodes) == 0) else 1
         # jacobi: the upper triangle in d x d blocks (SBAIJ) reads about half the bytes of a
@@ -180,10 +186,22 @@ class DistributedCGSolver(ActiveSetCGSolver):
         return self.K_contact[np.searchsorted(self.contact_dofs, rows)]
 
     # -- the projection of the active set, on this rank's rows -------------------------
-    def _projector(self, BA: sp.csr_matrix):
-        """P = I - B_A^T B_A restricted to this rank's rows: (rows - lo, B_A's rows there) or None."""
+    def _projector(self, BA: sp.csr_matrix, gram: GramFactor | None = None):
+        """P on this rank's rows: :class:`_LocalProjection` for orthonormal rows that stay
+        on their ranks (``gram`` None, as a rigid obstacle's: no communication), else
+        :class:`_SharedProjection` (one ``Allreduce`` per application); None when P = I here.
+
+        Parameters
+        ----------
+        BA : (m, n) the active rows of B (the same on every rank).
+        gram : the factor of B_A B_A^T (:func:`~signorini.contact.solver.gram_factor`).
+        """
         if BA.shape[0] == 0:
             return None
+        if gram is not None or self.straddles:
+            mine = np.unique(BA.indices[(BA.indices >= self.lo) & (BA.indices < self.hi)])
+            Bc = BA[:, mine].tocsr()  # (m, k): every rank takes part in the sum, k = 0 included
+            return _SharedProjection(mine - self.lo, Bc, Bc.T.tocsr(), gram, self.comm.tompi4py(), self.MPI)
         mine = (BA.indices >= self.lo) & (BA.indices < self.hi)
         rows_of = np.repeat(np.arange(BA.shape[0]), np.diff(BA.indptr))
         keep = np.unique(rows_of[mine])
@@ -192,12 +210,11 @@ class DistributedCGSolver(ActiveSetCGSolver):
         Bl = BA[keep]
         cols = np.unique(Bl.indices)
         Br = Bl[:, cols].tocsr()
-        return cols - self.lo, Br, Br.T.tocsr()
+        return _LocalProjection(cols - self.lo, Br, Br.T.tocsr())
 
     def _project_local(self, v: np.ndarray, projection) -> None:
         if projection is not None:
-            idx, Br, BrT = projection
-            v[idx] -= BrT @ (Br @ v[idx])
+            projection(v)
 
     def _project_vec(self, vec) -> None:
         if self._local_projection is not None:
@@ -240,6 +257,38 @@ class DistributedCGSolver(ActiveSetCGSolver):
                 "comes from petsc.* options that do not suit a mass with massless dofs"
             )
         return self._gather(self.xv.getArray(readonly=True))
+
+
+class _LocalProjection:
+    """v_loc <- (I - B_r^T B_r) v_loc on this rank's rows: B_r (m_r, k) the orthonormal active
+    rows that this rank holds, on their columns ``idx`` (k,) (local row numbers)."""
+
+    def __init__(self, idx: np.ndarray, Br: sp.csr_matrix, BrT: sp.csr_matrix):
+        self.idx, self.Br, self.BrT = idx, Br, BrT
+
+    def __call__(self, v: np.ndarray) -> None:
+        v[self.idx] -= self.BrT @ (self.Br @ v[self.idx])
+
+
+class _SharedProjection:
+    """v_loc <- (P v)_loc, P = I - B_A^T G^-1 B_A, for rows that span ranks:
+
+        y = sum over ranks of B_c v_loc[idx]   (m,) one Allreduce,
+        v_loc[idx] -= B_c^T G^-1 y,
+
+    with B_c (m, k) the columns of B_A in this rank's rows (``idx`` (k,) local numbers,
+    k = 0 possible: the rank still adds its zeros) and ``gram`` the factor of G
+    (None: G = I, orthonormal rows).  Collective: every rank applies it together."""
+
+    def __init__(self, idx: np.ndarray, Bc: sp.csr_matrix, BcT: sp.csr_matrix, gram: GramFactor | None, comm, MPI):
+        self.idx, self.Bc, self.BcT, self.gram, self.comm, self.MPI = idx, Bc, BcT, gram, comm, MPI
+
+    def __call__(self, v: np.ndarray) -> None:
+        part = np.ascontiguousarray(self.Bc @ v[self.idx], dtype=np.float64)
+        y = np.empty_like(part)
+        self.comm.Allreduce(part, y, op=self.MPI.SUM)
+        z = y if self.gram is None else self.gram.solve(y)
+        v[self.idx] -= self.BcT @ z
 
 
 def _matrix(PETSc, comm, Kr: sp.csr_matrix, n: int, lo: int, bs: int, symmetric: bool):

@@ -16,6 +16,10 @@ The normals are those of t = 0 (:mod:`signorini.contact.obstacles`: B does not c
 during a run), so the frames are constant in time, hence continuous in time, for fixed
 and moving obstacles alike.  The motion of a moving obstacle enters the tangential
 slip through its translation over the step (:meth:`RigidObstacle.translation`).
+
+A contact pair's row (:mod:`signorini.contact.pairs`) has the frame of its slave node's
+nu_s = -n_m, and its rows act on the master facet's nodes too: the slip is relative to
+the master surface (:func:`frame_rows` with coefficients).
 """
 
 from __future__ import annotations
@@ -44,13 +48,32 @@ def tangent_frames(normals: np.ndarray) -> np.ndarray:
     return np.stack([t1, t2], axis=1)
 
 
-def frame_rows(dofs: np.ndarray, vectors: np.ndarray, n_dofs: int) -> sp.csr_matrix:
+def frame_rows(
+    dofs: np.ndarray, vectors: np.ndarray, n_dofs: int, coefficients: np.ndarray | None = None
+) -> sp.csr_matrix:
     """The sparse matrix (nc k, n_dofs) whose row i k + j is ``vectors[i, j]`` on the dofs of node i.
 
     ``dofs`` (nc, d) are the dofs of the contact nodes; ``vectors`` (nc, k, d) the k
     vectors of each node's frame (its normal, its tangents or all of them), node-major.
+
+    A row may act on several nodes (a contact pair's row: the slave node and the master
+    facet's nodes, :mod:`~signorini.contact.pairs`): ``dofs`` (nc, m, d) then holds the
+    dofs of the m nodes of each row (-1: no node, padding) and ``coefficients`` (nc, m)
+    their coefficients c_ir, and row i k + j is
+
+        sum_r c_ir vectors[i, j]^T u_r        (u_r: the displacement of node r of row i)
+
+    e.g. c_i = (1, -N_1(xi), ..., -N_nfv(xi)) for the relative motion t^T u_s - sum_r N_r t^T u_r
+    of a slave node against the master point it faces.  A row of one node with c = 1 gives
+    the same values as the (nc, d) form.
     """
     nc, k, d = vectors.shape
-    rows = np.repeat(np.arange(nc * k), d)
-    cols = np.repeat(dofs, k, axis=0).ravel() if k else np.zeros(0, dtype=np.intp)
-    return sp.csr_matrix((vectors.ravel(), (rows, cols)), shape=(nc * k, n_dofs))
+    if dofs.ndim == 2:
+        rows = np.repeat(np.arange(nc * k), d)
+        cols = np.repeat(dofs, k, axis=0).ravel() if k else np.zeros(0, dtype=np.intp)
+        return sp.csr_matrix((vectors.ravel(), (rows, cols)), shape=(nc * k, n_dofs))
+    vals = coefficients[:, None, :, None] * vectors[:, :, None, :]  # (nc, k, m, d)
+    rows = np.broadcast_to(np.arange(nc * k).reshape(nc, k, 1, 1), vals.shape)
+    cols = np.broadcast_to(dofs[:, None, :, :], vals.shape)
+    keep = cols >= 0  # padding (a row of fewer nodes) dropped; zero coefficients are kept
+    return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(nc * k, n_dofs))

@@ -16,7 +16,8 @@ of U^{n+1} - U^n relative to the obstacle; for a velocity-level scheme the slip 
     |lambda_t| <= r,   lambda_t = -r v_t / |v_t| where v_t != 0           (friction)
 
 with r = mu |lambda_n| (Coulomb) or r = s w_i where lambda_n < 0 (Tresca, on the nodes
-in contact; w_i is the node's contact area).  Both are imposed at t_{n+1}, with
+in contact; w_i is the node's contact area); mu and s may differ per node (contact pairs
+with their own laws, docs/bodies.md).  Both are imposed at t_{n+1}, with
 lambda^{n+1}.  They are written as the Alart-Curnier fixed point
 
     F(l) = l - Pi(l - rho v(l)) = 0,    v(l) = v_free + W l,
@@ -115,7 +116,7 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
         }
     if isinstance(spec, str):
         name, sep, value = spec.partition(":")
-        law = CONTACT_LAWS.resolve(name)
+        law = _resolve(name, where)
         if law == "frictionless" and sep:
             raise InputError(f"{where}: frictionless takes no value, got {spec!r} (e.g. coulomb:0.3)")
         if law != "frictionless" and not sep:
@@ -126,7 +127,7 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
     opts = dict(spec)
     if "law" not in opts:
         raise InputError(f"{where}.law is missing; allowed: {', '.join(CONTACT_LAWS.names())}")
-    law = CONTACT_LAWS.resolve(str(opts.pop("law")))
+    law = _resolve(str(opts.pop("law")), where)
     entry = CONTACT_LAWS.get(law)
     unknown = sorted(set(opts) - {p.name for p in entry.parameters})
     if unknown:
@@ -137,6 +138,14 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
     if missing:
         raise InputError(f"{where}: law {law!r} needs {missing[0]!r} (e.g. {missing[0]} = 0.3)")
     return Friction(law, float(values.get("coefficient", 0.0)), float(values.get("threshold", 0.0)))
+
+
+def _resolve(name: str, where: str) -> str:
+    """The registry name of law ``name``, or an :class:`InputError` naming ``where``."""
+    try:
+        return CONTACT_LAWS.resolve(name)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
 
 @dataclass
@@ -152,10 +161,11 @@ class ConeResult:
 
 
 def _project(
-    z: np.ndarray, mu: float, radius: np.ndarray | None, fixed: bool = False
+    z: np.ndarray, mu: float | np.ndarray, radius: np.ndarray | None, fixed: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pi(z) per node (m, d), the disc radii r (m,) and |z_t| (m,) (see the module docstring);
-    ``fixed``: the radii are ``radius`` whatever z_n (the inner problem of Tresca)."""
+    ``mu``: one Coulomb coefficient or one per node (m,); ``fixed``: the radii are ``radius``
+    whatever z_n (the inner problem of Tresca)."""
     out = np.empty_like(z)
     zn = z[:, 0]
     out[:, 0] = np.minimum(zn, 0.0)
@@ -170,8 +180,10 @@ def _project(
     return out, r, norm
 
 
-def _jacobian_blocks(z: np.ndarray, mu: float, radius: np.ndarray | None, fixed: bool = False) -> np.ndarray:
-    """A generalized Jacobian of Pi at z: (m, d, d) blocks, one per node."""
+def _jacobian_blocks(
+    z: np.ndarray, mu: float | np.ndarray, radius: np.ndarray | None, fixed: bool = False
+) -> np.ndarray:
+    """A generalized Jacobian of Pi at z: (m, d, d) blocks, one per node (``mu`` as :func:`_project`)."""
     m, d = z.shape
     D = np.zeros((m, d, d))
     zn = z[:, 0]
@@ -187,7 +199,8 @@ def _jacobian_blocks(z: np.ndarray, mu: float, radius: np.ndarray | None, fixed:
     scale = np.where(slip, r / safe, 0.0)
     D[:, 1:, 1:] += scale[:, None, None] * (eye - e[:, :, None] * e[:, None, :])
     if radius is None:  # dr/dz_n = -mu in contact (Coulomb)
-        D[:, 1:, 0] = np.where((slip & contact)[:, None], -mu * e, 0.0)
+        mu_col = mu if np.ndim(mu) == 0 else np.asarray(mu)[:, None]
+        D[:, 1:, 0] = np.where((slip & contact)[:, None], -mu_col * e, 0.0)
     return D
 
 
@@ -205,7 +218,7 @@ def _status(lam: np.ndarray, r: np.ndarray, norm: np.ndarray, fixed: bool = Fals
 def solve_cone(
     W: np.ndarray,
     v_free: np.ndarray,
-    mu: float = 0.0,
+    mu: float | np.ndarray = 0.0,
     radius: np.ndarray | None = None,
     warm: np.ndarray | None = None,
     scale: float = 1.0,
@@ -227,7 +240,7 @@ def solve_cone(
     ----------
     W : (m d, m d) Delassus matrix in the nodal frames, node-major [length / force].
     v_free : (m, d) minus the gaps and the slips of the motion without contact forces [length].
-    mu : Coulomb coefficient (used when ``radius`` is None).
+    mu : Coulomb coefficient, one for every node or (m,) one per node (used when ``radius`` is None).
     radius : (m,) Tresca thresholds s w_i [force], or None for Coulomb.
     warm : (m, d) starting multipliers (the previous step's).
     scale : length scale of the residual (the gaps of the problem).
@@ -264,7 +277,7 @@ def solve_cone(
 def _solve(
     W: np.ndarray,
     v_free: np.ndarray,
-    mu: float,
+    mu: float | np.ndarray,
     radius: np.ndarray | None,
     fixed: bool,
     warm: np.ndarray | None,
@@ -357,12 +370,14 @@ def _gauss_seidel(W, b, lam, rho, mu, radius, fixed, tol, scale, max_sweeps, d) 
     x = lam.ravel().copy()
     diag = np.diag(W).reshape(m, d).mean(axis=1)
     rad = None if radius is None else np.asarray(radius)
+    mus = None if np.ndim(mu) == 0 else np.asarray(mu)
     for sweep in range(1, max_sweeps + 1):
         for i in range(m):  # the fallback only: a counted, rare path
             sl = slice(i * d, (i + 1) * d)
             vi = b[sl] + W[sl] @ x
             zi = (x[sl] - vi / diag[i])[None, :]
-            x[sl] = _project(zi, mu, None if rad is None else rad[i : i + 1], fixed)[0][0]
+            mu_i = mu if mus is None else mus[i : i + 1]
+            x[sl] = _project(zi, mu_i, None if rad is None else rad[i : i + 1], fixed)[0][0]
         v = b + W @ x
         F = x - _project((x - rho * v).reshape(m, d), mu, rad, fixed)[0].ravel()
         if float(np.max(np.abs(F))) / (rho * scale) <= tol:

@@ -19,6 +19,11 @@ Sign conventions as for a rigid obstacle (:mod:`signorini.contact.obstacles`): t
 normal nu_s = -n_m points out of the slave body, lambda_s <= 0 is the normal force on the
 slave node (and -N_j lambda_s n_m its share on master node j): the pair's forces balance,
 so that the total momentum of the bodies is kept.
+
+With friction, the tangential rows are the relative slip of the slave node against the same
+master point, t^T u_s - sum_j N_j(xi) t^T u_j with t the tangents of the frame of nu_s
+(:func:`~signorini.contact.frames.tangent_frames`), and a pair has its own law
+(:attr:`ContactPair.friction`; None: the ``[contact] friction`` of the run).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from ..errors import InputError
 from ..fem.assembly import facet_weights
 from ..fem.elements import reference_element
 from ..fem.mesh import Mesh
+from .friction import Friction, make_friction
 
 #: master facets tried per slave node (the nearest centres); more cost more, fewer may miss
 #: the closest facet of a coarse master next to a fine slave
@@ -43,10 +49,18 @@ OFF_SURFACE = 1e-6
 
 @dataclass(frozen=True)
 class ContactPair:
-    """Two facet tags in contact: the nodes of ``slave`` against the facets of ``master``."""
+    """Two facet tags in contact: the nodes of ``slave`` against the facets of ``master``.
+
+    ``friction``: the pair's contact law, in any spelling of
+    :func:`~signorini.contact.friction.make_friction` (``"coulomb:0.3"``, ``{"law": "tresca",
+    "threshold": 0.01}``, a :class:`~signorini.contact.friction.Friction`), normalized to a
+    Friction; None (default): the run's ``[contact] friction``.  The frictional rows of a run
+    share one law kind, each its own coefficient or threshold (:func:`~signorini.dynamics.problem.run_friction`).
+    """
 
     slave: str
     master: str
+    friction: Friction | str | dict | None = None
 
     def __post_init__(self) -> None:
         for name in ("slave", "master"):
@@ -55,6 +69,14 @@ class ContactPair:
                 raise InputError(f"contact pair {name} must be a facet tag (a non-empty string), got {v!r}")
         if self.slave == self.master:
             raise InputError(f"contact pair: slave and master are the same tag {self.slave!r}")
+        if self.friction is not None:
+            where = f"contact pair {self.slave!r} / {self.master!r} friction"
+            object.__setattr__(self, "friction", make_friction(self.friction, where))
+
+    @property
+    def label(self) -> str:
+        """``slave / master`` (the tags), as error messages name the pair."""
+        return f"{self.slave!r} / {self.master!r}"
 
 
 @dataclass
@@ -68,6 +90,7 @@ class PairRows:
     B: sp.csr_matrix  # (m, n_dofs)
     facet: np.ndarray  # (m,) index of the master facet in the master tag's facets
     xi: np.ndarray  # (m, nfv) the master facet's shape functions at the projection
+    facet_nodes: np.ndarray  # (m, nfv) the master facet's nodes, in the order of xi
     master_nodes: np.ndarray  # (k,) every node of the master tag (their inertia is redistributed too)
     inactive: int  # slave nodes that face no master facet
 
@@ -218,7 +241,7 @@ def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
     B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
     B.sum_duplicates()
     weights = facet_weights(mesh, pair.slave)[slave]
-    return PairRows(slave, -normals_m, gaps, weights, B, facet, N, np.unique(facets), int((~on).sum()))
+    return PairRows(slave, -normals_m, gaps, weights, B, facet, N, master, np.unique(facets), int((~on).sum()))
 
 
 def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:

@@ -86,8 +86,10 @@ class ContactLaw:
     penalty lambda_i = -max(0, (B x)_i - bound_i) / c_i.  None: exact contact.
     ``friction`` (:class:`~signorini.contact.friction.Friction`): a frictional law adds d - 1
     tangential multipliers per node (a solver built with d components); ``reference``
-    (nc, d - 1) is c_t of the slip v_t = T x - c_t, and ``radius`` (nc,) the Tresca
-    thresholds s w_i [force].  Only the condensed (direct) solver supports these fields.
+    (nc, d - 1) is c_t of the slip v_t = T x - c_t, ``radius`` (nc,) the Tresca
+    thresholds s w_i [force] and ``coefficient`` (nc,) the Coulomb coefficients mu_i of the
+    rows (contact pairs with their own laws; None: ``friction.coefficient`` on every row).
+    Only the condensed (direct) solver supports these fields.
     """
 
     subset: np.ndarray | None = None
@@ -95,6 +97,7 @@ class ContactLaw:
     friction: Friction = FRICTIONLESS
     reference: np.ndarray | None = None
     radius: np.ndarray | None = None
+    coefficient: np.ndarray | None = None
 
     @property
     def exact(self) -> bool:
@@ -367,6 +370,7 @@ class CondensedContactSolver(ContactSolver):
         subset = law.subset
         idx = np.arange(nc) if subset is None else np.flatnonzero(subset)
         mu = law.friction.coefficient
+        mus = None if law.coefficient is None else np.asarray(law.coefficient, dtype=float)  # per row
         radius = None if law.radius is None else np.asarray(law.radius, dtype=float)
         gap = -v_free[idx, 0]
         scale = max(self.gap_scale, float(np.max(np.abs(gap), initial=0.0)))
@@ -391,7 +395,8 @@ class CondensedContactSolver(ContactSolver):
                 W[dead, dead] = float(np.mean(np.diag(W)[~dead]))
                 vP = np.where(self.dead[P], 0.0, vP)
             try:
-                sol = solve_cone(W, vP, mu, None if radius is None else radius[P], self.lam_prev[P], scale)
+                mu_P = mu if mus is None else mus[P]
+                sol = solve_cone(W, vP, mu_P, None if radius is None else radius[P], self.lam_prev[P], scale)
             except ConvergenceError:
                 self.counters["fallbacks"] += 1
                 self.counters["friction_fallbacks"] += 1
@@ -441,15 +446,25 @@ TIE_TOLERANCE = 1e-10
 class ActiveSetCGSolver(ContactSolver):
     """Active-set (semismooth Newton) contact solve on top of projected PCG, no factor.
 
-    For an active set A the constraint nu_i . x_i = c_i (i in A) is imposed exactly by
-    writing x = x_p + P w with x_p = B_A^T c_A and the orthogonal projector
-    P = I - B_A^T B_A (rows of B are orthonormal); ``P K P w = P (b - K x_p)`` is solved
-    by CG warm-started from the previous call.  Then lambda_A = B_A (K x - b), the gaps
-    are checked and A is updated by the rule A = {i : -lambda_i - c gap_i > 0} until it
-    no longer changes.  When A cycles, the iterate is accepted if it satisfies
-    complementarity to round-off (:data:`TIE_TOLERANCE` of the largest displacement):
-    nodes at zero gap and zero force, where either set solves the step (measured on bar3d
-    n = 8 leaving the obstacle: 6e-14); otherwise the solve fails.
+    For an active set A the constraint B_A x = c_A is imposed exactly by writing
+    x = x_p + P w with the particular solution and the orthogonal projector onto
+    {B_A x = 0}
+
+        x_p = B_A^T G^-1 c_A,    P = I - B_A^T G^-1 B_A,    G = B_A B_A^T  (|A| x |A|);
+
+    ``P K P w = P (b - K x_p)`` is solved by CG warm-started from the previous call, and
+    the multipliers are lambda_A = G^-1 B_A (K x - b) (the residual K x - b lies in the
+    range of B_A^T at CG's convergence).  Rigid-obstacle rows (one node and a unit normal
+    per row, no two rows on one node) are orthonormal, G = I, and the solve uses
+    x_p = B_A^T c_A, P = I - B_A^T B_A, lambda_A = B_A (K x - b) as such
+    (:func:`gram_factor` returns None); contact-pair rows (a slave node and a master
+    facet's nodes, :mod:`~signorini.contact.pairs`) are not, and G is factored once per
+    active set (:class:`GramFactor`).  The gaps are then checked and A is updated by the
+    rule A = {i : -lambda_i - c gap_i > 0} until it no longer changes.  When A cycles,
+    the iterate is accepted if it satisfies complementarity to round-off
+    (:data:`TIE_TOLERANCE` of the largest displacement): nodes at zero gap and zero
+    force, where either set solves the step (measured on bar3d n = 8 leaving the
+    obstacle: 6e-14); otherwise the solve fails.
     """
 
     uses_guess = True
@@ -504,9 +519,10 @@ class ActiveSetCGSolver(ContactSolver):
         self.counters["krylov_iterations"] += n_cg
         return w
 
-    def _projector(self, BA: sp.csr_matrix) -> Any:
-        """The projection onto the complement of the active normals, as ``_cg`` applies it."""
-        return _projector(BA)
+    def _projector(self, BA: sp.csr_matrix, gram: GramFactor | None = None) -> Any:
+        """The projection onto {B_A x = 0} (``gram``: the factor of B_A B_A^T, None for
+        orthonormal rows), as ``_cg`` applies it."""
+        return _projector(BA, gram)
 
     def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
         """The rows ``rows`` (sorted dofs of active contact nodes) of K."""
@@ -528,18 +544,19 @@ class ActiveSetCGSolver(ContactSolver):
         seen = set()
         for it in range(1, self.max_newton + 1):  # noqa: B007 (it is reported after the loop)
             BA = B[A]
-            project = self._projector(BA)
+            gram = gram_factor(BA)  # None: orthonormal rows (rigid obstacle), G = I
+            project = self._projector(BA, gram)
 
             lam = np.zeros(g.size)
             if A.any():
-                # up = B_A^T g_A and lambda_A only touch the dofs of the active nodes: products
-                # with those rows of K (symmetric) instead of whole K products
+                # up = B_A^T G^-1 g_A and lambda_A only touch the dofs of the active rows:
+                # products with those rows of K (symmetric) instead of whole K products
                 rows = np.unique(BA.indices)
                 KA = self._rows_of_K(rows)
-                up = BA.T @ g[A]
+                up = BA.T @ (g[A] if gram is None else gram.solve(g[A]))
                 U = up + self._cg(b - KA.T @ up[rows], self.U_prev - up, project)
                 r_rows = KA @ U - b[rows]
-                lam[A] = BA[:, rows] @ r_rows
+                lam[A] = BA[:, rows] @ r_rows if gram is None else gram.solve(BA[:, rows] @ r_rows)
             else:
                 U = self._cg(b, self.U_prev, project)
             gap = g - B @ U
@@ -584,18 +601,107 @@ def _identity(v: np.ndarray) -> None:
     """The projector of an empty active set (v is left as it is)."""
 
 
-def _projector(BA: sp.csr_matrix) -> Callable[[np.ndarray], None]:
-    """v <- (I - B_A^T B_A) v in place, on the dofs of the active nodes only."""
+#: rows whose Gram matrix G = B_A B_A^T has no off-diagonal entry and a diagonal within this
+#: of 1 (or exactly 0: a row on clamped dofs only) are orthonormal: the projection is
+#: I - B_A^T B_A as such (unit normals computed by a division: |nu|^2 - 1 ~ 1e-16)
+ORTHONORMAL = 1e-12
+#: a row whose squared norm is below this times the largest is dependent on nothing and
+#: carries nothing (a contact row on clamped dofs only: B_A's row is zero)
+DEAD_ROW = 1e-28
+
+
+class GramFactor:
+    """The factor of the Gram matrix G = B_A B_A^T (m x m, SPD for independent rows) of an
+    active set's rows B_A (m, n), made once per active set and applied by :meth:`solve`
+    in every application of the projector P = I - B_A^T G^-1 B_A.
+
+    G is sparse (two rows share entries only when they share a node: pair rows on one
+    master facet) and factored by SuperLU in symmetric mode (a minimum-degree ordering of
+    G + G^T, diagonal pivots): for SPD G this is a Cholesky factorization up to scaling.
+    Rows that are zero (a contact node whose dofs are all clamped) are left out: their
+    entries of G^-1 y are 0.  Dependent rows (a node constrained twice along one
+    direction) make G singular: :class:`~signorini.errors.ConvergenceError`.
+    """
+
+    def __init__(self, G: sp.spmatrix):
+        from scipy.sparse.linalg import splu
+
+        G = sp.csc_matrix(G)
+        d = G.diagonal()
+        self.m = G.shape[0]
+        self.live = d > DEAD_ROW * float(np.max(d, initial=0.0))
+        self.all_live = bool(self.live.all())
+        Gl = G if self.all_live else G[self.live][:, self.live].tocsc()
+        try:
+            self.lu = splu(Gl, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+            raise ConvergenceError(
+                f"the active contact rows are dependent (their Gram matrix B_A B_A^T is singular: {exc}); "
+                "a node constrained twice along one direction"
+            ) from None
+        u = np.abs(self.lu.U.diagonal())
+        if u.size and u.min() <= 1e-14 * u.max():
+            raise ConvergenceError(
+                f"the active contact rows are nearly dependent (pivots of B_A B_A^T from {u.min():.3g} to "
+                f"{u.max():.3g}); a node constrained twice along one direction"
+            )
+
+    def solve(self, y: np.ndarray) -> np.ndarray:
+        """G^-1 y for y (m,) (zero on zero rows), shape (m,)."""
+        if self.all_live:
+            return self.lu.solve(np.asarray(y, dtype=np.float64))
+        out = np.zeros(self.m)
+        out[self.live] = self.lu.solve(np.asarray(y, dtype=np.float64)[self.live])
+        return out
+
+
+def gram_factor(BA: sp.csr_matrix) -> GramFactor | None:
+    """The factor of G = B_A B_A^T (:class:`GramFactor`), or None when the rows of B_A are
+    orthonormal (G = I up to :data:`ORTHONORMAL`, zero rows allowed; an empty B_A too):
+    the rows of a rigid obstacle, whose projection stays I - B_A^T B_A bit for bit.
+
+    Parameters
+    ----------
+    BA : (m, n) the active rows of B.
+    """
+    if BA.shape[0] == 0:
+        return None
+    BA = sp.csr_matrix(BA)
+    G = (BA @ BA.T).tocsr()
+    d = G.diagonal()
+    off = G - sp.diags(d)
+    unit = (np.abs(d - 1.0) <= ORTHONORMAL) | (d == 0.0)
+    if unit.all() and not np.any(off.data):
+        return None
+    return GramFactor(G)
+
+
+def _projector(BA: sp.csr_matrix, gram: GramFactor | None = None) -> Callable[[np.ndarray], None]:
+    """v <- P v in place, P = I - B_A^T G^-1 B_A with G = B_A B_A^T (``gram``: its factor;
+    None: orthonormal rows, P = I - B_A^T B_A), on the dofs that B_A touches only.
+
+    Parameters
+    ----------
+    BA : (m, n) the active rows of B.
+    gram : :func:`gram_factor` of BA.
+    """
     if BA.shape[0] == 0:
         return _identity
     rows = np.unique(BA.indices)
     Br = BA[:, rows].tocsr()
     BrT = Br.T.tocsr()
 
-    def project(v: np.ndarray) -> None:
-        v[rows] -= BrT @ (Br @ v[rows])
+    if gram is None:
 
-    return project
+        def project(v: np.ndarray) -> None:
+            v[rows] -= BrT @ (Br @ v[rows])
+
+        return project
+
+    def project_general(v: np.ndarray) -> None:
+        v[rows] -= BrT @ gram.solve(Br @ v[rows])
+
+    return project_general
 
 
 def make_contact_solver(

@@ -2,11 +2,16 @@
 
 ``summary.json`` ``bodies``: one object per body, numbered in the order of their first node,
 
-* ``nodes`` (count), ``mass`` [mass] (1^T M 1 along x, the mass the run uses) and
+* ``regions``: the mesh's region tags with cells in the body (sorted), ``nodes`` (count),
+  ``mass`` [mass] (1^T M 1 along x, the mass the run uses) and
   ``mass_effect`` (:func:`~signorini.dynamics.mass_effect.mass_effect` of the body's own
   block of M against its consistent mass: what the mass variant does to *this* body);
 * at the last level, ``momentum`` (d,) = 1_k^T M V over the body's dofs [mass x length / time]
   and ``kinetic_energy`` 1/2 V_b . M_bb V_b [energy].
+
+``summary.json`` ``regions``: one object per region tag of the mesh (sorted, the numbering of
+the XDMF cell data ``region``): ``tag``, ``id`` (k + 1), ``cells`` and the ``material`` of its
+cells (``E``, ``nu``, ``rho``; ``listed``: whether ``[material] regions`` names it).
 
 The mass variants never couple two bodies (their neighbourhoods follow the cells), so M is
 block diagonal over the bodies and these add up to the run's totals.
@@ -21,37 +26,51 @@ from ..fem.mesh import Mesh, bodies
 from .mass_effect import mass_effect
 
 
-def body_meshes(mesh: Mesh) -> list[tuple[np.ndarray, Mesh]]:
-    """(nodes, mesh of that body alone) per body; a single body is the mesh itself."""
+def body_meshes(mesh: Mesh) -> list[tuple[np.ndarray, np.ndarray, Mesh]]:
+    """(nodes, cells, mesh of that body alone) per body; a single body is the mesh itself."""
     label = bodies(mesh)
     if label.max(initial=0) == 0:
-        return [(np.arange(mesh.n_nodes), mesh)]
+        return [(np.arange(mesh.n_nodes), np.arange(mesh.n_cells), mesh)]
     out = []
     cell_body = label[mesh.cells[:, 0]]
     for b in range(int(label.max()) + 1):
         nodes = np.flatnonzero(label == b)
         renum = np.full(mesh.n_nodes, -1)
         renum[nodes] = np.arange(nodes.size)
-        cells = renum[mesh.cells[cell_body == b]]
-        out.append((nodes, Mesh(mesh.points[nodes], cells, mesh.cell_type)))
+        cells = np.flatnonzero(cell_body == b)
+        out.append((nodes, cells, Mesh(mesh.points[nodes], renum[mesh.cells[cells]], mesh.cell_type)))
     return out
 
 
-def body_summaries(mesh: Mesh, M, rho: float, V: np.ndarray | None) -> list[dict]:
+def region_summaries(mesh: Mesh, default, materials: dict) -> list[dict]:
+    """``summary.json`` ``regions`` (see the module docstring)."""
+    out = []
+    for k, tag in enumerate(sorted(mesh.regions)):
+        m = materials.get(tag, default)
+        out.append({"tag": tag, "id": k + 1, "cells": int(mesh.regions[tag].size), "material": {
+            "E": float(m.young), "nu": float(m.poisson), "rho": float(m.rho), "listed": tag in materials}})  # fmt: skip
+    return out
+
+
+def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None) -> list[dict]:
     """``summary.json`` ``bodies`` (see the module docstring); ``M`` the run's vector mass
-    (a sparse matrix; a distributed one's rows give no per-body effect: None), ``V`` the
-    last level's velocity (None: no level)."""
+    (a sparse matrix; a distributed one's rows give no per-body effect: None), ``rho`` the
+    density (a number or one per cell), ``V`` the last level's velocity (None: no level)."""
     d = mesh.dim
     out = []
     local = sp.issparse(M)
     MV = M @ V if V is not None and local else None
-    for nodes, sub in body_meshes(mesh):
+    in_body = np.zeros(mesh.n_cells, dtype=bool)
+    for nodes, cells, sub in body_meshes(mesh):
         dofs = (nodes[:, None] * d + np.arange(d)).ravel()
-        entry: dict = {"regions": [], "nodes": int(nodes.size)}
+        in_body[:] = False
+        in_body[cells] = True
+        regions = sorted(t for t, c in mesh.regions.items() if c.size and in_body[c].any())
+        entry: dict = {"regions": regions, "nodes": int(nodes.size)}
         if local:
             Mb = M[dofs][:, dofs].tocsr()
             entry["mass"] = float(Mb[0::d].sum())
-            entry["mass_effect"] = mass_effect(Mb, sub, rho)
+            entry["mass_effect"] = mass_effect(Mb, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells])
         else:
             entry["mass"] = entry["mass_effect"] = None
         if MV is not None:

@@ -178,11 +178,16 @@ class Context:
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
         self.BD = BD if BD is not None and BD.nnz else None
         #: the contact law; with friction, T (nc (d - 1), n) the tangential rows of the nodal
-        #: frames and H (nc d, n) all of them, node-major (:meth:`ContactSet.frame_matrix`)
+        #: frames and H (nc d, n) all of them, node-major (:meth:`ContactSet.frame_matrix`; a
+        #: contact pair's rows: the slave node relative to the master point it faces)
         self.friction = disc.friction
         self.components = self.friction.components(disc.space.dim)
         self.T = self.H = self.Hf = self.HD = None
+        #: the coefficient (Coulomb) or threshold (Tresca) of each contact row (nc,): the run's
+        #: law's, or a contact pair's own (:func:`~signorini.dynamics.problem.row_friction`)
+        self.friction_rows: np.ndarray | None = None
         if self.components > 1:
+            self.friction_rows = disc.friction_rows
             n = disc.space.n_dofs
             self.T = disc.contact.tangential_matrix(n)
             self.H = disc.contact.frame_matrix(n)
@@ -317,7 +322,9 @@ class Context:
         if self.components == 1:
             return base
         ref = (self.T @ U).reshape(self.disc.contact.size, -1) + self.disc.contact.obstacle_slip(t0, t1)
-        return replace(base, friction=self.friction, reference=ref, radius=self._radius())
+        return replace(
+            base, friction=self.friction, reference=ref, radius=self._radius(), coefficient=self._coefficients()
+        )
 
     def friction_rate_law(self, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
         """``base`` with the run's friction for a velocity-level step: the slip rate is
@@ -328,13 +335,28 @@ class Context:
         ref = self.disc.contact.obstacle_slip(t0, t1) / (t1 - t0)
         radius = self._radius()
         radius = None if radius is None else (t1 - t0) * radius
-        return replace(base, friction=self.friction, reference=ref, radius=radius)
+        return replace(base, friction=self.friction, reference=ref, radius=radius, coefficient=self._coefficients())
 
     def _radius(self) -> np.ndarray | None:
-        """Tresca thresholds s w_i (nc,) [force]; None for Coulomb."""
+        """Tresca thresholds s_i w_i (nc,) [force] (s_i: the row's threshold); None for Coulomb."""
         if self.friction.law != "tresca":
             return None
-        return self.friction.threshold * self.disc.contact.weights
+        if self._uniform:
+            return self.friction.threshold * self.disc.contact.weights
+        return self.friction_rows * self.disc.contact.weights
+
+    def _coefficients(self) -> np.ndarray | None:
+        """Coulomb coefficients mu_i (nc,) when the rows' differ (contact pairs with their own
+        laws); None: the run's ``friction.coefficient`` on every row."""
+        if self.friction.law != "coulomb" or self._uniform:
+            return None
+        return self.friction_rows
+
+    @functools.cached_property
+    def _uniform(self) -> bool:
+        """Every row has the run's law's coefficient or threshold (always without pairs)."""
+        value = self.friction.coefficient if self.friction.law == "coulomb" else self.friction.threshold
+        return self.friction_rows is None or bool(np.all(self.friction_rows == value))
 
     def massless_update(self, V: np.ndarray, A: np.ndarray, U: np.ndarray, U_old: np.ndarray) -> None:
         """On the massless directions, in place: V = (U - U_old)/dt and A = 0.

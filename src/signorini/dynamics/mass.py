@@ -114,7 +114,8 @@ def mass_matrix(
     ----------
     name : a name (or alias) of :data:`MASS_VARIANTS`.
     mesh : the mesh.
-    rho : density [mass / length^d].
+    rho : density [mass / length^d]: a number, or one per cell (n_cells,) for regions of
+        different materials.
     contact_nodes : node indices on Gamma_C (needed by the redistributed variants).
     normals : (n_contact, d) outward unit normals at the contact nodes (``seed-normal``).
     """
@@ -279,7 +280,7 @@ def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     cells = mesh.cells[touch]
     free = ~is_c[cells]
     count = free.sum(axis=1)
-    vol = rho * cell_volumes(mesh)[touch]
+    vol = (rho if np.ndim(rho) == 0 else np.asarray(rho)[touch]) * cell_volumes(mesh)[touch]
     w = vol / np.maximum(count, 1)
     diag = np.bincount(cells[free], weights=np.repeat(w, count), minlength=mesh.n_nodes)
     closed = count == 0  # every node on Gamma_C: its mass goes to the nearest non-contact nodes
@@ -377,6 +378,12 @@ def moment_preserving_tensor_scalar_mass(mesh: Mesh, rho: float, contact_nodes: 
             "generator (line, quad or hexahedron cells) with the contact on one full side; "
             "use 'moment-preserving' on other meshes"
         )
+    if np.ndim(rho) and np.ptp(rho) > 0:
+        raise InputError(
+            "mass 'moment-preserving-tensor' needs one density for the whole grid (its factors are 1D masses); "
+            "with regions of different materials use 'moment-preserving'"
+        )
+    rho = float(np.max(rho))
     axis, end = side
     factors = [moment_preserving_1d(g, 1.0, end) if k == axis else _mass_1d(g, 1.0) for k, g in enumerate(mesh.grid)]
     out = factors[0]

@@ -40,21 +40,28 @@ def _monomials(mesh: Mesh) -> np.ndarray:
     return np.hstack([np.ones((mesh.n_nodes, 1)), x])
 
 
-def consistent_moments(mesh: Mesh, rho: float, chunk: int = 65536) -> np.ndarray:
+def consistent_moments(mesh: Mesh, rho: float | np.ndarray, chunk: int = 65536) -> np.ndarray:
     """(d+1, d+1) moments P^T M P of the consistent mass, from the element mass matrices.
 
     M_e = rho sum_q w_q |det J| N_a N_b (the matrices that assemble M; one shared matrix
     when the cells are translates of one another), Q = sum_e P_e^T M_e P_e over chunks of
-    cells: no global matrix and no per-cell geometry beyond a chunk.
+    cells: no global matrix and no per-cell geometry beyond a chunk.  ``rho``: a number or
+    one density per cell (n_cells,).
     """
     ref = reference_element(mesh.cell_type)
     wdet, _ = _element_data(mesh)
-    Me = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    Me = np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    if np.ndim(rho) == 0:
+        Me = rho * Me
+    else:
+        Me = np.broadcast_to(Me, (mesh.n_cells,) + Me.shape[1:])
     P = _monomials(mesh)
     Q = np.zeros((P.shape[1], P.shape[1]))
     for s in range(0, mesh.n_cells, chunk):
         Pc = P[mesh.cells[s : s + chunk]]  # (m, nv, d+1)
         Mc = Me if Me.shape[0] == 1 else Me[s : s + chunk]
+        if np.ndim(rho):
+            Mc = np.asarray(rho)[s : s + chunk, None, None] * Mc
         Y = np.matmul(Mc, Pc)  # (m, nv, d+1), M_e broadcast when shared
         Q += Pc.reshape(-1, Q.shape[0]).T @ Y.reshape(-1, Q.shape[0])
     return Q

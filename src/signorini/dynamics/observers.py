@@ -193,15 +193,22 @@ class CentreOfMassRecorder(Observer):
     direction_k) and M the run's mass matrix, x_G = (E^T M U)/(E^T M E) and v_G =
     (E^T M V)/(E^T M E) [length, length/time]: the mean displacement weighted by the
     discrete mass, whose motion obeys m x_G'' = E^T (forces) exactly when the mass
-    matrix is the one the scheme integrates.  One dot product per level.
+    matrix is the one the scheme integrates.  One dot product per level.  ``region``: the
+    centre of the nodes of that region's cells only (a body of several: E is zero elsewhere;
+    M is block diagonal over the bodies, so it is that body's centre of mass).
     """
 
-    def __init__(self, direction):
+    def __init__(self, direction, region: str | None = None):
         self.direction = np.asarray(direction, dtype=float)
+        self.region = region
 
     def start(self, run: Run) -> None:
         n_nodes = run.ctx.M.shape[0] // self.direction.size
         E = np.tile(self.direction, n_nodes)
+        if self.region is not None:
+            keep = np.zeros(n_nodes, dtype=bool)
+            keep[run.ctx.disc.problem.mesh.region_nodes(self.region)] = True
+            E = E * np.repeat(keep, self.direction.size)
         w = run.ctx.M @ E
         self.weights = w / float(w @ E)
         self.position = np.full(run.n_steps + 1, np.nan)

@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fem.assembly import assemble_scalar, assemble_vector, element_stiffness_matrices, scalar_mass_matrix, vectorize
-from ..fem.material import IsotropicElastic
+from ..fem.material import CellMaterial, Material
 from ..fem.mesh import Mesh
 from ..linalg.row_block import RowBlock, row_bounds
 from .extrapolation import extrapolation_operator
@@ -82,19 +82,27 @@ def _rows(A: sp.spmatrix, lo: int, hi: int) -> sp.csr_matrix:
     return sp.csr_matrix(A)[lo:hi]
 
 
-def stiffness_rows(mesh: Mesh, material: IsotropicElastic, comm) -> RowBlock:
+def _take(value, cells: np.ndarray):
+    """A material datum of the sub-mesh of ``cells``: a number as it is, per-cell data restricted."""
+    if isinstance(value, CellMaterial):
+        return value.take(cells)
+    return value if np.ndim(value) == 0 else np.asarray(value)[cells]
+
+
+def stiffness_rows(mesh: Mesh, material: Material, comm) -> RowBlock:
     """This rank's rows of S (:func:`~signorini.fem.assembly.stiffness_matrix`), from the
     cells touching its nodes."""
     bounds = dof_bounds(mesh, comm.size)
     d, lo, hi = mesh.dim, int(bounds[comm.rank]), int(bounds[comm.rank + 1])
-    sub = submesh(mesh, cells_near(mesh, np.arange(lo // d, hi // d), 1))
-    Ke = element_stiffness_matrices(sub, material)
+    cells = cells_near(mesh, np.arange(lo // d, hi // d), 1)
+    sub = submesh(mesh, cells)
+    Ke = element_stiffness_matrices(sub, _take(material, cells))
     S = assemble_scalar(sub, Ke[..., 0, 0]) if d == 1 else assemble_vector(sub, Ke)
     return RowBlock(_rows(S, lo, hi), bounds, comm)
 
 
 def mass_rows(
-    name: str, mesh: Mesh, rho: float, contact_nodes: np.ndarray | None, normals: np.ndarray | None, comm
+    name: str, mesh: Mesh, rho: float | np.ndarray, contact_nodes: np.ndarray | None, normals: np.ndarray | None, comm
 ) -> Redistribution:
     """The :class:`~signorini.dynamics.mass.Redistribution` of variant ``name`` with M as
     this rank's rows (see the module docstring)."""
@@ -106,12 +114,14 @@ def mass_rows(
         T = extrapolation_operator(mesh, _needs_contact(name, contact_nodes), name)
         Tc = T[:, own].tocsr()  # (n, m): T[:, own]^T is this rank's rows of T^T
         reached = np.flatnonzero(np.diff(Tc.indptr))
-        Mc = scalar_mass_matrix(submesh(mesh, cells_near(mesh, reached, 1)), rho).tocsr()
+        near = cells_near(mesh, reached, 1)
+        Mc = scalar_mass_matrix(submesh(mesh, near), _take(rho, near)).tocsr()
         m = (Tc[reached].T @ Mc[reached] @ T).tocsr()
         m.eliminate_zeros()
         return Redistribution(name, RowBlock(vectorize(m, d), bounds, comm), T)
     if name in WHOLE:
         M = MASS_VARIANTS.get(name).obj(mesh, rho, contact_nodes, normals)
     else:
-        M = MASS_VARIANTS.get(name).obj(submesh(mesh, cells_near(mesh, own, LAYERS)), rho, contact_nodes, normals)
+        near = cells_near(mesh, own, LAYERS)
+        M = MASS_VARIANTS.get(name).obj(submesh(mesh, near), _take(rho, near), contact_nodes, normals)
     return Redistribution(name, RowBlock(_rows(M, lo, hi), bounds, comm))

@@ -20,19 +20,51 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.contact_set import ContactSet
-from ..contact.friction import Friction, make_friction
+from ..contact.friction import FRICTIONLESS, Friction, make_friction
 from ..contact.obstacles import RigidObstacle
 from ..contact.pairs import ContactPair
 from ..errors import InputError, NonFiniteError
 from ..fem.assembly import body_load, stiffness_matrix, surface_load
 from ..fem.fields import at_time, is_time_dependent
-from ..fem.material import IsotropicElastic
+from ..fem.material import IsotropicElastic, Material, cell_material
 from ..fem.mesh import Mesh
 from ..fem.node_order import in_order
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
 from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
 from .mass_effect import mass_effect
 from .owned_rows import mass_rows, stiffness_rows
+
+
+@dataclass(frozen=True)
+class RegionInitial:
+    """The initial state of the nodes of a region's cells: ``displacement`` and ``velocity``
+    (constant vectors (d,) or functions of the points (m, d) -> (m, d); None: the problem's
+    ``u0``/``v0`` there).  A node shared with another listed region takes the later one's value."""
+
+    tag: str
+    velocity: Value | None = None
+    displacement: Value | None = None
+
+
+def initial_field(mesh: Mesh, space: VectorSpace, base: Value, regions: Sequence[RegionInitial],
+                  attribute: str) -> np.ndarray:  # fmt: skip
+    """The nodal field (n_dofs,) of ``base`` with the values of ``regions`` (their ``attribute``:
+    ``velocity`` or ``displacement``) on the nodes of their cells."""
+    U = space.interpolate(base)
+    d = mesh.dim
+    for r in regions:
+        value = getattr(r, attribute)
+        if value is None:
+            continue
+        nodes = mesh.region_nodes(r.tag)
+        x = mesh.points[nodes]
+        v = value(x) if callable(value) else np.broadcast_to(np.asarray(value, dtype=float), x.shape)
+        v = np.asarray(v, dtype=float)
+        if v.shape != x.shape:
+            raise InputError(f"initial region {r.tag!r}: {attribute} must have {d} component(s) per node, "
+                             f"got shape {v.shape}")  # fmt: skip
+        U.reshape(-1, d)[nodes] = v
+    return U
 
 
 @dataclass
@@ -63,10 +95,21 @@ class Problem:
         whatever the mass (GetFEM's and most codes' convention; with a redistributed mass the
         body is then not in free fall without stress) [``[loads] follow_mass``].
     pairs : contact between deformable surfaces, :class:`~signorini.contact.pairs.ContactPair`
-        (slave facet tag, master facet tag) each (docs/bodies.md); frictionless.
+        (slave facet tag, master facet tag, and its own contact law or None: ``friction``)
+        each (docs/bodies.md).  The frictional rows of a run share one law kind
+        (:func:`run_friction`).
     initial_acceleration : ``"equilibrium"`` (default): A0 solves M A0 = F(0) - S U0;
         ``"zero"``: A0 = 0 (GetFEM's Newmark start), the level-0 imbalance entering the
         energy identity as work [``[initial] acceleration``].
+    materials : region tag -> :class:`~signorini.fem.material.IsotropicElastic`: the material
+        of the cells of that region (``Mesh.regions``); ``material`` is the default of the cells
+        in no listed region [``[material] regions``].  Stiffness, every mass variant and
+        ``gravity`` use each cell's moduli and density.
+    initial_regions : :class:`RegionInitial` s: the initial displacement and velocity of the
+        nodes of a region's cells, over ``u0``/``v0`` (in the order given) [``[initial] regions``].
+    gravity : an acceleration g (d,) [length / time^2], a constant vector or a function of t:
+        the load M_used g (``follow_mass``) or int rho g phi (``follow_mass=False``), each cell
+        with its own density [``[loads] gravity``].
     """
 
     mesh: Mesh
@@ -84,14 +127,79 @@ class Problem:
     follow_mass: bool = True
     initial_acceleration: str = "equilibrium"
     pairs: Sequence[ContactPair] = ()
+    materials: dict[str, IsotropicElastic] = field(default_factory=dict)
+    initial_regions: Sequence[RegionInitial] = ()
+    gravity: Value | Callable | None = None
 
     def __post_init__(self) -> None:
         from .validate import check_problem
 
         check_problem(self)
         self.friction = make_friction(self.friction)
-        if self.friction.frictional and self.mesh.dim == 1:
-            raise InputError(f"friction {self.friction.label!r} needs a 2D or 3D problem: a 1D bar has no tangent")
+        law = run_friction(self)  # refuses a mix of Coulomb and Tresca rows
+        if law.frictional and self.mesh.dim == 1:
+            raise InputError(f"friction {law.label!r} needs a 2D or 3D problem: a 1D bar has no tangent")
+
+
+def pair_laws(problem: Problem) -> list[Friction]:
+    """The contact law of each pair of ``problem``: its own, or the run's ``friction``."""
+    return [problem.friction if p.friction is None else p.friction for p in problem.pairs]
+
+
+def run_friction(problem: Problem) -> Friction:
+    """The contact law of the run's solve: the one law kind of its frictional rows.
+
+    The rows are the rigid obstacle's (law ``problem.friction``) and each pair's
+    (:func:`pair_laws`).  Frictional rows must share one kind, coulomb or tresca, each with
+    its own coefficient or threshold (:func:`row_friction`); frictionless rows go with either
+    as coefficient or threshold 0, which is exactly frictionless (lambda_t = 0).  The law
+    returned carries ``problem.friction``'s value when some row uses it, else the largest of
+    the pairs' (``summary.json`` ``friction``; the pairs' own in ``pairs``).  A run mixing
+    coulomb and tresca rows is an :class:`InputError`.
+    """
+    used = [("the rigid obstacle", problem.friction)] if problem.obstacle is not None else []
+    used += [(f"pair {p.label}", law) for p, law in zip(problem.pairs, pair_laws(problem), strict=True)]
+    kinds = sorted({law.law for _, law in used if law.frictional})
+    if len(kinds) > 1:
+        names = "; ".join(f"{who} {law.label}" for who, law in used if law.frictional)
+        raise InputError(f"contact laws {names}: the frictional rows of a run share one law (all coulomb or all "
+                         "tresca, each pair its own value; frictionless pairs go with either)")  # fmt: skip
+    if not kinds:
+        return FRICTIONLESS
+    if problem.friction.law == kinds[0] and any(law is problem.friction for _, law in used):
+        return problem.friction
+    return max((law for _, law in used if law.law == kinds[0]), key=_parameter)
+
+
+def _parameter(law: Friction) -> float:
+    """The coefficient (Coulomb) or the threshold (Tresca) of ``law``; 0 frictionless."""
+    return {"coulomb": law.coefficient, "tresca": law.threshold}.get(law.law, 0.0)
+
+
+def row_friction(problem: Problem, contact: ContactSet) -> np.ndarray:
+    """The coefficient mu_i (Coulomb) or threshold s_i (Tresca) of each contact row (nc,)
+    under :func:`run_friction`: the rigid obstacle's rows ``problem.friction``'s, pair k's
+    rows its law's (0 for a frictionless law)."""
+    kind = run_friction(problem).law
+    values = np.array([_parameter(law) if law.law == kind else 0.0 for law in [problem.friction, *pair_laws(problem)]])
+    if contact.pair is None:
+        return np.full(contact.size, values[0])
+    return values[contact.pair + 1]
+
+
+def friction_summary(problem: Problem) -> dict:
+    """``summary.json`` ``friction``: :func:`run_friction` described and, when the rows' laws
+    differ from it, ``pairs`` the pairs' laws and ``obstacle`` the rigid obstacle's, as labels
+    (``coulomb:0.5``, ``frictionless``)."""
+    law = run_friction(problem)
+    out = law.describe()
+    laws = pair_laws(problem)
+    obstacle = problem.obstacle is not None and problem.friction != law
+    if any(p != law for p in laws) or (laws and obstacle):
+        out["pairs"] = [p.label for p in laws]
+        if obstacle:
+            out["obstacle"] = problem.friction.label
+    return out
 
 
 def with_friction(problem: Problem, spec: Friction | str | dict | None, where: str = "--friction") -> Problem:
@@ -174,6 +282,8 @@ class Discretization:
     _varying: list = field(default_factory=list)
     #: the mass variant's effect on mass, centre and inertia (:mod:`~signorini.dynamics.mass_effect`)
     mass_effect: dict = field(default_factory=dict)
+    #: the material of the cells: the problem's one, or per cell with regions (``materials``)
+    material: Material | None = None
 
     @property
     def free(self) -> np.ndarray:
@@ -213,8 +323,13 @@ class Discretization:
 
     @property
     def friction(self) -> Friction:
-        """The contact law of the problem (frictionless unless given)."""
-        return self.problem.friction
+        """The contact law of the run (frictionless unless given; with pairs :func:`run_friction`)."""
+        return run_friction(self.problem)
+
+    @property
+    def friction_rows(self) -> np.ndarray:
+        """The coefficient (Coulomb) or threshold (Tresca) of each contact row (nc,): :func:`row_friction`."""
+        return row_friction(self.problem, self.contact)
 
 
 def _uniform(f, mesh: Mesh) -> np.ndarray | None:
@@ -226,18 +341,40 @@ def _uniform(f, mesh: Mesh) -> np.ndarray | None:
     return v[0].copy() if np.all(v == v[0]) else None
 
 
-def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tuple[np.ndarray, list]:
-    """Constant part of F and builders of the time-dependent parts; body forces follow the mass."""
+def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution,
+                material: Material) -> tuple[np.ndarray, list]:  # fmt: skip
+    """Constant part of F and builders of the time-dependent parts; body forces follow the mass.
+
+    A uniform body force density f follows the mass as M (f / rho) when the density is one
+    number; with regions of different densities f / rho is not one acceleration, and f is
+    applied as the force density it is (through T^T for the extrapolated variants).
+    ``gravity`` g is an acceleration: M_used g, or int rho g phi = M_consistent g."""
     F = np.zeros(n)
     varying = []
-    rho = problem.material.rho
+    rho = material.rho
+    one_density = np.ndim(rho) == 0
 
     def body(f):
         if not problem.follow_mass:  # the consistent load int f phi, whatever the mass
             return body_load(mesh, f)
-        return red.body_load(body_load(mesh, f), _uniform(f, mesh), rho)
+        return red.body_load(body_load(mesh, f), _uniform(f, mesh) if one_density else None, rho)
+
+    consistent = None
+
+    def weight(g):
+        nonlocal consistent
+        g = _gravity_vector(g, mesh)
+        if problem.follow_mass:
+            return red.M @ np.tile(g, n // g.size)
+        if consistent is None:
+            from ..fem.assembly import mass_matrix
+
+            consistent = mass_matrix(mesh, rho)
+        return consistent @ np.tile(g, n // g.size)
 
     sources = [(body, problem.body_force)] if problem.body_force is not None else []
+    if problem.gravity is not None:
+        sources.append((weight, problem.gravity))
     for tag, tr in problem.tractions.items():
         sources.append((lambda f, tag=tag: surface_load(mesh, tag, f), tr))
     for assemble, data in sources:
@@ -246,6 +383,16 @@ def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution) -> tu
         else:
             F += assemble(data)
     return F, varying
+
+
+def _gravity_vector(g, mesh: Mesh) -> np.ndarray:
+    """Gravity (d,) from a constant vector or a function of the points that is the same at every
+    point (an expression of t only, evaluated at one time); InputError otherwise."""
+    v = _uniform(g, mesh)
+    if v is None or v.size != mesh.dim:
+        raise InputError(f"gravity must be one acceleration vector of {mesh.dim} component(s) (it may depend on t, "
+                         "not on x, y, z)")  # fmt: skip
+    return v
 
 
 def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> str:
@@ -338,10 +485,7 @@ def contact_node_count(problem: Problem) -> int:
 
 
 def _check_pairs(problem: Problem, mass: str) -> None:
-    """What contact pairs do not carry yet: friction and ``seed-normal`` (InputError)."""
-    if problem.friction.frictional:
-        raise InputError(f"friction ({problem.friction.label}) on contact pairs is not implemented yet; pairs are "
-                         "frictionless (docs/bodies.md)")  # fmt: skip
+    """What contact pairs do not carry yet: ``seed-normal`` (InputError)."""
     if mass == "seed-normal":
         raise InputError("mass 'seed-normal' needs one normal per contact node; with contact pairs use 'seed', "
                          "'moment-preserving' or another variant")  # fmt: skip
@@ -366,19 +510,22 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     if problem.pairs:
         _check_pairs(problem, mass)
         contact = contact.with_pairs(space, list(problem.pairs))
+        for info, law in zip(contact.pair_info, pair_laws(problem), strict=True):
+            info["friction"] = law.describe()
     normals = None if problem.pairs else contact.normals  # seed-normal only, refused with pairs
+    material = cell_material(mesh.n_cells, mesh.regions, problem.material, problem.materials)
     if comm is None:
-        S = stiffness_matrix(mesh, problem.material)
-        red = redistribute(mass, mesh, problem.material.rho, contact.mass_nodes, normals)
+        S = stiffness_matrix(mesh, material)
+        red = redistribute(mass, mesh, material.rho, contact.mass_nodes, normals)
     else:
-        S = stiffness_rows(mesh, problem.material, comm)
-        red = mass_rows(mass, mesh, problem.material.rho, contact.mass_nodes, normals, comm)
+        S = stiffness_rows(mesh, material, comm)
+        red = mass_rows(mass, mesh, material.rho, contact.mass_nodes, normals, comm)
     M = red.M
     t1 = time.perf_counter()
-    F, varying = _load_parts(problem, mesh, space.n_dofs, red)
-    U0 = space.interpolate(problem.u0)
+    F, varying = _load_parts(problem, mesh, space.n_dofs, red, material)
+    U0 = initial_field(mesh, space, problem.u0, problem.initial_regions, "displacement")
     U0[cons.fixed] = cons.values
-    V0 = space.interpolate(problem.v0)
+    V0 = initial_field(mesh, space, problem.v0, problem.initial_regions, "velocity")
     if comm is not None and not (S.all_finite() and M.all_finite()):  # the verdict of all ranks
         raise NonFiniteError("non-finite value in S or M before the first step; check the material and the mesh")
     operators = {} if comm is not None else {"S": S.data, "M": M.data}
@@ -387,7 +534,8 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
         **{"initial displacement": U0, "initial velocity": V0, "gaps": contact.gaps, "Dirichlet values": cons.values}
     )
     disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
-    disc.mass_effect = mass_effect(M, mesh, problem.material.rho)
+    disc.material = material
+    disc.mass_effect = mass_effect(M, mesh, material.rho)
     if red.T is not None:  # the largest |w|_1 of an extrapolated contact node (1 for a node's own value)
         rows = np.asarray(abs(red.T[contact.mass_nodes]).sum(axis=1)).ravel()
         disc.mass_effect["max_extrapolation_weight"] = float(rows.max(initial=0.0))

@@ -37,14 +37,14 @@ from ..linalg.row_block import RowBlock
 from ..linalg.threads import blas_threads
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from ..signals import handled, interrupts_must_raise
-from .bodies import body_summaries
+from .bodies import body_summaries, region_summaries
 from .context import Context
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS, GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
-from .problem import Discretization, Problem, discretize, in_node_order
+from .problem import Discretization, Problem, discretize, friction_summary, in_node_order
 from .schemes import Scheme, State, friction_schemes, make_scheme
 from .untagged import UntaggedContact
 
@@ -229,7 +229,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "energy_parts": "energy = kinetic_energy + elastic_energy + load_potential (history.csv)",
         "mass": disc.mass_name,
         "mass_effect": dict(disc.mass_effect),
-        "friction": disc.friction.describe(),
+        "friction": friction_summary(disc.problem),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
@@ -247,9 +247,10 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "initial_acceleration": getattr(ctx, "initial_acceleration", "none"),
         "conventions": {
             "follow_mass": bool(disc.problem.follow_mass),
-            "body_force": "M_used f / rho (follows the mass variant)"
+            "body_force": _body_force_convention(disc),
+            "gravity": "M_used g (follows the mass variant)"
             if disc.problem.follow_mass
-            else "consistent int f phi (whatever the mass)",
+            else "consistent int rho g phi (whatever the mass)",
             "initial_acceleration": disc.problem.initial_acceleration,
         },
         "factor_bytes": int(sum(s.factor_bytes for s in ctx.solvers)),
@@ -446,11 +447,24 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
     H = assemble_history(run, n_last, recorder, energies, snaps, timings)
     disc = run.ctx.disc
     last = getattr(recorder, "last", None)
-    H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.problem.material.rho,
+    H.meta["regions"] = region_summaries(disc.space.mesh, disc.problem.material, disc.problem.materials)
+    H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.material.rho,
                                       None if last is None else last.V)  # fmt: skip
+    if disc.contact.pair_info is not None:  # per pair: tags, rows, inactive slave nodes, contact law
+        H.meta["pairs"] = [dict(p) for p in disc.contact.pair_info]
     H.to_user_order(run.ctx.disc.space.mesh, run.ctx.disc.contact.nodes)  # a renumbered mesh's results
     H.meta.update(rank_figures(run.ctx.comm, timings))
     return H
+
+
+def _body_force_convention(disc) -> str:
+    """How ``body_force`` is applied (summary.json ``conventions``)."""
+    if not disc.problem.follow_mass:
+        return "consistent int f phi (whatever the mass)"
+    if disc.material is not None and np.ndim(disc.material.rho):
+        return ("regions of different densities: f is a force density applied as it is (T^T int f phi for the "
+                "extrapolated variants), not M_used f / rho; give an acceleration as [loads] gravity")  # fmt: skip
+    return "M_used f / rho (follows the mass variant)"
 
 
 def rank_figures(comm, timings: dict) -> dict:

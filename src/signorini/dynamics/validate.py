@@ -78,6 +78,39 @@ def check_dirichlet(conditions: object, dim: int) -> None:
 INITIAL_ACCELERATIONS = ("equilibrium", "zero")
 
 
+def check_regions(problem) -> None:
+    """``materials`` (region tag -> IsotropicElastic) and ``initial_regions`` (RegionInitial s)
+    name regions of the mesh with usable data; InputError naming the first that does not."""
+    from .problem import RegionInitial
+
+    mesh = problem.mesh
+    if not isinstance(problem.materials, dict):
+        raise InputError(f"materials must be a dict region tag -> IsotropicElastic, got {_short(problem.materials)}")
+    for tag, m in problem.materials.items():
+        if not isinstance(tag, str):
+            raise InputError(f"materials: the key {_short(tag)} is not a region tag")
+        if not isinstance(m, IsotropicElastic):
+            raise InputError(f"materials[{tag!r}] must be an IsotropicElastic, got {_short(m)}")
+        _known_region(mesh, tag, f"materials[{tag!r}]")
+    regions = problem.initial_regions
+    if not isinstance(regions, Sequence) or not all(isinstance(r, RegionInitial) for r in regions):
+        raise InputError(f"initial_regions must be a list of RegionInitial, got {_short(regions)}")
+    for k, r in enumerate(regions):
+        _known_region(mesh, r.tag, f"initial_regions[{k}]")
+        for name in ("velocity", "displacement"):
+            if getattr(r, name) is not None:
+                vector_value(f"initial_regions[{k}].{name}", getattr(r, name), mesh.dim)
+
+
+def _known_region(mesh: Mesh, tag, where: str) -> None:
+    if not isinstance(tag, str) or tag not in mesh.regions or mesh.regions[tag].size == 0:
+        known = (
+            ", ".join(sorted(t for t, c in mesh.regions.items() if c.size))
+            or "none (a mesh file's physical groups of cells, or signorini.fem.mesh.join, make regions)"
+        )
+        raise InputError(f"{where}: {_short(tag)} is not a region of the mesh; its regions: {known}")
+
+
 def check_problem(problem) -> None:
     """Raise :class:`InputError` naming the first field of ``problem`` that cannot be used."""
     if not isinstance(problem.mesh, Mesh):
@@ -105,10 +138,12 @@ def check_problem(problem) -> None:
         if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):
             raise InputError(f"contact_tag must be a tag or a non-empty list of tags, got {_short(tag)}")
     dim, n = problem.mesh.dim, problem.mesh.n_nodes
+    check_regions(problem)
     check_dirichlet(problem.dirichlet, dim)
     vector_value("u0", problem.u0, dim, n)
     vector_value("v0", problem.v0, dim, n)
     vector_value("body_force", problem.body_force, dim, allow_none=True)
+    vector_value("gravity", problem.gravity, dim, allow_none=True)
     if not isinstance(problem.tractions, dict):
         raise InputError(f"tractions must be a dict tag -> vector or function, got {_short(problem.tractions)}")
     for k, v in problem.tractions.items():

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from ..errors import MeshError
 from ..fem.elements import FACET_TYPES, determinants, jacobians, reference_element
-from ..fem.material import IsotropicElastic
+from ..fem.material import Material
 from ..fem.mesh import Mesh, uniform_cells
 
 
@@ -140,7 +140,15 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
 
 
 # ----------------------------------------------------------------------------- operators
-def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
+def per_cell(value: float | np.ndarray, ndim: int) -> float | np.ndarray:
+    """A material datum as a factor of element arrays with ``ndim`` axes: a number as it is,
+    a per-cell array (n_cells,) as (n_cells, 1, ..., 1)."""
+    if np.ndim(value) == 0:
+        return value
+    return np.asarray(value, dtype=float).reshape((-1,) + (1,) * (ndim - 1))
+
+
+def stiffness_matrix(mesh: Mesh, material: Material) -> sp.csr_matrix:
     """Elastic stiffness S_ij = a(phi_i, phi_j) = int sigma(phi_i) : eps(phi_j) dx.
 
     Element block for nodes a, b and components i, j::
@@ -148,7 +156,9 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
         K[a,b,i,j] = int lam dN_a/dx_i dN_b/dx_j + mu (delta_ij grad N_a . grad N_b
                      + dN_a/dx_j dN_b/dx_i) dx
 
-    In 1D: K[a,b] = int E N_a' N_b' dx.  Units: [force / length].
+    In 1D: K[a,b] = int E N_a' N_b' dx.  Units: [force / length].  ``material``: one
+    :class:`~signorini.fem.material.IsotropicElastic`, or a
+    :class:`~signorini.fem.material.CellMaterial` (lam, mu per cell: regions of different materials).
     """
     Ke = element_stiffness_matrices(mesh, material)
     if mesh.dim == 1:
@@ -156,39 +166,42 @@ def stiffness_matrix(mesh: Mesh, material: IsotropicElastic) -> sp.csr_matrix:
     return assemble_vector(mesh, Ke)
 
 
-def element_stiffness_matrices(mesh: Mesh, material: IsotropicElastic) -> np.ndarray:
+def element_stiffness_matrices(mesh: Mesh, material: Material) -> np.ndarray:
     """The element blocks K[e, a, b, i, j] of :func:`stiffness_matrix`, shape (n_cells, nv, nv, d, d)
     (a broadcast view of one cell's when the cells are translates of each other)."""
     wdet, G = _element_data(mesh)
     if mesh.dim == 1:
-        Ke = material.young * np.einsum("eq,eqa,eqb->eab", wdet, G[..., 0], G[..., 0])
+        Ke = per_cell(material.young, 3) * np.einsum("eq,eqa,eqb->eab", wdet, G[..., 0], G[..., 0])
         return np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])[..., None, None]
     e, q, nv, d = G.shape
     # K2[e, a, i, b, j] = sum_q w_q det J G[q, a, i] G[q, b, j], one batched matmul
     Gw = (G * wdet[:, :, None, None]).reshape(e, q, nv * d)
     K2 = np.matmul(Gw.transpose(0, 2, 1), G.reshape(e, q, nv * d)).reshape(e, nv, d, nv, d)
-    lam, mu = material.lam, material.mu
+    lam, mu = per_cell(material.lam, 5), per_cell(material.mu, 5)
     Ke = lam * K2.transpose(0, 1, 3, 2, 4) + mu * K2.transpose(0, 1, 3, 4, 2)
     lap = np.einsum("eakbk->eab", K2)
     idx = np.arange(d)
-    Ke[:, :, :, idx, idx] += mu * lap[..., None]
+    Ke[:, :, :, idx, idx] += per_cell(material.mu, 4) * lap[..., None]
     if Ke.shape[0] != mesh.n_cells:  # identical elements: one matrix for all
         Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
     return Ke
 
 
-def element_mass_matrices(mesh: Mesh, rho: float = 1.0) -> np.ndarray:
+def element_mass_matrices(mesh: Mesh, rho: float | np.ndarray = 1.0) -> np.ndarray:
     """rho int_K N_a N_b dx for every cell K, shape (n_cells, nv, nv) (a broadcast view of one
-    cell's matrix when the cells are translates of each other)."""
+    cell's matrix when the cells are translates of each other and rho is one number);
+    ``rho`` a number or one density per cell (n_cells,)."""
     ref = reference_element(mesh.cell_type)
     wdet, _ = _element_data(mesh)
-    Ke = rho * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
+    Ke = per_cell(rho, 3) * np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)
     if Ke.shape[0] != mesh.n_cells:
         Ke = np.broadcast_to(Ke, (mesh.n_cells,) + Ke.shape[1:])
     return Ke
 
 
-def scalar_mass_matrix(mesh: Mesh, rho: float = 1.0, cell_weight: np.ndarray | None = None) -> sp.csr_matrix:
+def scalar_mass_matrix(
+    mesh: Mesh, rho: float | np.ndarray = 1.0, cell_weight: np.ndarray | None = None
+) -> sp.csr_matrix:
     """Scalar consistent mass m_ab = int rho w_e N_a N_b dx, shape (n_nodes, n_nodes).
 
     ``cell_weight`` (n_cells,) multiplies each element's contribution (0 drops it; this
@@ -235,8 +248,9 @@ def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
     return out
 
 
-def mass_matrix(mesh: Mesh, rho: float = 1.0) -> sp.csr_matrix:
-    """Consistent vector mass matrix M = rho int phi_i . phi_j dx [mass]."""
+def mass_matrix(mesh: Mesh, rho: float | np.ndarray = 1.0) -> sp.csr_matrix:
+    """Consistent vector mass matrix M = int rho phi_i . phi_j dx [mass] (``rho`` a number or
+    one density per cell)."""
     return vectorize(scalar_mass_matrix(mesh, rho), mesh.dim)
 
 
@@ -333,7 +347,7 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
     return out.reshape((mesh.n_nodes,) + cell_values.shape[1:])
 
 
-def von_mises(mesh: Mesh, material: IsotropicElastic, u: np.ndarray, nodal: bool = True) -> np.ndarray:
+def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """von Mises stress of the displacement ``u``: per cell (mean over quadrature
     points) or, with ``nodal=True``, averaged at the nodes."""
     wdet, _ = geometry(mesh)
@@ -342,7 +356,7 @@ def von_mises(mesh: Mesh, material: IsotropicElastic, u: np.ndarray, nodal: bool
     return nodal_average(mesh, cell) if nodal else cell
 
 
-def stress(mesh: Mesh, material: IsotropicElastic, u: np.ndarray, nodal: bool = True) -> np.ndarray:
+def stress(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
     wdet, _ = geometry(mesh)
     sig = material.stress(strain(mesh, u))

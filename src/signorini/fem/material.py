@@ -76,11 +76,7 @@ class IsotropicElastic:
 
     def stress(self, eps: np.ndarray) -> np.ndarray:
         """Cauchy stress from strain tensors ``eps`` of shape (..., d, d)."""
-        d = eps.shape[-1]
-        if d == 1:
-            return self.young * eps
-        tr = np.trace(eps, axis1=-2, axis2=-1)
-        return self.lam * tr[..., None, None] * np.eye(d) + 2 * self.mu * eps
+        return _stress(self.lam, self.mu, self.young, eps)
 
     def von_mises(self, eps: np.ndarray) -> np.ndarray:
         """von Mises stress sqrt(3/2 s:s), s the deviator of the 3D stress.
@@ -88,15 +84,112 @@ class IsotropicElastic:
         In 2D (plane strain) the out-of-plane stress sigma_zz = lam tr(eps) is included;
         in 1D it is |sigma|.
         """
-        d = eps.shape[-1]
-        sig = self.stress(eps)
-        if d == 1:
-            return np.abs(sig[..., 0, 0])
-        if d == 2:
-            s3 = np.zeros(sig.shape[:-2] + (3, 3))
-            s3[..., :2, :2] = sig
-            s3[..., 2, 2] = self.lam * np.trace(eps, axis1=-2, axis2=-1)
-            sig = s3
-        tr = np.trace(sig, axis1=-2, axis2=-1)
-        dev = sig - tr[..., None, None] / 3.0 * np.eye(3)
-        return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))
+        return _von_mises(self.lam, self.mu, self.young, eps)
+
+
+def _stress(lam, mu, young, eps: np.ndarray) -> np.ndarray:
+    """sigma = lam tr(eps) I + 2 mu eps (E eps in 1D) for eps (..., d, d); lam, mu, young
+    numbers or arrays broadcasting against eps's leading axes."""
+    d = eps.shape[-1]
+    if d == 1:
+        return np.asarray(young)[..., None, None] * eps
+    tr = np.trace(eps, axis1=-2, axis2=-1)
+    lam, mu = np.asarray(lam), np.asarray(mu)
+    return (lam * tr)[..., None, None] * np.eye(d) + 2 * mu[..., None, None] * eps
+
+
+def _von_mises(lam, mu, young, eps: np.ndarray) -> np.ndarray:
+    """von Mises stress of :func:`_stress` (plane strain's sigma_zz = lam tr(eps) in 2D)."""
+    d = eps.shape[-1]
+    sig = _stress(lam, mu, young, eps)
+    if d == 1:
+        return np.abs(sig[..., 0, 0])
+    if d == 2:
+        s3 = np.zeros(sig.shape[:-2] + (3, 3))
+        s3[..., :2, :2] = sig
+        s3[..., 2, 2] = np.asarray(lam) * np.trace(eps, axis1=-2, axis2=-1)
+        sig = s3
+    tr = np.trace(sig, axis1=-2, axis2=-1)
+    dev = sig - tr[..., None, None] / 3.0 * np.eye(3)
+    return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))
+
+
+@dataclass(frozen=True)
+class CellMaterial:
+    """Per-cell isotropic materials: the Lamé constants and density of every cell (regions
+    of different materials, :func:`cell_material`).
+
+    Attributes
+    ----------
+    lam, mu : (n_cells,) Lamé constants [Pa].
+    rho : (n_cells,) density [kg/m^d].
+
+    Used by the assembly wherever an :class:`IsotropicElastic` is (stiffness, mass, loads,
+    stress): ``lam``, ``mu``, ``rho`` and ``young`` are arrays over the cells instead of numbers.
+    """
+
+    lam: np.ndarray
+    mu: np.ndarray
+    rho: np.ndarray
+
+    @property
+    def young(self) -> np.ndarray:
+        """Young's modulus of every cell (n_cells,)."""
+        return self.mu * (3 * self.lam + 2 * self.mu) / (self.lam + self.mu)
+
+    def take(self, cells: np.ndarray) -> CellMaterial:
+        """The materials of the cells ``cells`` (indices or mask): a sub-mesh's."""
+        return CellMaterial(self.lam[cells], self.mu[cells], self.rho[cells])
+
+    def wave_speed(self, dim: int) -> float:
+        """The largest compression wave speed of the cells [m/s] (as :meth:`IsotropicElastic.wave_speed`)."""
+        modulus = self.young if dim == 1 else self.lam + 2 * self.mu
+        return float(np.sqrt(modulus / self.rho).max(initial=0.0))
+
+    def _per_cell(self, eps: np.ndarray, a: np.ndarray) -> np.ndarray:
+        return a.reshape(a.shape + (1,) * (eps.ndim - 3))  # (n_cells, 1, ...) against eps (n_cells, nq, d, d)
+
+    def stress(self, eps: np.ndarray) -> np.ndarray:
+        """Cauchy stress (n_cells, ..., d, d) of strains ``eps`` (n_cells, ..., d, d)."""
+        c = self._per_cell
+        return _stress(c(eps, self.lam), c(eps, self.mu), c(eps, self.young), eps)
+
+    def von_mises(self, eps: np.ndarray) -> np.ndarray:
+        """von Mises stress (n_cells, ...) of strains ``eps`` (n_cells, ..., d, d)."""
+        c = self._per_cell
+        return _von_mises(c(eps, self.lam), c(eps, self.mu), c(eps, self.young), eps)
+
+
+#: a material of the whole mesh: one for every cell, or one per cell
+Material = IsotropicElastic | CellMaterial
+
+
+def cell_material(n_cells: int, regions: dict[str, np.ndarray], default: IsotropicElastic,
+                  materials: dict[str, IsotropicElastic] | None) -> Material:  # fmt: skip
+    """The material of every cell: ``materials[tag]`` on the cells of region ``tag``
+    (``regions``: tag -> cell indices), ``default`` on the cells of no listed region.
+
+    No ``materials`` (or every listed material equal to the default): ``default`` itself, so
+    that a one-material run computes exactly as before.  A cell in two listed regions of
+    different materials is refused (:class:`InputError` naming both tags).
+    """
+    if not materials or all(m == default for m in materials.values()):
+        return default
+    owner = np.full(n_cells, -1)
+    tags = list(materials)
+    for k, tag in enumerate(tags):
+        if tag not in regions:
+            known = ", ".join(sorted(regions)) or "none"
+            raise InputError(f"material region {tag!r} is not a region of the mesh; its regions: {known}")
+        cells = np.asarray(regions[tag])
+        clash = owner[cells] >= 0
+        if clash.any():
+            other = tags[int(owner[cells[clash][0]])]
+            if materials[other] != materials[tag]:
+                raise InputError(
+                    f"material regions {other!r} and {tag!r} share {int(clash.sum())} cell(s) and give them different "
+                    "materials; list each cell's region once"
+                )
+        owner[cells] = k
+    lam, mu, rho = (np.array([getattr(m, a) for m in [*materials.values(), default]]) for a in ("lam", "mu", "rho"))
+    return CellMaterial(lam[owner], mu[owner], rho[owner])  # owner -1: the default, last

@@ -1,4 +1,4 @@
-"""Meshes: points, one block of cells, and named boundary facets.
+"""Meshes: points, one block of cells, named boundary facets and named regions of cells.
 
 Generators
 ----------
@@ -10,8 +10,10 @@ Generators
                                     per cube); tags ``xmin`` ... ``zmax``.
 
 A tag names a set of boundary facets (points in 1D, segments in 2D, faces in 3D); the
-nodes of a tag are the nodes of its facets.  :func:`read_mesh` reads any format meshio
-knows and turns Gmsh physical groups of facets into tags.
+nodes of a tag are the nodes of its facets.  A region names a set of cells (a part of
+the body, or a whole body, with its own material or initial data).  :func:`read_mesh`
+reads any format meshio knows and turns Gmsh physical groups of facets into tags and
+physical groups of cells (volumes in 3D, surfaces in 2D) into regions.
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ class Mesh:
     node_ids : (n_nodes,) int array or None: the user's number of every node when the mesh
         was renumbered for a run on several ranks (:mod:`signorini.fem.node_order`);
         messages name nodes by it (:meth:`node_id`).  ``None``: the numbers are the user's.
+    regions : dict tag -> (k,) int array of cell indices (sorted, each cell once per region);
+        a cell may belong to several regions or to none.
     """
 
     points: np.ndarray
@@ -52,6 +56,7 @@ class Mesh:
     facets: dict[str, np.ndarray] = field(default_factory=dict)
     grid: tuple[np.ndarray, ...] | None = None
     node_ids: np.ndarray | None = None
+    regions: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=float)
@@ -75,6 +80,7 @@ class Mesh:
         if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
             raise MeshError("cells reference nodes that do not exist")
         self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}
+        self.regions = {k: _region_cells(k, v, self.n_cells) for k, v in self.regions.items()}
         self._cache: dict = {}
 
     def node_id(self, i: int) -> int:
@@ -103,6 +109,23 @@ class Mesh:
     @property
     def tags(self) -> list[str]:
         return sorted(self.facets)
+
+    def cells_of(self, region: str | Sequence[str]) -> np.ndarray:
+        """Sorted cell indices of a region (or of the union of several); a clear error for an
+        unknown or empty region."""
+        if not isinstance(region, str):
+            return np.unique(np.concatenate([self.cells_of(r) for r in region])) if region else np.zeros(0, int)
+        if region not in self.regions:
+            known = ", ".join(sorted(self.regions)) or "none"
+            raise MeshError(f"unknown region {region!r}; this mesh has: {known}")
+        c = self.regions[region]
+        if c.size == 0:
+            raise MeshError(f"region {region!r} is empty")
+        return c
+
+    def region_nodes(self, region: str | Sequence[str]) -> np.ndarray:
+        """Sorted unique node indices of the cells of ``region``."""
+        return np.unique(self.cells[self.cells_of(region)])
 
     def facets_of(self, tag: str | Sequence[str]) -> np.ndarray:
         """Facets of a tag, or the union of the facets of several tags (each facet once);
@@ -146,6 +169,17 @@ class Mesh:
             )
 
 
+def _region_cells(tag: str, cells, n_cells: int) -> np.ndarray:
+    """The cell indices of region ``tag`` validated: integers in 0 .. n_cells - 1, sorted, unique."""
+    c = np.asarray(cells)
+    if c.size and (c.dtype.kind not in "iu" or c.ndim != 1):
+        raise MeshError(f"region {tag!r} must be a 1D array of cell indices, got {c.dtype} of shape {c.shape}")
+    c = np.unique(c.astype(np.int64))
+    if c.size and (c[0] < 0 or c[-1] >= n_cells):
+        raise MeshError(f"region {tag!r} references cell {int(c[0] if c[0] < 0 else c[-1])}, outside 0..{n_cells - 1}")
+    return c
+
+
 def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
     """True when every element is a translate of the first one (same Jacobians), as on
     the structured generators' meshes; assembly then computes one element matrix.
@@ -185,15 +219,22 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
 
 def join(parts: dict[str, Mesh]) -> Mesh:
     """One mesh of several bodies: the parts' nodes and cells side by side (no node shared),
-    each part's facet tag ``t`` renamed ``<part>_<t>``.  The parts must have one cell type."""
+    each part's facet tag ``t`` renamed ``<part>_<t>``; every part is a region ``<part>``
+    (all its cells) and its own regions ``r`` become ``<part>_<r>``.  The parts must have
+    one cell type."""
     meshes = list(parts.values())
     if not meshes or len({m.cell_type for m in meshes}) != 1:
         raise MeshError("join needs one or more meshes of one cell type")
     offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
+    first = np.cumsum([0] + [m.n_cells for m in meshes])
     facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
               for t, f in m.facets.items()}  # fmt: skip
+    regions = {}
+    for (name, m), c0 in zip(parts.items(), first, strict=False):
+        regions[name] = c0 + np.arange(m.n_cells)
+        regions.update({f"{name}_{r}": c0 + c for r, c in m.regions.items()})
     return Mesh(np.vstack([m.points for m in meshes]), np.vstack([m.cells + o for m, o in zip(meshes, offsets,
-                strict=False)]), meshes[0].cell_type, facets)  # fmt: skip
+                strict=False)]), meshes[0].cell_type, facets, regions=regions)  # fmt: skip
 
 
 def bodies(mesh: Mesh) -> np.ndarray:
@@ -209,6 +250,15 @@ def bodies(mesh: Mesh) -> np.ndarray:
     first = np.full(label.max(initial=-1) + 1, mesh.n_nodes)
     np.minimum.at(first, label, np.arange(mesh.n_nodes))
     return np.argsort(np.argsort(first))[label]
+
+
+def region_ids(mesh: Mesh) -> np.ndarray:
+    """The region number of every cell (n_cells,) int: k + 1 for the k-th region in sorted tag
+    order (a cell in several regions: the first of them), 0 for a cell of no region."""
+    ids = np.zeros(mesh.n_cells, dtype=np.int64)
+    for k, tag in reversed(list(enumerate(sorted(mesh.regions)))):
+        ids[mesh.regions[tag]] = k + 1
+    return ids
 
 
 def tag_sides(points: np.ndarray, facets: np.ndarray) -> dict[str, np.ndarray]:
@@ -361,6 +411,36 @@ def _tagged_facets(m, ftype: str, names: dict[int, str], fdim: int) -> dict[str,
     return facets
 
 
+def _tagged_cells(m, cell_type: str, names: dict[int, str], dim: int) -> dict[str, np.ndarray]:
+    """Cell indices (into the stacked blocks of ``cell_type``) per physical group of cells:
+    ``gmsh:physical`` cell data (one group per element) and the entity-based ``cell_sets``
+    of Gmsh 4 files (every group; they replace the first-group-only lists)."""
+    blocks = [b.type == cell_type for b in m.cells]
+    starts = np.cumsum([0] + [len(b.data) if keep else 0 for b, keep in zip(m.cells, blocks, strict=True)])
+    regions: dict[str, list[np.ndarray]] = {}
+    phys = m.cell_data.get("gmsh:physical")
+    if phys is not None:
+        for k, (keep, tags) in enumerate(zip(blocks, phys, strict=True)):
+            if not keep:
+                continue
+            t = np.asarray(tags, dtype=float)
+            if t.size and (not np.all(np.isfinite(t)) or np.any(t != np.round(t))):
+                raise MeshError("physical tags of the cells must be integers (found NaN or a fraction)")
+            for tag_id in np.unique(tags):
+                if int(tag_id) in names:  # a named group of cells; unnamed ids (gmsh's default 0) are not regions
+                    regions.setdefault(names[int(tag_id)], []).append(starts[k] + np.flatnonzero(tags == tag_id))
+    for name, per_block in (m.cell_sets or {}).items():
+        fd = (m.field_data or {}).get(name)
+        if name.startswith("gmsh:") or fd is None or len(fd) < 2 or int(fd[1]) != dim:
+            continue
+        found = [starts[k] + np.asarray(idx, dtype=np.int64)
+                 for k, (keep, idx) in enumerate(zip(blocks, per_block, strict=False))
+                 if keep and idx is not None and len(idx)]  # fmt: skip
+        if found:
+            regions[name] = found
+    return {k: np.concatenate(v) for k, v in regions.items()}
+
+
 def read_mesh(path: str | Path) -> Mesh:
     """Read a mesh with meshio; Gmsh physical groups of facets become tags.
 
@@ -368,11 +448,13 @@ def read_mesh(path: str | Path) -> Mesh:
     Facets listed under a physical group named ``NAME`` (``gmsh:physical`` cell data
     plus ``field_data``, and meshio's ``cell_sets`` of Gmsh 4 files) become the tag
     ``NAME``, a facet in several groups carries every one; unnamed groups become
-    ``"<id>"``.  Refused with a :class:`MeshError`: physical groups of facets that hold
-    no facet, node references out of range, non-finite coordinates, a 2D (1D) mesh whose
-    dropped coordinates vary, a facet listed twice in a tag, a tagged facet that is not a
-    face of a cell, and non-integer physical tags.
-    Points are truncated to the mesh dimension (Gmsh always writes 3D points).
+    ``"<id>"``.  Cells listed under a named physical group of the mesh's dimension
+    (volumes in 3D, surfaces in 2D) become the region ``NAME``. Refused with a
+    :class:`MeshError`: physical groups of facets that hold no facet, node references
+    out of range, non-finite coordinates, a 2D (1D) mesh whose dropped coordinates vary,
+    a facet listed twice in a tag, a tagged facet that is not a face of a cell, and non-
+    integer physical tags. Points are truncated to the mesh dimension (Gmsh always
+    writes 3D points).
     """
     import meshio
 
@@ -437,7 +519,9 @@ def read_mesh(path: str | Path) -> Mesh:
     for k, v in tagged.items():
         if (v < 0).any():
             raise MeshError(f"{p.name}: facets of tag {k!r} use nodes that belong to no cell")
-    mesh = Mesh(pts, renum[cells], cell_type, tagged)
+    cell_names = {int(v[0]): k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim}
+    regions = _tagged_cells(m, cell_type, cell_names, dim)
+    mesh = Mesh(pts, renum[cells], cell_type, tagged, regions=regions)
     mesh.check_cells()
     _check_facets(p.name, mesh)
     return mesh
@@ -515,17 +599,31 @@ def _check_facets(name: str, mesh: Mesh) -> None:
 
 
 def write_mesh(mesh: Mesh, path: str | Path) -> None:
-    """Write ``mesh`` as a Gmsh 2.2 file with one physical group per tag (readable by :func:`read_mesh`)."""
+    """Write ``mesh`` as a Gmsh 2.2 file with one physical group per tag and per region
+    (readable by :func:`read_mesh`; a cell in several regions is written in the first one
+    only, Gmsh 2.2 holding one group per element; cells of no region form ``domain``)."""
     import meshio
 
     ftype = FACET_TYPES[mesh.cell_type]
-    blocks, phys, field_data = [(mesh.cell_type, mesh.cells)], [np.zeros(mesh.n_cells, dtype=int)], {}
-    for i, (name, f) in enumerate(sorted(mesh.facets.items()), start=1):
+    blocks, phys, field_data = [], [], {}
+    group = np.zeros(mesh.n_cells, dtype=int)
+    ids = 1
+    for name, c in sorted(mesh.regions.items()):
+        field_data[name] = np.array([ids, mesh.dim])
+        free = c[group[c] == 0]
+        group[free] = ids
+        ids += 1
+    if (group == 0).any() or not mesh.regions:
+        field_data["domain"] = np.array([ids, mesh.dim])
+        group[group == 0] = ids
+        ids += 1
+    blocks.append((mesh.cell_type, mesh.cells))
+    phys.append(group)
+    for name, f in sorted(mesh.facets.items()):
         blocks.append((ftype, f))
-        phys.append(np.full(len(f), i, dtype=int))
-        field_data[name] = np.array([i, mesh.dim - 1])
-    phys[0][:] = len(field_data) + 1
-    field_data["domain"] = np.array([len(field_data) + 1, mesh.dim])
+        phys.append(np.full(len(f), ids, dtype=int))
+        field_data[name] = np.array([ids, mesh.dim - 1])
+        ids += 1
     pts = np.zeros((mesh.n_nodes, 3))
     pts[:, : mesh.dim] = mesh.points
     out = meshio.Mesh(

@@ -58,7 +58,7 @@ def morton_order(points: np.ndarray) -> np.ndarray:
 def renumber(mesh: Mesh, old_of_new: np.ndarray) -> Mesh:
     """``mesh`` with its nodes renumbered: node i of the result is node ``old_of_new[i]``.
 
-    Points, cells and tagged facets follow (cells keep their order); the generator's
+    Points, cells and tagged facets follow (cells keep their order, so the regions too); the generator's
     ``grid`` is dropped (its formula reads the old numbers).  ``node_ids`` carries the
     user's number of every node (composed when ``mesh`` was already renumbered).
     """
@@ -76,6 +76,7 @@ def renumber(mesh: Mesh, old_of_new: np.ndarray) -> Mesh:
         {tag: new_of_old[f] for tag, f in mesh.facets.items()},
         None,
         ids,
+        mesh.regions,
     )
 
 

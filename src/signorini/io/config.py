@@ -153,7 +153,8 @@ def _contact_tags(mesh: Mesh, table: dict) -> str | tuple[str, ...]:
 
 
 def _pairs(mesh: Mesh, table: dict) -> list:
-    """``[contact] pairs = [{ slave = "...", master = "..." }, ...]``: facet tags in contact."""
+    """``[contact] pairs = [{ slave = "...", master = "...", friction = { law = ... } }, ...]``:
+    facet tags in contact, each with its own contact law (optional: the section's ``friction``)."""
     from ..contact.pairs import ContactPair
 
     given = table.get("pairs", [])
@@ -162,15 +163,16 @@ def _pairs(mesh: Mesh, table: dict) -> list:
                          f"got {_short(given)}")  # fmt: skip
     out = []
     for k, p in enumerate(given):
-        extra = sorted(set(p) - {"slave", "master"})
+        extra = sorted(set(p) - {"slave", "master", "friction"})
         if extra or not {"slave", "master"} <= set(p):
-            raise InputError(f"'contact.pairs[{k}]' needs the keys slave and master (facet tags) only; got "
-                             f"{sorted(p)} (friction on pairs is not implemented yet)")  # fmt: skip
+            raise InputError(f"'contact.pairs[{k}]' needs the keys slave and master (facet tags) and optionally "
+                             f"friction; got {sorted(p)}")  # fmt: skip
         for side in ("slave", "master"):
             if not isinstance(p[side], str):
                 raise InputError(f"'contact.pairs[{k}].{side}' must be a facet tag, got {_short(p[side])}")
             mesh.facets_of(p[side])
-        out.append(ContactPair(p["slave"], p["master"]))
+        law = make_friction(p["friction"], f"contact.pairs[{k}].friction") if "friction" in p else None
+        out.append(ContactPair(p["slave"], p["master"], law))
     return out
 
 
@@ -233,16 +235,79 @@ def _mesh(m: dict, base: Path, guard=None) -> Mesh:
     return box(*cells, *size, cell=cell)
 
 
-def _material(t: dict) -> IsotropicElastic:
-    _keys("material", t, SECTIONS["material"])
+def _material(t: dict, key: str = "material", allowed: set[str] | None = None) -> IsotropicElastic:
+    """``[material]`` (or one of its ``regions`` entries, ``key`` naming it in messages)."""
+    _keys(key, t, SECTIONS["material"] if allowed is None else allowed)
     if "rho" not in t:
-        raise InputError("missing key 'material.rho'")
-    rho = _number("material.rho", t["rho"])
-    if {"lam", "mu"} <= set(t) and not ({"E", "nu"} & set(t)):
-        return IsotropicElastic(_number("material.lam", t["lam"]), _number("material.mu", t["mu"]), rho)
-    if "E" in t and not ({"lam", "mu"} & set(t)):
-        return IsotropicElastic.from_young(_number("material.E", t["E"]), _number("material.nu", t.get("nu", 0.0)), rho)
-    raise InputError("[material] needs either lam and mu, or E (and optionally nu), plus rho")
+        raise InputError(f"missing key '{key}.rho'")
+    try:
+        rho = _number(f"{key}.rho", t["rho"])
+        if {"lam", "mu"} <= set(t) and not ({"E", "nu"} & set(t)):
+            return IsotropicElastic(_number(f"{key}.lam", t["lam"]), _number(f"{key}.mu", t["mu"]), rho)
+        if "E" in t and not ({"lam", "mu"} & set(t)):
+            E, nu = _number(f"{key}.E", t["E"]), _number(f"{key}.nu", t.get("nu", 0.0))
+            return IsotropicElastic.from_young(E, nu, rho)
+    except InputError as exc:
+        if key == "material" or str(exc).startswith(f"'{key}"):
+            raise
+        raise InputError(f"{key}: {exc}") from None
+    where = "[material]" if key == "material" else f"'{key}'"
+    raise InputError(f"{where} needs either lam and mu, or E (and optionally nu), plus rho")
+
+
+def _region_tag(mesh: Mesh, key: str, entry: Any) -> str:
+    """The ``tag`` of a ``regions`` entry: a region of the mesh (InputError naming ``key`` otherwise)."""
+    if not isinstance(entry, dict):
+        raise InputError(f"'{key}' must be an inline table {{ tag = \"region\", ... }}, got {_short(entry)}")
+    tag = entry.get("tag")
+    if not isinstance(tag, str) or not tag:
+        raise InputError(f"'{key}.tag' must be the name of a region of cells, got {_short(tag)}")
+    if tag not in mesh.regions or mesh.regions[tag].size == 0:
+        known = ", ".join(sorted(t for t, c in mesh.regions.items() if c.size))
+        known = known or "none (a mesh file makes regions from named physical groups of cells)"
+        raise InputError(f"'{key}.tag': {tag!r} is not a region of the mesh; its regions: {known}")
+    return tag
+
+
+def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
+    """``[material] regions = [{ tag = "plate", E = ..., nu = ..., rho = ... }, ...]``."""
+    given = t.get("regions", [])
+    if not isinstance(given, list):
+        raise InputError(f"'material.regions' must be a list of tables {{ tag = \"region\", E = ..., rho = ... }}, "
+                         f"got {_short(given)}")  # fmt: skip
+    out: dict[str, IsotropicElastic] = {}
+    allowed = SECTIONS["material"] - {"regions"}
+    for k, entry in enumerate(given):
+        key = f"material.regions[{k}]"
+        tag = _region_tag(mesh, key, entry)
+        if tag in out:
+            raise InputError(f"'{key}.tag': region {tag!r} is listed twice in material.regions")
+        out[tag] = _material({a: v for a, v in entry.items() if a != "tag"}, key, allowed)
+    return out
+
+
+def _initial_regions(init: dict, mesh: Mesh) -> list:
+    """``[initial] regions = [{ tag = "ball", velocity = [...], displacement = [...] }, ...]``."""
+    from ..dynamics.problem import RegionInitial
+
+    given = init.get("regions", [])
+    if not isinstance(given, list):
+        raise InputError(f"'initial.regions' must be a list of tables {{ tag = \"region\", velocity = [...] }}, "
+                         f"got {_short(given)}")  # fmt: skip
+    out = []
+    for k, entry in enumerate(given):
+        key = f"initial.regions[{k}]"
+        tag = _region_tag(mesh, key, entry)
+        _keys(key, entry, {"tag", "velocity", "displacement"})
+        values = {}
+        for name in ("velocity", "displacement"):
+            if name in entry:
+                f = vector_field(f"{key}.{name}", entry[name], mesh.dim)
+                if getattr(f, "time_dependent", False):
+                    raise InputError(f"'{key}.{name}' cannot depend on t (it is the state at t = 0)")
+                values[name] = f
+        out.append(RegionInitial(tag, **values))
+    return out
 
 
 def _dirichlet(blocks: Any, mesh: Mesh) -> list[Dirichlet]:
@@ -415,6 +480,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     mesh = _mesh(data["mesh"], path.parent, guard)
     dim = mesh.dim
     material = _material(data["material"])
+    materials = _material_regions(data["material"], mesh)
     dirichlet = _dirichlet(data.get("dirichlet", []), mesh)
     tractions = _tractions(data.get("traction", []), mesh)
     c = data["contact"]
@@ -432,6 +498,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     for key, f in (("initial.displacement", u0), ("initial.velocity", v0)):
         if getattr(f, "time_dependent", False):
             raise InputError(f"'{key}' cannot depend on t (it is the state at t = 0)")
+    initial_regions = _initial_regions(init, mesh)
     acceleration = init.get("acceleration", "equilibrium")
     if acceleration not in INITIAL_ACCELERATIONS:
         raise InputError(f"'initial.acceleration' must be one of {', '.join(map(repr, INITIAL_ACCELERATIONS))}, "
@@ -439,6 +506,10 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     loads = data.get("loads", {})
     _keys("loads", loads, SECTIONS["loads"])
     body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
+    gravity = None
+    if "gravity" in loads:
+        vector_field("loads.gravity", loads["gravity"], dim, allow_space=False)  # an acceleration: of t only
+        gravity = vector_field("loads.gravity", loads["gravity"], dim)
     follow_mass = loads.get("follow_mass", True)
     if not isinstance(follow_mass, bool):
         raise InputError(f"'loads.follow_mass' must be true or false, got {follow_mass!r}")
@@ -447,6 +518,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     problem = Problem(
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
         friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
+        materials=materials, initial_regions=initial_regions, gravity=gravity,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)

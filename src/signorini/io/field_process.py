@@ -50,7 +50,7 @@ def _serve(conn, path: str) -> None:
                 writer.__enter__()
                 writer.write_points_cells(msg[1], [(msg[2], msg[3])])
             elif msg[0] == "data":
-                writer.write_data(msg[1], point_data=msg[2])
+                writer.write_data(msg[1], point_data=msg[2], cell_data=msg[3] if len(msg) > 3 else None)
             elif msg[0] == "close":
                 if writer is not None:
                     writer.__exit__(None, None, None)
@@ -118,8 +118,8 @@ class FieldProcess:
     def mesh(self, points: np.ndarray, cell_type: str, cells: np.ndarray) -> None:
         self._ask(("mesh", points, cell_type, cells))
 
-    def data(self, t: float, point_data: dict[str, Any]) -> None:
-        self._ask(("data", float(t), point_data))
+    def data(self, t: float, point_data: dict[str, Any], cell_data: dict[str, Any] | None = None) -> None:
+        self._ask(("data", float(t), point_data, cell_data))
 
     def close(self) -> None:
         """Write the XDMF index and end the child (a dead child is left as it is)."""

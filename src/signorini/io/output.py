@@ -11,7 +11,9 @@ positive in compression, -lambda_i / w_i), ``contact_traction`` (n_nodes, 3): th
 vector the obstacle exerts, (lambda_i nu_i + lambda_t,i . t_i) / w_i [force / length^(d-1)],
 zero off Gamma_C (tangential part with friction only), and ``contact_status`` (n_nodes,):
 -1 off Gamma_C, 0 separated, 1 stick, 2 slip (without friction: 2 for every node in
-contact, nothing holds it tangentially).
+contact, nothing holds it tangentially).  Cell data per time: ``region`` (n_cells,): k + 1
+for the k-th region tag in sorted order (``summary.json`` ``regions``), 0 for none, and
+``body`` (n_cells,): the body of the cell (``summary.json`` ``bodies``, numbered from 0).
 
 HDF5 runs in a child process (:mod:`signorini.io.field_process`): a crash inside it, which
 a disk filled by another program during a write can cause, ends the run with exit 4 in
@@ -37,6 +39,7 @@ import numpy as np
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
 from ..fem.assembly import von_mises
+from ..fem.mesh import bodies, region_ids
 from ..fem.node_order import to_user_nodes
 
 #: bytes kept free for the HDF5 file's metadata and the XDMF index [B]
@@ -89,7 +92,9 @@ class FieldWriter(Observer):
         from .field_process import FieldProcess
 
         mesh = run.problem.mesh
-        self._mesh, self._material = mesh, run.problem.material
+        self._mesh, self._material = mesh, run.ctx.disc.material  # per cell with regions
+        # every cell's region (k + 1: the k-th region tag in sorted order, 0: none) and body
+        self._cell_data = {"region": [region_ids(mesh)], "body": [bodies(mesh)[mesh.cells[:, 0]]]}
         self._nodes = run.ctx.disc.contact.nodes
         self._weights = run.ctx.disc.contact.weights
         self._contact = run.ctx.disc.contact
@@ -135,7 +140,7 @@ class FieldWriter(Observer):
                 "contact_traction": traction, "contact_status": status}  # fmt: skip
         data = {k: to_user_nodes(mesh, a) for k, a in data.items()}  # a renumbered mesh: the user's order
         try:
-            self._writer.data(float(s.t), data)
+            self._writer.data(float(s.t), data, self._cell_data)
         except OSError:  # the child failed or died: it never touches the file again
             self._writer = None
             self._release_reserve()

@@ -83,6 +83,10 @@ SECTIONS: tuple[Section, ...] = (
             Key("mu", "number > 0", "", "stress", "shear modulus", _ex("", "0.5", "0.5")),
             Key("E", "number > 0", "", "stress", "Young's modulus (instead of lam, mu)", _ex("1.0", "", "")),
             Key("nu", "number in (-1, 0.5)", "0", "", "Poisson ratio (with E)"),
+            Key("regions", "array of inline tables", "none", "",
+                "materials per region of cells: [{ tag = \"plate\", E = ..., nu = ..., rho = ... }, ...] (or lam, "
+                "mu; rho required); the section's own keys are the default for cells in no listed region.  Regions "
+                "are a mesh file's named physical groups of cells (volumes in 3D, surfaces in 2D)"),
         ),
         required=True,
     ),
@@ -126,7 +130,8 @@ SECTIONS: tuple[Section, ...] = (
                     '{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }')),
             Key("pairs", "array of inline tables", "none", "",
                 "contact between deformable surfaces: [{ slave = \"tag\", master = \"tag\" }, ...] (facet tags; "
-                "frictionless; docs/bodies.md); with pairs, tag and obstacle are optional (both or neither)"),
+                "docs/bodies.md), each with an optional friction = { law = ... } as below (default: the section's "
+                "friction); with pairs, tag and obstacle are optional (both or neither)"),
             Key("friction", "inline table", "frictionless", "",
                 "{ law = \"coulomb\", coefficient = mu } or { law = \"tresca\", threshold = s } "
                 "(s: force / length^(d-1)); 2D and 3D only (docs/friction.md)"),
@@ -143,12 +148,19 @@ SECTIONS: tuple[Section, ...] = (
                 _ex('["-0.5"]', "[0.0, -0.5]", "[0.0, 0.0, -0.5]")),
             Key("acceleration", '"equilibrium" or "zero"', "equilibrium", "",
                 "A0: from M A0 = F(0) - S U0, or zero (GetFEM's Newmark start); summary.json conventions"),
+            Key("regions", "array of inline tables", "none", "",
+                "per region of cells: [{ tag = \"ball\", velocity = [...], displacement = [...] }, ...] (either "
+                "optional; expressions of x, y, z) on the nodes of the region's cells, over the section's values; "
+                "a node shared by two listed regions takes the later one's"),
         ),
     ),
     Section(
         "loads",
         "Volume loads.",
         (Key("body_force", f"array of {EXPR}s", "none", "force / length^d", "may depend on x, y, z, t"),
+         Key("gravity", f"array of {EXPR}s", "none", "length / time^2",
+             "an acceleration g (may depend on t only): the load M_used g, or int rho g phi with follow_mass = "
+             "false, each region with its own density"),
          Key("follow_mass", "true or false", "true", "",
              "true: a uniform body force is applied as M_used f / rho (the body falls at g with every mass); "
              "false: the consistent load int f phi whatever the mass (GetFEM's convention)")),

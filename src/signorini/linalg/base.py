@@ -152,8 +152,9 @@ BACKENDS = Registry("linear solver backend")
 BACKENDS.register(
     "auto",
     None,
-    "superlu below 30k dofs; else pardiso, else cholmod; else, in 3D, cg when the operator is mass-dominated "
-    "(and the scheme allows it), else superlu; cg when no factor fits memory_budget",
+    "in 3D from about 4k dofs pardiso, else cholmod (a core dependency where cvxopt has wheels); else superlu "
+    "below 30k dofs; else, in 3D, cg when the operator is mass-dominated (and the scheme allows it), else "
+    "superlu; cg when no factor fits memory_budget",
     (),
     CG_PARAMETERS,
 )
@@ -168,7 +169,8 @@ BACKENDS.register(
 BACKENDS.register(
     "cholmod",
     ".cholmod:CholmodFactor",
-    "supernodal Cholesky, CHOLMOD via cvxopt (extra 'cholmod'), nested dissection (METIS with extra 'metis')",
+    "supernodal Cholesky, CHOLMOD via cvxopt (core where it has wheels, else extra 'cholmod'), nested "
+    "dissection (METIS with pymetis: core on Linux x86-64 and macOS, else extra 'metis')",
 )
 BACKENDS.register(
     "petsc",
@@ -301,44 +303,58 @@ def estimate_factor_bytes(n: int, dim: int, backend: str) -> float:
     return 12.0 * 16.4e6 * (n / 19440.0) ** 1.46
 
 
-SMALL = 30_000  # below this many dofs SuperLU factors about as fast as the others start
+SMALL = 30_000  # below this many dofs (2D; 3D below about 4k dofs) SuperLU factors about as fast as the others
 #: ``auto`` counts K = c_M M + c_S S as mass-dominated when c_S S_ii <= CG_FRIENDLY_RATIO
 #: c_M M_ii on every free dof with mass: Jacobi-CG then needs 20-30 iterations per solve
 #: (the bars with dt = h/2: ratio <= 0.85); the Hertz ball, with small cells at the pole
 #: and dt = t_c/(25 n), has ratios up to 2,500 and needs about 290 (docs/design.md)
 CG_FRIENDLY_RATIO = 4.0
+#: the Cholesky backends ``auto`` considers, fastest first (docs/performance.md, "A fast 3D
+#: factor on the plain install": on the 34k-dof Hertz ball and the 35k-dof whole-skin bracket,
+#: Pardiso's set-up is 1 to 3 times shorter than CHOLMOD's, whose lazy Delassus columns cvxopt
+#: solves one right-hand side at a time, at steps within 15% of each other)
+CHOLESKY = ("pardiso", "cholmod")
+
+
+def installed(backend: str) -> bool:
+    """Whether the library of the Cholesky backend ``backend`` is installed and loads
+    (:func:`has_pardiso`, :func:`has_cholmod`, looked up when called)."""
+    return {"pardiso": has_pardiso, "cholmod": has_cholmod}[backend]()
 
 
 def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: bool = False) -> str:
     """Direct solver when its estimated factor fits in ``budget`` bytes, else ``cg``.
 
     By estimated cost: the size of the factor (:func:`estimate_factor_bytes`) is the cost
-    of every step's two triangular solves and the measure of its set-up.  Pardiso, when
-    installed, is chosen as soon as its nested-dissection factor is estimated smaller than
-    SuperLU's (3D from about 5,000 dofs: bar3d n = 8, 19,683 dofs, 104 MB against 200 MB;
-    measured set-up 1.2 s against 3.4 s; docs/performance.md), else SuperLU for small
-    systems (< 30k dofs: it has no start-up, and 2D factors are alike), then CHOLMOD
-    (cvxopt), whose Python-side ordering makes its set-up slower than SuperLU's below 30k
-    dofs (measured 10 s against 3.4 s at 19k dofs).  Without either, a large 3D system
-    goes to CG when ``cg_friendly`` (the operator is mass-dominated, see
-    :data:`CG_FRIENDLY_RATIO`, and the scheme can use the CG contact solve): SuperLU's LU
-    of a 3D operator is slow and large (bar3d n = 16: 52 s, 3.5 GB, against 1.5 s of
-    set-up and 0.6 GB for CG, whose steps are also faster).  Then SuperLU, and CG when no
-    factor fits.
+    of every step's two triangular solves and the measure of its set-up.  A Cholesky
+    backend of :data:`CHOLESKY` (Pardiso, then CHOLMOD), when installed, is chosen as soon
+    as its nested-dissection factor is estimated smaller than SuperLU's: in 3D from about
+    4,000 dofs (bar3d n = 8, 19,683 dofs: Pardiso 104 MB against 200 MB, set-up 1.2 s
+    against 3.4 s; the Hertz ball at 13.5k dofs: CHOLMOD with METIS 0.99 s against 2.6 s,
+    at 35.6k dofs 2.6 s against 40 s; docs/performance.md).  CHOLMOD (cvxopt, with pymetis)
+    is a core dependency where both have wheels (pyproject.toml), so the plain install has
+    it there.  Else SuperLU for small systems (< 30k dofs: it has no start-up, and 2D
+    factors are alike), then a Cholesky backend.  Without one, a large 3D system goes to
+    CG when ``cg_friendly`` (the operator is mass-dominated, see :data:`CG_FRIENDLY_RATIO`,
+    and the scheme can use the CG contact solve): SuperLU's LU of a 3D operator is slow and
+    large (bar3d n = 16: 52 s, 3.5 GB, against 1.5 s of set-up and 0.6 GB for CG, whose
+    steps are also faster).  Then SuperLU, and CG when no factor fits.
     """
     budget = 0.4 * total_memory() if not budget else budget
-    pardiso = estimate_factor_bytes(n, dim, "pardiso")
-    # has_pardiso() last: it imports pypardiso, which a small run must not load
-    if pardiso <= budget and pardiso < estimate_factor_bytes(n, dim, "superlu") and has_pardiso():
-        return "pardiso"
-    if n < SMALL and estimate_factor_bytes(n, dim, "superlu") <= budget:
+    superlu = estimate_factor_bytes(n, dim, "superlu")
+    for name in CHOLESKY:
+        size = estimate_factor_bytes(n, dim, name)
+        # installed() last: it imports the library, which a small run must not load
+        if size <= budget and size < superlu and installed(name):
+            return name
+    if n < SMALL and superlu <= budget:
         return "superlu"
-    for name, present in (("pardiso", has_pardiso), ("cholmod", has_cholmod)):
-        if present() and estimate_factor_bytes(n, dim, name) <= budget:
+    for name in CHOLESKY:
+        if estimate_factor_bytes(n, dim, name) <= budget and installed(name):
             return name
     if cg_friendly and dim == 3:
         return "cg"
-    if estimate_factor_bytes(n, dim, "superlu") <= budget:
+    if superlu <= budget:
         return "superlu"
     return "cg"
 

@@ -7,15 +7,21 @@ like n^2 on 3D meshes.  This implementation needs no graph partitioner:
 
 1. *Supervariables*: the d dofs of a node (node-major numbering) are merged, so the
    graph is the node graph, d times smaller.
-2. *Level-set separators*: in each connected part, a pseudo-peripheral vertex is found
-   by repeated breadth-first search; the vertices at the distance that splits the part
-   into two halves form the separator (a cross-section of a bar, a cap of a ball).
+2. *Separators across the graph*: in each connected part, a pseudo-peripheral vertex a
+   and the vertex b farthest from it are found by breadth-first search; the part is cut
+   in halves along d_a - d_b (and along a second axis in the middle cross-section), whose
+   level sets near the middle are close to planes across the body, and the smaller
+   boundary of the two halves, thinned, is the separator (``separators="levels"``: a
+   level set of d_a alone, a cap around a, the ordering before issue 31: SuperLU's
+   factor of the 34k-dof Hertz ball holds 1,246 MB with it, 795 MB with the axes).
 3. Parts with at most ``leaf`` vertices keep their order.
 
-Its level-set separators are larger than METIS's multilevel ones (SuperLU's factor of
-``bar3d`` n = 16 holds 3.5 GB with it, 2.1 GB with METIS, 4.9 GB with MMD), so
+Its separators are larger than METIS's multilevel ones (SuperLU's factor of ``bar3d``
+n = 16 held 3.5 GB with the level sets, 2.1 GB with METIS, 4.9 GB with MMD; the ball
+above 526 MB with METIS), so
 :func:`fill_reducing_order` uses METIS (``pymetis``, extra ``metis``) on the node graph
-when it is installed, this ordering otherwise (see ``docs/performance.md``).
+when it is installed (a core dependency on Linux x86-64 and macOS), this ordering
+otherwise (see ``docs/performance.md``).
 """
 
 from __future__ import annotations
@@ -90,7 +96,75 @@ def _level_split(G: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
     return np.flatnonzero(level < cut), np.flatnonzero(level > cut), np.flatnonzero(level == cut)
 
 
-def _dissect(G: sp.csr_matrix, vertices: np.ndarray, leaf: int, out: list[np.ndarray]) -> None:
+def _distances(G: sp.csr_matrix, start: int) -> np.ndarray:
+    """Breadth-first distances from ``start`` (a connected graph)."""
+    return csgraph.dijkstra(G, unweighted=True, indices=start)
+
+
+def _vertex_separator(G: sp.csr_matrix, side: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(side, separator) of a split of a graph's vertices in two (boolean ``side``): the
+    vertices of one side with a neighbour on the other (of the two sides, the one that
+    gives fewer), less those with no neighbour left on their own side, which cross over."""
+    rows = np.repeat(np.arange(G.shape[0]), np.diff(G.indptr))
+    cross = side[rows] != side[G.indices]
+    best = None
+    for s in (False, True):
+        sep = np.zeros(side.size, dtype=bool)
+        sep[rows[cross & (side[rows] == s)]] = True
+        own = np.zeros(side.size, dtype=bool)  # a neighbour on side s outside the separator
+        own[rows[(side[G.indices] == s) & ~sep[G.indices]]] = True
+        moved = sep & ~own
+        new_side = np.where(moved, not s, side)
+        sep &= own
+        if best is None or sep.sum() < best[1].sum():
+            best = (new_side, sep)
+    return best
+
+
+def _bisection_split(G: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(part 1, part 2, separator) of a connected graph cut across an axis of the graph.
+
+    The axes are differences of breadth-first distances, d_a - d_b, from two far-apart
+    vertices a and b (a pseudo-peripheral vertex and the farthest from it; then two far
+    vertices of the middle cross-section): their level sets near the middle are close to
+    planes across the body, where a level set of d_a alone is a cap around a (larger in
+    a ball or a block).  Each axis splits the vertices in halves by rank; the smaller of
+    the resulting vertex separators (:func:`_vertex_separator`) is kept.
+    """
+    n = G.shape[0]
+    start, far = 0, -1.0
+    for _ in range(4):  # a few sweeps: the farthest vertex of the farthest vertex ...
+        d = _distances(G, start)
+        nxt = int(np.argmax(d))
+        if d[nxt] <= far:
+            break
+        start, far = nxt, d[nxt]
+    if far < 2:
+        return None
+    d_a = _distances(G, start)
+    d_b = _distances(G, int(np.argmax(d_a)))
+    axes = [d_a - d_b]
+    middle = np.flatnonzero(np.abs(d_a - d_b) <= 1)  # the cross-section half-way between a and b
+    if middle.size > 2:
+        c = int(middle[np.argmax(_distances(G, int(middle[0]))[middle])])
+        d_c = _distances(G, c)
+        d_e = _distances(G, int(middle[np.argmax(d_c[middle])]))
+        axes.append(d_c - d_e)
+    best = None
+    for f in axes:
+        rank = np.empty(n, dtype=np.int64)
+        rank[np.lexsort((d_a, f))] = np.arange(n)
+        side, sep = _vertex_separator(G, rank >= n // 2)
+        if best is None or sep.sum() < best[1].sum():
+            best = (side, sep)
+    side, sep = best
+    left, right = np.flatnonzero(~side & ~sep), np.flatnonzero(side & ~sep)
+    if left.size == 0 or right.size == 0:
+        return None
+    return left, right, np.flatnonzero(sep)
+
+
+def _dissect(G: sp.csr_matrix, vertices: np.ndarray, leaf: int, out: list[np.ndarray], split_by=None) -> None:
     """Append the nested-dissection order of the subgraph ``G`` (ids ``vertices``) to out."""
     if vertices.size <= leaf:
         out.append(vertices)
@@ -101,25 +175,27 @@ def _dissect(G: sp.csr_matrix, vertices: np.ndarray, leaf: int, out: list[np.nda
         bounds = np.concatenate([[0], np.cumsum(np.bincount(label, minlength=ncomp))])
         for k in range(ncomp):
             idx = order[bounds[k] : bounds[k + 1]]
-            _dissect(G[idx][:, idx], vertices[idx], leaf, out)
+            _dissect(G[idx][:, idx], vertices[idx], leaf, out, split_by)
         return
-    split = _level_split(G)
+    split = (split_by or _bisection_split)(G)
     if split is None:
         out.append(vertices)
         return
     left, right, sep = split
     for part in (left, right):
-        _dissect(G[part][:, part], vertices[part], leaf, out)
+        _dissect(G[part][:, part], vertices[part], leaf, out, split_by)
     out.append(vertices[sep])
 
 
-def nested_dissection(A: sp.spmatrix, leaf: int = 32) -> np.ndarray:
+def nested_dissection(A: sp.spmatrix, leaf: int = 32, separators: str = "bisection") -> np.ndarray:
     """Fill-reducing permutation p of the symmetric matrix A (factor A[p][:, p]).
 
     Parameters
     ----------
     A : (n, n) sparse matrix with a symmetric pattern (values are ignored).
     leaf : parts of at most this many supervariables are not split further.
+    separators : ``bisection`` (:func:`_bisection_split`, the default) or ``levels`` (a level
+        set of the distances from one vertex, :func:`_level_split`: the ordering before).
 
     Returns
     -------
@@ -130,7 +206,8 @@ def nested_dissection(A: sp.spmatrix, leaf: int = 32) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     G = _pattern_graph(A, groups)
     out: list[np.ndarray] = []
-    _dissect(G, np.arange(G.shape[0]), leaf, out)
+    split_by = {"bisection": _bisection_split, "levels": _level_split}[separators]
+    _dissect(G, np.arange(G.shape[0]), leaf, out, split_by)
     group_order = np.concatenate(out)
     rank = np.empty_like(group_order)
     rank[group_order] = np.arange(group_order.size)
@@ -162,7 +239,7 @@ def metis_nested_dissection(A: sp.spmatrix) -> np.ndarray:
 #: the ordering :func:`fill_reducing_order` uses when not told: ``auto`` (METIS when pymetis
 #: loads, else :func:`nested_dissection`), or one of :data:`ORDERINGS` (benchmarks set it)
 ORDERING = "auto"
-ORDERINGS = ("metis", "nd")
+ORDERINGS = ("metis", "nd", "nd-levels")
 
 
 def fill_reducing_order(A: sp.spmatrix, method: str | None = None) -> tuple[np.ndarray, str]:
@@ -175,4 +252,6 @@ def fill_reducing_order(A: sp.spmatrix, method: str | None = None) -> tuple[np.n
         return metis_nested_dissection(A), "metis"
     if method == "nd":
         return nested_dissection(A), "nd"
+    if method == "nd-levels":
+        return nested_dissection(A, separators="levels"), "nd-levels"
     raise ValueError(f"unknown ordering {method!r}; known: auto, {', '.join(ORDERINGS)}")

@@ -30,6 +30,12 @@ the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/
                 (:mod:`signorini.studies.collision`): contact for 2L/c with the force
                 rho c v / 2, then the velocities exchanged.  Parameters ``L``=1, ``gap``=0.1,
                 ``velocity``=0.5, ``E``=1, ``rho``=1; n cells per bar (default 40).
+``collision2d`` two elastic discs (P1 triangles, plane strain) or balls (P1 tetrahedra) of
+``collision3d`` radii ``R1``, ``R2`` and materials (``E1``, ``nu1``, ``rho1``), (``E2``, ...)
+                touching at t = 0, the first moving at ``velocity`` towards the second at rest,
+                each meshed towards the contact point; the contact pair a_cap / b_cap;
+                Hertz's two-body duration, peak force and approach printed beside the computed
+                ones (:mod:`signorini.studies.collision_balls`).
 ``incline2d``   an elastic block on a plane under a gravity tilted by ``angle`` degrees,
 ``incline3d``   Coulomb friction ``mu``; the closed-form sliding acceleration
                 g (sin a - mu cos a) (0 when tan a <= mu) is printed beside the computed
@@ -59,7 +65,7 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import collision, hertz, incline
+from ..studies import collision, collision_balls, hertz, incline
 from ..studies.exact import ExactBar1D
 
 
@@ -284,6 +290,12 @@ for _b in (
     Benchmark("collision1d", 1, dict(collision.COLLISION_DEFAULTS), collision.build, None,
               "two equal free bars colliding (contact pair): duration 2L/c, force rho c v/2, velocities exchanged",
               40, collision.sizes, collision.run_times, collision.measure(), collision.check_params),
+    *(Benchmark(f"collision{d}d", d, dict(collision_balls.BALLS_DEFAULTS), collision_balls.builder(d), None,
+                f"two elastic {'balls' if d == 3 else 'discs (plane strain)'} of their own radii and materials meeting "
+                "head-on (contact pair) vs Hertz's two-body impact", collision_balls.DEFAULT_LEVEL[d],
+                collision_balls.sizes(d), collision_balls.run_times(d), collision_balls.measure(d),
+                collision_balls.check_params)
+      for d in (2, 3)),
     *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
                 "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
                 2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params, True)

@@ -48,7 +48,7 @@ class PenaltyCN(CrankNicolson):
             wdet, _ = geometry(mesh)
             h = (float(wdet.sum()) / mesh.n_cells) ** (1.0 / mesh.dim)
             w = ctx.disc.contact.weights if mesh.dim > 1 else np.ones(ctx.disc.contact.size)
-            k = self.stiffness * ctx.disc.problem.material.young * w / h
+            k = self.stiffness * float(np.max(ctx.disc.material.young)) * w / h  # the stiffest region's E
             self._c, self._c_ctx = 1.0 / k, ctx
         return self._c
 

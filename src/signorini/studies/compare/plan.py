@@ -9,7 +9,13 @@ from typing import Any
 import numpy as np
 
 from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
-from ...dynamics.problem import check_friction_schemes, contact_node_count, with_friction
+from ...dynamics.problem import (
+    check_friction_schemes,
+    contact_node_count,
+    friction_summary,
+    run_friction,
+    with_friction,
+)
 from ...dynamics.simulate import number_of_steps
 from ...errors import InputError, check_positive
 from ..benchmarks import get_benchmark
@@ -153,11 +159,11 @@ def plan_benchmark(
         _steps(ratio * b.h(level, params), T, f"reference level n = {level}")
         ref = (scheme, mass, level)
     problem = target.problem(ns[0])  # parameters, mesh and friction valid before anything runs
-    check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
+    check_friction_schemes(run_friction(problem), [p.scheme.name for p in pairs])
     return Plan(
         target, list(pairs), ns, dts, T, ratio, hs, ref, tuple(sorted((solver_options or {}).items())),
         _length_scale(problem),
-        friction=problem.friction.describe(),
+        friction=friction_summary(problem),
     )  # fmt: skip
 
 
@@ -167,11 +173,11 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
         raise InputError("nothing to compare: give at least one scheme and one mass")
     _steps(target.dt, target.T, f"case file {target.label}")
     problem = target.problem(None) if problem is None or target.friction else problem
-    check_friction_schemes(problem.friction, [p.scheme.name for p in pairs])
+    check_friction_schemes(run_friction(problem), [p.scheme.name for p in pairs])
     m = problem.mesh
     counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, contact_node_count(problem))
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
-                length_scale=_length_scale(problem), counts=counts, friction=problem.friction.describe())  # fmt: skip
+                length_scale=_length_scale(problem), counts=counts, friction=friction_summary(problem))  # fmt: skip
 
 
 def _length_scale(problem) -> float:

@@ -25,10 +25,16 @@ def reference_text(result: dict) -> str:
     return f"Errors against the reference {describe_reference(ref)}."
 
 
+def _law_value(v) -> str:
+    """A contact law's parameter (a number), or the per-pair laws (a list of labels) of a run with pairs."""
+    return f"{v:g}" if isinstance(v, int | float) else " ".join(v) if isinstance(v, list) else str(v)
+
+
 def setup_text(result: dict) -> str:
     law = result.get("friction") or {"law": "frictionless"}
     friction = "" if law["law"] == "frictionless" else (
-        f"  Contact law: {law['law']} ({', '.join(f'{k} {v:g}' for k, v in law.items() if k != 'law')}) in every run."
+        f"  Contact law: {law['law']} ({', '.join(f'{k} {_law_value(v)}' for k, v in law.items() if k != 'law')}) "
+        "in every run."
     )  # fmt: skip
     given = result.get("solver_options") or {}
     if given:
