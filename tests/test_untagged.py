@@ -78,3 +78,52 @@ def test_where_restricts_the_contact_nodes(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     # xmin: y = 0, 0.25; ymin: x = 0 (shared), 0.25, 0.5 -> 4 nodes
     assert s["contact_nodes"] == 4 and s["untagged_penetration_max"] > 0.02
+
+
+def _block_on_plate(slave: str):
+    from signorini.contact.pairs import ContactPair
+    from signorini.dynamics.problem import Problem, RegionInitial
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import join, rectangle
+    from signorini.fem.space import Dirichlet
+
+    a, b = rectangle(8, 2, 2.0, 0.5), rectangle(4, 4, 0.6, 0.6)
+    b.points = b.points + [0.7, 0.55]
+    m = join({"plate": a, "block": b})
+    return Problem(m, IsotropicElastic.from_young(100, 0.3, 1), None, None, dirichlet=[Dirichlet("plate_ymin")],
+                   initial_regions=[RegionInitial("block", velocity=[0, -1.0])],
+                   pairs=[ContactPair(slave, "plate_ymax")])  # fmt: skip
+
+
+def test_pairs_watch_the_nodes_of_either_body_against_the_other_surface(tmp_path):
+    """A block falling on a plate with the wrong slave tag (its left side): its bottom nodes go
+    through the plate's top, which the watch measures and ``fail`` stops; with the right tag
+    nothing crosses (0 exactly: no watched node faces the plate through the enforced ones)."""
+    H = simulate(_block_on_plate("block_xmin"), "cn", 0.01, 0.2)
+    assert H.status == "finished" and H.untagged_penetration.max() > 0.1  # measured 0.164 (the block's fall)
+    H = simulate(_block_on_plate("block_xmin"), "cn", 0.01, 0.2, solver_options={"untagged_contact": "fail"})
+    assert H.status == "failed" and "through the paired surface 'plate_ymax' (master of pair 0)" in H.message
+    assert H.untagged_penetration.size == H.t.size  # the levels computed are kept
+    H = simulate(_block_on_plate("block_ymin"), "cn", 0.01, 0.2)
+    assert H.lam.min() < 0 and H.untagged_penetration.max() == 0.0
+
+
+def test_contact_npz_says_the_pair_and_master_facet_of_each_row(tmp_path):
+    from signorini.contact.obstacles import PlaneObstacle
+
+    p = _block_on_plate("block_ymin")
+    import dataclasses
+
+    p = dataclasses.replace(p, contact_tag="plate_ymin", obstacle=PlaneObstacle([0.0, -1.0], [0.0, 1.0]),
+                            dirichlet=[])  # fmt: skip
+    H = simulate(p, "cn", 0.01, 0.05)
+    H.write_contact_npz(tmp_path / "c.npz")
+    z = np.load(tmp_path / "c.npz")
+    rigid = p.mesh.nodes_of("plate_ymin").size
+    assert z["pair"].tolist() == [-1] * rigid + [0] * (z["pair"].size - rigid)
+    f = z["master_facet"][rigid:]
+    assert np.all(z["master_facet"][:rigid] == -1) and f.min() >= 0
+    top = p.mesh.facets_of("plate_ymax")
+    x = z["coordinates"][rigid:, 0]  # each slave node faces a master facet whose x-range holds it
+    lo, hi = p.mesh.points[top[f], 0].min(axis=1), p.mesh.points[top[f], 0].max(axis=1)
+    assert np.all((lo <= x + 1e-12) & (x <= hi + 1e-12))

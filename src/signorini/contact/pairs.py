@@ -198,50 +198,74 @@ def _closest_on_quads(x: np.ndarray, P: np.ndarray, iterations: int = 12) -> tup
     return np.einsum("mk,mkd->md", N, P), N
 
 
-def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
-    """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring)."""
+@dataclass
+class FacetRows:
+    """Nodes projected on facets (:func:`node_to_facet_rows`): the rows of those on the surface."""
+
+    nodes: np.ndarray  # (m,) the nodes whose closest point lies on the surface
+    normals: np.ndarray  # (m, d) n_m, the facets' outward unit normals at the projections
+    gaps: np.ndarray  # (m,) (x - p) . n_m [length]
+    B: sp.csr_matrix  # (m, n_dofs): -n_m . u_node + sum_j N_j n_m . u_j
+    facet: np.ndarray  # (m,) index of the facet in ``facets``
+    xi: np.ndarray  # (m, nfv) the facet's shape functions at the projection
+    facet_nodes: np.ndarray  # (m, nfv) the facet's nodes, outward orientation
+    inactive: int  # nodes laterally off the surface: no row
+
+
+def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int) -> FacetRows:
+    """The linearized gap rows of ``nodes`` against the surface of ``facets`` (boundary facets
+    of the mesh) at t = 0 (the module docstring): closest facet among the :data:`CANDIDATES`
+    nearest centres, exact closest point, the facet's outward normal there; nodes laterally
+    off the surface by more than :data:`OFF_SURFACE` of the size get no row."""
     d = mesh.dim
-    slave = mesh.nodes_of(pair.slave)
-    facets = mesh.facets_of(pair.master)
-    if np.intersect1d(slave, np.unique(facets)).size:
-        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
-                         "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
     normals_f, oriented = facet_owner_normals(mesh, facets)
     X = mesh.points
     P = X[oriented]  # (nf, nfv, d)
     centres = P.mean(axis=1)
     kind = {1: "vertex", 2: "line"}.get(d, "triangle" if oriented.shape[1] == 3 else "quad")
     k = min(CANDIDATES, len(facets))
-    _, cand = cKDTree(centres).query(X[slave], k=k)
-    cand = np.asarray(cand).reshape(slave.size, k)
-    xs = np.repeat(X[slave], k, axis=0)
+    _, cand = cKDTree(centres).query(X[nodes], k=k)
+    cand = np.asarray(cand).reshape(nodes.size, k)
+    xs = np.repeat(X[nodes], k, axis=0)
     p, N = _closest_on_facets(xs, P[cand.ravel()], kind)
-    dist = np.linalg.norm(xs - p, axis=1).reshape(slave.size, k)
+    dist = np.linalg.norm(xs - p, axis=1).reshape(nodes.size, k)
     best = np.argmin(dist, axis=1)
-    pick = np.arange(slave.size) * k + best
+    pick = np.arange(nodes.size) * k + best
     facet, p, N = cand.ravel()[pick], p[pick], N[pick]
     if kind == "quad":  # the normal of the bilinear face at the projection, outward as the facet's
         nq = _quad_normal(P[facet], N)
         normals_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[facet]))[:, None]
     else:
         normals_m = normals_f[facet]
-    delta = X[slave] - p
+    delta = X[nodes] - p
     gaps = np.einsum("md,md->m", delta, normals_m)
     lateral = np.linalg.norm(delta - gaps[:, None] * normals_m, axis=1)
-    size = float(np.linalg.norm(np.ptp(np.vstack([X[slave], centres]), axis=0))) or 1.0
+    size = float(np.linalg.norm(np.ptp(np.vstack([X[nodes], centres]), axis=0))) or 1.0
     on = lateral <= OFF_SURFACE * size
-    slave, facet, N, normals_m, gaps = slave[on], facet[on], N[on], normals_m[on], gaps[on]
-    m, nfv = slave.size, oriented.shape[1]
+    nodes, facet, N, normals_m, gaps = nodes[on], facet[on], N[on], normals_m[on], gaps[on]
+    m, nfv = nodes.size, oriented.shape[1]
     rows = np.repeat(np.arange(m), d * (1 + nfv))
     master = oriented[facet]  # (m, nfv)
-    nodes_all = np.concatenate([slave[:, None], master], axis=1)  # (m, 1 + nfv)
+    nodes_all = np.concatenate([nodes[:, None], master], axis=1)  # (m, 1 + nfv)
     coef = np.concatenate([-np.ones((m, 1)), N], axis=1)  # (m, 1 + nfv)
-    dofs = (nodes_all[:, :, None] * d + np.arange(d)).reshape(m, -1)
-    vals = (coef[:, :, None] * normals_m[:, None, :]).reshape(m, -1)
+    dofs = (nodes_all[:, :, None] * d + np.arange(d)).reshape(m, (1 + nfv) * d)
+    vals = (coef[:, :, None] * normals_m[:, None, :]).reshape(m, (1 + nfv) * d)
     B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
     B.sum_duplicates()
-    weights = facet_weights(mesh, pair.slave)[slave]
-    return PairRows(slave, -normals_m, gaps, weights, B, facet, N, master, np.unique(facets), int((~on).sum()))
+    return FacetRows(nodes, normals_m, gaps, B, facet, N, master, int((~on).sum()))
+
+
+def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
+    """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring)."""
+    slave = mesh.nodes_of(pair.slave)
+    facets = mesh.facets_of(pair.master)
+    if np.intersect1d(slave, np.unique(facets)).size:
+        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
+                         "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
+    r = node_to_facet_rows(mesh, slave, facets, n_dofs)
+    weights = facet_weights(mesh, pair.slave)[r.nodes]
+    return PairRows(r.nodes, -r.normals, r.gaps, weights, r.B, r.facet, r.xi, r.facet_nodes, np.unique(facets),
+                    r.inactive)  # fmt: skip
 
 
 def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:

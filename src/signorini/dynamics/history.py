@@ -129,6 +129,10 @@ class History:
     tangents: np.ndarray | None = None
     #: (nc,) the mesh's number of each contact node (the user's, whatever the run's order)
     nodes: np.ndarray | None = None
+    #: (nc,) the contact pair of each row (its index in the problem's pairs; -1: the rigid obstacle)
+    pair: np.ndarray | None = None
+    #: (nc,) the master facet each pair row faces (its index in the master tag's facets; -1 on obstacle rows)
+    master_facet: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
     counters: dict = field(default_factory=dict)
@@ -229,7 +233,7 @@ class History:
             a = getattr(self, name)
             if a is not None:
                 setattr(self, name, a[:, p])
-        for name in ("coordinates", "weights", "tangents"):
+        for name in ("coordinates", "weights", "tangents", "pair", "master_facet"):
             a = getattr(self, name)
             if a is not None:
                 setattr(self, name, a[p])
@@ -252,8 +256,13 @@ class History:
         """``t``, ``gap``, ``lam`` (= ``lambda_n``), ``coordinates``, ``weights``, ``nodes`` (the mesh's
         number of each contact node, when known); with friction also
         ``lambda_t`` (N+1, nc, d - 1), ``slip`` (N+1, nc, d - 1), ``status`` (N+1, nc: 0 separated,
-        1 stick, 2 slip) and ``tangents`` (nc, d - 1, d), the nodal frames' tangent vectors."""
+        1 stick, 2 slip) and ``tangents`` (nc, d - 1, d), the nodal frames' tangent vectors; ``pair``
+        (nc,): the contact pair of each row (-1: the rigid obstacle) and ``master_facet`` (nc,): the
+        facet of the pair's master tag it faces (-1 on obstacle rows)."""
         extra = {} if self.nodes is None else {"nodes": self.nodes}
+        nc = self.gap.shape[1] if self.gap.ndim == 2 else 0
+        extra["pair"] = self.pair if self.pair is not None else np.full(nc, -1, dtype=np.int64)
+        extra["master_facet"] = self.master_facet if self.master_facet is not None else np.full(nc, -1, np.int64)
         if self.lam_t is not None:
             extra.update(lambda_t=self.lam_t, slip=self.slip, status=self.contact_status)
             if self.tangents is not None:

@@ -566,6 +566,8 @@ def assemble_history(run: Run, n_last: int, recorder, energies, snaps, timings: 
         coordinates=disc.problem.mesh.points[disc.contact.nodes],
         weights=disc.contact.weights,
         nodes=np.asarray(disc.contact.nodes, dtype=np.int64),
+        pair=None if disc.contact.pair is None else np.asarray(disc.contact.pair, dtype=np.int64),
+        master_facet=None if disc.contact.master_facet is None else np.asarray(disc.contact.master_facet, np.int64),
         tangents=disc.contact.tangents if ctx.components > 1 else None,
         snapshots=snaps.snapshots() if snaps is not None else {},
         meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),

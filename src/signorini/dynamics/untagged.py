@@ -9,17 +9,30 @@ level, the largest penetration of these nodes into the obstacle,
     p_n = max(0, max_j -phi(x_j + u_j^n, t_n))   over untagged boundary nodes j  [length],
 
 (the ``untagged_penetration`` column of ``history.csv``; ``untagged_penetration_max`` in
-``summary.json``).  Above :data:`UNTAGGED_TOLERANCE` x the body's size the run warns, or,
-with the solver option ``untagged_contact = fail``, stops with status ``failed`` (the
-levels computed are kept).
+``summary.json``).
+
+Contact pairs (two deformable bodies): the boundary nodes of a pair's slave body that are
+not slave nodes are watched against the master surface, and those of the master body that
+are not master nodes against the slave surface, with the pair's own linearized gap (each
+node projected at t = 0 on the facing surface, :func:`~signorini.contact.pairs.node_to_facet_rows`):
+p = max(0, max_j -(g_j - B_j U)) over the nodes facing the surface.  The master tag's own
+nodes entering the slave surface between slave nodes are the node-to-facet method's known
+limit (docs/bodies.md: choose the finer side as slave), not watched.
+
+Above :data:`UNTAGGED_TOLERANCE` x the body's size the run warns, or, with the solver
+option ``untagged_contact = fail``, stops with status ``failed`` (the levels computed are
+kept).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
-from ..fem.mesh import Mesh, boundary_facets
+from ..fem.mesh import Mesh, bodies, boundary_facets
 from .observers import Observer, Run
 from .schemes import State
 
@@ -39,6 +52,45 @@ def body_size(mesh: Mesh) -> float:
     return float(np.linalg.norm(np.ptp(mesh.points, axis=0))) or 1.0
 
 
+@dataclass
+class PairWatch:
+    """The linearized gaps of the watched nodes of every pair against the facing surface."""
+
+    nodes: np.ndarray  # (m,) watched nodes (a node may face several surfaces)
+    gaps: np.ndarray  # (m,) gaps at t = 0 [length]
+    B: sp.csr_matrix  # (m, n_dofs) the rows of the gaps' change (node-to-facet, as a pair's)
+    surfaces: list[str]  # (m,) the tag each row faces, e.g. "plate_ymax (master of pair 0)"
+
+
+def pair_watch(mesh: Mesh, pairs, n_dofs: int) -> PairWatch | None:
+    """The untagged watch of the contact pairs (module docstring); None without pairs."""
+    from ..contact.pairs import node_to_facet_rows
+
+    if not pairs:
+        return None
+    label = bodies(mesh)
+    boundary = boundary_nodes(mesh)
+    parts = []
+    for k, pair in enumerate(pairs):
+        for own, other, role in ((pair.slave, pair.master, "master"), (pair.master, pair.slave, "slave")):
+            mine = mesh.nodes_of(own)
+            watched = boundary[np.isin(label[boundary], np.unique(label[mine])) & ~np.isin(boundary, mine)]
+            facets = mesh.facets_of(other)
+            watched = np.setdiff1d(watched, np.unique(facets))
+            if watched.size == 0:
+                continue
+            r = node_to_facet_rows(mesh, watched, facets, n_dofs)
+            parts.append((r, f"{other!r} ({role} of pair {k})"))
+    if not parts:
+        return None
+    return PairWatch(
+        np.concatenate([r.nodes for r, _ in parts]),
+        np.concatenate([r.gaps for r, _ in parts]),
+        sp.vstack([r.B for r, _ in parts]).tocsr(),
+        [name for r, name in parts for _ in range(r.nodes.size)],
+    )
+
+
 class UntaggedContact(Observer):
     """Penetration of the boundary nodes that are not contact nodes, per level."""
 
@@ -51,8 +103,12 @@ class UntaggedContact(Observer):
         disc = run.ctx.disc
         mesh = disc.problem.mesh
         rigid = disc.contact.nodes if disc.contact.pair is None else disc.contact.nodes[disc.contact.pair < 0]
-        # no rigid obstacle (contact pairs only): nothing to watch against (docs/bodies.md)
+        # no rigid obstacle (contact pairs only): nothing to watch against it
         self.nodes = np.setdiff1d(boundary_nodes(mesh), rigid) if disc.problem.obstacle is not None else rigid[:0]
+        self.pair_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs)
+        extra = self.pair_watch.nodes if self.pair_watch is not None else self.nodes[:0]
+        self.all_nodes = np.concatenate([self.nodes, extra])
+        self._surface = ""  # the surface the worst node crossed (a pair's tag), "" for the rigid obstacle
         self.X = mesh.points[self.nodes]
         self.mesh = mesh
         self.d = mesh.dim
@@ -63,19 +119,28 @@ class UntaggedContact(Observer):
         self._put(0, run.initial)
 
     def _put(self, n: int, s: State) -> None:
-        if self.nodes.size == 0:
+        if self.nodes.size == 0 and self.pair_watch is None:
             return
-        x = self.X + s.U.reshape(-1, self.d)[self.nodes]
-        phi = self.obstacle.gaps(x, s.t)
+        if self.nodes.size:
+            x = self.X + s.U.reshape(-1, self.d)[self.nodes]
+            phi = self.obstacle.gaps(x, s.t)
+        else:
+            phi = np.zeros(0)
+        if self.pair_watch is not None:
+            w = self.pair_watch
+            phi = np.concatenate([phi, w.gaps - w.B @ s.U])
+        nodes = self.all_nodes
         # at a tie (to TIE x the body's size: round-off differs between node orders and ranks),
         # the node the user numbered first, so that the message does not depend on them
         ties = np.flatnonzero(phi <= phi.min() + self.tie)
-        j = int(ties[self.mesh.first_by_id(self.nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
+        j = int(ties[self.mesh.first_by_id(nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
         p = max(0.0, -float(phi[j]))
         self.series[n] = p
         if p > self.worst[0]:  # the largest value; its node and time change beyond a tie only
             if p > self.worst[0] + self.tie or self.worst[1] < 0:
-                self.worst = (p, int(self.nodes[j]), float(s.t))
+                self.worst = (p, int(nodes[j]), float(s.t))
+                k = j - self.nodes.size
+                self._surface = self.pair_watch.surfaces[k] if k >= 0 else ""
             else:
                 self.worst = (p, *self.worst[1:])
         if self.mode == "fail" and p > self.tolerance:
@@ -94,7 +159,14 @@ class UntaggedContact(Observer):
 
     def message(self) -> str:
         p, node, t = self.worst
-        where = np.round(self.X[np.searchsorted(self.nodes, node)], 6).tolist()
+        where = np.round(self.mesh.points[node], 6).tolist()
+        if self._surface:
+            return (
+                f"boundary node {self.mesh.node_id(node)} at {where}, not a contact node of its pair, is {p:.3g} "
+                f"through the paired surface {self._surface} at t = {t:.6g} (tolerance {self.tolerance:.2g}): "
+                "contact is enforced on the slave nodes only; tag this part of the boundary into the pair's slave "
+                "tag, or add a pair for it"
+            )
         return (
             f"boundary node {self.mesh.node_id(node)} at {where}, not a contact node, is {p:.3g} inside the "
             f"obstacle at t = {t:.6g} "
