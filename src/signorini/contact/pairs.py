@@ -181,21 +181,31 @@ def _closest_on_triangles(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def _closest_on_quads(x: np.ndarray, P: np.ndarray, iterations: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """Projected Gauss-Newton on (xi, eta) in [-1, 1]^2 of the bilinear map (exact for a
-    parallelogram in one step; a warped face converges in a few)."""
-    ref = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-    q = np.zeros((x.shape[0], 2))
+    """Projected Gauss-Newton on (xi, eta) in [-1, 1]^2 of the bilinear map
+    x(xi, eta) = c0 + c1 xi + c2 eta + c3 xi eta (exact for a parallelogram in one step; a
+    warped face converges in a few); it stops when no point moves by more than 1e-14 in
+    (xi, eta)."""
+    c0 = 0.25 * (P[:, 0] + P[:, 1] + P[:, 2] + P[:, 3])
+    c1 = 0.25 * (-P[:, 0] + P[:, 1] + P[:, 2] - P[:, 3])
+    c2 = 0.25 * (-P[:, 0] - P[:, 1] + P[:, 2] + P[:, 3])
+    c3 = 0.25 * (P[:, 0] - P[:, 1] + P[:, 2] - P[:, 3])
+    xi, eta = np.zeros(x.shape[0]), np.zeros(x.shape[0])
     for _ in range(iterations):
-        N = 0.25 * (1 + q[:, None, 0] * ref[:, 0]) * (1 + q[:, None, 1] * ref[:, 1])
-        dN = np.stack([0.25 * ref[:, 0] * (1 + q[:, None, 1] * ref[:, 1]),
-                       0.25 * ref[:, 1] * (1 + q[:, None, 0] * ref[:, 0])], axis=-1)  # fmt: skip
-        p = np.einsum("mk,mkd->md", N, P)
-        J = np.einsum("mka,mkd->mda", dN, P)  # (m, d, 2)
-        JtJ = np.einsum("mda,mdb->mab", J, J)
-        step = np.linalg.solve(JtJ, np.einsum("mda,md->ma", J, x - p)[..., None])[..., 0]
-        q = np.clip(q + step, -1.0, 1.0)
-    N = 0.25 * (1 + q[:, None, 0] * ref[:, 0]) * (1 + q[:, None, 1] * ref[:, 1])
-    return np.einsum("mk,mkd->md", N, P), N
+        ja = c1 + c3 * eta[:, None]  # dx/dxi (m, d)
+        jb = c2 + c3 * xi[:, None]  # dx/deta
+        r = x - (c0 + c1 * xi[:, None] + c2 * eta[:, None] + c3 * (xi * eta)[:, None])
+        aa, ab, bb = (ja * ja).sum(axis=1), (ja * jb).sum(axis=1), (jb * jb).sum(axis=1)
+        ra, rb = (ja * r).sum(axis=1), (jb * r).sum(axis=1)
+        det = aa * bb - ab * ab
+        new_xi = np.clip(xi + (bb * ra - ab * rb) / det, -1.0, 1.0)
+        new_eta = np.clip(eta + (aa * rb - ab * ra) / det, -1.0, 1.0)
+        moved = max(float(np.abs(new_xi - xi).max(initial=0.0)), float(np.abs(new_eta - eta).max(initial=0.0)))
+        xi, eta = new_xi, new_eta
+        if moved <= 1e-14:
+            break
+    N = 0.25 * np.column_stack([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)])
+    p = c0 + c1 * xi[:, None] + c2 * eta[:, None] + c3 * (xi * eta)[:, None]
+    return p, N
 
 
 @dataclass
@@ -224,14 +234,22 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     centres = P.mean(axis=1)
     kind = {1: "vertex", 2: "line"}.get(d, "triangle" if oriented.shape[1] == 3 else "quad")
     k = min(CANDIDATES, len(facets))
-    _, cand = cKDTree(centres).query(X[nodes], k=k)
-    cand = np.asarray(cand).reshape(nodes.size, k)
-    xs = np.repeat(X[nodes], k, axis=0)
-    p, N = _closest_on_facets(xs, P[cand.ravel()], kind)
-    dist = np.linalg.norm(xs - p, axis=1).reshape(nodes.size, k)
-    best = np.argmin(dist, axis=1)
-    pick = np.arange(nodes.size) * k + best
-    facet, p, N = cand.ravel()[pick], p[pick], N[pick]
+    d_centre, cand = cKDTree(centres).query(X[nodes], k=k)
+    d_centre, cand = np.asarray(d_centre).reshape(nodes.size, k), np.asarray(cand).reshape(nodes.size, k)
+    # prune: a candidate whose lower bound |x - centre| - radius exceeds the distance to the
+    # nearest vertex of any candidate cannot hold the closest point (vertices are on the facets)
+    radius = np.linalg.norm(P - centres[:, None, :], axis=2).max(axis=1)
+    to_vertex = np.linalg.norm(P[cand] - X[nodes][:, None, None, :], axis=3).min(axis=(1, 2))
+    keep = d_centre - radius[cand] <= to_vertex[:, None] * (1 + 1e-12)
+    keep[:, 0] = True  # the nearest centre always (its lower bound is the smallest)
+    row, col = np.nonzero(keep)
+    xs = X[nodes][row]
+    p, N = _closest_on_facets(xs, P[cand[row, col]], kind)
+    dist = np.linalg.norm(xs - p, axis=1)
+    # per node the candidate of least distance (ties: the nearest centre first, as before)
+    order = np.lexsort((col, dist, row))
+    first = order[np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]]
+    facet, p, N = cand[row[first], col[first]], p[first], N[first]
     if kind == "quad":  # the normal of the bilinear face at the projection, outward as the facet's
         nq = _quad_normal(P[facet], N)
         normals_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[facet]))[:, None]

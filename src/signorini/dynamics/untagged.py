@@ -80,7 +80,8 @@ def pair_watch(mesh: Mesh, pairs, n_dofs: int) -> PairWatch | None:
             if watched.size == 0:
                 continue
             r = node_to_facet_rows(mesh, watched, facets, n_dofs)
-            parts.append((r, f"{other!r} ({role} of pair {k})"))
+            if r.nodes.size:  # nodes laterally off the surface face nothing
+                parts.append((r, f"{other!r} ({role} of pair {k})"))
     if not parts:
         return None
     return PairWatch(
@@ -129,6 +130,8 @@ class UntaggedContact(Observer):
         if self.pair_watch is not None:
             w = self.pair_watch
             phi = np.concatenate([phi, w.gaps - w.B @ s.U])
+        if phi.size == 0:
+            return
         nodes = self.all_nodes
         # at a tie (to TIE x the body's size: round-off differs between node orders and ranks),
         # the node the user numbered first, so that the message does not depend on them
