@@ -21,9 +21,12 @@ first argument (a JSON text or the path of a JSON file) or on stdin (no argument
     block       or ``{"counts": [nx, ny(, nz)], "sizes": [lx, ly(, lz)]}``: the grid of
                 ``rectangle``/``box`` (Q1), free, contact on the face x_d = 0 (the
                 ``incline2d``/``incline3d`` block), ``params`` rho, lam, mu
+    pair        or two (or more) deformable bodies in contact (below): ``mesh`` a Gmsh 2.2
+                file of all the bodies, ``pair`` ``{"slave": tag, "master": tag}``
     mass        ``standard`` (consistent) or ``seed`` (the seed paper's M_mod, GetFEM's
                 ``singular_mass=1``: the mass brick only on the elements that touch no
-                contact node, so the contact nodes are massless in every component)
+                contact node, so the contact nodes are massless in every component; with
+                ``pair`` the contact nodes are the slave's and the master's nodes)
     scheme      ``cn`` (Newmark 1/4, 1/2) or ``be`` (theta-method, theta = 1)
     dt, T       time step and final time (round(T/dt) steps)
 
@@ -68,6 +71,45 @@ step).  Time integration: GetFEM's own schemes on ``Dot2_u`` (``add_Newmark_sche
 ``add_theta_method_for_second_order``: the spec's sections 6.1 and 6.2), shifted by
 ``shift_variables_for_time_integration``.
 
+Two bodies (``pair``): the file's bodies (one cell type: P1 simplices or Q1 quadrilaterals /
+hexahedra, GetFEM's gmsh import; named physical groups of cells are regions, of facets
+boundary tags, as ``signorini.fem.mesh.write_mesh`` writes them), with
+
+    params      the default material {rho, lam, mu}
+    materials   optional ``{region: {rho, lam, mu}}``: the cells of a listed region (those of
+                an earlier listed one excepted) take its material, one elasticity brick and
+                one mass brick per material (signorini's ``Problem(materials=...)``)
+    velocity    optional ``{region: [v_x, v_y(, v_z)]}``: the initial velocity of the nodes
+                of the region's cells (a later region's on shared nodes), else 0; u0 = 0
+    clamp       optional facet tag (or list): u = 0 there (Dirichlet with simplification)
+
+Contact: GetFEM's ``add_nodal_contact_between_nonmatching_meshes_brick`` on the one
+displacement of all the bodies, rg1 = the slave tag (slave1), rg2 = the master tag.  The
+brick computes B_N, the gaps and alpha at its first assembly, from the reference positions
+of the nodes, and keeps them (``is_var_mf_newer_than_brick``): its pairing and master normal
+are frozen at t = 0, as signorini's (docs/bodies.md).  Its discrete condition is signorini's,
+B_N U <= gap with the row of slave node s = -n_m on s and N_j(xi) n_m on the master face's
+nodes, gap = (x_s - p) . n_m with p the projection and n_m the face's outward unit normal;
+the pairing algorithms differ: GetFEM takes the master *node* nearest to the slave node, then
+among the tagged faces of that node the one where the projection is most inside (its
+reference-element test ``is_in`` smallest, accepted below 0.05, so slightly outside the face
+it extrapolates N_j); signorini takes the closest point over the nearest facets, clamped to
+the facet, and drops a slave node laterally off the master surface.  A slave node GetFEM
+pairs with no face (farther than 10 length units from every master node, or with no face
+accepted) keeps a row of B_N = 0 and gap 10: inert (listed in ``inert_rows``).  The script
+reads the brick's B_N and gaps back (a model of the brick alone at u = 0, lambda_n far in
+the active branch of the nonsymmetric Alart-Curnier: the lambda_n rows of the tangent matrix
+are -B_N, of the right-hand side -gap) and writes them in the header, in signorini's
+numbering, so that a test compares the discrete conditions themselves.
+
+Output of a ``pair`` case: the header has ``pair_nodes`` (the slave nodes, increasing: the
+rows' order), ``pair_points``, ``inert_rows``, ``B`` (triplets ``rows``, ``cols``, ``vals``,
+column = node * d + component), ``gap0``, ``brick``; a level has ``lambda_sum``,
+``lambda`` (per row), ``gap`` (gap0 - B_N U per row), ``mean_gap``, ``energy`` =
+1/2 V.MV + 1/2 U.SU (M of the mass variant, each part with its density), ``kinetic``,
+``elastic``, ``newton_iterations``, ``converged``, ``max_res``.  Whatever GetFEM's C++ prints
+on stdout (Debian's 5.4 prints "ok here" from this brick) is sent to stderr.
+
 Output, JSON lines on stdout: per case a header ``{"case": i, ..., "contact_points":
 [[x, ...], ...], "contact_nodes": [...]}`` (the contact nodes in signorini's order:
 increasing node index, the index being the position in the generator's / the file's node
@@ -99,6 +141,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import subprocess
 import sys
 
@@ -187,17 +230,22 @@ def file_mesh(path: str, contact: str | list[str]) -> tuple[gf.Mesh, np.ndarray]
     return m, pts
 
 
-def dof_nodes(mf: gf.MeshFem, pts: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    """(node, component) in signorini's numbering of every GetFEM dof (matched by coordinates)."""
-    where = np.asarray(mf.basic_dof_nodes()).T  # (ndof, dim)
+def nearest_nodes(where: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """The node (row of ``pts``) at each point of ``where`` (m, dim), which must be one."""
     tol = 1e-9 * float(np.ptp(pts, axis=0).max())
     node = np.empty(len(where), dtype=np.int64)
     for a in range(0, len(where), 256):  # nearest node, in chunks
         d2 = ((where[a : a + 256, None, :] - pts[None, :, :]) ** 2).sum(axis=2)
         node[a : a + 256] = d2.argmin(axis=1)
         if np.sqrt(d2.min(axis=1)).max() > tol:
-            raise RuntimeError("a GetFEM dof is not at a node of the mesh")
-    comp = np.arange(len(where)) % dim  # GetFEM interleaves the components of a vector fem
+            raise RuntimeError("a GetFEM point is not at a node of the mesh")
+    return node
+
+
+def dof_nodes(mf: gf.MeshFem, pts: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """(node, component) in signorini's numbering of every GetFEM dof (matched by coordinates)."""
+    node = nearest_nodes(np.asarray(mf.basic_dof_nodes()).T, pts)
+    comp = np.arange(len(node)) % dim  # GetFEM interleaves the components of a vector fem
     for c in range(1, dim):
         if not np.array_equal(node[comp == c], node[comp == 0]):
             raise RuntimeError("unexpected dof layout of the vector fem")
@@ -233,9 +281,30 @@ def spmat(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int
     return out
 
 
+def newton(md: gf.Model, unknowns: list[str], solver: dict) -> tuple[int, bool, float]:
+    """Newton to max_res; at its round-off floor (it then hops, and restarts from the initial
+    guess after a while), again from the same guess with max_res 10 times larger, at most
+    ``relax`` times: (iterations, converged, the max_res reached)."""
+    ladder = [float(solver["max_res"]) * 10.0**j for j in range(int(solver["relax"]) + 1)]
+    guess = {name: np.asarray(md.variable(name)).copy() for name in unknowns}
+    total = 0
+    for tol in ladder:
+        for name in unknowns:
+            md.set_variable(name, guess[name])
+        its, conv = md.solve("max_res", tol, "max_iter", int(solver["max_iter"]))
+        total += int(its)
+        if conv:
+            if int(solver["polish"]):  # Newton steps past the test (to the round-off floor)
+                total += int(md.solve("max_res", 0.0, "max_iter", int(solver["polish"]))[0])
+            return total, True, tol
+    return total, False, ladder[-1]
+
+
 def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     """GetFEM's run of one case: (header, one row per time level)."""
     solver = {**solver, **case.get("solver", {})}
+    if "pair" in case:
+        return run_pair_case(case, solver)
     if "benchmark" in case:
         dim = {"bar2d": 2, "bar3d": 3}[case["benchmark"]]
         p = {**BAR_DEFAULTS, **case.get("params", {})}
@@ -424,31 +493,12 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
         }
 
     unknowns = ["u", "lambda_n"] + (["lambda_t"] if law == "coulomb" else [])
-    ladder = [float(solver["max_res"]) * 10.0**j for j in range(int(solver["relax"]) + 1)]
-
-    def solve() -> tuple[int, bool, float]:
-        """Newton to max_res; at its round-off floor (it then hops, and restarts from the
-        initial guess after a while), again from the same guess with max_res 10 times
-        larger, at most ``relax`` times: (iterations, converged, the max_res reached)."""
-        guess = {name: np.asarray(md.variable(name)).copy() for name in unknowns}
-        total = 0
-        for tol in ladder:
-            for name in unknowns:
-                md.set_variable(name, guess[name])
-            its, conv = md.solve("max_res", tol, "max_iter", int(solver["max_iter"]))
-            total += int(its)
-            if conv:
-                if int(solver["polish"]):  # Newton steps past the test (to the round-off floor)
-                    total += int(md.solve("max_res", 0.0, "max_iter", int(solver["polish"]))[0])
-                return total, True, tol
-        return total, False, ladder[-1]
-
     rows = [level(0, U0, U0, V0, 0, True)]
-    rows[0]["max_res"] = ladder[0]
+    rows[0]["max_res"] = float(solver["max_res"])
     U_prev = U0
     for k in range(1, steps + 1):
         md.set_time(k * dt)
-        its, conv, reached = solve()
+        its, conv, reached = newton(md, unknowns, solver)
         md.shift_variables_for_time_integration()  # Previous_* := the new level's u, Dot_u, Dot2_u
         U = np.asarray(md.variable("u")).copy()
         V = np.asarray(md.variable("Previous_Dot_u"))
@@ -457,6 +507,231 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
         if law == "coulomb" and slip_law == "increment":
             md.set_variable("wt", U)  # the next step's slip is B_T (u - U^k)
         U_prev = U
+    return header, rows
+
+
+# ----------------------------------------------------------------------------- two bodies
+def cell_fem(m: gf.Mesh) -> tuple[str, str]:
+    """(fem, integration) of the one cell type of ``m``: P1 on simplices, Q1 on quadrilaterals /
+    hexahedra, each with a rule exact for the mass and the stiffness of affine cells."""
+    dim = m.dim()
+    nv = {len(np.asarray(m.pid_from_cvid(int(cv))[0]).ravel()) for cv in np.asarray(m.cvid()).ravel()}
+    if nv == {dim + 1}:
+        return f"FEM_PK({dim},1)", f"IM_{'TRIANGLE' if dim == 2 else 'TETRAHEDRON'}(2)"
+    if nv == {2**dim}:
+        return f"FEM_QK({dim},1)", f"IM_GAUSS_PARALLELEPIPED({dim},3)"
+    raise ValueError(f"one cell type per file: simplices or quadrilaterals/hexahedra, got {sorted(nv)} vertices")
+
+
+def merged_region(m: gf.Mesh, target: int, regions: list[int]) -> int:
+    """Region ``target`` := the union of ``regions`` (faces or cells)."""
+    m.set_region(target, np.zeros((2, 0), dtype=np.int64))
+    for r in regions:
+        m.region_merge(target, r)
+    return target
+
+
+def sub_matrix(K: gf.Spmat, rows: range, cols: range) -> np.ndarray:
+    """The dense block K[rows, cols] of a GetFEM sparse matrix."""
+    return np.asarray(K.full(list(rows), list(cols)))
+
+
+def run_pair_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
+    """GetFEM's run of the bodies of one Gmsh file in contact through a slave and a master facet
+    tag, with GetFEM's nodal contact between non-matching meshes (the module doc's ``pair``)."""
+    path = case["mesh"]
+    ids = gmsh_physical_ids(path)
+    m = gf.Mesh("import", "gmsh", path)
+    dim = m.dim()
+    pts = gmsh_nodes(path)[:, :dim]
+    if m.nbpts() != len(pts):
+        raise RuntimeError("GetFEM read another number of points (do two bodies touch at t = 0?)")
+    fem, integ = cell_fem(m)
+    base = dict(case["params"])
+    materials = {tag: {**base, **mat} for tag, mat in (case.get("materials") or {}).items()}
+    velocity = {tag: np.asarray(v, dtype=float) for tag, v in (case.get("velocity") or {}).items()}
+    clamp = case.get("clamp") or []
+    clamp = [clamp] if isinstance(clamp, str) else list(clamp)
+    dt, steps = float(case["dt"]), round(float(case["T"]) / float(case["dt"]))
+    all_cells = np.asarray(m.cvid()).ravel()
+    top = max(ids.values(), default=0) + 1000  # region ids of ours, above the file's
+    SLAVE, MASTER, BOTH, CLAMPED, PARTS = top + 1, top + 2, top + 3, top + 4, top + 10
+
+    def cells_of(tag: str) -> np.ndarray:
+        return np.unique(np.asarray(m.region(ids[tag]))[0]).astype(np.int64)
+
+    merged_region(m, SLAVE, [ids[case["pair"]["slave"]]])
+    merged_region(m, MASTER, [ids[case["pair"]["master"]]])
+    merged_region(m, BOTH, [SLAVE, MASTER])  # the contact boundary of both bodies (the seed's)
+
+    mf = gf.MeshFem(m, dim)
+    mf.set_fem(gf.Fem(fem))
+    mim = gf.MeshIm(m, gf.Integ(integ))
+    node, comp = dof_nodes(mf, pts, dim)
+    ndof = mf.nbdof()
+
+    # the parts of one material (cells, {lam, mu, rho}): a listed region's cells (those of an
+    # earlier listed region excepted), then the cells in no listed region with ``params``
+    parts, listed = [], np.zeros(0, dtype=np.int64)
+    for tag, mat in materials.items():
+        cells = np.setdiff1d(cells_of(tag), listed)
+        listed = np.union1d(listed, cells)
+        parts.append((cells, mat))
+    rest = np.setdiff1d(all_cells, listed)
+    if rest.size:
+        parts.append((rest, base))
+    if case["mass"] == "seed":  # the elements that touch a contact node of either body are massless
+        touching = np.asarray(m.cvid_from_pid(m.pid_in_regions(BOTH), True)).ravel()
+    elif case["mass"] == "standard":
+        touching = np.zeros(0, dtype=np.int64)
+    else:
+        raise ValueError(f"unknown mass {case['mass']!r}; allowed: standard, seed")
+
+    md = gf.Model("real")
+    md.add_fem_variable("u", mf)
+    if case["scheme"] == "cn":
+        md.add_Newmark_scheme("u", 0.25, 0.5)
+    elif case["scheme"] == "be":
+        md.add_theta_method_for_second_order("u", 1.0)
+    else:
+        raise ValueError(f"unknown scheme {case['scheme']!r}; allowed: cn, be")
+    md.set_time_step(dt)
+    md_s = gf.Model("real")  # the stiffness alone, for the energy
+    md_s.add_fem_variable("u", mf)
+    M = None
+    for k, (cells, mat) in enumerate(parts):
+        region, mass_region = PARTS + 2 * k, PARTS + 2 * k + 1
+        m.set_region(region, cells[None, :])
+        for model in (md, md_s):
+            model.add_initialized_data(f"lambda{k}", [mat["lam"]])
+            model.add_initialized_data(f"mu{k}", [mat["mu"]])
+            model.add_isotropic_linearized_elasticity_brick(mim, "u", f"lambda{k}", f"mu{k}", region)
+        heavy = np.setdiff1d(cells, touching)
+        if heavy.size:
+            m.set_region(mass_region, heavy[None, :])
+            md.add_initialized_data(f"rho{k}", [mat["rho"]])
+            md.add_mass_brick(mim, "Dot2_u", f"rho{k}", mass_region)
+            Mk = gf.asm_mass_matrix(mim, mf, mf, mass_region)
+            Mk.scale(mat["rho"])
+            M = Mk if M is None else gf.Spmat("add", M, Mk)
+    md_s.assembly("build_matrix")
+    S = md_s.tangent_matrix()
+
+    fixed = np.zeros(0, dtype=np.int64)
+    if clamp:
+        merged_region(m, CLAMPED, [ids[t] for t in clamp])
+        md.add_initialized_data("clamp", np.zeros(dim))
+        md.add_Dirichlet_condition_with_simplification("u", CLAMPED, "clamp")
+        fixed = np.asarray(mf.basic_dof_on_region(CLAMPED)).ravel()
+
+    # GetFEM's nodal contact between non-matching meshes, one displacement variable on both bodies
+    # (rg1 the slave, rg2 the master surface): its B_N, gap and alpha are computed at the first
+    # assembly from the reference positions and then kept (is_var_mf_newer_than_brick): frozen
+    md.add_initialized_data("r", [solver["r"]])
+    aug = int(solver["aug_version"])
+
+    def contact_brick(model: gf.Model) -> None:
+        model.add_nodal_contact_between_nonmatching_meshes_brick(
+            mim, mim, "u", "u", "lambda_n", "r", SLAVE, MASTER, True, False, aug
+        )
+
+    contact_brick(md)
+    # the brick's B_N, gap and alpha, read back from a model of the brick alone at u = 0 (the
+    # brick's nonsymmetric Alart-Curnier: RLN = lambda_n + r alpha (gap - B_N u); the lambda_n
+    # rows of the right-hand side are (RLN_- - lambda_n) / (r alpha), of the tangent matrix -B_N
+    # where RLN <= 0, and -1 / (r alpha) on the diagonal where RLN > 0)
+    probe = gf.Model("real")
+    probe.add_fem_variable("u", mf)
+    probe.add_initialized_data("r", [solver["r"]])
+    contact_brick(probe)
+    iu, il = probe.interval_of_variable("u"), probe.interval_of_variable("lambda_n")
+    ru, rl = range(int(iu[0]), int(iu[0] + iu[1])), range(int(il[0]), int(il[0] + il[1]))
+    nbc = len(rl)
+
+    def assemble(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        probe.set_variable("lambda_n", lam)
+        probe.assembly("build_all")
+        K = probe.tangent_matrix()
+        return sub_matrix(K, rl, ru), np.diag(sub_matrix(K, rl, rl)), np.asarray(probe.rhs())[rl.start : rl.stop]
+
+    extent = float(np.ptp(pts, axis=0).max())  # |gap| <= 10 (GetFEM's gap of an unpaired node) or the extent
+    r_alpha = -1.0 / assemble(np.full(nbc, 1e100))[1]  # every row inactive: r alpha
+    _, _, rough = assemble(-1e3 * r_alpha * (10.0 + extent))  # every row active: -gap to ~1e-13 (cancellation)
+    K_nu, K_nn, rhs = assemble(-2.0 * r_alpha * (np.abs(rough) + 1e-3 * extent))  # -gap to ~1e-16 of |gap|
+    if np.any(K_nn != 0.0):
+        raise RuntimeError("reading GetFEM's gaps back: a row is not in the active branch")
+    BN, gap0 = -K_nu, -rhs  # (nbc, ndof) in GetFEM's dofs, (nbc,)
+
+    slave_dofs = np.sort(np.asarray(mf.basic_dof_on_region(SLAVE)).ravel())
+    first = slave_dofs[slave_dofs % dim == 0]  # the brick's multiplier k: the k-th slave node in dof order
+    if first.size != nbc or slave_dofs.size != nbc * dim:
+        raise RuntimeError("unexpected dof layout on the slave surface")
+    rows_nodes = node[first]
+    order = np.argsort(rows_nodes)  # rows in signorini's order (increasing slave node)
+    rows_nodes = rows_nodes[order]
+    BN, gap0 = BN[order], gap0[order]
+    inert = np.flatnonzero(~np.any(BN != 0.0, axis=1))  # slave nodes GetFEM paired with no master face
+    for k in np.setdiff1d(np.arange(nbc), inert):  # row k's slave dofs carry -n_m, |n_m| = 1
+        mine = np.flatnonzero(node == rows_nodes[k])
+        if abs(np.linalg.norm(BN[k, mine]) - 1.0) > 1e-12:
+            raise RuntimeError("the brick's multiplier order is not the slave nodes' dof order")
+
+    U0 = np.zeros(ndof)
+    V0 = np.zeros(ndof)
+    point_node = nearest_nodes(np.asarray(m.pts()).T, pts)  # GetFEM's point id -> signorini's node
+    for tag, v in velocity.items():  # the nodes of the region's cells, in the order given
+        on = np.isin(node, point_node[np.asarray(m.pid_in_cvids(cells_of(tag))).ravel()])
+        V0[on] = v[comp[on]]
+    V0[fixed] = 0.0
+    md.set_variable("u", U0)
+    md.set_variable("Previous_u", U0)
+    md.set_variable("Previous_Dot_u", V0)
+    md.set_variable("Previous_Dot2_u", np.zeros(ndof))  # A0 = 0: GetFEM's start
+
+    # B_N in signorini's dof numbering (node-major: node * d + component)
+    sig = node * dim + comp
+    BN_sig = np.zeros_like(BN)
+    BN_sig[:, sig] = BN
+    nz = np.nonzero(BN_sig)
+    header = {
+        "pair_nodes": rows_nodes.tolist(),
+        "pair_points": pts[rows_nodes].tolist(),
+        "inert_rows": inert.tolist(),
+        "B": {"rows": nz[0].tolist(), "cols": nz[1].tolist(), "vals": BN_sig[nz].tolist()},
+        "gap0": gap0.tolist(),
+        "dofs": int(ndof),
+        "getfem": getfem_version(),
+        "solver": solver,
+        "brick": "add_nodal_contact_between_nonmatching_meshes_brick",
+    }
+
+    def level(step: int, U: np.ndarray, V: np.ndarray, its: int, conv: bool) -> dict:
+        kinetic = 0.5 * float(V @ M.mult(V)) if M is not None else 0.0
+        elastic = 0.5 * float(U @ S.mult(U))
+        lam = np.asarray(md.variable("lambda_n"))[order] if step else np.zeros(nbc)
+        gaps = gap0 - BN @ U
+        return {
+            "step": step,
+            "t": step * dt,
+            "lambda_sum": float(lam.sum()),
+            "lambda": lam.tolist(),
+            "gap": gaps.tolist(),
+            "mean_gap": float(gaps.mean()),
+            "energy": kinetic + elastic,
+            "kinetic": kinetic,
+            "elastic": elastic,
+            "newton_iterations": its,
+            "converged": conv,
+        }
+
+    rows = [level(0, U0, V0, 0, True)]
+    rows[0]["max_res"] = float(solver["max_res"])
+    for k in range(1, steps + 1):
+        md.set_time(k * dt)
+        its, conv, reached = newton(md, ["u", "lambda_n"], solver)
+        md.shift_variables_for_time_integration()
+        rows.append(level(k, np.asarray(md.variable("u")).copy(), np.asarray(md.variable("Previous_Dot_u")), its, conv))
+        rows[-1]["max_res"] = reached
     return header, rows
 
 
@@ -485,13 +760,18 @@ def read_spec(argv: list[str]) -> dict:
 
 def main(argv: list[str]) -> int:
     gf.util_trace_level(0)  # no assembly traces on stderr
+    # the JSON lines on the real stdout; whatever GetFEM's C++ prints there (Debian's 5.4 prints
+    # "ok here" from its contact code) goes to stderr
+    sys.stdout.flush()
+    out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
     spec = read_spec(argv)
     solver = {**SOLVER, **spec.get("solver", {})}
     for i, case in enumerate(spec["cases"]):
         header, rows = run_case(case, solver)
-        print(json.dumps({"case": i, **case, **header}), flush=True)
+        print(json.dumps({"case": i, **case, **header}), file=out, flush=True)
         for row in rows:
-            print(json.dumps({"case": i, **row}), flush=True)
+            print(json.dumps({"case": i, **row}), file=out, flush=True)
     return 0
 
 

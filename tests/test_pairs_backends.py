@@ -256,9 +256,13 @@ def test_pairs_on_two_ranks_match_the_serial_run(tmp_path, backend):
     skip = NODE_COUNTS + ITERATION_COUNTS if backend == "petsc-cg" else ()
     assert compare_runs(tmp_path / "ser", tmp_path / "par", skip=skip) <= TOLERANCE
     compare_contact(tmp_path / "ser", tmp_path / "par")
-    check_identities(tmp_path / "par")
+    # the identity of a CG solve closes to CG's tolerance (rtol 1e-13: measured 1.2e-11 of E with
+    # the pair's rows re-paired as the block slides), a direct one to round-off
+    check_identities(tmp_path / "par", 1e-11 if backend == "petsc" else 1e-10)
     summary = json.loads((tmp_path / "par" / "summary.json").read_text())
     assert summary["ranks"] == 2 and summary["backend"].startswith(backend)
+    ser = json.loads((tmp_path / "ser" / "summary.json").read_text())
+    assert summary["counters"]["pair_rows_repaired"] == ser["counters"]["pair_rows_repaired"]
     assert min(summary["rank_contact_dofs"]) > 0  # the pair's dofs on both ranks
     if backend == "petsc":
         check_summary(tmp_path / "ser", tmp_path / "par", 2)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InputError
+from ..errors import ConvergenceError, InputError
 from ..fem.assembly import facet_weights
 from ..fem.space import Constraints, VectorSpace
 from .frames import frame_rows, tangent_frames
@@ -59,6 +59,8 @@ class ContactSet:
     master_dofs: np.ndarray | None = None
     #: (nc, nfv) the master facet's shape functions N_j(xi) at the point a pair row faces (0 on obstacle rows)
     master_shape: np.ndarray | None = None
+    #: the rigid obstacle's rows and its tagged nodes beyond the edge of a surface obstacle (no row)
+    obstacle_info: dict | None = None
 
     @property
     def tangents(self) -> np.ndarray:
@@ -98,15 +100,36 @@ class ContactSet:
         return self._row_frame(np.concatenate([self.normals[:, None, :], self.tangents], axis=1), n_dofs)
 
     def obstacle_slip(self, t0: float, t1: float) -> np.ndarray:
-        """Tangential components (nc, d - 1) of the obstacle's translation from t0 to t1 [length];
-        zero on the rows of contact pairs (their slip is relative to the master body)."""
-        shift = self.obstacle.translation(t0, t1) if self.obstacle is not None else np.zeros(0)
+        """Tangential components c_ik (nc, d - 1) of the obstacle's motion from t0 to t1 at each row
+        [length]: the displacement of the obstacle's material point X_i that faced node i at t = 0,
+        t_ik . (Phi_t1(X_i) - Phi_t0(X_i)) (:mod:`~.obstacles`); without rotation at t0 and t1 the
+        translation t_ik . (d(t1) - d(t0)), the same for every row.  Zero on the rows of contact
+        pairs (their slip is relative to the master body)."""
+        ob = self.obstacle
+        if ob is not None and ob.turns(t0, t1):
+            rigid = np.ones(self.size, dtype=bool) if self.pair is None else self.pair < 0
+            shift = np.zeros((self.size, self.normals.shape[1]))
+            shift[rigid] = ob.displacement(self.material_points, t0, t1)
+            slip = np.einsum("ikd,id->ik", self.tangents, shift)
+            slip[~rigid] = 0.0
+            return slip
+        shift = ob.translation(t0, t1) if ob is not None else np.zeros(0)
         if shift.size == 0 or not np.any(shift):
             return np.zeros(self.tangents.shape[:2])
         slip = np.einsum("ikd,d->ik", self.tangents, shift)
         if self.pair is not None:
             slip[self.pair >= 0] = 0.0
         return slip
+
+    @property
+    def material_points(self) -> np.ndarray:
+        """The rigid obstacle's material points X_i (n_rigid, d) (its own coordinates) that face
+        the obstacle's rows at t = 0 (:meth:`~.obstacles.RigidObstacle.material_points`; computed
+        once)."""
+        if not hasattr(self, "_material_points"):
+            rigid = np.ones(self.size, dtype=bool) if self.pair is None else self.pair < 0
+            self._material_points = self.obstacle.material_points(self.points[rigid])
+        return self._material_points
 
     def force_components(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
         """Global components (d,) of the total contact force sum_i lambda_i nu_i + lambda_t,i . t_i [force]
@@ -142,6 +165,16 @@ class ContactSet:
                 )
             nodes = nodes[keep]
         gaps, normals = obstacle.gaps_and_normals(mesh.points[nodes])
+        facing = np.isfinite(gaps)  # a surface obstacle: nodes beyond its edge face nothing
+        if not facing.all():
+            if not facing.any():
+                box = mesh.points[nodes]
+                raise InputError(
+                    f"contact tag {tag!r}: none of its {nodes.size} node(s) faces the surface obstacle (every one is "
+                    f"beyond its edge; the nodes span {np.round(box.min(axis=0), 6).tolist()} .. "
+                    f"{np.round(box.max(axis=0), 6).tolist()}): move or extend the surface"
+                )
+            nodes, gaps, normals = nodes[facing], gaps[facing], normals[facing]
         weights = facet_weights(mesh, tag)[nodes]
         if not np.all(weights > 0) or not np.all(np.isfinite(weights)):
             bad = np.flatnonzero(~(weights > 0)) if not np.all(weights > 0) else np.arange(nodes.size)
@@ -165,7 +198,8 @@ class ContactSet:
                     f"condition in the normal direction (e.g. node {mesh.node_id(e)}); "
                     "remove them from the Dirichlet or the contact tag"
                 )
-        return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle, dofs)
+        info = {"rows": int(nodes.size), "nodes_beyond_edge": int((~facing).sum())}
+        return cls(nodes, normals, gaps, weights, B, mesh.points[nodes], obstacle, dofs, obstacle_info=info)
 
     @property
     def moving(self) -> bool:
@@ -178,11 +212,26 @@ class ContactSet:
         if not self.moving:
             return self.gaps
         if self.pair is None or not (self.pair >= 0).any():
-            return np.asarray(self.obstacle.gaps(self.points, t), dtype=float)
-        g = self.gaps.copy()
-        rigid = self.pair < 0
-        g[rigid] = np.asarray(self.obstacle.gaps(self.points[rigid], t), dtype=float)
+            g = np.asarray(self.obstacle.gaps(self.points, t), dtype=float)
+            rigid = slice(None)
+        else:
+            g = self.gaps.copy()
+            rigid = self.pair < 0
+            g[rigid] = np.asarray(self.obstacle.gaps(self.points[rigid], t), dtype=float)
+        if not np.isfinite(g[rigid]).all():
+            self._beyond_edge(g, t)
         return g
+
+    def _beyond_edge(self, g: np.ndarray, t: float) -> None:
+        """A moving surface obstacle left a row's node (its gap is +inf): the row cannot be dropped
+        during the run; stop it (ConvergenceError: status failed, the levels computed kept)."""
+        bad = np.flatnonzero(~np.isfinite(g))
+        i = int(bad[0])
+        raise ConvergenceError(
+            f"the surface obstacle moved away from {bad.size} contact node(s) at t = {t:.6g}, e.g. the node at "
+            f"{np.round(self.points[i], 6).tolist()}: it is beyond the surface's edge and faces nothing, which a "
+            "contact row cannot do during a run; extend the surface (or restrict [contact] where)"
+        )
 
     @property
     def mass_nodes(self) -> np.ndarray:
@@ -215,7 +264,9 @@ class ContactSet:
         master_shape = np.concatenate([np.zeros((nr, nfv))] + [r.xi for r in parts])
         info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive}
                 for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
-        inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([r.nodes, r.master_nodes]) for r in parts]))
+        # every node of the slave and master tags (a slave node facing nothing at t = 0 included)
+        inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([mesh.nodes_of(p.slave), r.master_nodes])
+                                                           for p, r in zip(pairs, parts, strict=True)]))  # fmt: skip
         return ContactSet(
             nodes,
             np.vstack([self.normals] + [r.normals for r in parts]),
@@ -231,7 +282,41 @@ class ContactSet:
             info,
             master_dofs,
             master_shape,
+            self.obstacle_info,
         )
+
+    def slide(self, space: VectorSpace, pairs: Sequence, U: np.ndarray) -> np.ndarray:
+        """Small sliding (:func:`~.pairs.slid_rows`): re-pair, in place, the pair rows whose slave
+        node left its master facet in the configuration X + U; returns the rows changed (sorted).
+
+        Their normal, gap, master facet, facet dofs and shape functions, and B's rows change;
+        the tangents (from the normals) are recomputed."""
+        from .pairs import slid_rows
+
+        if not self.has_pair_rows:
+            return np.zeros(0, dtype=np.int64)
+        mesh, d = space.mesh, space.dim
+        changed = []
+        for k, pair in enumerate(pairs):
+            rows = np.flatnonzero(self.pair == k)
+            r = slid_rows(mesh, pair, rows, self.nodes[rows], self.master_facet[rows], U)
+            if r is None:
+                continue
+            self.normals[r.rows] = r.normals
+            self.gaps[r.rows] = r.gaps
+            self.master_facet[r.rows] = r.facet
+            self.master_shape[r.rows] = r.xi
+            self.master_dofs[r.rows] = space.dofs(r.facet_nodes.ravel()).reshape(r.rows.size, -1, d)
+            if self.pair_info is not None:
+                self.pair_info[k]["repaired_rows"] = self.pair_info[k].get("repaired_rows", 0) + int(r.rows.size)
+            changed.append(r.rows)
+        if not changed:
+            return np.zeros(0, dtype=np.int64)
+        rows = np.sort(np.concatenate(changed))
+        if hasattr(self, "_tangents"):
+            del self._tangents
+        self.B = self._row_frame(self.normals[:, None, :], space.n_dofs).tocsr()
+        return rows
 
     @property
     def size(self) -> int:

@@ -121,6 +121,30 @@ class DelassusColumns:
             self.count += J.size
         self.seconds += time.perf_counter() - t0
 
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """B's rows ``rows`` changed (a contact pair re-paired): their columns of Z and W are
+        solved again (computed now, in their slots or new ones) and, K being symmetric, W's
+        rows ``rows`` in every stored column follow from them: W[i, j] = B_j K^-1 B_i^T = W[j, i]."""
+        rows = np.unique(np.asarray(rows, dtype=np.intp))
+        self.B = sp.csr_matrix(B)
+        self.Bt = self.B.T.tocsc()
+        t0 = time.perf_counter()
+        new = rows[self.slot[rows] < 0]
+        if new.size:
+            self._grow(self.count + new.size)
+            self.slot[new] = np.arange(self.count, self.count + new.size)
+            self.count += new.size
+        for k in range(0, rows.size, BLOCK):
+            J = rows[k : k + BLOCK]
+            Zj, Wj = self._solve_block(J)
+            s = self.slot[J]
+            self._W[:, s] = Wj
+            if self._Zt is not None:
+                self._Zt[s] = Zj.T
+            known = np.flatnonzero(self.slot >= 0)
+            self._W[J[:, None], self.slot[known][None, :]] = Wj[known].T
+        self.seconds += time.perf_counter() - t0
+
     def W(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """W[rows][:, cols] (the columns must be known), shape (len(rows), len(cols))."""
         return self._W[np.asarray(rows)[:, None], self.slot[cols][None, :]]

@@ -112,12 +112,8 @@ class DistributedCGSolver(ActiveSetCGSolver):
         self.bounds = K.bounds
         lo, hi = self.lo, self.hi = K.lo, K.hi
         self.counts = np.diff(self.bounds).astype(np.int64)
-        owner = np.searchsorted(self.bounds, self.B.indices, side="right") - 1
-        row_of = np.repeat(np.arange(self.B.shape[0]), np.diff(self.B.indptr))
-        split = np.zeros(self.B.shape[0], dtype=bool)
-        np.logical_or.at(split, row_of, owner != owner[np.searchsorted(row_of, row_of)])
-        #: some row spans two ranks (a pair's slave and master nodes): the projection is shared
-        self.straddles = bool(split.any())
+        self._K = K
+        self._rows_layout()
 
         bs = _block(nodes) if np.all(self.counts % _block(nodes) == 0) else 1
         # jacobi: the upper triangle in d x d blocks (SBAIJ) reads about half the bytes of a
@@ -180,6 +176,26 @@ class DistributedCGSolver(ActiveSetCGSolver):
         self.timings = {"factorization": time.perf_counter() - t0, "condensation": 0.0}
         self.timings["bare_spmv"] = _best_time(self._spmv, n)
         self._bare = {"bare_spmv": (self._spmv, n)}
+
+    def _rows_layout(self) -> None:
+        """Whether some row of B spans two ranks (a pair's slave and master nodes): the projection
+        is then shared (:attr:`straddles`)."""
+        owner = np.searchsorted(self.bounds, self.B.indices, side="right") - 1
+        row_of = np.repeat(np.arange(self.B.shape[0]), np.diff(self.B.indptr))
+        split = np.zeros(self.B.shape[0], dtype=bool)
+        np.logical_or.at(split, row_of, owner != owner[np.searchsorted(row_of, row_of)])
+        #: some row spans two ranks (a pair's slave and master nodes): the projection is shared
+        self.straddles = bool(split.any())
+
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """The new B (every rank the same, in step): its layout across the ranks and K's rows at
+        its contact dofs (a collective when they changed)."""
+        self.B = sp.csr_matrix(B)
+        self._rows_layout()
+        dofs = np.unique(self.B.indices)
+        if not np.array_equal(dofs, self.contact_dofs):
+            self.contact_dofs = dofs
+            self.K_contact = self._K.rows(dofs)
 
     def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
         """K's rows at active contact dofs, from the replicated contact rows (no rank holds K)."""

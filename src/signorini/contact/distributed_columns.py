@@ -22,6 +22,11 @@ class DistributedColumns(DelassusColumns):
     def _rows(self) -> int:
         return self.factor.hi - self.factor.lo
 
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """As the serial columns (every rank with the same B and rows: the solves are collective)."""
+        self.Bloc = sp.csr_matrix(B)[:, self.factor.lo : self.factor.hi]
+        super().replace_rows(rows, B)
+
     def _budget_rows(self) -> int:
         # the largest block of rows: every rank takes the same keep-or-drop decision (one
         # rank dropping Z while another keeps it would send them into different collectives)

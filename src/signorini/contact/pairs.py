@@ -296,3 +296,103 @@ def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:
     deta = np.einsum("mk,mkd->md", 0.25 * ref[:, 1] * (1 + xi[:, None] * ref[:, 0]), P)
     n = np.cross(dxi, deta)
     return n / np.linalg.norm(n, axis=1)[:, None]
+
+
+# ----------------------------------------------------------------------------- small sliding
+#: a slave node has left its master facet when its orthogonal projection on the deformed facet
+#: lies outside it by more than this in the facet's parameters (hysteresis at a shared edge)
+LEAVE = 1e-9
+
+
+def _outside(x: np.ndarray, P: np.ndarray, kind: str) -> np.ndarray:
+    """Whether the orthogonal projection of x (m, d) on the facets P (m, nfv, d) (their plane,
+    or the bilinear surface) lies outside them by more than :data:`LEAVE` in their parameters."""
+    if kind == "vertex":
+        return np.zeros(x.shape[0], dtype=bool)
+    if kind == "line":
+        a, e = P[:, 0], P[:, 1] - P[:, 0]
+        s = ((x - a) * e).sum(axis=1) / (e * e).sum(axis=1)
+        return (s < -LEAVE) | (s > 1 + LEAVE)
+    if kind == "triangle":
+        a, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+        g11, g12, g22 = (e1 * e1).sum(axis=1), (e1 * e2).sum(axis=1), (e2 * e2).sum(axis=1)
+        r1, r2 = ((x - a) * e1).sum(axis=1), ((x - a) * e2).sum(axis=1)
+        det = g11 * g22 - g12 * g12
+        s, t = (g22 * r1 - g12 * r2) / det, (g11 * r2 - g12 * r1) / det
+        return (s < -LEAVE) | (t < -LEAVE) | (s + t > 1 + LEAVE)
+    # bilinear quadrilateral: unclipped Gauss-Newton for (xi, eta), outside [-1, 1]^2
+    c0 = 0.25 * (P[:, 0] + P[:, 1] + P[:, 2] + P[:, 3])
+    c1 = 0.25 * (-P[:, 0] + P[:, 1] + P[:, 2] - P[:, 3])
+    c2 = 0.25 * (-P[:, 0] - P[:, 1] + P[:, 2] + P[:, 3])
+    c3 = 0.25 * (P[:, 0] - P[:, 1] + P[:, 2] - P[:, 3])
+    xi, eta = np.zeros(x.shape[0]), np.zeros(x.shape[0])
+    for _ in range(8):
+        ja, jb = c1 + c3 * eta[:, None], c2 + c3 * xi[:, None]
+        r = x - (c0 + c1 * xi[:, None] + c2 * eta[:, None] + c3 * (xi * eta)[:, None])
+        aa, ab, bb = (ja * ja).sum(axis=1), (ja * jb).sum(axis=1), (jb * jb).sum(axis=1)
+        ra, rb = (ja * r).sum(axis=1), (jb * r).sum(axis=1)
+        det = aa * bb - ab * ab
+        dxi, deta = (bb * ra - ab * rb) / det, (aa * rb - ab * ra) / det
+        xi, eta = xi + dxi, eta + deta
+        if max(float(np.abs(dxi).max(initial=0.0)), float(np.abs(deta).max(initial=0.0))) <= 1e-14:
+            break
+    return (np.abs(xi) > 1 + LEAVE) | (np.abs(eta) > 1 + LEAVE)
+
+
+@dataclass
+class SlidRows:
+    """The new condition of the pair rows whose slave node left its master facet."""
+
+    rows: np.ndarray  # (m,) the contact rows re-paired
+    normals: np.ndarray  # (m, d) nu_s = -n_m of the new facet (reference configuration)
+    gaps: np.ndarray  # (m,) (x_s - p) . n_m at the new projection p (reference configuration)
+    facet: np.ndarray  # (m,) the new facet (index in the master tag's facets)
+    xi: np.ndarray  # (m, nfv) its shape functions at the deformed slave node's projection
+    facet_nodes: np.ndarray  # (m, nfv) its nodes, outward orientation
+
+
+def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray, facet: np.ndarray,
+              U: np.ndarray) -> SlidRows | None:  # fmt: skip
+    """Small sliding of one pair: the rows ``rows`` (slave nodes ``slave``, current facets
+    ``facet``) whose slave node's projection left its facet in the configuration X + U are
+    projected again, in that configuration, on the closest master facet; their new row is
+    the linearized gap of that facet about the reference configuration,
+
+        g = (x_s - sum_j N_j x_j) . n_m,   B u = -n_m . u_s + sum_j N_j n_m . u_j,
+
+    with N_j at the deformed projection and n_m the reference normal there, so that
+    g - B u = n_m . ((x_s + u_s) - sum_j N_j (x_j + u_j)): the current normal gap.  None when
+    no row left its facet."""
+    d = mesh.dim
+    if d == 1 or rows.size == 0:
+        return None
+    facets = mesh.facets_of(pair.master)
+    normals_f, oriented = facet_owner_normals(mesh, facets)
+    Xd = mesh.points + U.reshape(-1, d)
+    kind = "line" if d == 2 else ("triangle" if oriented.shape[1] == 3 else "quad")
+    left = _outside(Xd[slave], Xd[oriented[facet]], kind)
+    if not left.any():
+        return None
+    rows, slave = rows[left], slave[left]
+    Pd = Xd[oriented]
+    centres = Pd.mean(axis=1)
+    k = min(CANDIDATES, len(facets))
+    _, cand = cKDTree(centres).query(Xd[slave], k=k)
+    cand = np.asarray(cand).reshape(slave.size, k)
+    xs = np.repeat(Xd[slave], k, axis=0)
+    p, N = _closest_on_facets(xs, Pd[cand.ravel()], kind)
+    dist = np.linalg.norm(xs - p, axis=1).reshape(slave.size, k)
+    pick = np.arange(slave.size) * k + np.argmin(dist, axis=1)
+    new, N = cand.ravel()[pick], N[pick]
+    moved = new != facet[left]  # still the closest: beyond the master surface's edge, the row stays
+    if not moved.any():
+        return None
+    rows, slave, new, N = rows[moved], slave[moved], new[moved], N[moved]
+    P = mesh.points[oriented[new]]
+    if kind == "quad":
+        nq = _quad_normal(P, N)
+        n_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[new]))[:, None]
+    else:
+        n_m = normals_f[new]
+    gaps = np.einsum("md,md->m", mesh.points[slave] - np.einsum("mk,mkd->md", N, P), n_m)
+    return SlidRows(rows, -n_m, gaps, new, N, oriented[new])

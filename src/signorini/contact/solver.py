@@ -165,6 +165,11 @@ class ContactSolver:
         """K^-1 b without contact."""
         raise NotImplementedError  # pragma: no cover
 
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """The contact rows ``rows`` (nodes) of B changed (small sliding of a contact pair); B is
+        the whole new matrix, on this solver's dofs."""
+        raise NotImplementedError(f"{type(self).__name__} cannot change its contact rows during a run")
+
     def set_guess(self, x: np.ndarray) -> None:
         """An estimate (n,) of the next solve's x; a direct solve has no use for it."""
 
@@ -270,6 +275,17 @@ class CondensedContactSolver(ContactSolver):
         self._setup_columns, self._setup_seconds = self.delassus.count, self.delassus.seconds
         self.factor_bytes = self.factor.nbytes
         self.counters["delassus_columns"] = self.delassus.count
+
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """The Delassus columns of the changed rows (every component of their nodes) are
+        solved again (:meth:`~signorini.contact.delassus.DelassusColumns.replace_rows`)."""
+        if self.condensation == "schur":
+            raise NotImplementedError("the Schur condensation cannot change its contact rows")
+        c = self.components
+        self.B = sp.csr_matrix(B)
+        self.delassus.replace_rows((np.asarray(rows)[:, None] * c + np.arange(c)).ravel(), self.B)
+        self.dead = (np.asarray(abs(self.B).sum(axis=1)).ravel() == 0).reshape(-1, c)
+        self._sync()
 
     def _sync(self) -> None:
         """Counters and timings: ``linear_solves`` are the solves of the steps (the columns
@@ -513,6 +529,10 @@ class ActiveSetCGSolver(ContactSolver):
             raise ValueError(f"a guess of shape {self.U_prev.shape} is needed, got {x.shape}")
         self.U_prev = np.array(x, dtype=np.float64, copy=True)
 
+    def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
+        """The new B (its projector is formed per active set: nothing else to update)."""
+        self.B = sp.csr_matrix(B)
+
     def _cg(self, rhs: np.ndarray, x0: np.ndarray, project) -> np.ndarray:
         w, n_cg = projected_cg(self.Kop, rhs, x0, project, self.precond, self.rtol, self.max_iter)
         self.counters["linear_solves"] += 1
@@ -578,9 +598,9 @@ class ActiveSetCGSolver(ContactSolver):
         self.counters["contact_iterations"] += it
         self.active = A
         self.U_prev = U
-        gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0)
-        if not np.array_equal(A_new, A):  # the tie above: measured against the displacement's scale
-            gap_scale = max(gap_scale, float(np.max(np.abs(U))))
+        # against the displacement's scale too: bodies that start touching (every gap 0, a block
+        # resting on a plate) have gaps of round-off only, 1e-20 "of" nothing
+        gap_scale = max(self.gap_scale, float(np.max(np.abs(gap))) if gap.size else 0.0, float(np.max(np.abs(U))))
         res = complementarity_residual(-lam, gap, 1.0 / self.c, gap_scale) if g.size else 0.0
         return U, lam, StepInfo(it, False, res, A)
 

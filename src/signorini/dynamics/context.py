@@ -101,6 +101,12 @@ class _System:
 
     def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
         f, D = ctx.free, ctx.fixed
+        if ctx.sliding:  # the Schur complement is of the contact dofs of t = 0: lazy or full columns follow
+            if options.get("condensation") == "schur":
+                raise InputError("solver option condensation='schur' cannot follow contact pairs as they slide; "
+                                 "use condensation='lazy' or 'full', or pairing='frozen'")  # fmt: skip
+            options = {**options, "condensation": "lazy" if options.get("condensation", "auto") == "auto" else
+                       options["condensation"]}  # fmt: skip
         # only the free block and its coupling to the fixed dofs are formed; on the ranks of
         # a distributed backend, only this rank's block of their rows (no rank holds all of K)
         if ctx.distributed:
@@ -358,6 +364,56 @@ class Context:
         value = self.friction.coefficient if self.friction.law == "coulomb" else self.friction.threshold
         return self.friction_rows is None or bool(np.all(self.friction_rows == value))
 
+    @functools.cached_property
+    def sliding(self) -> bool:
+        """Whether contact pairs are re-paired as their slave nodes slide (solver option
+        ``pairing``: small-sliding, the default, or frozen)."""
+        if not self.disc.problem.pairs or self.disc.space.dim == 1:
+            return False
+        return self.solver_options.get("pairing", "small-sliding") == "small-sliding"
+
+    def slide(self, U: np.ndarray, t: float) -> int:
+        """Small sliding after a level (:meth:`ContactSet.slide`): the pair rows whose slave node
+        left its master facet in X + U are re-paired; B, its free and fixed blocks, the friction
+        frames and every contact solver's rows (their Delassus columns) follow.  Returns the
+        number of rows re-paired (counted in ``pair_rows_repaired``)."""
+        if not self.sliding:
+            return 0
+        disc = self.disc
+        B_before, T_before = self.B, self.T
+        rows = disc.contact.slide(disc.space, disc.problem.pairs, U)
+        if rows.size == 0:
+            return 0
+        # the multipliers of the level just computed acted through the rows of before (in the
+        # next step's balance and energy identity: :meth:`rows_of`)
+        self._level_rows = (t, B_before, T_before)
+        self.B = disc.B = disc.contact.B
+        self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
+        BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
+        self.BD = BD if BD is not None and BD.nnz else None
+        if self.components > 1:
+            n = disc.space.n_dofs
+            self.T = disc.contact.tangential_matrix(n)
+            self.H = disc.contact.frame_matrix(n)
+            self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
+            HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
+            self.HD = HD if HD is not None and HD.nnz else None
+        for sys in self._systems:
+            sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
+        self.repaired += int(rows.size)
+        return int(rows.size)
+
+    #: contact pair rows re-paired by small sliding over the run
+    repaired = 0
+    _level_rows: tuple | None = None
+
+    def rows_of(self, t: float) -> tuple[Any, Any]:
+        """(B, T): the contact rows the multipliers of the level at time t act through: the
+        current ones, or those before a re-pairing (:meth:`slide`) that followed that level."""
+        if self._level_rows is not None and self._level_rows[0] == t:
+            return self._level_rows[1], self._level_rows[2]
+        return self.B, self.T
+
     def massless_update(self, V: np.ndarray, A: np.ndarray, U: np.ndarray, U_old: np.ndarray) -> None:
         """On the massless directions, in place: V = (U - U_old)/dt and A = 0.
 
@@ -374,18 +430,22 @@ class Context:
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)
 
-    def contact_on_fixed(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray | float:
+    def contact_on_fixed(self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None
+                         ) -> np.ndarray | float:  # fmt: skip
         """(B^T lambda + T^T lambda_t) on the Dirichlet dofs (the contact part of their reactions),
-        0.0 when no contact row touches a fixed dof."""
-        if self.BD is None and self.HD is None:
+        0.0 when no contact row touches a fixed dof; ``t``: the multipliers of that level
+        (:meth:`rows_of`)."""
+        if self.BD is None and self.HD is None and self._level_rows is None:
             return 0.0
-        return self.contact_force(lam, lam_t)[self.fixed]
+        return self.contact_force(lam, lam_t, t)[self.fixed]
 
-    def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
-        """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]."""
-        f = self.B.T @ lam
-        if lam_t is not None and self.T is not None:
-            f = f + self.T.T @ lam_t.ravel()
+    def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
+        """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]; ``t``: the
+        multipliers of that level, through its rows (:meth:`rows_of`)."""
+        B, T = (self.B, self.T) if t is None else self.rows_of(t)
+        f = B.T @ lam
+        if lam_t is not None and T is not None:
+            f = f + T.T @ lam_t.ravel()
         return f
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
@@ -423,4 +483,6 @@ class Context:
         for solver in self.solvers:
             for k, v in solver.counters.items():
                 out[k] = out.get(k, 0) + int(v)
+        if self.disc.problem.pairs:
+            out["pair_rows_repaired"] = self.repaired
         return out

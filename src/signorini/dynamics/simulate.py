@@ -452,6 +452,8 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
                                       None if last is None else last.V)  # fmt: skip
     if disc.contact.pair_info is not None:  # per pair: tags, rows, inactive slave nodes, contact law
         H.meta["pairs"] = [dict(p) for p in disc.contact.pair_info]
+    if disc.contact.obstacle_info and disc.contact.obstacle_info["nodes_beyond_edge"]:
+        H.meta["obstacle"] = dict(disc.contact.obstacle_info)  # a surface obstacle: tagged nodes that face nothing
     H.to_user_order(run.ctx.disc.space.mesh, run.ctx.disc.contact.nodes)  # a renumbered mesh's results
     H.meta.update(rank_figures(run.ctx.comm, timings))
     return H
@@ -537,6 +539,7 @@ def advance(
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
                     break
                 state, n_last = new, n
+                run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired
     finally:
         for o in started:
             o.close(run, status, n_last, state)

@@ -242,6 +242,15 @@ SOLVER_OPTIONS = (
         choices=("warn", "fail"),
     ),
     Parameter(
+        "pairing",
+        "small-sliding",
+        "contact pairs: small-sliding (a slave node whose projection leaves its master facet is re-paired to the "
+        "facet it then faces, its row of B and Delassus column recomputed) or frozen (the pairing "
+        "of t = 0 for the whole run)",
+        str,
+        choices=("small-sliding", "frozen"),
+    ),
+    Parameter(
         "loop_blas_threads",
         1,
         "threads of the dense BLAS inside the time loop (0: the library's default); one is fastest for the "

@@ -248,7 +248,7 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
         if varying:
             R = np.zeros(s.U.size) if R is None else R
             D = ctx.fixed
-            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t)
+            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
             R[D] = RD
         return R
 
@@ -270,6 +270,28 @@ def friction_work(ctx: Context, dX: np.ndarray, lam_t: np.ndarray | None) -> flo
     if lam_t is None or ctx.T is None:
         return 0.0
     return float((ctx.T @ dX) @ lam_t.ravel())
+
+
+def contact_works(
+    ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float, w_old: float | None = None
+) -> tuple[float, float]:
+    """(normal, tangential) work of the contact forces w lambda^{n+1} + w_old lambda^n (w_old
+    = 1 - w by default) over dU, each level's multipliers through its own rows
+    (:meth:`Context.rows_of`: they differ after a contact pair re-paired a slave node between
+    the levels) [energy]."""
+    w_old = 1 - w_new if w_old is None else w_old
+    B0, T0 = ctx.rows_of(old.t)
+    if B0 is ctx.B:
+        normal = float((ctx.B @ dU) @ (w_new * new.lam + w_old * old.lam))
+        return normal, friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, w_new))
+    normal = w_new * float((ctx.B @ dU) @ new.lam) + w_old * float((B0 @ dU) @ old.lam)
+    tangential = 0.0
+    if ctx.T is not None:
+        if new.lam_t is not None:
+            tangential += w_new * float((ctx.T @ dU) @ new.lam_t.ravel())
+        if old.lam_t is not None:
+            tangential += w_old * float((T0 @ dU) @ old.lam_t.ravel())
+    return normal, tangential
 
 
 def weighted(a: np.ndarray | None, b: np.ndarray | None, w: float) -> np.ndarray | None:

@@ -47,7 +47,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, friction_work, load_work, reaction_work, weighted
+from .base import EnergyParts, State, contact_works, load_work, reaction_work, weighted
 from .newmark import Newmark
 
 
@@ -100,7 +100,9 @@ class GeneralizedAlpha(Newmark):
         pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         if af:
-            lagged = af * (ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.contact_force(s.lam, s.lam_t))
+            lagged = af * (
+                ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
+            )
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
             rhs += lagged
@@ -127,11 +129,8 @@ class GeneralizedAlpha(Newmark):
         dU = new.U - old.U
         lam_w = (1 - af) * new.lam + af * old.lam
         lam_t_w = weighted(new.lam_t, old.lam_t, 1 - af)
-        parts = EnergyParts(
-            external=load_work(ctx, old, new, 1 - af),
-            contact=float((ctx.B @ dU) @ lam_w),
-            friction=friction_work(ctx, dU, lam_t_w),
-        )
+        normal, tangential = contact_works(ctx, dU, old, new, 1 - af, af)
+        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential)
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
@@ -139,7 +138,12 @@ class GeneralizedAlpha(Newmark):
             A_w = (1 - am) * new.A + am * old.A
             U_w = (1 - af) * new.U + af * old.U
             F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
-            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - ctx.contact_on_fixed(lam_w, lam_t_w)
+            if ctx.rows_of(old.t)[0] is ctx.B:
+                on_fixed = ctx.contact_on_fixed(lam_w, lam_t_w)
+            else:  # a contact pair re-paired between the levels: each level through its own rows
+                on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
+                    old.lam, old.lam_t, old.t)  # fmt: skip
+            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - on_fixed
             parts.external += float(dU[D] @ RD)
         if af != 0.5 or am != 0.5:
             dA = new.A - old.A

@@ -32,7 +32,15 @@ import numpy as np
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, friction_work, load_work, mechanical_energy, reaction_work, weighted
+from .base import (
+    EnergyParts,
+    Scheme,
+    State,
+    contact_works,
+    load_work,
+    mechanical_energy,
+    reaction_work,
+)
 
 
 class Newmark(Scheme):
@@ -97,11 +105,9 @@ class Newmark(Scheme):
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         dU = new.U - old.U
         dR_fixed, dR_free = reaction_work(ctx, old, new, 0.5)
+        normal, tangential = contact_works(ctx, dU, old, new, 0.5)
         parts = EnergyParts(
-            external=load_work(ctx, old, new, 0.5) + dR_fixed,
-            contact=0.5 * float((ctx.B @ dU) @ (old.lam + new.lam)),
-            numerical=dR_free,
-            friction=friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, 0.5)),
+            external=load_work(ctx, old, new, 0.5) + dR_fixed, contact=normal, numerical=dR_free, friction=tangential
         )
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)

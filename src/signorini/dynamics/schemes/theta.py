@@ -26,7 +26,7 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, friction_work, load_work, products, reaction_work, weighted
+from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work
 
 
 class Theta(Scheme):
@@ -71,11 +71,9 @@ class Theta(Scheme):
         numerical = dR_free
         if th != 0.5:
             numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
+        normal, tangential = contact_works(ctx, dU, old, new, th)
         return EnergyParts(
-            external=load_work(ctx, old, new, th) + dR_fixed,
-            contact=float((ctx.B @ dU) @ (th * new.lam + (1 - th) * old.lam)),
-            numerical=numerical,
-            friction=friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, th)),
+            external=load_work(ctx, old, new, th) + dR_fixed, contact=normal, numerical=numerical, friction=tangential
         )
 
 
