@@ -7,9 +7,10 @@ own elements, mass and elasticity bricks per region, time schemes (CN = Newmark(
 BE = theta 1, A0 = 0) and ``add_nodal_contact_between_nonmatching_meshes_brick`` (one
 displacement on both bodies, the slave tag as rg1, the master tag as rg2), whose B_N, gap and
 alpha are computed once, at the first assembly, from the reference positions: the pairing and
-the master normal are frozen at t = 0, as ours with the solver option pairing = "frozen".  The script reads the brick's B_N and gaps back
-(from the tangent matrix and the right-hand side of a model of the brick alone), so the
-discrete conditions are compared row by row before the histories.
+the master normal are frozen at t = 0, as ours with the solver option pairing = "frozen".  The
+script reads the brick's B_N and gaps back (from the tangent matrix and the right-hand side of a
+model of the brick alone), so the discrete conditions are compared row by row before the
+histories.
 
 Cases: (a) ``bars``: two 2D Q1 bars along y (0.1 x 0.5), the lower one 2 x 10 cells, E = 2,
 nu = 0.25, rho = 1, clamped at its bottom; the upper one 3 x 15 cells (slave, the finer
