@@ -1,46 +1,13 @@
-"""The distributed backend's first step (issue 22): partition and assembly on 2 and 3 MPI ranks.
-
-Runs ``python -m signorini.linalg.petsc.selftest`` under ``.venv-mpi/bin/mpiexec`` (made by
-``bash scripts/mpi-env.sh``; CI runs the script first, so these tests never skip there).
-"""
+"""The distributed backend's loading: a clear input error without PETSc.  (The runs on
+several ranks are tests/test_petsc_run.py; the first step's partition and assembly
+self-test went with the modules it tested, issue 31 item 6.)"""
 
 from __future__ import annotations
-
-import json
-import subprocess
-from pathlib import Path
 
 import pytest
 
 from signorini.errors import InputError
 from signorini.linalg import petsc
-
-VENV = Path(__file__).parents[1] / ".venv-mpi" / "bin"
-needs_venv = pytest.mark.skipif(
-    not (VENV / "mpiexec").exists(), reason="no .venv-mpi: run `bash scripts/mpi-env.sh` (PETSc, MPI, Python >= 3.12)"
-)
-
-
-@needs_venv
-@pytest.mark.parametrize("ranks", [2, 3])
-def test_distributed_assembly_matches_serial(ranks):
-    """S and the consistent mass assembled on each rank's own cells (PT-Scotch partition,
-    contiguous owned ranges) give the serial operators' products to round-off (measured 2e-16
-    to 6e-16 relative), on hexahedra and tetrahedra; every cell and node is owned once."""
-    run = subprocess.run(
-        [str(VENV / "mpiexec"), "-n", str(ranks), str(VENV / "python"), "-m", "signorini.linalg.petsc.selftest"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert run.returncode == 0, run.stderr[-2000:]
-    report = json.loads(run.stdout.strip().splitlines()[-1])
-    assert report["ranks"] == ranks
-    for mesh, cells, nodes in (("hexahedra", 80, 189), ("tetrahedra", 324, 112)):
-        r = report[mesh]
-        assert r["S"] <= 1e-14 and r["M"] <= 1e-14
-        assert sum(r["cells"]) == cells and sum(r["owned_nodes"]) == nodes
-        assert min(r["cells"]) >= 0.8 * cells / ranks  # balanced
-        assert r["partitioner"] == "ptscotch"
-    assert len(report["peak_memory_mib"]) == ranks
 
 
 def test_missing_petsc_is_a_clear_input_error(monkeypatch):

@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from ..errors import ConvergenceError, InputError, check_positive
 from ..fem.node_order import choose_order
 from ..linalg import solver_options as validate_solver_options
-from ..linalg.base import memory_info, total_memory
+from ..linalg.base import IMPORT_FAILURES, memory_info, total_memory
 from ..linalg.row_block import RowBlock
 from ..linalg.threads import blas_threads
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
@@ -241,6 +241,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "backend": main.name,
         # how the Delassus matrix was obtained: schur, lazy or full (direct backends), none (cg)
         "condensation": getattr(main, "condensation", "none"),
+        # optional modules installed but failing to import (a backend auto could not take), with why
+        "optional_import_failures": dict(IMPORT_FAILURES),
         "solver_options": dict(ctx.solver_options),
         "total_memory_bytes": memory_info()[0],
         "total_memory_source": memory_info()[1],

@@ -110,6 +110,11 @@ def factorization_tip(s: dict) -> str:
     big_3d = s.get("dim") == 3 and s.get("free_dofs", s["dofs"]) >= 30_000
     if s["backend"] != "superlu" or not big_3d or has_cholmod() or has_pardiso():
         return ""
+    from ..linalg.base import IMPORT_FAILURES
+
+    broken = [f"{name} is installed but does not import ({why})" for name, why in sorted(IMPORT_FAILURES.items())]
+    if broken:
+        return "\n  tip: " + "; ".join(broken) + ": fix that install for a faster 3D factor (docs/performance.md)"
     return (
         '\n  tip: the extras cholmod and metis (pip install ".[cholmod,metis]"; or pardiso on x86-64) factor'
         " 3D systems like this one several times faster with a fraction of the memory (docs/performance.md)"

@@ -63,16 +63,23 @@ class Factor:
         raise NotImplementedError
 
 
+#: optional modules installed but failing to import: name -> the reason ("OSError: ...")
+IMPORT_FAILURES: dict[str, str] = {}
+
+
 @functools.cache
 def module_loads(name: str) -> bool:
     """Whether the optional module ``name`` is installed and imports (a broken install,
-    e.g. MKL libraries not found, counts as absent)."""
+    e.g. MKL libraries not found, counts as absent, and its reason is kept in
+    :data:`IMPORT_FAILURES`: run summaries and tips name it)."""
     if importlib.util.find_spec(name.split(".")[0]) is None:
         return False
     try:
         importlib.import_module(name)
-    except Exception:
+    except Exception as exc:  # noqa: BLE001 - any failure of a third-party import: absent, with its reason
+        IMPORT_FAILURES[name] = f"{type(exc).__name__}: {str(exc)[:200]}"
         return False
+    IMPORT_FAILURES.pop(name, None)
     return True
 
 

@@ -8,12 +8,10 @@ first, or ``petsc4py`` cannot find ``libmpi``) and says how to get them when the
 missing.
 
 What exists (docs/parallel.md, docs/design.md "Beyond one machine"): the backend
-``petsc``, a parallel MUMPS Cholesky behind the serial factor contract (:mod:`.factor`)
-with products by blocks of rows (:mod:`.product`); the partition of the cells and the
-renumbering of the nodes into contiguous owned ranges (:mod:`.partition`), and the
-assembly of S and of the mass on each rank's own cells into PETSc matrices with d x d
-blocks (:mod:`.assemble`), which ``python -m signorini.linalg.petsc.selftest`` checks
-against the serial operators on P ranks (not yet the source of the run's operators).
+``petsc``, a parallel MUMPS Cholesky behind the serial factor contract (:mod:`.factor`),
+fed by each rank's rows of the operators (:mod:`signorini.dynamics.owned_rows`, on the
+Z-order renumbering of :mod:`signorini.fem.node_order`).  The earlier PT-Scotch partition
+and PETSc-matrix assembly that only a self-test used were removed (issue 31, item 6).
 """
 
 from __future__ import annotations
