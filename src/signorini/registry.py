@@ -32,6 +32,15 @@ class Motion(list):
     """Parameter kind: a vector that may be a function of t (a prescribed motion)."""
 
 
+class RotationTable(dict):
+    """Parameter kind: a rotation ``{ angle = a(t), axis = [...], center = [...] }`` (an inline
+    table whose keys are listed by its consumer, e.g. :data:`signorini.contact.obstacles.ROTATION_KEYS`)."""
+
+
+class FilePath(str):
+    """Parameter kind: a file name (relative to the case file in case files)."""
+
+
 @dataclass(frozen=True)
 class Parameter:
     """A named option of a registry entry.
@@ -58,7 +67,8 @@ class Parameter:
         hi = "" if self.high is None else f" {'<' if self.open_high else '<='} {self.high}"
         if lo or hi:
             return f"{lo}{self.name}{hi}"
-        return {Vector: "vector", Motion: "vector or vector(t)"}.get(self.kind, self.kind.__name__)
+        kinds = {Vector: "vector", Motion: "vector or vector(t)", RotationTable: "table", FilePath: "path"}
+        return kinds.get(self.kind, self.kind.__name__)
 
     def convert(self, value: Any, where: str) -> Any:
         """Return ``value`` converted to ``kind`` and checked, or raise naming ``where``."""

@@ -15,7 +15,9 @@ a rotation of the whole problem rotates the frames with it in 2D):
 The normals are those of t = 0 (:mod:`signorini.contact.obstacles`: B does not change
 during a run), so the frames are constant in time, hence continuous in time, for fixed
 and moving obstacles alike.  The motion of a moving obstacle enters the tangential
-slip through its translation over the step (:meth:`RigidObstacle.translation`).
+slip through the displacement over the step of its material point that faced the node at
+t = 0 (:meth:`~signorini.contact.contact_set.ContactSet.obstacle_slip`: its translation,
+and with a rotation (R(t1) - R(t0))(X_i - c), :mod:`signorini.contact.obstacles`).
 
 A contact pair's row (:mod:`signorini.contact.pairs`) has the frame of its slave node's
 nu_s = -n_m, and its rows act on the master facet's nodes too: the slip is relative to

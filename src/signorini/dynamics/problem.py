@@ -397,12 +397,14 @@ def _gravity_vector(g, mesh: Mesh) -> np.ndarray:
 
 def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> str:
     """Why the initial state violates contact at contact node ``i``: say what is really wrong."""
-    from ..contact.obstacles import PlaneObstacle, SphereObstacle
+    from ..contact.obstacles import PlaneObstacle, SphereObstacle, SurfaceObstacle
 
     ob, mesh = problem.obstacle, problem.mesh
     node = int(contact.nodes[i])
     g = float(contact.gaps[i])
     where = f"contact node {mesh.node_id(node)} at {np.round(mesh.points[node], 6).tolist()}"
+    if isinstance(ob, SurfaceObstacle) and (side := _side_message(problem)):  # most likely a flipped surface
+        return side
     if g < 0:  # the reference configuration itself is inside the obstacle
         if isinstance(ob, PlaneObstacle):
             inside = np.mean(ob.gaps(mesh.points, 0.0) < 0)
@@ -421,6 +423,11 @@ def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> 
             return (
                 f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {ob.radius:.6g}): "
                 "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
+            )
+        if isinstance(ob, SurfaceObstacle):
+            return (
+                f"{where} starts inside the surface obstacle (gap {g:.3g} < 0): the body must start on the side "
+                "its facets' normals point to; move the surface ('translation') or the body"
             )
         return f"{where} starts inside the obstacle (gap {g:.3g} < 0)"
     return (
@@ -442,26 +449,43 @@ def check_magnitude(**arrays: np.ndarray) -> None:
 
 def _check_body_side(problem: Problem) -> None:
     """The body must start outside the obstacle: refuse a body mostly inside it."""
-    from ..contact.obstacles import PlaneObstacle, SphereObstacle
+    message = _side_message(problem)
+    if message:
+        raise InputError(message)
+
+
+def _side_message(problem: Problem) -> str | None:
+    """Why the body is refused when more than half of its nodes start inside the obstacle (of a
+    surface obstacle, more than half of the nodes that face it: those beyond its edge have an
+    infinite gap), else None."""
+    from ..contact.obstacles import PlaneObstacle, SphereObstacle, SurfaceObstacle
 
     ob, pts = problem.obstacle, problem.mesh.points
     phi = ob.gaps(pts, 0.0)
+    phi = phi[np.isfinite(phi)]
     diam = float(np.ptp(pts, axis=0).max()) or 1.0
-    inside = float(np.mean(phi < -1e-9 * diam))
+    inside = float(np.mean(phi < -1e-9 * diam)) if phi.size else 0.0
     if inside <= 0.5:
-        return
+        return None
     if isinstance(ob, PlaneObstacle):
-        raise InputError(
+        return (
             f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes): the plane's "
             f"normal must point out of the obstacle, towards the body; flip 'normal' (now "
             f"{np.round(ob.normal, 6).tolist()}) or move 'point'"
         )
     if isinstance(ob, SphereObstacle):
-        raise InputError(
+        return (
             f"{100 * inside:.0f}% of the body's nodes lie inside the ball (radius {ob.radius:.6g}): the body must "
             "start outside the sphere obstacle; move 'center' or reduce 'radius'"
         )
-    raise InputError(f"{100 * inside:.0f}% of the body's nodes start inside the obstacle")
+    if isinstance(ob, SurfaceObstacle):
+        return (
+            f"the body lies on the obstacle's side of the surface ({100 * inside:.0f}% of the nodes that face it): "
+            "the facets' normals must point out of the obstacle, towards the body (3D: triangles counterclockwise "
+            "seen from the body; 2D: segments a -> b with the body on their right); set "
+            f"flip = {'false' if ob.flipped else 'true'} or move the surface"
+        )
+    return f"{100 * inside:.0f}% of the body's nodes start inside the obstacle"
 
 
 def check_finite_data(**arrays: np.ndarray) -> None:

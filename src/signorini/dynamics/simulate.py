@@ -39,6 +39,7 @@ from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from ..signals import handled, interrupts_must_raise
 from .bodies import body_summaries, region_summaries
 from .context import Context
+from .events import StopRun
 from .history import COUNTER_KEYS, History
 from .mass import DEFAULT_MASS, GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
@@ -373,6 +374,7 @@ def simulate(
     observers: Iterable[Observer] = (),
     energy: bool = True,
     handle_signals: bool = True,
+    events: Iterable[Any] = (),
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
 
@@ -396,6 +398,10 @@ def simulate(
     observers : extra :class:`~.observers.Observer` objects (e.g. a field writer).
     energy : record the scheme's energy and its identity (a few products per step).
     handle_signals : turn SIGINT/SIGTERM into ``status = "interrupted"``.
+    events : :class:`~.events.Event` s (a function g(t, state), ``terminal``, ``direction``) or
+        names of built-in events (``"separation"``, ``"first-contact"``, ``"rest:0.01"``: each
+        terminal) watched after every level (:mod:`~.events`); a terminal one ends the run
+        after its level, status ``finished``; ``meta['events']`` lists every event met.
 
     Returns
     -------
@@ -413,12 +419,23 @@ def simulate(
     recorder, energies, snaps, obs = make_observers(snapshot_every, energy, progress, observers)
     untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
     obs.insert(1, untagged)
+    watch = None
+    events = list(events)
+    if events:
+        from .events import EventWatch, parse_stop_at
+
+        parse_stop_at([e for e in events if isinstance(e, str)], "events")  # names checked before the loop
+        watch = EventWatch(events)
+        obs.append(watch)  # last: the level is recorded before a terminal event ends the run
     with _catch_signals(handle_signals) as interrupts:
         interrupts.abort_on_second = run.ctx.comm.size == 1
         t_loop = time.perf_counter()
         status, message, n_last = advance(run, starter, obs, interrupts)
         loop = time.perf_counter() - t_loop
         H = _finish(run, n_last, recorder, energies, snaps, setup_seconds, loop)
+        if watch is not None:
+            H.meta["events"] = watch.met
+            H.meta["stop_at"] = [e.name for e in getattr(watch, "events", []) if e.terminal]
         H.untagged_penetration = untagged.series
         H.meta["untagged_boundary_nodes"] = int(untagged.nodes.size)
         H.meta["untagged_worst_penetration"] = untagged.worst[0]  # the failing level of untagged_contact=fail too
@@ -539,6 +556,10 @@ def advance(
                         o.record(run, n, new)
                 except ConvergenceError as exc:  # e.g. an energy that overflows
                     status, message = "failed", f"step {n} (t = {n * dt:.6g}): {exc}"
+                    break
+                except StopRun as exc:  # a terminal event after this level (the last observer): it is kept
+                    state, n_last = new, n
+                    status, message = "finished", str(exc)
                     break
                 state, n_last = new, n
                 run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired

@@ -130,9 +130,13 @@ def check_problem(problem) -> None:
         if not isinstance(problem.obstacle, RigidObstacle):
             extra = "" if pairs else "; or contact pairs with obstacle=None and contact_tag=None"
             raise InputError(
-                f"obstacle must be a rigid obstacle (PlaneObstacle, SphereObstacle), got {_short(problem.obstacle)}"
-                + extra
+                "obstacle must be a rigid obstacle (PlaneObstacle, SphereObstacle, SurfaceObstacle), got "
+                f"{_short(problem.obstacle)}" + extra
             )
+        ob_dim = getattr(problem.obstacle, "dim", None)
+        if ob_dim is not None and ob_dim != problem.mesh.dim:
+            raise InputError(f"the obstacle is {ob_dim}D and the mesh {problem.mesh.dim}D: give the obstacle's "
+                             f"vectors (or the surface's points) {problem.mesh.dim} components")  # fmt: skip
         tag = problem.contact_tag
         tags = [tag] if isinstance(tag, str) else tag
         if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):

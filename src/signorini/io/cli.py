@@ -76,8 +76,12 @@ def _print(text: str) -> None:
         print(text, file=sys.stderr)
 
 
-def _report_warnings(caught: list) -> None:
-    """One line for the warnings a command raised (all of them with SIGNORINI_TRACEBACK=1)."""
+def _report_warnings(caught: list, interrupted: bool = False) -> None:
+    """One line for the warnings a command raised (all of them with SIGNORINI_TRACEBACK=1).
+    After an interruption, the ResourceWarnings it caused (a file an interrupted import or
+    read left open) are not reported: the interruption is the one line to say."""
+    if interrupted:
+        caught = [w for w in caught if not issubclass(w.category, ResourceWarning)]
     if not caught or not is_root():
         return
     if os.environ.get("SIGNORINI_TRACEBACK"):
@@ -108,7 +112,7 @@ def _dispatch(args: argparse.Namespace) -> int:
                                      f"several ranks, not `signorini {args.command}`")  # fmt: skip
                 return args.func(args)
             finally:
-                _report_warnings(caught)
+                _report_warnings(caught, isinstance(sys.exc_info()[1], KeyboardInterrupt))
     except InputError as exc:
         _print(f"signorini: error: {one_line(exc)}")
         return 2

@@ -32,7 +32,9 @@ errors that name the key and the allowed values)::
     obstacle = { type = "plane", point = [0.0, "0.1 * t"], normal = [0.0, 1.0] }
     # friction = { law = "coulomb", coefficient = 0.3 }   # or { law = "tresca", threshold = 0.01 }
     # or { type = "sphere", center = [...], radius = R }: a rigid ball the body stays out of
-    # positions (point, center) may be expressions of t: a moving obstacle
+    # or { type = "surface", file = "die.stl", flip = false }: a triangulated (2D: polygonal) surface
+    # positions (point, center, translation) may be expressions of t: a moving obstacle, and
+    # rotation = { angle = "0.1 * t", axis = [0, 0, 1], center = [...] } turns it (2D: no axis)
 
     [initial]                   # numbers or expressions of x, y, z (numpy functions)
     displacement = [0.0, 0.2]
@@ -65,6 +67,7 @@ errors that name the key and the allowed values)::
 
 from __future__ import annotations
 
+import inspect
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -72,7 +75,7 @@ from pathlib import Path
 from typing import Any
 
 from ..contact.friction import make_friction
-from ..contact.obstacles import OBSTACLES, RigidObstacle
+from ..contact.obstacles import OBSTACLES, ROTATION_KEYS, RigidObstacle, Rotation, read_surface
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
@@ -82,11 +85,11 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
-from ..registry import Motion, Vector
+from ..registry import FilePath, Motion, RotationTable, Vector
 from .expressions import Expression, _short, check_finite, vector_field
 from .schema import REQUIRED, section_keys
 
-TIME_KEYS = {"scheme", "dt", "T"}
+TIME_KEYS = {"scheme", "dt", "T", "stop_at"}
 SECTIONS = section_keys()  # the fixed keys; [time] and [solver] also take registry-defined ones
 
 
@@ -104,6 +107,8 @@ class Case:
     limits: dict[str, Any] = field(default_factory=dict)
     #: whether the file names its mass variant ([solver] mass) or takes the default
     mass_named: bool = False
+    #: built-in events that end the run ([time] stop_at)
+    stop_at: list[str] = field(default_factory=list)
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -353,24 +358,88 @@ def _tractions(blocks: Any, mesh: Mesh) -> dict:
     return out
 
 
-def _obstacle(ob: Any, dim: int) -> RigidObstacle:
-    """An obstacle of the registry; vector parameters may be expressions of t."""
+def _obstacle(ob: Any, dim: int, base: Path | None = None) -> RigidObstacle:
+    """An obstacle of the registry; vector parameters may be expressions of t, ``rotation`` is a
+    table of :data:`~signorini.contact.obstacles.ROTATION_KEYS`, a ``file`` is relative to ``base``
+    (the case file's directory).  A parameter of default None is required; the others may be
+    left out (the class's default: no rotation, no translation, no flip)."""
     if not isinstance(ob, dict):
         raise InputError("missing table 'contact.obstacle' = { type = \"plane\", point = [...], normal = [...] }")
     kind = OBSTACLES.get(check_choice("contact.obstacle.type", ob.get("type", "plane"), set(OBSTACLES.names())))
     _keys("contact.obstacle", ob, {"type"} | {p.name for p in kind.parameters})
-    kwargs = {}
+    kwargs: dict[str, Any] = {}
     for p in kind.parameters:
         key = f"contact.obstacle.{p.name}"
         if p.name not in ob:
-            raise InputError(f"missing key '{key}'")
+            if p.default is None:
+                raise InputError(f"missing key '{key}'")
+            continue
         if p.kind is Motion:
             kwargs[p.name] = vector_field(key, ob[p.name], dim, allow_space=False)
         elif p.kind is Vector:
             kwargs[p.name] = _vector(key, ob[p.name], dim)
+        elif p.kind is RotationTable:
+            kwargs[p.name] = _rotation(key, ob[p.name], dim)
+        elif p.kind is FilePath:
+            kwargs[p.name] = read_surface(_file_path(key, ob[p.name], base), dim, where=f"'{key}'")
+        elif p.kind is bool:
+            kwargs[p.name] = _bool(key, ob[p.name])
         else:
             kwargs[p.name] = p.convert(_number(key, ob[p.name]), "contact.obstacle")
+    if "dim" in inspect.signature(kind.obj).parameters:
+        kwargs["dim"] = dim
     return kind.obj(**kwargs)
+
+
+def _bool(key: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise InputError(f"'{key}' must be true or false, got {_short(v)}")
+    return v
+
+
+def _file_path(key: str, v: Any, base: Path | None) -> Path:
+    """A file name of the case file, relative to its directory."""
+    if not isinstance(v, str) or not v.strip():
+        raise InputError(f"'{key}' must be a file name (a non-empty string), got {_short(v)}")
+    path = Path(v).expanduser()
+    return path if path.is_absolute() or base is None else base / path
+
+
+def _rotation(key: str, table: Any, dim: int) -> Rotation:
+    """``rotation = { angle = ..., axis = [...], center = [...] }``: angle a number or an expression
+    of t [rad]; axis in 3D only (in 2D the axis is out of the plane); center optional (the
+    obstacle's default) except for a surface."""
+    if not isinstance(table, dict):
+        raise InputError(f"'{key}' must be an inline table {{ angle = ..., axis = [...], center = [...] }}, "
+                         f"got {_short(table)}")  # fmt: skip
+    _keys(key, table, {p.name for p in ROTATION_KEYS})
+    if dim == 1:
+        raise InputError(f"'{key}': a 1D obstacle cannot rotate")
+    if "angle" not in table:
+        raise InputError(f"missing key '{key}.angle' (radians: a number or an expression of t)")
+    angle = table["angle"]
+    if isinstance(angle, str):
+        ex = Expression(f"{key}.angle", angle)
+        if ex.variables - {"t"}:
+            raise InputError(f"'{key}.angle': only t may appear here, got {sorted(ex.variables)}")
+        value = lambda t, ex=ex: float(check_finite(ex.key, ex.text, ex(None, t), None, t)[0])  # noqa: E731
+        if not ex.time_dependent:  # a constant: a fixed rotated obstacle
+            value = value(0.0)
+    else:
+        if isinstance(angle, (list, dict)):
+            raise InputError(f"'{key}.angle' must be a number or an expression of t, got {_short(angle)}")
+        value = _number(f"{key}.angle", angle)
+        if not math.isfinite(value):
+            raise InputError(f"'{key}.angle' must be finite, got {_short(angle)}")
+    if dim == 2 and "axis" in table:
+        raise InputError(f"'{key}.axis': in 2D the axis is out of the plane (angles counterclockwise); omit 'axis'")
+    if dim == 3 and "axis" not in table:
+        raise InputError(f"missing key '{key}.axis' (3D: the direction of the axis)")
+    axis = _vector(f"{key}.axis", table["axis"], 3) if "axis" in table else None
+    if axis is not None and not any(axis):
+        raise InputError(f"'{key}.axis' must be a non-zero vector, got {axis}")
+    center = _vector(f"{key}.center", table["center"], dim) if "center" in table else None
+    return Rotation(value, axis, center)
 
 
 def _time(tm: Any) -> tuple[str, float, float, dict]:
@@ -489,7 +558,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     rigid = not pairs or "tag" in c or "obstacle" in c
     tag = _contact_tags(mesh, c) if rigid else None
     where = _where(c) if rigid else None
-    obstacle = _obstacle(c.get("obstacle"), dim) if rigid else None
+    obstacle = _obstacle(c.get("obstacle"), dim, path.parent) if rigid else None
     friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])
@@ -521,7 +590,10 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
         materials=materials, initial_regions=initial_regions, gravity=gravity,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
-    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named)
+    from ..dynamics.events import parse_stop_at
+
+    stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
+    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at)
 
 
 def case_problem(path: str | Path) -> Problem:

@@ -149,6 +149,14 @@ def _add_run(sub) -> None:
         "--dt", type=float, default=None, help="time step (default h/2; hertz: t_c/(25n)); T must be a multiple of it"
     )
     bench.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D; hertz: 1.5 t_c)")
+    both.add_argument(
+        "--stop-at",
+        default=None,
+        metavar="EVENT",
+        help="end the run (status finished) at the first level where an event occurs: first-contact, separation "
+        "(every contact node free again after a contact), rest[:FRACTION] (kinetic energy below that fraction of "
+        "its initial value, default 0.01); comma-separated for several (case file: [time] stop_at)",
+    )
     bench.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     out = r.add_argument_group("output and limits (benchmarks and case files; override the file's)")
     out.add_argument(

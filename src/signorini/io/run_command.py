@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..dynamics.events import parse_stop_at
 from ..dynamics.mass import DEFAULT_MASS
 from ..dynamics.problem import contact_node_count, with_friction
 from ..errors import ConvergenceError, InputError
@@ -43,6 +44,8 @@ class RunSpec:
     case_file: Path | None = None
     limits: dict = field(default_factory=dict)
     measure: Any = None  # a benchmark's extra figures (observers, summary fields, text)
+    #: built-in events that end the run (--stop-at, [time] stop_at)
+    events: list = field(default_factory=list)
 
 
 def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
@@ -141,7 +144,8 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     scheme = load_scheme(args.scheme or "cn")
     measure = bench.measure(params) if bench.measure is not None else None
     return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
-                   sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure)  # fmt: skip
+                   sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure,
+                   events=parse_stop_at(args.stop_at))  # fmt: skip
 
 
 def case_spec(args: argparse.Namespace) -> RunSpec:
@@ -164,8 +168,9 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     check_size(mesh_counts(case.problem), case.dt, case.T, limits, sol)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
     problem = with_friction(case.problem, args.friction)
+    events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
     return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
-                   sch, sol, every, meta, Path(args.target), limits)  # fmt: skip
+                   sch, sol, every, meta, Path(args.target), limits, events=events)  # fmt: skip
 
 
 class LazyFieldWriter:
@@ -252,6 +257,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 scheme_options=spec.scheme_options,
                 solver_options=spec.solver_options,
                 observers=observers,
+                events=spec.events,
             )
         except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
             write_setup_failure(rd, spec, exc)
@@ -287,7 +293,7 @@ def execute_follower(spec: RunSpec, comm) -> int:
     observers = spec.measure.observers() if spec.measure is not None else []
     try:
         H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
-                     solver_options=spec.solver_options, observers=observers)  # fmt: skip
+                     solver_options=spec.solver_options, observers=observers, events=spec.events)  # fmt: skip
     except ConvergenceError:
         return EXIT_CODES["failed"]
     # the loop's stop is agreed: a signal from now on must not end this rank on its own

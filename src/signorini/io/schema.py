@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..contact.friction import CONTACT_LAWS
-from ..contact.obstacles import OBSTACLES
+from ..contact.obstacles import OBSTACLES, ROTATION_KEYS
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
 from ..linalg import BACKENDS, SOLVER_OPTIONS
@@ -116,8 +116,10 @@ SECTIONS: tuple[Section, ...] = (
         "contact",
         "The contact boundary and the rigid obstacle.  `obstacle` is an inline table with a `type` from the "
         "obstacle registry and that type's parameters (below).  A plane's `normal` points out of the "
-        "obstacle, towards the body; the body stays outside a sphere.  Positions may be expressions of t "
-        "(a moving obstacle).",
+        "obstacle, towards the body; the body stays outside a sphere; a `surface` (a mesh file: triangles in "
+        "3D, segments in 2D) has its facets' normals pointing towards the body.  Positions (`point`, `center`, "
+        "`translation`) may be expressions of t (a moving obstacle), and `rotation = { angle = \"0.1 * t\", "
+        "axis = [0.0, 0.0, 1.0], center = [...] }` turns it (in 2D the axis is out of the plane: no `axis`).",
         (
             Key("tag", "string or list of strings", "required (unless pairs)", "",
                 "boundary tag(s) of Gamma_C (a list: their union)", _ex('"xmin"', '"ymin"', '"zmin"')),
@@ -173,6 +175,9 @@ SECTIONS: tuple[Section, ...] = (
             Key("scheme", "string", "crank-nicolson", "", "a name of the scheme registry", _same('"crank-nicolson"')),
             Key("dt", "number > 0", "required", "time", "time step", _ex("0.0125", "0.0125", "0.0125")),
             Key("T", "number >= dt", "required", "time", "final time", _ex("3.0", "1.0", "0.5")),
+            Key("stop_at", "string or list of strings", "none", "",
+                "end the run (status finished) at the first level where an event occurs: first-contact, "
+                "separation, rest[:FRACTION] (summary.json events)"),
         ),
         required=True,
         open_keys="the parameters of the chosen scheme",
@@ -229,6 +234,11 @@ def _registry_lines() -> list[str]:
     for e in OBSTACLES:
         params = ", ".join(f"`{p.name}` ({p.doc})" for p in e.parameters)
         md.append(f"  * `{e.name}`: {e.description}; {params}")
+    keys = ", ".join(f"`{p.name}` ({p.doc})" for p in ROTATION_KEYS)
+    md.append(
+        f"* `[contact] obstacle` `rotation` keys: {keys}.  The obstacle at t is the given one turned by angle(t) "
+        "about the axis through `center`, then translated (the axis moves with the obstacle; docs/bodies.md)."
+    )
     md.append("")
     return md
 
