@@ -291,15 +291,18 @@ class ContactSet:
 
         Their normal, gap, master facet, facet dofs and shape functions, and B's rows change;
         the tangents (from the normals) are recomputed."""
-        from .pairs import slid_rows
+        from .pairs import master_geometry, slid_rows
 
         if not self.has_pair_rows:
             return np.zeros(0, dtype=np.int64)
         mesh, d = space.mesh, space.dim
+        if getattr(self, "_pair_geometry", None) is None:  # the master tags' facets: constant over a run
+            self._pair_geometry = [master_geometry(mesh, p) for p in pairs]
+            self._pair_rows = [np.flatnonzero(self.pair == k) for k in range(len(pairs))]
         changed = []
         for k, pair in enumerate(pairs):
-            rows = np.flatnonzero(self.pair == k)
-            r = slid_rows(mesh, pair, rows, self.nodes[rows], self.master_facet[rows], U)
+            rows = self._pair_rows[k]
+            r = slid_rows(mesh, pair, rows, self.nodes[rows], self.master_facet[rows], U, self._pair_geometry[k])
             if r is None:
                 continue
             self.normals[r.rows] = r.normals

@@ -42,7 +42,9 @@ class DelassusColumns:
         self.Bt = self.B.T.tocsc()
         self.budget = float(budget)
         self.slot = np.full(nc, -1, dtype=np.intp)  # column slot of each node, -1: not computed
-        self.count = 0
+        self.count = 0  # slots in use (computed columns, and freed slots awaiting reuse)
+        self.solved = 0  # columns solved (a column solved again after its row changed counts again)
+        self._free: list[int] = []  # slots of columns dropped by replace_rows
         self._W = np.empty((nc, 0))
         # Z stored transposed, one row per computed column: gathering the active columns
         # then reads contiguous memory
@@ -109,31 +111,52 @@ class DelassusColumns:
             extra = extra[(self.slot[extra] < 0) & ~np.isin(extra, new)]
             new = np.concatenate([new, extra[: BLOCK - new.size % BLOCK]])
         t0 = time.perf_counter()
-        self._grow(self.count + new.size)
+        reuse = min(len(self._free), new.size)
+        fresh = new.size - reuse
+        self._grow(self.count + fresh)
+        slots = np.concatenate([np.asarray(self._free[:reuse], dtype=np.intp),
+                                np.arange(self.count, self.count + fresh, dtype=np.intp)])  # fmt: skip
+        del self._free[:reuse]
+        self.count += fresh
         for k in range(0, new.size, BLOCK):
             J = new[k : k + BLOCK]
             Zj, Wj = self._solve_block(J)
-            s = np.arange(self.count, self.count + J.size)
+            s = slots[k : k + BLOCK]
             self._W[:, s] = Wj
             if self._Zt is not None:
                 self._Zt[s] = Zj.T
             self.slot[J] = s
-            self.count += J.size
+            self.solved += J.size
         self.seconds += time.perf_counter() - t0
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
-        """B's rows ``rows`` changed (a contact pair re-paired): their columns of Z and W are
-        solved again (computed now, in their slots or new ones) and, K being symmetric, W's
-        rows ``rows`` in every stored column follow from them: W[i, j] = B_j K^-1 B_i^T = W[j, i]."""
+        """B's rows ``rows`` changed (a contact pair re-paired).
+
+        With the Z columns stored: W's rows ``rows`` in every stored column are B'_rows Z (no
+        solve), and the changed rows' own columns are dropped, to be solved again by
+        :meth:`ensure` if the node becomes a candidate.  Without Z: their columns of Z and W
+        are solved now (in their slots or new ones) and, K being symmetric, W's rows ``rows``
+        in every stored column follow from them: W[i, j] = B_j K^-1 B_i^T = W[j, i]."""
         rows = np.unique(np.asarray(rows, dtype=np.intp))
         self.B = sp.csr_matrix(B)
         self.Bt = self.B.T.tocsc()
         t0 = time.perf_counter()
+        if self._Zt is not None:
+            dropped = rows[self.slot[rows] >= 0]
+            self._free.extend(self.slot[dropped].tolist())
+            self.slot[dropped] = -1  # their columns: solved again when asked for
+            known = np.flatnonzero(self.slot >= 0)
+            if known.size:
+                s = self.slot[known]
+                self._W[rows[:, None], s[None, :]] = self._row_products(rows, s)
+            self.seconds += time.perf_counter() - t0
+            return
         new = rows[self.slot[rows] < 0]
         if new.size:
             self._grow(self.count + new.size)
             self.slot[new] = np.arange(self.count, self.count + new.size)
             self.count += new.size
+        self.solved += rows.size
         for k in range(0, rows.size, BLOCK):
             J = rows[k : k + BLOCK]
             Zj, Wj = self._solve_block(J)
@@ -144,6 +167,10 @@ class DelassusColumns:
             known = np.flatnonzero(self.slot >= 0)
             self._W[J[:, None], self.slot[known][None, :]] = Wj[known].T
         self.seconds += time.perf_counter() - t0
+
+    def _row_products(self, rows: np.ndarray, slots: np.ndarray) -> np.ndarray:
+        """B[rows] Z[:, slots] from the stored Z (|rows|, |slots|)."""
+        return np.asarray(self.B[rows] @ self._Zt[slots].T)
 
     def W(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """W[rows][:, cols] (the columns must be known), shape (len(rows), len(cols))."""

@@ -27,6 +27,10 @@ class DistributedColumns(DelassusColumns):
         self.Bloc = sp.csr_matrix(B)[:, self.factor.lo : self.factor.hi]
         super().replace_rows(rows, B)
 
+    def _row_products(self, rows: np.ndarray, slots: np.ndarray) -> np.ndarray:
+        """B[rows] Z[:, slots], each rank from its own rows of Z, summed over the ranks."""
+        return self.factor.allreduce(np.asarray(self.Bloc[rows] @ self._Zt[slots].T))
+
     def _budget_rows(self) -> int:
         # the largest block of rows: every rank takes the same keep-or-drop decision (one
         # rank dropping Z while another keeps it would send them into different collectives)

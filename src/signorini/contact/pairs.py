@@ -351,8 +351,14 @@ class SlidRows:
     facet_nodes: np.ndarray  # (m, nfv) its nodes, outward orientation
 
 
+def master_geometry(mesh: Mesh, pair: ContactPair) -> tuple[np.ndarray, np.ndarray]:
+    """(outward unit normals (nf, d), facets' nodes in outward order (nf, nfv)) of the pair's
+    master tag (:func:`facet_owner_normals`; constant over a run: computed once)."""
+    return facet_owner_normals(mesh, mesh.facets_of(pair.master))
+
+
 def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray, facet: np.ndarray,
-              U: np.ndarray) -> SlidRows | None:  # fmt: skip
+              U: np.ndarray, geometry: tuple[np.ndarray, np.ndarray] | None = None) -> SlidRows | None:  # fmt: skip
     """Small sliding of one pair: the rows ``rows`` (slave nodes ``slave``, current facets
     ``facet``) whose slave node's projection left its facet in the configuration X + U are
     projected again, in that configuration, on the closest master facet; their new row is
@@ -362,12 +368,11 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
 
     with N_j at the deformed projection and n_m the reference normal there, so that
     g - B u = n_m . ((x_s + u_s) - sum_j N_j (x_j + u_j)): the current normal gap.  None when
-    no row left its facet."""
+    no row left its facet.  ``geometry``: :func:`master_geometry` of the pair (computed when None)."""
     d = mesh.dim
     if d == 1 or rows.size == 0:
         return None
-    facets = mesh.facets_of(pair.master)
-    normals_f, oriented = facet_owner_normals(mesh, facets)
+    normals_f, oriented = master_geometry(mesh, pair) if geometry is None else geometry
     Xd = mesh.points + U.reshape(-1, d)
     kind = "line" if d == 2 else ("triangle" if oriented.shape[1] == 3 else "quad")
     left = _outside(Xd[slave], Xd[oriented[facet]], kind)
@@ -376,7 +381,7 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
     rows, slave = rows[left], slave[left]
     Pd = Xd[oriented]
     centres = Pd.mean(axis=1)
-    k = min(CANDIDATES, len(facets))
+    k = min(CANDIDATES, len(oriented))
     _, cand = cKDTree(centres).query(Xd[slave], k=k)
     cand = np.asarray(cand).reshape(slave.size, k)
     xs = np.repeat(Xd[slave], k, axis=0)

@@ -61,7 +61,7 @@ class SchurDelassus:
         W += W.T  # symmetrized in place (round-off)
         W *= 0.5
         self._W = W
-        self.count = nc
+        self.count = self.solved = nc
         self.slot = np.arange(nc)
         self.seconds = time.perf_counter() - t0
 

@@ -272,9 +272,9 @@ class CondensedContactSolver(ContactSolver):
         self.timings["bare_solve"] = _best_time(self.factor.solve, n)
         self._bare = {"bare_solve": (self.factor.solve, n)}
         self._setup_solves = self.factor.solves
-        self._setup_columns, self._setup_seconds = self.delassus.count, self.delassus.seconds
+        self._setup_columns, self._setup_seconds = self.delassus.solved, self.delassus.seconds
         self.factor_bytes = self.factor.nbytes
-        self.counters["delassus_columns"] = self.delassus.count
+        self.counters["delassus_columns"] = self.delassus.solved
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
         """The Delassus columns of the changed rows (every component of their nodes) are
@@ -291,9 +291,9 @@ class CondensedContactSolver(ContactSolver):
         """Counters and timings: ``linear_solves`` are the solves of the steps (the columns
         computed lazily are counted in ``delassus_columns``, their time in ``condensation``
         and, for the part inside the loop, ``condensation_in_loop``)."""
-        in_loop = self.delassus.count - self._setup_columns
+        in_loop = self.delassus.solved - self._setup_columns
         self.counters["linear_solves"] = self.factor.solves - self._setup_solves - in_loop
-        self.counters["delassus_columns"] = self.delassus.count
+        self.counters["delassus_columns"] = self.delassus.solved
         self.timings["condensation"] = self.delassus.seconds
         self.timings["condensation_in_loop"] = self.delassus.seconds - self._setup_seconds
 
