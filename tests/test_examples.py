@@ -51,3 +51,85 @@ def test_tutorial_friction_example(capsys):
     g_sin, g_cos = np.sin(np.radians(30.0)), np.cos(np.radians(30.0))
     assert abs(accel / (g_sin - 0.3 * g_cos) - 1) <= 1e-6
     assert "stick / slip nodes at the end: 0 9" in out
+
+
+def _summary(out: Path) -> dict:
+    import json
+
+    return json.loads((out / "summary.json").read_text())
+
+
+def test_ball_on_plate_example(tmp_path):
+    """examples/ball_on_plate.toml (committed .msh, no gmsh needed): the steel ball hits the
+    clamped aluminium plate once and bounces back with most of its speed; the default mass
+    keeps each body's mass and inertia (no mass moved between the bodies), CN keeps the energy."""
+    from signorini.io.cli import main
+
+    out = tmp_path / "r"
+    assert main(["run", str(ROOT / "examples" / "ball_on_plate.toml"), "--out", str(out), "--quiet"]) == 0
+    s = _summary(out)
+    assert s["status"] == "finished" and s["impacts"] == 1
+    plate, ball = sorted(s["bodies"], key=lambda b: b["regions"])[::-1]
+    assert ball["regions"] == ["ball"] and plate["regions"] == ["plate"]
+    for body in s["bodies"]:  # measured 1 +- 1e-15 each: the variant does not couple the two bodies
+        assert abs(body["mass_effect"]["mass_ratio"] - 1) <= 1e-12 and not body["mass_effect"]["changes_physics"]
+    # ball: -2 m/s in, +1.935 m/s out (measured restitution 0.967; the rest of the energy vibrates the plate)
+    restitution = ball["momentum"][2] / ball["mass"] / 2.0
+    assert 0.9 <= restitution <= 0.99
+    assert s["energy_max_relative_drift"] <= 1e-3  # measured 1.5e-4
+    assert s["oscillation_index"] <= 1.5  # measured 1.20 (two humps: the plate flexes under the ball)
+    assert s["pairs"][0]["inactive_slave_nodes"] == 0 and s["untagged_penetration_max"] == 0.0
+    assert s["penetration_max"] <= 1e-12 and s["max_complementarity_residual"] <= 1e-12
+
+
+def test_block_on_block_example():
+    """examples/block_on_block.toml: the upper block slides on the lower one, decelerating at
+    mu g, and sticks after sliding v0^2 / (2 mu g) (the rigid block's distance; measured
+    -1.6%: the elastic blocks), with the normal force m g."""
+    from signorini.dynamics.observers import CentreOfMassRecorder
+    from signorini.dynamics.simulate import simulate
+    from signorini.io.config import load_case
+
+    case = load_case(ROOT / "examples" / "block_on_block.toml")
+    com = CentreOfMassRecorder([1.0, 0.0], "upper")
+    H = simulate(case.problem, case.scheme, case.dt, case.T, case.mass, observers=[com])
+    assert H.status == "finished" and H.impacts == 1
+    v0, mu, g = 0.2, 0.3, 9.81
+    assert abs(com.position[-1] / (v0**2 / (2 * mu * g)) - 1) <= 0.04  # measured 6.69 mm for 6.80 mm
+    assert abs(com.velocity[-1]) <= 0.005 * v0  # stopped (measured 2.5e-4 v0)
+    stop = np.flatnonzero(com.velocity <= 0.0)[0]
+    assert abs(H.t[stop] / (v0 / (mu * g)) - 1) <= 0.05  # stops after v0 / (mu g) = 68 ms
+    stick, slip = H.friction_counts()
+    assert stick[-1] == 21 and slip[-1] == 0  # every slave node sticks at the end
+    assert abs(-H.lambda_sum[-1] / (0.005 * 1000.0 * g) - 1) <= 0.01  # the weight m g = 49.05 N
+
+
+def test_two_body_study_quick(capsys):
+    """examples/two_body_study.py --quick: its tables print, and what they show holds: on the
+    bars CN keeps the energy and the exact force only with the contact inertia removed, BE
+    dissipates, no scheme or mass changes the momentum of two free bodies, the errors fall with
+    h and dt; Hertz's peak force of two balls within 15% at level 1; the ball bounces on the plate."""
+    import runpy
+
+    from backends import HAS_GMSH
+
+    mod = runpy.run_path(str(ROOT / "examples" / "two_body_study.py"))
+    res = mod["main"](["--quick"] + ([] if HAS_GMSH else ["--no-3d"]))
+    out = capsys.readouterr().out
+    assert out.count("| scheme | mass |") == (4 if HAS_GMSH else 3)
+    c1 = res["collision1d"]
+    for (scheme, mass, n), r in c1.items():
+        assert r["status"] == "finished" and r["momentum"] <= 1e-10, (scheme, mass, n)  # measured <= 6.3e-12
+    for mass in ("seed", "moment-preserving"):  # measured n = 20: force -0.1%, -0.8%; velocities 0.4%, 1.2%; 3e-4, 2e-4
+        r = c1["cn", mass, 20]
+        assert abs(r["force"]) <= 0.02 and r["velocity"] <= 0.02 and r["energy"] <= 1e-3
+        assert abs(c1["cn", mass, 40]["force"]) < abs(c1["cn", mass, 10]["force"])
+    assert c1["cn", "standard", 20]["energy"] >= 1.0 and c1["cn", "standard", 20]["osc"] >= 4  # measured 2.4, 8.6
+    assert all(c1["be", m, 20]["energy"] >= 0.05 for m in ("standard", "seed"))  # measured 0.15, 0.12: dissipates
+    if HAS_GMSH:
+        for (scheme, mass), r in res["collision3d"].items():
+            assert r["momentum"] <= 1e-10 and r["osc"] <= 1.1, (scheme, mass)  # measured <= 1.4e-12, 1.00
+            if scheme == "cn":
+                assert abs(r["peak"]) <= 0.15 and r["energy"] <= 5e-3  # measured -9.2%/-9.4%, 2.1e-3/1.8e-3
+    for (scheme, mass), r in res["ball_on_plate"].items():
+        assert 0.9 <= r["restitution"] <= 0.99 and r["energy"] <= 1e-3, (scheme, mass)  # measured 0.970/0.968

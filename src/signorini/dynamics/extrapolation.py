@@ -197,23 +197,41 @@ def _grow(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, todo: np.ndar
         if todo.size == 0:
             return todo
         R.data[:] = 1
-    free = np.flatnonzero(~is_c)
-    if free.size >= d + 1:
+    # the nearest non-contact nodes in space, of the contact node's own body only (a mass
+    # variant never couples two bodies: M stays block diagonal over them)
+    label = body_labels(mesh)
+    left = []
+    for b in np.unique(label[contact_nodes[todo]]):
+        mine = todo[label[contact_nodes[todo]] == b]
+        free = np.flatnonzero(~is_c & (label == b))
+        if free.size < d + 1:
+            left.append(mine)
+            continue
         from scipy.spatial import cKDTree
 
         tree = cKDTree(pts[free])
         k = min(free.size, 4 * (d + 1))
-        while todo.size:
-            _, idx = tree.query(pts[contact_nodes[todo]], k=k)
-            cand = free[np.asarray(idx).reshape(todo.size, -1)]
-            w, ok = _fit(pts, pts[contact_nodes[todo]], cand, np.ones(cand.shape, dtype=bool), limit)
+        while mine.size:
+            _, idx = tree.query(pts[contact_nodes[mine]], k=k)
+            cand = free[np.asarray(idx).reshape(mine.size, -1)]
+            w, ok = _fit(pts, pts[contact_nodes[mine]], cand, np.ones(cand.shape, dtype=bool), limit)
             if ok.any():
-                yield contact_nodes[todo[ok]], cand[ok], w[ok]
-            todo = todo[~ok]
+                yield contact_nodes[mine[ok]], cand[ok], w[ok]
+            mine = mine[~ok]
             if k == free.size:
                 break
             k = min(free.size, 2 * k)
-    return todo
+        left.append(mine)
+    return np.sort(np.concatenate(left)) if left else todo[:0]
+
+
+def body_labels(mesh: Mesh) -> np.ndarray:
+    """The body (connected component) of every node, computed once per mesh."""
+    if "bodies" not in mesh._cache:
+        from ..fem.mesh import bodies
+
+        mesh._cache["bodies"] = bodies(mesh)
+    return mesh._cache["bodies"]
 
 
 def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name: str) -> sp.csr_matrix:
@@ -240,14 +258,19 @@ def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name:
         todo, R = todo[~got], R[~got]
         if todo.size == 0:
             return out.tocsr()
-    free = np.flatnonzero(~is_c)
-    if free.size == 0:
-        raise InputError(f"mass {name!r}: every node of the body is a contact node: no node can carry their mass")
     from scipy.spatial import cKDTree  # far from every non-contact node in the graph: the nearest in space
 
     seeds_c = sp.csr_matrix(seeds)[todo]
     counts = np.maximum(np.diff(seeds_c.indptr), 1)
     centres = (seeds_c @ mesh.points) / counts[:, None]
-    _, idx = cKDTree(mesh.points[free]).query(centres, k=1)
-    out[todo, free[np.asarray(idx).ravel()]] = 1.0
+    label = body_labels(mesh)
+    row_body = label[seeds_c.indices[seeds_c.indptr[:-1]]]  # each set's body (its first node's)
+    for b in np.unique(row_body):
+        mine = np.flatnonzero(row_body == b)
+        free = np.flatnonzero(~is_c & (label == b))  # of the same body: never across two bodies
+        if free.size == 0:
+            raise InputError(f"mass {name!r}: every node of body {int(b)} is a contact node: no node of it can carry "
+                             "their mass")  # fmt: skip
+        _, idx = cKDTree(mesh.points[free]).query(centres[mine], k=1)
+        out[todo[mine], free[np.asarray(idx).ravel()]] = 1.0
     return out.tocsr()

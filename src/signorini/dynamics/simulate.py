@@ -469,6 +469,13 @@ def _finish(run: Run, n_last: int, recorder, energies, snaps, setup_seconds: flo
     H.meta["regions"] = region_summaries(disc.space.mesh, disc.problem.material, disc.problem.materials)
     H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.material.rho,
                                       None if last is None else last.V)  # fmt: skip
+    bodies = H.meta["bodies"]
+    if len(bodies) > 1:  # what the variant does to each body (the whole's figures can hide it)
+        for k, b in enumerate(bodies):
+            text = effect_warning(b["mass_effect"]) if b.get("mass_effect") else None
+            if text:
+                regions = f" (regions {', '.join(b['regions'])})" if b["regions"] else ""
+                H.meta["warnings"].append(f"mass {disc.mass_name!r} on body {k}{regions} {text}")
     if disc.contact.pair_info is not None:  # per pair: tags, rows, inactive slave nodes, contact law
         H.meta["pairs"] = [dict(p) for p in disc.contact.pair_info]
     if disc.contact.obstacle_info and disc.contact.obstacle_info["nodes_beyond_edge"]:
