@@ -86,6 +86,29 @@ def friction_line(H, s: dict) -> str:
     )
 
 
+def bodies_lines(s: dict) -> str:
+    """With several bodies: per body its regions, mass and, at the last level, momentum and
+    kinetic energy; per contact pair its rows, law and re-pairings."""
+    bodies = s.get("bodies") or []
+    if len(bodies) < 2:
+        return ""
+    out = []
+    for k, b in enumerate(bodies):
+        regions = f" ({', '.join(b['regions'])})" if b.get("regions") else ""
+        mass = f"mass {b['mass']:.6g}" if b.get("mass") is not None else "mass n/a"
+        end = ""
+        if b.get("momentum") is not None:
+            end = (f", at the end momentum [{', '.join(f'{x:.4g}' for x in b['momentum'])}], "
+                   f"kinetic energy {b['kinetic_energy']:.4g}")  # fmt: skip
+        out.append(f"  body {k}{regions}: {b['nodes']} nodes, {mass}{end}\n")
+    for p in s.get("pairs") or []:
+        law = (p.get("friction") or {}).get("law", "frictionless")
+        again = f", {p['repaired_rows']} re-paired" if p.get("repaired_rows") else ""
+        out.append(f"  pair {p['slave']} / {p['master']}: {p['rows']} rows ({p['inactive_slave_nodes']} slave nodes "
+                   f"facing nothing), {law}{again}\n")  # fmt: skip
+    return "".join(out)
+
+
 def one_screen_summary(H) -> str:
     s = H.summary()
     c = s["counters"]
@@ -98,6 +121,7 @@ def one_screen_summary(H) -> str:
         f"{friction_line(H, s)}"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
         f"{mass_effect_line(s)}"
+        f"{bodies_lines(s)}"
         f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
         f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves" + factorization_tip(s)
     )
