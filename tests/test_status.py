@@ -67,14 +67,15 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     while not started() and time.perf_counter() < deadline:
         time.sleep(0.05)
     time.sleep(1.5)
-    t0 = time.perf_counter()
     proc.send_signal(signal.SIGINT)
-    err = proc.communicate(timeout=20)[1]
-    assert time.perf_counter() - t0 < 3.0  # the step in progress finishes, then the results are written
+    err = proc.communicate(timeout=20)[1]  # a run that did not stop is the timeout's failure
     assert proc.returncode == 130, err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and "interrupted" in err
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "interrupted" and "SIGINT" in s["message"] and not s["success"]
+    # the step in progress finished and nothing after it ran (counted in steps, not seconds): the
+    # message names the last level, which is the history's
+    assert f"after step {s['steps']} of " in s["message"] or f"during step {s['steps'] + 1} of " in s["message"]
     rows = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
     assert 0 < s["steps"] == rows.shape[0] - 1 < 400000
     with meshio.xdmf.TimeSeriesReader(str(out / "fields.xdmf")) as r:

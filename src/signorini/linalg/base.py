@@ -325,10 +325,11 @@ SMALL = 30_000  # below this many dofs (2D; 3D below about 4k dofs) SuperLU fact
 #: (the bars with dt = h/2: ratio <= 0.85); the Hertz ball, with small cells at the pole
 #: and dt = t_c/(25 n), has ratios up to 2,500 and needs about 290 (docs/design.md)
 CG_FRIENDLY_RATIO = 4.0
-#: the Cholesky backends ``auto`` considers, fastest first (docs/performance.md, "A fast 3D
-#: factor on the plain install": on the 34k-dof Hertz ball and the 35k-dof whole-skin bracket,
-#: Pardiso's set-up is 1 to 3 times shorter than CHOLMOD's, whose lazy Delassus columns cvxopt
-#: solves one right-hand side at a time, at steps within 15% of each other)
+#: the Cholesky backends ``auto`` considers, in this order (docs/performance.md, "A fast 3D
+#: factor on the plain install": on the 34k-dof Hertz ball and the 35k-dof whole-skin bracket
+#: their whole runs, set-up, steps and lazy Delassus columns, are within 6% of each other,
+#: Pardiso's set-up being the more sensitive to a loaded machine; Pardiso alone also has the
+#: Schur condensation)
 CHOLESKY = ("pardiso", "cholmod")
 
 
@@ -347,9 +348,10 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
     as its nested-dissection factor is estimated smaller than SuperLU's: in 3D from about
     4,000 dofs (bar3d n = 8, 19,683 dofs: Pardiso 104 MB against 200 MB, set-up 1.2 s
     against 3.4 s; the Hertz ball at 13.5k dofs: CHOLMOD with METIS 0.99 s against 2.6 s,
-    at 35.6k dofs 2.6 s against 40 s; docs/performance.md).  CHOLMOD (cvxopt, with pymetis)
-    is a core dependency where both have wheels (pyproject.toml), so the plain install has
-    it there.  Else SuperLU for small systems (< 30k dofs: it has no start-up, and 2D
+    at 35.6k dofs 2.6 s against 40 s; docs/performance.md).  cvxopt (CHOLMOD) and pymetis
+    (METIS) are core dependencies each where it has wheels (pyproject.toml), so the plain
+    install has CHOLMOD on Linux x86-64/aarch64, Windows x86-64 and macOS up to Python 3.12.
+    Else SuperLU for small systems (< 30k dofs: it has no start-up, and 2D
     factors are alike), then a Cholesky backend.  Without one, a large 3D system goes to
     CG when ``cg_friendly`` (the operator is mass-dominated, see :data:`CG_FRIENDLY_RATIO`,
     and the scheme can use the CG contact solve): SuperLU's LU of a 3D operator is slow and

@@ -1,4 +1,5 @@
-"""Supernodal sparse Cholesky (CHOLMOD inside ``cvxopt``, optional extra ``cholmod``).
+"""Supernodal sparse Cholesky (CHOLMOD inside ``cvxopt``: a core dependency where cvxopt has
+wheels, pyproject.toml; elsewhere the extra ``cholmod``).
 
 K = P^T L L^T P with P the nested-dissection order of :func:`~.ordering.fill_reducing_order`
 (METIS when pymetis is installed): cvxopt's CHOLMOD is built without METIS and its own
@@ -13,6 +14,9 @@ import scipy.sparse as sp
 from ..optional import optional_import
 from . import ordering as _ordering
 from .base import Factor
+
+#: from this many right-hand sides a solve goes through ``cholmod.spsolve`` (blocked)
+BLOCKED = 2
 
 
 def _resident_bytes() -> int:
@@ -52,6 +56,25 @@ class CholmodFactor(Factor):
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
         b = np.asarray(b, dtype=float)
+        if b.ndim == 2 and b.shape[1] >= BLOCKED:
+            return self._solve_block(b)
         B = self._cvxopt.matrix(b.reshape(b.shape[0], -1))
         self._cvxopt.cholmod.solve(self._F, B)
         return np.array(B).reshape(b.shape)
+
+    def _solve_block(self, b: np.ndarray) -> np.ndarray:
+        """K^-1 b for a block of columns through ``cholmod.spsolve``: cvxopt's ``solve``
+        calls CHOLMOD once per column, reading the whole factor each time, where
+        ``cholmod_spsolve`` takes the columns several at a time (the Delassus columns, a
+        few nonzeros each, come 64 at a time: docs/performance.md)."""
+        cvxopt = self._cvxopt
+        c = sp.csc_matrix(b)
+        c.sort_indices()
+        rows = c.indices.astype(int)
+        cols = np.repeat(np.arange(c.shape[1]), np.diff(c.indptr)).astype(int)
+        B = cvxopt.spmatrix(c.data, rows, cols, c.shape)
+        X = cvxopt.cholmod.spsolve(self._F, B)
+        ptr, idx, val = (np.array(a).ravel() for a in X.CCS)
+        out = np.zeros(b.shape, order="F")
+        out[idx, np.repeat(np.arange(b.shape[1]), np.diff(ptr))] = val
+        return out
