@@ -218,3 +218,15 @@ def test_non_conforming_meshes_and_interior_tags_are_refused(tmp_path):
         _check_facets("m", Mesh(five, np.array([[0, 1, 2], [0, 2, 3], [0, 4, 2]]), "triangle", {}))
     with pytest.raises(MeshError, match="inside the body"):
         _check_facets("m", Mesh(pts, np.array(TRIS), "triangle", {"diag": np.array([[0, 2]])}))
+
+
+def test_face_keys_do_not_overflow_on_large_meshes():
+    """Beyond 2,097,152 nodes n^3 leaves int64: the keys become opaque rows, still equal for the
+    same face in any node order and different for different faces."""
+    from signorini.fem.mesh import face_keys
+
+    big = 3_000_001
+    f = np.array([[3_000_000, 5, 7], [7, 3_000_000, 5], [3_000_000, 5, 8], [1, 2, 4]])
+    k = face_keys(f, big)
+    assert k[0] == k[1] and k[0] != k[2] and len(np.unique(k)) == 3
+    assert face_keys(f[3:], 10).dtype == np.int64  # small meshes keep the fast integer keys

@@ -152,3 +152,20 @@ def test_no_mass_variant_couples_two_bodies(mass):
     if mass != "seed":  # seed removes the cells touching the contact nodes: less mass, by design
         for b in body_summaries(m, D.M, D.material.rho, None):
             assert abs(b["mass_effect"]["mass_ratio"] - 1) <= 1e-13
+
+
+def test_a_pair_facing_nothing_or_listed_twice_is_refused():
+    """A pair whose slave nodes all lie beside the master surface could never touch (it ran to
+    the end and then failed to write its history); a slave node in two pairs makes two equal
+    rows (a singular Delassus matrix, found as a numerical failure mid-run)."""
+    a, b = rectangle(10, 2, 1.0, 0.2), rectangle(3, 3, 0.3, 0.3)
+    b.points = b.points + [5.0, 0.25]  # beside the plate
+    m = join({"plate": a, "block": b})
+    with pytest.raises(InputError, match="none of its 4 slave node.*faces the master surface"):
+        simulate(Problem(m, IsotropicElastic.from_young(10.0, 0.3, 1.0), None, None,
+                         pairs=[ContactPair("block_ymin", "plate_ymax")]), "cn", 0.01, 0.02)  # fmt: skip
+    b.points = b.points - [4.5, 0.0]
+    m = join({"plate": a, "block": b})
+    with pytest.raises(InputError, match="contact pairs 0 .* and 1 .* share slave node"):
+        simulate(Problem(m, IsotropicElastic.from_young(10.0, 0.3, 1.0), None, None,
+                         pairs=[ContactPair("block_ymin", "plate_ymax")] * 2), "cn", 0.01, 0.02)  # fmt: skip

@@ -254,6 +254,27 @@ class ContactSet:
 
         mesh = space.mesh
         parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
+        for p, r in zip(pairs, parts, strict=True):
+            if r.nodes.size == 0:
+                n = mesh.nodes_of(p.slave).size
+                raise InputError(
+                    f"contact pair {p.slave!r} / {p.master!r}: none of its {n} slave node(s) faces the master surface "
+                    "at t = 0 (each lies laterally off it), so the pair could never touch; check the tags or the "
+                    "bodies' positions"
+                )
+        owner = np.concatenate([np.full(r.nodes.size, k) for k, r in enumerate(parts)])
+        slaves = np.concatenate([r.nodes for r in parts])
+        order = np.argsort(slaves, kind="stable")
+        twice = np.flatnonzero(np.diff(slaves[order]) == 0)
+        if twice.size:
+            a, b = owner[order[twice[0]]], owner[order[twice[0] + 1]]
+            node = int(slaves[order[twice[0]]])
+            raise InputError(
+                f"contact pairs {a} ({pairs[a].slave!r} / {pairs[a].master!r}) and {b} ({pairs[b].slave!r} / "
+                f"{pairs[b].master!r}) share slave node {mesh.node_id(node)} at "
+                f"{np.round(mesh.points[node], 6).tolist()} ({twice.size} in all): a node is the slave of one pair "
+                "(list each pair once; tag each slave surface once)"
+            )
         nr, d = self.nodes.size, space.dim
         nodes = np.concatenate([self.nodes] + [r.nodes for r in parts])
         nfv = parts[0].xi.shape[1]  # one cell type: the same facets for every pair
@@ -262,8 +283,8 @@ class ContactSet:
             + [space.dofs(r.facet_nodes.ravel()).reshape(-1, nfv, d) for r in parts]
         )
         master_shape = np.concatenate([np.zeros((nr, nfv))] + [r.xi for r in parts])
-        info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive}
-                for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
+        info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive,
+                 "repaired_rows": 0} for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
         # every node of the slave and master tags (a slave node facing nothing at t = 0 included)
         inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([mesh.nodes_of(p.slave), r.master_nodes])
                                                            for p, r in zip(pairs, parts, strict=True)]))  # fmt: skip
@@ -311,7 +332,7 @@ class ContactSet:
             self.master_shape[r.rows] = r.xi
             self.master_dofs[r.rows] = space.dofs(r.facet_nodes.ravel()).reshape(r.rows.size, -1, d)
             if self.pair_info is not None:
-                self.pair_info[k]["repaired_rows"] = self.pair_info[k].get("repaired_rows", 0) + int(r.rows.size)
+                self.pair_info[k]["repaired_rows"] += int(r.rows.size)
             changed.append(r.rows)
         if not changed:
             return np.zeros(0, dtype=np.int64)

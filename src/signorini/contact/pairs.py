@@ -133,12 +133,10 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def _keys(f: np.ndarray, nn: int) -> np.ndarray:
-    """One integer per facet from its sorted nodes (the first three: enough to tell faces apart)."""
-    s = np.sort(f, axis=1)[:, :3]
-    key = np.zeros(len(f), dtype=np.int64)
-    for k in range(s.shape[1]):
-        key = key * nn + s[:, k]
-    return key
+    """One sortable value per facet (:func:`signorini.fem.mesh.face_keys`: no overflow at any size)."""
+    from ..fem.mesh import face_keys
+
+    return face_keys(f, nn)
 
 
 def _closest_on_facets(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
@@ -246,9 +244,8 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     xs = X[nodes][row]
     p, N = _closest_on_facets(xs, P[cand[row, col]], kind)
     dist = np.linalg.norm(xs - p, axis=1)
-    # per node the candidate of least distance (ties: the nearest centre first, as before)
-    order = np.lexsort((col, dist, row))
-    first = order[np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]]
+    size = float(np.linalg.norm(np.ptp(np.vstack([X[nodes], centres]), axis=0))) or 1.0
+    first = _closest(row, dist, centres[cand[row, col]], size, xs)
     facet, p, N = cand[row[first], col[first]], p[first], N[first]
     if kind == "quad":  # the normal of the bilinear face at the projection, outward as the facet's
         nq = _quad_normal(P[facet], N)
@@ -271,6 +268,24 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
     B.sum_duplicates()
     return FacetRows(nodes, normals_m, gaps, B, facet, N, master, int((~on).sum()))
+
+
+#: closest points within this fraction of the pair's size are a tie (a node on a vertex or edge
+#: shared by facets: their distances differ by round-off only)
+TIE = 1e-12
+
+
+def _closest(row: np.ndarray, dist: np.ndarray, centres: np.ndarray, size: float, x: np.ndarray) -> np.ndarray:
+    """For each node (``row``, sorted; at ``x`` (m, d), one per candidate) the position of its
+    closest candidate facet; a tie (to :data:`TIE` x size: a node on a vertex or an edge that
+    facets share) goes to the facet whose centre is nearest to the node, then to the one whose
+    centre is first in (x, y, z) order: rules of the geometry, so that the pairing does not
+    depend on the mesh's numbering."""
+    q = np.round(dist / (TIE * size))
+    qc = np.round(np.linalg.norm(centres - x, axis=1) / (TIE * size))
+    keys = tuple(centres[:, k] for k in range(centres.shape[1] - 1, -1, -1)) + (qc, q, row)
+    order = np.lexsort(keys)
+    return order[np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]]
 
 
 def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
@@ -386,8 +401,9 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
     cand = np.asarray(cand).reshape(slave.size, k)
     xs = np.repeat(Xd[slave], k, axis=0)
     p, N = _closest_on_facets(xs, Pd[cand.ravel()], kind)
-    dist = np.linalg.norm(xs - p, axis=1).reshape(slave.size, k)
-    pick = np.arange(slave.size) * k + np.argmin(dist, axis=1)
+    dist = np.linalg.norm(xs - p, axis=1)
+    size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
+    pick = _closest(np.repeat(np.arange(slave.size), k), dist, centres[cand.ravel()], size, xs)
     new, N = cand.ravel()[pick], N[pick]
     moved = new != facet[left]  # still the closest: beyond the master surface's edge, the row stays
     if not moved.any():

@@ -12,8 +12,9 @@ case file ``[time] stop_at = "NAME"``, each then terminal):
 
 ``first-contact``  the first level with a contact force (some lambda_i < 0);
 ``separation``     every contact node free again (no lambda_i < 0) after a contact;
-``rest``           the kinetic energy 1/2 V.MV below a fraction of its initial value
-                   (``rest:0.001``; default 0.01), after it was above it.
+``rest``           the kinetic energy 1/2 V.MV below a fraction of its largest value so far
+                   (``rest:0.001``; default 0.01; the largest includes t = 0: a body
+                   released from rest comes to rest when its motion has died down).
 """
 
 from __future__ import annotations
@@ -54,8 +55,15 @@ def _separation(run: Run, _: dict) -> Callable[[float, State], float]:
 def _rest(run: Run, options: dict) -> Callable[[float, State], float]:
     frac = options["fraction"]
     M = run.ctx.M
-    E0 = 0.5 * float(run.initial.V @ (M @ run.initial.V))
-    return lambda t, s: 0.5 * float(s.V @ (M @ s.V)) - frac * E0
+    peak = [0.0]
+
+    def g(t: float, s: State) -> float:
+        kinetic = 0.5 * float(s.V @ (M @ s.V))
+        peak[0] = max(peak[0], kinetic)
+        # positive while moving; 0 before any motion (no crossing from rest at t = 0)
+        return kinetic - frac * peak[0] if peak[0] > 0 else 0.0
+
+    return g
 
 
 #: built-in events: factories (run, options) -> g(t, state), with the direction of the crossing
@@ -65,7 +73,7 @@ EVENTS.register("separation", (_separation, -1.0), "every contact node free agai
 EVENTS.register(
     "rest",
     (_rest, -1.0),
-    "the kinetic energy 1/2 V.MV below a fraction of its initial value (rest:FRACTION)",
+    "the kinetic energy 1/2 V.MV below a fraction of its largest value so far (rest:FRACTION)",
     parameters=(Parameter("fraction", 0.01, "fraction of the initial kinetic energy", float, 0.0, 1.0),),
 )
 
@@ -75,6 +83,9 @@ def parse_stop_at(spec: str | Sequence[str] | None, where: str = "--stop-at") ->
     a comma-separated string or a list; an InputError naming ``where`` and the allowed names."""
     if spec is None:
         return []
+    if not isinstance(spec, (str, list, tuple)):
+        raise InputError(f"{where} must be an event name or a list of them ({', '.join(EVENTS.names(aliases=False))}"
+                         f"), got {spec!r}")  # fmt: skip
     items = [x.strip() for x in spec.split(",")] if isinstance(spec, str) else list(spec)
     out = []
     for item in items:

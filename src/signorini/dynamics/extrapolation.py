@@ -113,13 +113,24 @@ def _padded(R: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
     return np.where(valid, cand, 0), valid
 
 
-def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, n_free: int) -> InputError:
+def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, is_c: np.ndarray) -> InputError:
     pts = mesh.points[nodes]
     lo, hi = np.round(pts.min(axis=0), 6).tolist(), np.round(pts.max(axis=0), 6).tolist()
     e = mesh.first_by_id(nodes)
+    label = body_labels(mesh)
+    which = ""
+    n_free = int(np.count_nonzero(~is_c))
+    if label.max(initial=0) > 0:  # several bodies: name the one (its regions) and count its own nodes
+        b = int(label[nodes[e]])
+        in_b = np.zeros(mesh.n_cells, dtype=bool)
+        in_b[np.flatnonzero(label[mesh.cells[:, 0]] == b)] = True
+        regions = sorted(t for t, c in mesh.regions.items() if c.size and in_b[c].any())
+        which = f" of body {b}" + (f" (regions {', '.join(regions)})" if regions else "")
+        n_free = int(np.count_nonzero(~is_c & (label == b)))
     return InputError(
-        f"mass {name!r}: {nodes.size} contact node(s) in the box {lo} .. {hi} (e.g. node {mesh.node_id(nodes[e])} at "
-        f"{np.round(pts[e], 6).tolist()}) cannot be extrapolated: the body's {n_free} non-contact nodes do not "
+        f"mass {name!r}: {nodes.size} contact node(s){which} in the box {lo} .. {hi} (e.g. node "
+        f"{mesh.node_id(nodes[e])} at {np.round(pts[e], 6).tolist()}) cannot be extrapolated: the body's {n_free} "
+        "non-contact nodes do not "
         f"span {mesh.dim + 1} affinely independent points; refine the mesh through the thickness, restrict the "
         "contact nodes ([contact] where = ...), or choose the mass 'seed' or 'standard'"
     )
@@ -165,7 +176,7 @@ def neighbourhoods(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, name
         todo = yield from _grow(mesh, contact_nodes, is_c, todo, limit)
         if todo.size == 0:
             return
-    raise _impossible(name, mesh, contact_nodes[todo], int(np.count_nonzero(~is_c)))
+    raise _impossible(name, mesh, contact_nodes[todo], is_c)
 
 
 def _grow(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, todo: np.ndarray, limit: float):
