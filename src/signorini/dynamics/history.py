@@ -131,7 +131,7 @@ class History:
     nodes: np.ndarray | None = None
     #: (nc,) the contact pair of each row (its index in the problem's pairs; -1: the rigid obstacle)
     pair: np.ndarray | None = None
-    #: (nc,) the master facet each pair row faces (its index in the master tag's facets; -1 on obstacle rows)
+    #: (nc,) the master facet each pair row faces at the last level (index in the master tag's facets; -1: obstacle)
     master_facet: np.ndarray | None = None
     status: str = "finished"
     message: str = ""
@@ -258,7 +258,8 @@ class History:
         ``lambda_t`` (N+1, nc, d - 1), ``slip`` (N+1, nc, d - 1), ``status`` (N+1, nc: 0 separated,
         1 stick, 2 slip) and ``tangents`` (nc, d - 1, d), the nodal frames' tangent vectors; ``pair``
         (nc,): the contact pair of each row (-1: the rigid obstacle) and ``master_facet`` (nc,): the
-        facet of the pair's master tag it faces (-1 on obstacle rows)."""
+        facet of the pair's master tag it faces at the last level (small sliding re-pairs; -1 on
+        obstacle rows)."""
         extra = {} if self.nodes is None else {"nodes": self.nodes}
         nc = self.gap.shape[1] if self.gap.ndim == 2 else 0
         extra["pair"] = self.pair if self.pair is not None else np.full(nc, -1, dtype=np.int64)
