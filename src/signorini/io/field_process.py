@@ -75,6 +75,28 @@ def _disk_full(exc: BaseException) -> bool:
     return any(int(n) in codes for n in re.findall(r"errno = (\d+)", str(exc)))
 
 
+@contextlib.contextmanager
+def _quiet_stderr():
+    """File descriptor 2 on /dev/null while a child is started, so that the child inherits it:
+    a parent killed outright (SIGKILL) while the child's interpreter reads its start-up data
+    from it makes that interpreter print an EOFError traceback into the user's terminal or
+    log, before any code of ours runs in it.  The parent's own stderr is back right after."""
+    import sys
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, 2)
+        finally:
+            os.close(null)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 class FieldProcess:
     """The parent's handle on the writer child (see the module docstring)."""
 
@@ -87,7 +109,8 @@ class FieldProcess:
         # pending for the parent's handlers, never lost
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
-            self.process.start()
+            with _quiet_stderr():  # the child's stderr is /dev/null (the parent reports, never the child)
+                self.process.start()
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         child.close()
