@@ -194,12 +194,7 @@ class Context:
         self.friction_rows: np.ndarray | None = None
         if self.components > 1:
             self.friction_rows = disc.friction_rows
-            n = disc.space.n_dofs
-            self.T = disc.contact.tangential_matrix(n)
-            self.H = disc.contact.frame_matrix(n)
-            self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
-            HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
-            self.HD = HD if HD is not None and HD.nnz else None
+            self._frame_rows()
         #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it;
         #: never with friction)
         self.iterative_ok = self.components == 1
@@ -372,6 +367,15 @@ class Context:
             return False
         return self.solver_options.get("pairing", "small-sliding") == "small-sliding"
 
+    def _frame_rows(self) -> None:
+        """T, H and H's free and fixed blocks from the contact set's frames (friction)."""
+        n = self.disc.space.n_dofs
+        self.T = self.disc.contact.tangential_matrix(n)
+        self.H = self.disc.contact.frame_matrix(n)
+        self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
+        HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
+        self.HD = HD if HD is not None and HD.nnz else None
+
     def slide(self, U: np.ndarray, t: float) -> int:
         """Small sliding after a level (:meth:`ContactSet.slide`): the pair rows whose slave node
         left its master facet in X + U are re-paired; B, its free and fixed blocks, the friction
@@ -392,12 +396,7 @@ class Context:
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
         self.BD = BD if BD is not None and BD.nnz else None
         if self.components > 1:
-            n = disc.space.n_dofs
-            self.T = disc.contact.tangential_matrix(n)
-            self.H = disc.contact.frame_matrix(n)
-            self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
-            HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
-            self.HD = HD if HD is not None and HD.nnz else None
+            self._frame_rows()
         for sys in self._systems:
             sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
         self.repaired += int(rows.size)

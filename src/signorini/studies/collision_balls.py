@@ -44,7 +44,15 @@ from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import join
 from ..fem.meshing import estimate_counts, pole_refined_ball
-from .hertz import DEFINITIONS, SPHERE_DURATION_FACTOR, HertzPrediction, impact_ode, p_wave_speed, sphere_force
+from .hertz import (
+    DEFINITIONS,
+    SPHERE_DURATION_FACTOR,
+    HertzPrediction,
+    figure_rows,
+    impact_ode,
+    p_wave_speed,
+    sphere_force,  # fmt: skip
+)
 
 BALLS_DEFAULTS = {"R1": 1.0, "R2": 1.0, "E1": 1.0, "E2": 1.0, "nu1": 0.3, "nu2": 0.3, "rho1": 1.0, "rho2": 1.0,
                   "velocity": 0.002, "cap": 2.0, "far": 0.25, "grading": 0.5}  # fmt: skip
@@ -229,13 +237,7 @@ class BallsMeasure:
         h = summary["hertz"]
         unit = " per unit thickness" if h["per_unit_thickness"] else ""
         rows = [f"  Hertz ({h['law']}{unit}, R = {h['R_effective']:.4g}, E* = {h['E_star']:.4g}, m = {h['mass']:.4g}): "
-                "quasi-static prediction vs computed"]  # fmt: skip
-        for key, label in (("duration", "contact duration"), ("peak_force", "peak force"),
-                           ("max_approach", "max approach")):  # fmt: skip
-            c, d = h["computed"].get(key), h["relative_deviation"].get(key)
-            ctext = f"{c:.5g}" if c is not None else "n/a"
-            dtext = f"{100 * d:+.1f}%" if d is not None else ""
-            rows.append(f"    {label:17s} {h['predicted'][key]:.5g}  computed {ctext}  {dtext}")
+                "quasi-static prediction vs computed", *figure_rows(h)]  # fmt: skip
         r = h["computed"].get("restitution")
         if r is not None:
             rows.append(f"    restitution {r:.4g} (relative velocity of the centres after / before)")

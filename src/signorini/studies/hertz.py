@@ -226,13 +226,7 @@ class HertzMeasure:
     def text(summary: dict) -> str:
         h = summary["hertz"]
         unit = " per unit thickness" if h["per_unit_thickness"] else ""
-        rows = [f"  Hertz ({h['law']}{unit}): quasi-static prediction vs computed"]
-        for key, label in (("duration", "contact duration"), ("peak_force", "peak force"),
-                           ("max_approach", "max approach")):  # fmt: skip
-            c, d = h["computed"].get(key), h["relative_deviation"].get(key)
-            ctext = f"{c:.5g}" if c is not None else "n/a"
-            dtext = f"{100 * d:+.1f}%" if d is not None else ""
-            rows.append(f"    {label:17s} {h['predicted'][key]:.5g}  computed {ctext}  {dtext}")
+        rows = [f"  Hertz ({h['law']}{unit}): quasi-static prediction vs computed", *figure_rows(h)]
         v = h["validity"]
         rows.append(
             f"    Hertz assumes << 1: v/c_p {v['velocity_over_wave_speed']:.2g}, "
@@ -244,6 +238,21 @@ class HertzMeasure:
             f"{h['cap_angle_degrees']:.3g} deg around the pole"
         )
         return "\n".join(rows)
+
+
+def figure_rows(h: dict) -> list[str]:
+    """The duration, peak force and approach lines of a run's summary: Hertz's, computed, deviation."""
+    rows = []
+    for key, label in (
+        ("duration", "contact duration"),
+        ("peak_force", "peak force"),
+        ("max_approach", "max approach"),
+    ):
+        c, d = h["computed"].get(key), h["relative_deviation"].get(key)
+        ctext = f"{c:.5g}" if c is not None else "n/a"
+        dtext = f"{100 * d:+.1f}%" if d is not None else ""
+        rows.append(f"    {label:17s} {h['predicted'][key]:.5g}  computed {ctext}  {dtext}")
+    return rows
 
 
 DEFINITIONS = {
