@@ -388,11 +388,16 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
     if d == 1 or rows.size == 0:
         return None
     normals_f, oriented = master_geometry(mesh, pair) if geometry is None else geometry
-    Xd = mesh.points + U.reshape(-1, d)
+    u = U.reshape(-1, d)
+
+    def deformed(nodes: np.ndarray) -> np.ndarray:  # X + U at these nodes only (every level: no whole-mesh copy)
+        return mesh.points[nodes] + u[nodes]
+
     kind = "line" if d == 2 else ("triangle" if oriented.shape[1] == 3 else "quad")
-    left = _outside(Xd[slave], Xd[oriented[facet]], kind)
+    left = _outside(deformed(slave), deformed(oriented[facet]), kind)
     if not left.any():
         return None
+    Xd = mesh.points + u
     rows, slave = rows[left], slave[left]
     Pd = Xd[oriented]
     centres = Pd.mean(axis=1)

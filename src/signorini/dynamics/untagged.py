@@ -59,7 +59,8 @@ class PairWatch:
     nodes: np.ndarray  # (m,) watched nodes (a node may face several surfaces)
     gaps: np.ndarray  # (m,) gaps at t = 0 [length]
     B: sp.csr_matrix  # (m, n_dofs) the rows of the gaps' change (node-to-facet, as a pair's)
-    surfaces: list[str]  # (m,) the tag each row faces, e.g. "plate_ymax (master of pair 0)"
+    surface: np.ndarray  # (m,) index in ``names`` of the surface each row faces
+    names: list[str]  # the surfaces, e.g. "'plate_ymax' (master of pair 0)"
 
 
 def pair_watch(mesh: Mesh, pairs, n_dofs: int) -> PairWatch | None:
@@ -88,7 +89,8 @@ def pair_watch(mesh: Mesh, pairs, n_dofs: int) -> PairWatch | None:
         np.concatenate([r.nodes for r, _ in parts]),
         np.concatenate([r.gaps for r, _ in parts]),
         sp.vstack([r.B for r, _ in parts]).tocsr(),
-        [name for r, name in parts for _ in range(r.nodes.size)],
+        np.concatenate([np.full(r.nodes.size, k) for k, (r, _) in enumerate(parts)]),
+        [name for _, name in parts],
     )
 
 
@@ -143,7 +145,8 @@ class UntaggedContact(Observer):
             if p > self.worst[0] + self.tie or self.worst[1] < 0:
                 self.worst = (p, int(nodes[j]), float(s.t))
                 k = j - self.nodes.size
-                self._surface = self.pair_watch.surfaces[k] if k >= 0 else ""
+                w = self.pair_watch
+                self._surface = w.names[int(w.surface[k])] if k >= 0 else ""
             else:
                 self.worst = (p, *self.worst[1:])
         if self.mode == "fail" and p > self.tolerance:
