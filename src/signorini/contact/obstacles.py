@@ -64,8 +64,6 @@ rigid surface whose facet orientation says which side is outside (see the class)
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -77,7 +75,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..errors import InputError, not_a_file
+from ..errors import InputError, MeshError, not_a_file
 from ..registry import FilePath, Motion, Parameter, Registry, RotationTable, Vector
 
 Position = Sequence[float] | np.ndarray | Callable[[float], Sequence[float]]
@@ -519,20 +517,16 @@ def _weld(points: np.ndarray, facets: np.ndarray, r: float) -> np.ndarray:
 
 
 def _read_file(path: Path, where: str):
-    import meshio
+    from ..fem.mesh import meshio_read
 
     if not path.is_file():
         raise InputError(f"{where}: {str(path)!r} {not_a_file(path, 'a surface mesh file')}")
     if path.stat().st_size == 0:
         raise InputError(f"{where}: {str(path)!r} is empty (0 bytes)")
-    try:  # meshio raises many types, prints to stdout and may call sys.exit on unknown formats
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on ASCII files
-                return meshio.read(path)
-    except (Exception, SystemExit) as exc:
-        text = "" if isinstance(exc, SystemExit) else str(exc).strip()
-        reason = text.splitlines()[0] if text else "not a format meshio reads"
-        raise InputError(f"{where}: cannot read {str(path)!r}: {reason}") from None
+    try:
+        return meshio_read(path, "surface mesh file")
+    except MeshError as exc:
+        raise InputError(f"{where}: {str(exc).strip().splitlines()[0]}") from None
 
 
 def _facet_normals(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -450,6 +450,30 @@ def _tagged_cells(m, cell_type: str, names: dict[int, str], dim: int) -> dict[st
     return {k: np.concatenate(v) for k, v in regions.items()}
 
 
+def meshio_read(p: Path, what: str):
+    """``meshio.read(p)`` quietly (meshio raises many types, prints to stdout and may call
+    sys.exit on unknown formats): a :class:`MeshError` "cannot read <what> 'p': <reason>" for a
+    file it cannot read, and for a header that declares far more data than the file holds (a
+    corrupt file, not a mesh too large for the machine: a real MemoryError propagates)."""
+    import meshio
+
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            with np.errstate(over="ignore"):  # meshio's binary-STL size test overflows on ASCII files
+                return meshio.read(p)
+    except MemoryError as exc:
+        wanted, size = getattr(exc, "_total_size", None), p.stat().st_size
+        if wanted is not None and wanted > CORRUPT_RATIO * max(size, 1):
+            raise MeshError(
+                f"cannot read {what} {str(p)!r}: it declares {wanted / 2**30:.3g} GiB of data in a file of "
+                f"{size:,} bytes (a corrupt header or a truncated file)"
+            ) from None
+        raise
+    except (Exception, SystemExit) as exc:
+        reason = str(exc) if not isinstance(exc, SystemExit) else f"not a {what} in a format meshio reads"
+        raise MeshError(f"cannot read {what} {str(p)!r}: {reason}") from None
+
+
 def read_mesh(path: str | Path) -> Mesh:
     """Read a mesh with meshio; Gmsh physical groups of facets become tags.
 
@@ -465,29 +489,13 @@ def read_mesh(path: str | Path) -> Mesh:
     integer physical tags. Points are truncated to the mesh dimension (Gmsh always
     writes 3D points).
     """
-    import meshio
 
     p = Path(path)
     if not p.is_file():
         raise MeshError(f"mesh file {str(p)!r} {not_a_file(p, 'a mesh file')}")
     if p.stat().st_size == 0:
         raise MeshError(f"cannot read mesh file {str(p)!r}: the file is empty (0 bytes)")
-    try:  # meshio raises many types, prints to stdout and may call sys.exit on unknown formats
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            m = meshio.read(p)
-    except MemoryError as exc:
-        # an array far larger than the file can fill: a header that declares counts the
-        # file does not hold (corrupt), not a mesh too large for the machine
-        wanted, size = getattr(exc, "_total_size", None), p.stat().st_size
-        if wanted is not None and wanted > CORRUPT_RATIO * max(size, 1):
-            raise MeshError(
-                f"cannot read mesh file {str(p)!r}: it declares {wanted / 2**30:.3g} GiB of data in a file of "
-                f"{size:,} bytes (a corrupt header or a truncated file)"
-            ) from None
-        raise
-    except (Exception, SystemExit) as exc:
-        reason = str(exc) if not isinstance(exc, SystemExit) else "not a mesh in a format meshio reads"
-        raise MeshError(f"cannot read mesh file {str(p)!r}: {reason}") from None
+    m = meshio_read(p, "mesh file")
     kinds = {b.type for b in m.cells}
     volume = [t for t in kinds if t in _DIM_OF]
     unsupported = [t for t in kinds if t not in _DIM_OF and t not in ("vertex", "line", "triangle", "quad")]
