@@ -50,6 +50,10 @@ class DelassusColumns:
         # then reads contiguous memory
         self._Zt: np.ndarray | None = np.empty((0, self._rows()))
         self.seconds = 0.0
+        #: the blocks solved, in order: (nodes, slots) of each (:meth:`replay` redoes them)
+        self._log: list[tuple[np.ndarray, np.ndarray]] = []
+        self.replayed = 0  # columns solved again by :meth:`replay`
+        self._replayable = True  # False once B's rows changed (replace_rows): the log no longer rebuilds it
 
     def _rows(self) -> int:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
@@ -127,6 +131,48 @@ class DelassusColumns:
                 self._Zt[s] = Zj.T
             self.slot[J] = s
             self.solved += J.size
+            self._log.append((J.copy(), s.copy()))
+        self.seconds += time.perf_counter() - t0
+
+    def history(self) -> dict[str, np.ndarray] | None:
+        """The blocks solved so far (nodes, slots, block sizes), for a checkpoint; None once
+        a re-pairing changed B's rows (the columns then depend on the rows of each moment)."""
+        if not self._replayable:
+            return None
+        sizes = np.array([J.size for J, _ in self._log], dtype=np.int64)
+        cat = lambda k: np.concatenate([b[k] for b in self._log]) if self._log else np.zeros(0, np.int64)  # noqa: E731
+        return {"nodes": cat(0).astype(np.int64), "slots": cat(1).astype(np.int64), "sizes": sizes}
+
+    def replay(self, data: dict[str, np.ndarray]) -> None:
+        """Solve the blocks of :meth:`history` again, with the same right-hand sides in the same
+        slots: the columns, and every product that sums over them, are those of the run that
+        wrote the checkpoint, bit for bit (a resumed run)."""
+        nodes, slots, sizes = (np.asarray(data[k], dtype=np.intp) for k in ("nodes", "slots", "sizes"))
+        nc = self.B.shape[0]
+        if nodes.shape != slots.shape or sizes.sum() != nodes.size or (nodes.size and (
+                nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)):  # fmt: skip
+            raise ValueError("the Delassus column log is inconsistent")
+        t0 = time.perf_counter()
+        start = 0
+        done = list(self._log)  # blocks this run solved already (the set-up's): not again
+        for size in sizes:
+            J, s = nodes[start : start + size], slots[start : start + size]
+            start += size
+            if done:
+                J0, s0 = done.pop(0)
+                if np.array_equal(J0, J) and np.array_equal(s0, s):
+                    continue
+                raise ValueError("the Delassus column log does not start with this run's set-up columns")
+            self._grow(max(self.count, int(s.max()) + 1))
+            self.count = max(self.count, int(s.max()) + 1)
+            Zj, Wj = self._solve_block(J)
+            self._W[:, s] = Wj
+            if self._Zt is not None:
+                self._Zt[s] = Zj.T
+            self.slot[np.isin(self.slot, s)] = -1  # a slot reused by a later block
+            self.slot[J] = s
+            self.replayed += J.size  # not in ``solved``: the run that wrote the log counted them
+            self._log.append((J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
@@ -140,6 +186,7 @@ class DelassusColumns:
         rows = np.unique(np.asarray(rows, dtype=np.intp))
         self.B = sp.csr_matrix(B)
         self.Bt = self.B.T.tocsc()
+        self._replayable = False
         t0 = time.perf_counter()
         if self._Zt is not None:
             dropped = rows[self.slot[rows] >= 0]

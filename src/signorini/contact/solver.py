@@ -141,6 +141,10 @@ class ContactSolver:
     name = "contact-solver"
     #: whether :meth:`set_guess` is of use (iterative solves)
     uses_guess = False
+    #: the attributes carried from one call to the next (warm starts: the previous active set,
+    #: multipliers or solution), which a checkpoint saves so that a resumed run solves as the
+    #: uninterrupted one
+    warm_state: tuple[str, ...] = ()
 
     def __init__(self) -> None:
         self.counters = {
@@ -230,6 +234,8 @@ class CondensedContactSolver(ContactSolver):
     with W SPD has a unique solution; see :meth:`solve`).
     """
 
+    warm_state = ("active", "lam_prev")
+
     def __init__(
         self,
         K: sp.spmatrix,
@@ -291,7 +297,7 @@ class CondensedContactSolver(ContactSolver):
         """Counters and timings: ``linear_solves`` are the solves of the steps (the columns
         computed lazily are counted in ``delassus_columns``, their time in ``condensation``
         and, for the part inside the loop, ``condensation_in_loop``)."""
-        in_loop = self.delassus.solved - self._setup_columns
+        in_loop = self.delassus.solved - self._setup_columns + getattr(self.delassus, "replayed", 0)
         self.counters["linear_solves"] = self.factor.solves - self._setup_solves - in_loop
         self.counters["delassus_columns"] = self.delassus.solved
         self.timings["condensation"] = self.delassus.seconds
@@ -482,6 +488,8 @@ class ActiveSetCGSolver(ContactSolver):
     force, where either set solves the step (measured on bar3d n = 8 leaving the
     obstacle: 6e-14); otherwise the solve fails.
     """
+
+    warm_state = ("active", "U_prev")
 
     uses_guess = True
 

@@ -391,6 +391,12 @@ class Context:
         # the multipliers of the level just computed acted through the rows of before (in the
         # next step's balance and energy identity: :meth:`rows_of`)
         self._level_rows = (t, B_before, T_before)
+        self._use_rows(rows)
+        return int(rows.size)
+
+    def _use_rows(self, rows: np.ndarray) -> None:
+        """B, its blocks, the frames and the solvers' rows after the contact set changed ``rows``."""
+        disc = self.disc
         self.B = disc.B = disc.contact.B
         self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
         BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
@@ -400,7 +406,58 @@ class Context:
         for sys in self._systems:
             sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
         self.repaired += int(rows.size)
-        return int(rows.size)
+
+    #: the contact set's arrays that small sliding changes (:meth:`ContactSet.slide`)
+    PAIRING_ARRAYS = ("normals", "gaps", "master_facet", "master_shape", "master_dofs")
+
+    def pairing_state(self, t: float) -> dict[str, Any]:
+        """The pairing after small sliding, for a checkpoint at time t: the contact set's
+        changed arrays, the rows the level at t acted through (when a re-pairing followed it)
+        and the counts of re-paired rows.  Empty without sliding pairs."""
+        if not self.sliding:
+            return {}
+        c = self.disc.contact
+        out: dict[str, Any] = {k: np.asarray(getattr(c, k)) for k in self.PAIRING_ARRAYS}
+        out["repaired"] = int(self.repaired)
+        out["pair_repaired"] = [int(p["repaired_rows"]) for p in (c.pair_info or [])]
+        if self._level_rows is not None and self._level_rows[0] == t:
+            for name, M in (("level_B", self._level_rows[1]), ("level_T", self._level_rows[2])):
+                if M is not None:
+                    M = M.tocsr()
+                    out.update({f"{name}_data": M.data, f"{name}_indices": M.indices, f"{name}_indptr": M.indptr})
+        return out
+
+    def restore_pairing(self, data: dict[str, Any], t: float) -> None:
+        """Put back the pairing of :meth:`pairing_state` (a resumed run, before its first step)."""
+        if not self.sliding or not data:
+            return
+        c, n = self.disc.contact, self.disc.space.n_dofs
+        changed = np.zeros(c.size, dtype=bool)
+        for k in self.PAIRING_ARRAYS:
+            new, old = np.asarray(data[k]), np.asarray(getattr(c, k))
+            if new.shape != old.shape:
+                raise InputError(f"checkpoint: pairing field {k!r} has shape {new.shape}, expected {old.shape}")
+            changed |= (new != old).reshape(c.size, -1).any(axis=1)
+            getattr(c, k)[...] = new
+        rows = np.flatnonzero(changed)
+        if rows.size:
+            if hasattr(c, "_tangents"):
+                del c._tangents
+            c.B = c._row_frame(c.normals[:, None, :], n).tocsr()
+            self._use_rows(rows)
+        self.repaired = int(data["repaired"])
+        for p, r in zip(c.pair_info or [], data["pair_repaired"], strict=False):
+            p["repaired_rows"] = int(r)
+        level = []
+        for name in ("level_B", "level_T"):
+            if f"{name}_data" in data:
+                shape = (c.size * (1 if name == "level_B" else self.components - 1), n)
+                level.append(sp.csr_matrix((data[f"{name}_data"], data[f"{name}_indices"], data[f"{name}_indptr"]),
+                                           shape=shape))  # fmt: skip
+            else:
+                level.append(None)
+        if level[0] is not None:
+            self._level_rows = (t, level[0], level[1])
 
     #: contact pair rows re-paired by small sliding over the run
     repaired = 0

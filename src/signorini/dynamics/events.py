@@ -63,6 +63,7 @@ def _rest(run: Run, options: dict) -> Callable[[float, State], float]:
         # positive while moving; 0 before any motion (no crossing from rest at t = 0)
         return kinetic - frac * peak[0] if peak[0] > 0 else 0.0
 
+    g.memory = peak  # what a checkpoint keeps of it (EventWatch.saved)
     return g
 
 
@@ -128,6 +129,26 @@ class EventWatch(Observer):
         self.events = [e if isinstance(e, Event) else builtin_event(e, run) for e in self.specs]
         self.previous = [float(e.function(run.initial.t, run.initial)) for e in self.events]
         self.done = [False] * len(self.events)
+
+    checkpoint_key = "events"
+
+    def saved(self, n: int) -> dict:
+        memory = [list(getattr(e.function, "memory", [])) for e in self.events]
+        return {"previous": list(self.previous), "done": [int(x) for x in self.done], "memory": memory,
+                "met": [dict(m) for m in self.met], "names": [e.name for e in self.events]}  # fmt: skip
+
+    def resume(self, run: Run, n: int, state: State, data: dict) -> None:
+        names = [e.name for e in self.events]
+        if list(data["names"]) != names:  # another set of events: they start afresh from this level
+            self.previous = [float(e.function(state.t, state)) for e in self.events]
+            self.met = [dict(m) for m in data["met"]]
+            return
+        self.previous = [float(x) for x in data["previous"]]
+        self.done = [bool(x) for x in data["done"]]
+        self.met = [dict(m) for m in data["met"]]
+        for e, mem in zip(self.events, data["memory"], strict=True):
+            if hasattr(e.function, "memory"):
+                e.function.memory[:] = [float(x) for x in mem]
 
     def record(self, run: Run, n: int, state: State) -> None:
         stop = None

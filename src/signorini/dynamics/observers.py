@@ -5,6 +5,13 @@ The loop in :func:`~signorini.dynamics.simulate.simulate` calls, for every obser
 every accepted step n, and ``close(run, status, n_last)`` exactly once on any exit
 (finished, interrupted, failed), so files are completed and memory released.
 
+Checkpoints (:mod:`~.checkpoint`): an observer whose series a resumed run must continue
+names its part of the checkpoint (``checkpoint_key``), gives its data up to level n
+(``saved(n)``: arrays, numbers, strings or lists of them) and takes them back after its
+``start`` when a run resumes at level n (``resume(run, n, state, data)``).  An observer
+without a key starts afresh at the resumed level (a user's observer sees the levels from
+the resume on).
+
 Built in: :class:`HistoryRecorder` (gaps, multipliers and solver data per level),
 :class:`EnergyRecorder` (the scheme's energy and its identity; costs a few products per
 step, switch it off with ``simulate(..., energy=False)``), :class:`SnapshotRecorder`
@@ -20,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import NonFiniteError
+from ..errors import InputError, NonFiniteError
 from .context import Context
 from .history import empty_series
 from .schemes import Scheme, State
@@ -39,7 +46,18 @@ class Run:
 
 
 class Observer:
-    """Base class: override any of ``start``, ``record``, ``close``."""
+    """Base class: override any of ``start``, ``record``, ``close`` (and, for checkpoints,
+    ``checkpoint_key``, ``saved`` and ``resume``)."""
+
+    #: the name of this observer's data in a checkpoint; None: it keeps nothing to restore
+    checkpoint_key: str | None = None
+
+    def saved(self, n: int) -> dict[str, Any]:
+        """Its data up to level ``n`` (included), for a checkpoint."""
+        return {}
+
+    def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
+        """Continue at level ``n`` (``state``) with ``data`` from :meth:`saved` (after ``start``)."""
 
     def start(self, run: Run) -> None:
         pass
@@ -53,18 +71,30 @@ class Observer:
 
 class HistoryRecorder(Observer):
     """Per-level gaps, multipliers, active set size, iterations, fallbacks, residuals, and
-    the total contact impulse of each step (``Scheme.impulse``)."""
+    the total contact impulse of each step (``Scheme.impulse``), and the time of each level."""
+
+    checkpoint_key = "history"
 
     def start(self, run: Run) -> None:
         nc = run.ctx.disc.contact.size
         self.series = empty_series(run.n_steps + 1, nc, run.ctx.disc.space.dim, run.ctx.components - 1)
         for k in ("kinetic_energy", "elastic_energy"):
             del self.series[k]
+        self.times = np.full(run.n_steps + 1, np.nan)
         self._prev = run.initial
         self._put(run, 0, run.initial)
 
+    def saved(self, n: int) -> dict[str, Any]:
+        return {"times": self.times[: n + 1], **{k: v[: n + 1] for k, v in self.series.items()}}
+
+    def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
+        _restore_series(self.series, data, n, "history")
+        self.times[: n + 1] = data["times"]
+        self._prev = self.last = state
+
     def _put(self, run: Run, n: int, s: State) -> None:
         S = self.series
+        self.times[n] = s.t
         S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
         # total linear momentum 1_k^T M V per component (the product the energy uses, computed once)
         S["momentum"][n] = s.product("MV", lambda: run.ctx.Mop @ s.V).reshape(-1, S["momentum"].shape[1]).sum(axis=0)
@@ -89,7 +119,20 @@ class HistoryRecorder(Observer):
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
+        self.times = self.times[: n_last + 1]
         self._prev = None
+
+
+def _restore_series(series: dict[str, np.ndarray], data: dict[str, Any], n: int, what: str) -> None:
+    """Levels 0..n of every series from a checkpoint's ``data`` (shapes checked)."""
+    for k, v in series.items():
+        if k not in data:
+            raise InputError(f"checkpoint: the {what} series {k!r} is missing")
+        a = np.asarray(data[k])
+        if a.shape != (n + 1,) + v.shape[1:]:
+            raise InputError(f"checkpoint: the {what} series {k!r} has shape {a.shape}, expected "
+                             f"{(n + 1,) + v.shape[1:]}")  # fmt: skip
+        v[: n + 1] = a
 
 
 def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:
@@ -108,6 +151,14 @@ class EnergyRecorder(Observer):
     KEYS = ("kinetic_energy", "elastic_energy", "load_potential", "predicted_increment", "external", "contact",
             "numerical", "friction")  # fmt: skip
     PARTS = ("external", "contact", "numerical", "friction")
+    checkpoint_key = "energy"
+
+    def saved(self, n: int) -> dict[str, Any]:
+        return {k: v[: n + 1] for k, v in self.series.items()}
+
+    def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
+        _restore_series(self.series, data, n, "energy")
+        self._prev = state
 
     def start(self, run: Run) -> None:
         n = run.n_steps + 1
@@ -161,8 +212,18 @@ class SnapshotRecorder(Observer):
         self.v.append(s.V.copy())
         self._last = n
 
+    checkpoint_key = "snapshots"
+
     def start(self, run: Run) -> None:
         self._take(0, run.initial)
+
+    def saved(self, n: int) -> dict[str, Any]:
+        return {"t": np.array(self.t), "u": np.array(self.u), "v": np.array(self.v), "last": self._last}
+
+    def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
+        self.t = [float(x) for x in data["t"]]
+        self.u, self.v = list(np.asarray(data["u"])), list(np.asarray(data["v"]))
+        self._last = int(data["last"])
 
     def record(self, run: Run, n: int, state: State) -> None:
         if n % self.every == 0:

@@ -157,6 +157,19 @@ class UntaggedContact(Observer):
     def record(self, run: Run, n: int, state: State) -> None:
         self._put(n, state)
 
+    checkpoint_key = "untagged"
+
+    def saved(self, n: int) -> dict:
+        return {"series": self.series[: n + 1], "worst": list(self.worst), "surface": self._surface}
+
+    def resume(self, run: Run, n: int, state: State, data: dict) -> None:
+        series = np.asarray(data["series"], dtype=float)
+        if series.shape != (n + 1,):
+            raise InputError(f"checkpoint: the untagged series has shape {series.shape}, expected {(n + 1,)}")
+        self.series[: n + 1] = series
+        p, node, t = data["worst"]
+        self.worst, self._surface = (float(p), int(node), float(t)), str(data["surface"])
+
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = self.series[: n_last + 1]
 

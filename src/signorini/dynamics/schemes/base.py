@@ -90,6 +90,15 @@ class State:
         return bool(np.isfinite(self.U.sum() + self.V.sum() + self.lam.sum()))
 
 
+#: the kinds of :attr:`Scheme.state_fields`: a full-space vector (n,), one value per contact
+#: row (nc,), per contact row and tangent direction (nc, d - 1), one value per Dirichlet dof,
+#: and a flag (bool)
+STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
+#: state data of every scheme: ``R0``, the residual of the massless free dofs at t = 0
+#: (:func:`~signorini.dynamics.setup.initial_state`)
+COMMON_STATE_FIELDS = {"R0": "dofs"}
+
+
 @dataclass
 class EnergyParts:
     """Right-hand side of a scheme's energy identity for one step [energy]."""
@@ -122,6 +131,11 @@ class Scheme:
     #: why the scheme refuses a frictional contact law (None: it carries friction, with
     #: the frictional work in its energy identity)
     friction_refusal: ClassVar[str | None] = "it does not implement tangential contact forces"
+    #: the data a level of this scheme carries in ``State.extra`` besides t, U, V, A, lambda and
+    #: lambda_t, declared so that a checkpoint saves and restores it field by field: name ->
+    #: kind, one of :data:`STATE_FIELD_KINDS`.  A checkpoint refuses a key not declared here or
+    #: in :data:`COMMON_STATE_FIELDS`; a value may also be absent (None).
+    state_fields: ClassVar[dict[str, str]] = {}
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)

@@ -40,6 +40,8 @@ class ContactStabilizedNewmark(Scheme):
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     friction_refusal = "its contact-stabilizing L2 projection is defined for the normal component only"
     massless_dofs_allowed = False
+    #: the predictor's correction Up - (U + dt V) and the multiplier mu of the new level
+    state_fields = {"delta": "dofs", "mu": "contact"}
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._refuse_massless(ctx, "the predictor's projection in the mass norm is then undefined")
@@ -55,7 +57,7 @@ class ContactStabilizedNewmark(Scheme):
         fixed_free = free[ctx.fixed] if ctx.has_fixed else None
         Up, mu, _ = ctx.solve(Operator(1.0, 0.0), ctx.M @ free, g1, fixed_free)
         F0, F1 = ctx.load(s.t), ctx.load(t1)
-        SU = s.product("SU", lambda: ctx.S @ s.U)
+        SU = s.product("SU", lambda: ctx.Sop @ s.U)
         rhs = (4.0 / (dt * dt)) * (ctx.M @ Up) - SU + F0 + F1
         fixed = ctx.dirichlet(t1) if ctx.has_fixed else None
         U, mu1, info = ctx.solve(self.operator(dt), rhs, g1, fixed)
@@ -70,7 +72,7 @@ class ContactStabilizedNewmark(Scheme):
         dU = new.U - old.U
         delta, mu1 = new.extra["delta"], new.extra["mu"]
         Fs = ctx.load(old.t) + ctx.load(new.t)
-        Ss = old.product("SU", lambda: ctx.S @ old.U) + new.product("SU", lambda: ctx.S @ new.U)
+        Ss = old.product("SU", lambda: ctx.Sop @ old.U) + new.product("SU", lambda: ctx.Sop @ new.U)
         parts = EnergyParts(external=load_work(ctx, old, new, 0.5), contact=0.5 * float((ctx.B @ dU) @ mu1))
         parts.numerical = -0.5 * float(delta @ (Fs - Ss + ctx.B.T @ mu1))
         if ctx.has_fixed and ctx.disc.dirichlet_varies:

@@ -101,7 +101,7 @@ class GeneralizedAlpha(Newmark):
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         if af:
             lagged = af * (
-                ctx.load(s.t) - s.product("SU", lambda: ctx.S @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
+                ctx.load(s.t) - s.product("SU", lambda: ctx.Sop @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
             )
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0

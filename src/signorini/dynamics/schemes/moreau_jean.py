@@ -48,6 +48,8 @@ from .base import EnergyParts, Scheme, State, friction_work, load_work
 
 class MoreauJean(Scheme):
     name = "moreau-jean"
+    #: the step's normal and tangential impulses (the history's force is P/dt)
+    state_fields = {"impulse": "contact", "impulse_t": "contact_t"}
     description = "Moreau-Jean theta-method on velocities, impulses on a predicted index set (restitution e)"
     parameters = (
         Parameter("theta", 0.5, "theta of the velocity theta-method (1/2 <= theta <= 1)", float, 0.5, 1.0),
@@ -75,7 +77,7 @@ class MoreauJean(Scheme):
     def step(self, ctx, s: State) -> State:
         dt, th, e = ctx.dt, self.theta, self.restitution
         t0, t1 = s.t, ctx.next_time(s.t)
-        SU = s.product("SU", lambda: ctx.S @ s.U)
+        SU = s.product("SU", lambda: ctx.Sop @ s.U)
         Fth = th * ctx.load(t1) + (1 - th) * ctx.load(t0)
         rhs = ctx.M @ s.V + dt * (Fth - SU)
         if th != 1.0:

@@ -45,6 +45,9 @@ from .base import EnergyParts, Scheme, State
 
 class PaoliSchatzman(Scheme):
     name = "paoli-schatzman"
+    #: the previous level and its products M U, S U; the Dirichlet reaction of the step; whether
+    #: the level was made by the starter
+    state_fields = {"U_prev": "dofs", "MU_prev": "dofs", "SU_prev": "dofs", "R_D": "fixed", "starter": "flag"}
     description = "two-step scheme with exact contact on (U^{n+1} + e U^{n-1})/(1+e) (restitution e)"
     parameters = (Parameter("restitution", 0.0, "restitution coefficient e", float, 0.0, 1.0),)
     starter = "crank-nicolson"
@@ -99,7 +102,7 @@ class PaoliSchatzman(Scheme):
 
     @staticmethod
     def _SU(ctx, s: State) -> np.ndarray:
-        return s.product("SU", lambda: ctx.S @ s.U)
+        return s.product("SU", lambda: ctx.Sop @ s.U)
 
     def _previous(self, ctx, s: State) -> np.ndarray:
         """U^{n-1} (the virtual level U^{-1} at n = 0); fills MU_prev/SU_prev."""

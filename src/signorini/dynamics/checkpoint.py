@@ -1,0 +1,304 @@
+"""Checkpoints: everything the next step of a run needs, in one HDF5 file, written atomically.
+
+A checkpoint of level n holds
+
+* the state: t_n, U, V, A, lambda, lambda_t and the scheme's declared data
+  (:attr:`~.schemes.base.Scheme.state_fields`);
+* the contact solvers' warm starts (:attr:`~signorini.contact.solver.ContactSolver.warm_state`:
+  the previous active set, the friction multipliers of the previous step, CG's last
+  solution), the pairing of the contact pairs after small sliding, the run's counters;
+* the built-in observers' series for the levels 0..n (history, energies and the terms of
+  their identity, the untagged watch, the events, in-memory snapshots), so that the resumed
+  run's result holds every level from t = 0;
+* the problem's identity (:func:`identity`): figures of the mesh, the mass and stiffness
+  matrices, the contact rows and gaps, the loads and the initial state at t = 0, the
+  scheme, the mass variant and dt (T excepted), and, from the command line, a hash of the
+  case file.  A resume compares them and names what differs;
+* a checksum of every array (a corrupt file is refused) and the format version.
+
+The file is written to a temporary name beside it, flushed to the disk and renamed over
+the previous checkpoint (``os.replace``): a kill during the write leaves the previous one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .schemes.base import COMMON_STATE_FIELDS, STATE_FIELD_KINDS, State
+
+FORMAT = "signorini-checkpoint"
+#: the version this code writes and the newest it reads
+VERSION = 1
+#: relative tolerance of the numeric identity figures (a run on another backend or number of
+#: ranks sums them in another order)
+IDENTITY_RTOL = 1e-9
+
+
+# ----------------------------------------------------------------------------- identity
+def _weights(n: int) -> np.ndarray:
+    """Fixed, well spread test weights 1 + sin(k) / 2 (k = 0 .. n - 1)."""
+    return 1.0 + 0.5 * np.sin(np.arange(n, dtype=float))
+
+
+def _figures(x: np.ndarray) -> list[float]:
+    """Three numbers that change when a vector changes: sum x, sum w x, max |x|."""
+    x = np.asarray(x, dtype=float).ravel()
+    return [float(x.sum()), float(_weights(x.size) @ x), float(np.abs(x).max(initial=0.0))]
+
+
+def identity(run, case_hash: str | None = None) -> dict[str, Any]:
+    """What makes a checkpoint belong to a run: names and numbers, compared on resume.
+
+    Numbers (figures of vectors: sum, weighted sum and largest entry) are compared to a
+    relative :data:`IDENTITY_RTOL` of their scale; names exactly.
+    """
+    ctx, disc = run.ctx, run.ctx.disc
+    mesh = disc.problem.mesh
+    pts = mesh.points if mesh.node_ids is None else mesh.points[np.argsort(mesh.node_ids)]
+    n = disc.space.n_dofs
+    w = _weights(n)
+    out = {
+        "problem": str(disc.problem.name),
+        "scheme": run.scheme.label,
+        "mass": str(disc.mass_name),
+        "dt": float(run.dt),
+        "dofs": int(n),
+        "contact_rows": int(disc.contact.size),
+        "mesh": [int(mesh.n_nodes), int(mesh.n_cells), *_figures(pts)],
+        "mass_matrix": _figures(ctx.Mop @ w),
+        "stiffness": _figures(ctx.Sop @ w),
+        "contact": _figures(np.concatenate([ctx.gaps(0.0), ctx.B @ w])),  # at set-up: before any re-pairing
+        "loads": _figures(ctx.load(0.0)),
+        "initial_state": _figures(np.concatenate([disc.U0, disc.V0])),
+        "fixed_dofs": int(ctx.fixed.size),
+    }
+    if case_hash is not None:
+        out["case_file"] = case_hash
+    return out
+
+
+def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) -> None:
+    """InputError naming the first item of the identity that differs."""
+    names = {"case_file": "the case file (its text changed since the checkpoint)", "mass_matrix": "the mass matrix",
+             "contact": "the contact rows or gaps", "initial_state": "the initial state", "loads": "the loads",
+             "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
+             "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs"}  # fmt: skip
+    for key in sorted(set(saved) | set(mine)):
+        a, b = saved.get(key), mine.get(key)
+        if a is None or b is None:
+            if key == "case_file":
+                continue  # a checkpoint of the Python API resumed from a case file, or the reverse
+            raise InputError(f"{where}: the checkpoint does not match this run: {key} is missing on one side")
+        same = a == b
+        if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            same = all(_close(x, y) for x, y in zip(a, b, strict=True))
+        elif isinstance(a, float) and isinstance(b, float):
+            same = a == b if key == "dt" else _close(a, b)
+        if not same:
+            what = names.get(key, key)
+            shown = "" if isinstance(a, list) else f" (checkpoint: {a!r}, this run: {b!r})"
+            raise InputError(f"{where}: the checkpoint is of another problem: {what} differs{shown}")
+
+
+def _close(x, y) -> bool:
+    if isinstance(x, str) or isinstance(y, str):
+        return x == y
+    x, y = float(x), float(y)
+    return abs(x - y) <= IDENTITY_RTOL * max(abs(x), abs(y), 1e-300) or x == y
+
+
+# ----------------------------------------------------------------------------- contents
+def state_arrays(run, state: State) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The state's arrays (``state/...``) and flags, the scheme's extra data checked against
+    its declaration; an InputError for data a scheme did not declare."""
+    declared = {**COMMON_STATE_FIELDS, **getattr(run.scheme, "state_fields", {})}
+    arrays = {"U": state.U, "V": state.V, "A": state.A, "lam": state.lam}
+    if state.lam_t is not None:
+        arrays["lam_t"] = state.lam_t
+    flags = {}
+    for key, value in state.extra.items():
+        kind = declared.get(key)
+        if kind is None:
+            raise InputError(
+                f"scheme {run.scheme.name} keeps {key!r} in State.extra without declaring it in its state_fields "
+                f"(kinds: {', '.join(STATE_FIELD_KINDS)}): a checkpoint cannot save it"
+            )
+        if value is None:
+            continue
+        if kind == "flag":
+            flags[key] = bool(value)
+        else:
+            arrays[f"extra/{key}"] = np.asarray(value)
+    return arrays, flags
+
+
+def _expected_shape(kind: str, run) -> tuple[int, ...]:
+    n, nc = run.ctx.disc.space.n_dofs, run.ctx.disc.contact.size
+    return {"dofs": (n,), "contact": (nc,), "contact_t": (nc, run.ctx.components - 1),
+            "fixed": (run.ctx.fixed.size,)}[kind]  # fmt: skip
+
+
+def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: float) -> State:
+    """The :class:`State` of a checkpoint, every array's shape and finiteness checked."""
+    n, nc = run.ctx.disc.space.n_dofs, run.ctx.disc.contact.size
+    expect = {"U": (n,), "V": (n,), "A": (n,), "lam": (nc,)}
+    if run.ctx.components > 1 and "lam_t" in arrays:
+        expect["lam_t"] = (nc, run.ctx.components - 1)
+    declared = {**COMMON_STATE_FIELDS, **getattr(run.scheme, "state_fields", {})}
+    extra: dict[str, Any] = {}
+    for key, a in arrays.items():
+        if key.startswith("extra/"):
+            name = key[6:]
+            if name not in declared or declared[name] == "flag":
+                raise InputError(f"checkpoint: state field {name!r} is not data of scheme {run.scheme.name}")
+            expect[key] = _expected_shape(declared[name], run)
+            extra[name] = a
+    for key, shape in expect.items():
+        a = arrays.get(key)
+        if a is None:
+            raise InputError(f"checkpoint: the state has no {key!r}")
+        if a.shape != shape:
+            raise InputError(f"checkpoint: state field {key!r} has shape {a.shape}, expected {shape}")
+        if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+            raise InputError(f"checkpoint: state field {key!r} holds non-finite values")
+    for key, v in flags.items():
+        if declared.get(key) != "flag":
+            raise InputError(f"checkpoint: flag {key!r} is not data of scheme {run.scheme.name}")
+        extra[key] = bool(v)
+    lam_t = arrays.get("lam_t") if run.ctx.components > 1 else None
+    return State(float(t), arrays["U"].copy(), arrays["V"].copy(), arrays["A"].copy(), arrays["lam"].copy(),
+                 extra={k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in extra.items()},
+                 lam_t=None if lam_t is None else lam_t.copy())  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- file
+def _flatten(prefix: str, data: dict[str, Any], arrays: dict, attrs: dict) -> None:
+    """Arrays of ``data`` under ``prefix/key``; everything else as JSON in ``attrs``."""
+    for k, v in data.items():
+        if isinstance(v, np.ndarray) and v.dtype.kind in "biuf":
+            arrays[f"{prefix}/{k}"] = v
+        else:
+            attrs[f"{prefix}/{k}"] = v
+
+
+def _digest(arrays: dict[str, np.ndarray], attrs: dict[str, Any]) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(f"{k}|{a.dtype.str}|{a.shape}".encode())
+        h.update(a.data)
+    h.update(json.dumps(attrs, sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+def write(path: Path, contents: dict[str, Any]) -> int:
+    """Write ``contents`` (``arrays``: name -> array, ``attrs``: name -> JSON-able value) to
+    ``path`` atomically: a temporary file beside it, fsync, rename.  Returns its size [B]."""
+    import h5py
+
+    path = Path(path)
+    arrays, attrs = contents["arrays"], dict(contents["attrs"])
+    attrs["format"], attrs["version"] = FORMAT, VERSION
+    attrs["checksum"] = _digest(arrays, {k: v for k, v in attrs.items() if k != "checksum"})
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with h5py.File(tmp, "w") as f:
+            for k, a in arrays.items():
+                f.create_dataset(k, data=a)
+            for k, v in attrs.items():
+                f.attrs[k] = json.dumps(v)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    try:
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+    return path.stat().st_size
+
+
+def read(path: Path) -> dict[str, Any]:
+    """The ``arrays`` and ``attrs`` of a checkpoint file, its format, version and checksum
+    checked: an InputError (one line) for anything else than a complete checkpoint."""
+    path = Path(path)
+    where = f"checkpoint {str(path)!r}"
+    if not path.is_file():
+        raise InputError(f"{where}: no such file (a run writes it with --checkpoint-every, or when it ends early)")
+    try:
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            raw = {k: f.attrs[k] for k in f.attrs}
+            fmt = json.loads(raw.get("format", '""'))
+            if fmt != FORMAT:
+                raise InputError(f"{where}: not a signorini checkpoint (format {fmt!r})")
+            version = json.loads(raw.get("version", "0"))
+            if not isinstance(version, int) or version > VERSION:
+                raise InputError(f"{where}: format version {version!r} is newer than this signorini reads "
+                                 f"({VERSION}); resume it with the signorini that wrote it")  # fmt: skip
+            attrs = {k: json.loads(v) for k, v in raw.items()}
+            arrays: dict[str, np.ndarray] = {}
+            f.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
+    except InputError:
+        raise
+    except Exception as exc:  # truncated, corrupt: h5py raises OSError, KeyError, ValueError, ...
+        raise InputError(f"{where}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
+                         "; a truncated or corrupt file") from None  # fmt: skip
+    checksum = attrs.pop("checksum", None)
+    if checksum != _digest(arrays, attrs):
+        raise InputError(f"{where}: its checksum does not match its contents (a corrupt or edited file)")
+    return {"arrays": arrays, "attrs": attrs}
+
+
+def unflatten(prefix: str, contents: dict[str, Any]) -> dict[str, Any]:
+    """The entries under ``prefix/`` (arrays and JSON values), keyed by the rest of the name."""
+    out: dict[str, Any] = {}
+    p = prefix + "/"
+    for k, v in contents["arrays"].items():
+        if k.startswith(p):
+            out[k[len(p) :]] = v
+    for k, v in contents["attrs"].items():
+        if k.startswith(p):
+            out[k[len(p) :]] = v
+    return out
+
+
+class CheckpointLog:
+    """What the run's checkpoints cost: count, seconds, bytes of the last, its level
+    (``summary.json`` ``checkpoints``)."""
+
+    def __init__(self, every: int, path) -> None:
+        self.every, self.path = int(every), path
+        self.written, self.seconds, self.bytes, self.level = 0, 0.0, 0, -1
+        self.error = ""
+
+    def timed(self, write_fn) -> None:
+        t0 = time.perf_counter()
+        self.bytes = write_fn()
+        self.seconds += time.perf_counter() - t0
+        self.written += 1
+
+    def summary(self) -> dict[str, Any]:
+        out = {"every": self.every, "written": self.written, "seconds": self.seconds, "bytes": self.bytes,
+               "level": self.level}  # fmt: skip
+        if self.error:
+            out["error"] = self.error
+        return out

@@ -1,0 +1,374 @@
+"""The public stepper: a run one time level at a time (in the spirit of scipy's ``OdeSolver``).
+
+:class:`Stepper` is built from the arguments of :func:`~.simulate.simulate`; its set-up
+(discretization, factorization, level 0) happens in the constructor.  Then
+``step()`` computes one time level, and ``t``, ``dt``, ``n``, ``state``, ``status``
+(``running``, ``finished``, ``failed``, ``interrupted``), ``message`` and ``counters`` say
+where the run is; ``finish()`` closes the observers and returns the
+:class:`~.history.History` of the levels computed.  :func:`~.simulate.simulate` is a short
+loop over it that adds the signal handling and, on several ranks, the agreement to stop.
+
+A hand-driven loop::
+
+    stepper = Stepper(problem, "crank-nicolson", dt=1e-3, T=1.0)
+    while stepper.status == "running":
+        stepper.step()
+        if stepper.state.lam.min() < -1e3:   # any condition of the user's
+            break
+    history = stepper.finish()               # "interrupted" when stopped before T
+
+Checkpoints (:mod:`~.checkpoint`): ``checkpoint=PATH`` with ``checkpoint_every=K`` writes
+the state of every K-th level to PATH, and of the last level computed when the run ends
+(finished, interrupted or failed); ``resume=PATH`` continues a run from such a file: the same
+problem, scheme, mass and dt (checked), and any final time T at or after the checkpoint.
+The resumed run computes what the uninterrupted run computes (bit for bit on the same
+machine, backend and thread count) and its history holds every level from t = 0.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConvergenceError, InputError
+from ..linalg.threads import blas_threads
+from . import checkpoint as ckpt
+from .events import StopRun
+from .history import History
+from .mass import DEFAULT_MASS
+from .problem import Discretization, Problem
+from .schemes import Scheme, State, make_scheme
+from .setup import (
+    MAX_CONTACT_RESIDUAL,
+    finish_history,
+    make_observers,
+    number_of_steps,
+    run_options,
+    set_up,
+)
+from .untagged import UntaggedContact
+
+#: the values of :attr:`Stepper.status`
+STATUSES = ("running", "finished", "failed", "interrupted")
+
+
+class Stepper:
+    """A run, one time level at a time (module docstring).
+
+    Parameters
+    ----------
+    problem, scheme, dt, T, mass, snapshot_every, backend, memory_budget, progress,
+    scheme_options, solver_options, observers, energy, events :
+        as :func:`~.simulate.simulate`.
+    checkpoint : path of the checkpoint file to write (None: none), or a function
+        returning it (called at the first write: a result directory made when needed).
+    checkpoint_every : write it every K levels (0: only when the run ends early).
+    checkpoint_meta : JSON-able data stored with every checkpoint (the command line keeps
+        there how to rebuild the run) and ``case_hash`` its case file's hash (identity).
+    resume : path of a checkpoint to continue from (its level must be before T).
+
+    Attributes
+    ----------
+    t, dt : the time of the current level and the time step [s].
+    n, n_steps : the current level and the last one (T / dt).
+    state : the :class:`~.schemes.State` of the current level.
+    status, message : ``running`` until the run ends; why it ended early.
+    run : the :class:`~.observers.Run` (context, scheme, initial state) observers see.
+    resumed_from : the level and time the run resumed at (None: it started at t = 0).
+    """
+
+    def __init__(
+        self,
+        problem: Problem | Discretization,
+        scheme: str | type[Scheme] | Scheme = "crank-nicolson",
+        dt: float = 0.01,
+        T: float = 1.0,
+        mass: str = DEFAULT_MASS,
+        snapshot_every: int = 0,
+        backend: str | None = None,
+        memory_budget: float | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        *,
+        scheme_options: Mapping[str, Any] | None = None,
+        solver_options: Mapping[str, Any] | None = None,
+        observers: Iterable[Any] = (),
+        energy: bool = True,
+        events: Iterable[Any] = (),
+        checkpoint: str | Path | Callable[[], Path] | None = None,
+        checkpoint_every: int = 0,
+        checkpoint_meta: Mapping[str, Any] | None = None,
+        case_hash: str | None = None,
+        resume: str | Path | None = None,
+    ) -> None:
+        if not isinstance(problem, (Problem, Discretization)):
+            raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
+                             f"{type(problem).__name__}")  # fmt: skip
+        number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
+        if not isinstance(checkpoint_every, int) or isinstance(checkpoint_every, bool) or checkpoint_every < 0:
+            raise InputError(f"checkpoint_every must be a non-negative integer, got {checkpoint_every!r}")
+        if checkpoint_every and checkpoint is None:
+            raise InputError("checkpoint_every needs a checkpoint path (checkpoint=...)")
+        saved = ckpt.read(Path(resume)) if resume is not None else None  # a bad file: refused before the set-up
+        sch = make_scheme(scheme, scheme_options)
+        opts = run_options(snapshot_every, backend, memory_budget, solver_options)
+        events = list(events)
+        if events:
+            from .events import parse_stop_at
+
+            parse_stop_at([e for e in events if isinstance(e, str)], "events")  # names checked before the set-up
+        t0 = time.perf_counter()
+        self.run, self.starter = set_up(problem, mass, sch, dt, T, opts)
+        self.setup_seconds = time.perf_counter() - t0
+        run = self.run
+        self.recorder, self.energies, self.snaps, obs = make_observers(snapshot_every, energy, progress, observers)
+        self.untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
+        obs.insert(1, self.untagged)
+        self.watch = None
+        if events:
+            from .events import EventWatch
+
+            self.watch = EventWatch(events)
+            obs.append(self.watch)  # last: the level is recorded before a terminal event ends the run
+        self.observers = obs
+        self.dt, self.n_steps = run.dt, run.n_steps
+        self.n, self.state = 0, run.initial
+        self._first = 0  # the level the loop starts from (a resumed run: the checkpoint's)
+        self.status, self.message = "running", ""
+        self.resumed_from: dict[str, Any] | None = None
+        self._checkpoint = checkpoint
+        self._meta = dict(checkpoint_meta or {})
+        self.log = ckpt.CheckpointLog(checkpoint_every, checkpoint) if checkpoint is not None else None
+        self._identity = ckpt.identity(run, case_hash)
+        self._loop_seconds = 0.0
+        self._threads = run.ctx.solver_options.get("loop_blas_threads", 1)
+        self._in_loop = False
+        self._history: History | None = None
+        self._base_counters = run.ctx.counters()  # the set-up's (a resumed run adds the loop's only)
+        self._counters_before: dict[str, int] = {}
+        self._started: list[Any] = []
+        try:
+            for o in obs:
+                o.start(run)
+                self._started.append(o)
+            if saved is not None:
+                self._resume(saved, str(resume))
+                self._base_counters = run.ctx.counters()  # after the operators the restore factorized
+        except BaseException:
+            self._close_observers()
+            raise
+        if self.n >= self.n_steps:
+            self.status = "finished"
+
+    # -- where the run is ------------------------------------------------------------
+    @property
+    def t(self) -> float:
+        return float(self.state.t)
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """The run's counters so far (``summary.json`` ``counters``)."""
+        now = self.run.ctx.counters()
+        if self.resumed_from is None:
+            out = dict(now)
+        else:  # the run it continues, plus this run's loop (not its set-up)
+            out = dict(self._counters_before)
+            for k, v in now.items():
+                out[k] = out.get(k, 0) + v - self._base_counters.get(k, 0)
+            if "pair_rows_repaired" in now:
+                out["pair_rows_repaired"] = now["pair_rows_repaired"]  # restored with the pairing
+        out["steps"] = self.n
+        return out
+
+    # -- the loop --------------------------------------------------------------------
+    def step(self) -> str:
+        """Compute the next time level; returns the status (``running`` while levels remain).
+
+        A step that fails (a solver that does not converge, a non-finite state, a contact
+        residual above tolerance) ends the run as ``failed`` and keeps the levels before it;
+        a terminal event ends it as ``finished`` after its level.
+        """
+        if self.status != "running":
+            raise RuntimeError(f"the stepper is {self.status} at level {self.n} ({self.message or 'no more steps'})")
+        if self._in_loop or self._threads <= 0:
+            return self._step()
+        with blas_threads(self._threads):
+            return self._step()
+
+    def _step(self) -> str:
+        run, n = self.run, self.n + 1
+        t0 = time.perf_counter()
+        try:
+            try:
+                new = self._advance(n)
+            except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
+                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): {exc}")
+            if not new.is_finite():
+                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): non-finite value in the state")
+            if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
+                return self._stop(
+                    "failed",
+                    f"step {n} (t = {n * self.dt:.6g}): the contact solve did not reach complementarity "
+                    f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})",
+                )
+            try:
+                for o in self.observers:
+                    o.record(run, n, new)
+            except ConvergenceError as exc:  # e.g. an energy that overflows
+                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): {exc}")
+            except StopRun as exc:  # a terminal event after this level (the last observer): it is kept
+                self.state, self.n = new, n
+                return self._stop("finished", str(exc))
+            self.state, self.n = new, n
+            run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired
+            if self.n >= self.n_steps:
+                self.status = "finished"
+            elif self.log is not None and self.log.every and self.n % self.log.every == 0:
+                self.save_checkpoint()
+            return self.status
+        finally:
+            self._loop_seconds += time.perf_counter() - t0
+
+    def _advance(self, n: int) -> State:
+        run = self.run
+        if n == 1 and self.starter is not None:
+            return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
+        return run.scheme.step(run.ctx, self.state)
+
+    def _stop(self, status: str, message: str) -> str:
+        self.status, self.message = status, message
+        return status
+
+    def interrupt(self, message: str) -> None:
+        """End a running run as ``interrupted`` with ``message`` (the levels computed are kept)."""
+        if self.status == "running":
+            self._stop("interrupted", message)
+
+    # -- checkpoints -----------------------------------------------------------------
+    def checkpoint_contents(self) -> dict[str, Any]:
+        """Everything the next step needs, at the current level (:mod:`~.checkpoint`)."""
+        run, n = self.run, self.n
+        arrays, attrs = {}, {}
+        state_arrays, flags = ckpt.state_arrays(run, self.state)
+        arrays.update({f"state/{k}": v for k, v in state_arrays.items()})
+        attrs["state_flags"] = flags
+        for k, sys in enumerate(run.ctx._systems):  # each factorized operator's solver, in order of creation
+            arrays[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
+            for name in getattr(sys.solver, "warm_state", ()):
+                arrays[f"solvers/{k}/{name}"] = np.asarray(getattr(sys.solver, name))
+            log = getattr(getattr(sys.solver, "delassus", None), "history", lambda: None)()
+            if log is not None:  # the Delassus columns solved, to solve them again alike on resume
+                arrays.update({f"solvers/{k}/delassus/{name}": a for name, a in log.items()})
+        ckpt._flatten("pairing", run.ctx.pairing_state(self.state.t), arrays, attrs)
+        for o in self.observers:
+            key = getattr(o, "checkpoint_key", None)
+            if key:
+                ckpt._flatten(f"observers/{key}", o.saved(n), arrays, attrs)
+        attrs.update(level=n, t=float(self.state.t), dt=self.dt, identity=self._identity, counters=self.counters,
+                     n_solvers=len(run.ctx._systems), meta=self._meta,
+                     scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
+        return {"arrays": arrays, "attrs": attrs}
+
+    def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
+        """Write the checkpoint of the current level (to ``path``, else the stepper's own;
+        only rank 0 writes on several ranks).  Returns the path written."""
+        target = path if path is not None else self._checkpoint
+        if target is None:
+            raise InputError("save_checkpoint needs a path (the stepper was built without checkpoint=...)")
+        contents = self.checkpoint_contents()
+        if self.run.ctx.comm.rank != 0:
+            return None
+        target = Path(target() if callable(target) else target)
+        if self.log is not None and path is None:
+            self.log.timed(lambda: ckpt.write(target, contents))
+            self.log.level = self.n
+        else:
+            ckpt.write(target, contents)
+        return target
+
+    def _resume(self, saved: dict[str, Any], where: str) -> None:
+        attrs, run = saved["attrs"], self.run
+        ckpt.compare_identity(attrs["identity"], self._identity, f"checkpoint {where!r}")
+        n, t = int(attrs["level"]), float(attrs["t"])
+        if n > self.n_steps:
+            raise InputError(f"checkpoint {where!r} is at t = {t:.10g} (level {n}), after this run's T = "
+                             f"{self.n_steps * self.dt:.10g}; give a later T")  # fmt: skip
+        state_arrays = ckpt.unflatten("state", saved)
+        self.state = ckpt.restore_state(run, state_arrays, attrs.get("state_flags", {}), t)
+        from .context import Operator
+
+        for k in range(int(attrs.get("n_solvers", 0))):
+            op = saved["arrays"].get(f"solvers/{k}/operator")
+            if op is None or op.shape != (2,) or not np.all(np.isfinite(op)):
+                raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
+            sys, _ = run.ctx._system(Operator(float(op[0]), float(op[1])))  # made now if the loop made it
+            for name in getattr(sys.solver, "warm_state", ()):
+                a = saved["arrays"].get(f"solvers/{k}/{name}")
+                old = np.asarray(getattr(sys.solver, name))
+                if a is None or a.shape != old.shape:
+                    raise InputError(f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
+                                     f"has another shape (another backend?)")  # fmt: skip
+                setattr(sys.solver, name, a.astype(old.dtype, copy=True))
+            log = {name: saved["arrays"].get(f"solvers/{k}/delassus/{name}") for name in ("nodes", "slots", "sizes")}
+            delassus = getattr(sys.solver, "delassus", None)
+            if all(v is not None for v in log.values()) and hasattr(delassus, "replay"):
+                try:
+                    delassus.replay(log)
+                except ValueError as exc:
+                    raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
+        run.ctx.restore_pairing(ckpt.unflatten("pairing", saved), t)
+        for o in self.observers:
+            key = getattr(o, "checkpoint_key", None)
+            if key:
+                o.resume(run, n, self.state, ckpt.unflatten(f"observers/{key}", saved))
+        self.n = self._first = n
+        self._counters_before = {k: int(v) for k, v in attrs["counters"].items() if k != "steps"}
+        self.resumed_from = {"level": n, "t": t, "checkpoint": where, "created": attrs.get("created", "")}
+
+    # -- the end ---------------------------------------------------------------------
+    def _close_observers(self) -> None:
+        started, self._started = self._started, []
+        for o in started:
+            o.close(self.run, self.status, self.n, self.state)
+
+    def finish(self) -> History:
+        """Close the observers and return the :class:`History` of levels 0..n (once; later
+        calls return the same).  A run still running ends as ``interrupted``.  With
+        checkpoints on, the last level computed is checkpointed (whatever the status: a
+        finished run can be continued to a later T)."""
+        if self._history is not None:
+            return self._history
+        if self.status == "running":
+            self._stop("interrupted", f"finish() called after step {self.n} of {self.n_steps}")
+        if self.log is not None and self.n > 0 and self.log.level != self.n:
+            try:
+                self.save_checkpoint()
+            except (OSError, InputError) as exc:  # the levels computed matter more: said in the summary
+                self.log.error = str(exc)
+        try:
+            self._close_observers()
+        finally:
+            self._history = self._assemble()
+        return self._history
+
+    def _assemble(self) -> History:
+        run = self.run
+        H = finish_history(run, self.n, self.recorder, self.energies, self.snaps, self.setup_seconds,
+                           self._loop_seconds, counters=self.counters, steps=self.n - self._first)  # fmt: skip
+        if self.watch is not None:
+            H.meta["events"] = self.watch.met
+            H.meta["stop_at"] = [e.name for e in getattr(self.watch, "events", []) if e.terminal]
+        H.untagged_penetration = self.untagged.series
+        H.meta["untagged_boundary_nodes"] = int(self.untagged.nodes.size)
+        H.meta["untagged_worst_penetration"] = self.untagged.worst[0]  # the failing level of untagged_contact=fail too
+        if self.untagged.exceeded():
+            H.meta["warnings"].append(self.untagged.message())
+        if self.log is not None:
+            H.meta["checkpoints"] = self.log.summary()
+        if self.resumed_from is not None:
+            H.meta["resumed_from"] = dict(self.resumed_from)
+        H.status, H.message = self.status, self.message
+        return H
