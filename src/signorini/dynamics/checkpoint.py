@@ -235,6 +235,29 @@ def write(path: Path, contents: dict[str, Any]) -> int:
     return path.stat().st_size
 
 
+def read_meta(path: Path) -> dict[str, Any]:
+    """The attributes of a checkpoint (level, t, identity, meta), format and version checked
+    (the arrays and the checksum are checked when the run resumes: :func:`read`)."""
+    path = Path(path)
+    where = f"checkpoint {str(path)!r}"
+    if not path.is_file():
+        raise InputError(f"{where}: no such file (every run of `signorini run` writes it at its end)")
+    try:
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            raw = {k: f.attrs[k] for k in f.attrs}
+        attrs = {k: json.loads(v) for k, v in raw.items()}
+    except Exception as exc:
+        raise InputError(f"{where}: unreadable ({type(exc).__name__}); a truncated or corrupt file") from None
+    if attrs.get("format") != FORMAT:
+        raise InputError(f"{where}: not a signorini checkpoint (format {attrs.get('format')!r})")
+    if not isinstance(attrs.get("version"), int) or attrs["version"] > VERSION:
+        raise InputError(f"{where}: format version {attrs.get('version')!r} is newer than this signorini reads "
+                         f"({VERSION}); resume it with the signorini that wrote it")  # fmt: skip
+    return attrs
+
+
 def read(path: Path) -> dict[str, Any]:
     """The ``arrays`` and ``attrs`` of a checkpoint file, its format, version and checksum
     checked: an InputError (one line) for anything else than a complete checkpoint."""

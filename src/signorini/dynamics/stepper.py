@@ -320,10 +320,10 @@ class Stepper:
                 except ValueError as exc:
                     raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
         run.ctx.restore_pairing(ckpt.unflatten("pairing", saved), t)
-        for o in self.observers:
+        for o in self.observers:  # each with its data; those without a key with none (e.g. to copy files)
             key = getattr(o, "checkpoint_key", None)
-            if key:
-                o.resume(run, n, self.state, ckpt.unflatten(f"observers/{key}", saved))
+            if hasattr(o, "resume"):
+                o.resume(run, n, self.state, ckpt.unflatten(f"observers/{key}", saved) if key else {})
         self.n = self._first = n
         self._counters_before = {k: int(v) for k, v in attrs["counters"].items() if k != "steps"}
         self.resumed_from = {"level": n, "t": t, "checkpoint": where, "created": attrs.get("created", "")}

@@ -58,6 +58,7 @@ errors that name the key and the allowed values)::
     [output]
     directory = "out/case"
     snapshot_every = 0          # XDMF fields every k steps (0: none)
+    checkpoint_every = 0        # checkpoint.h5 every k steps (0: at the end only)
 
     [limits]                    # optional: refuse larger runs unless yes = true
     max_steps = 1000000
@@ -109,6 +110,8 @@ class Case:
     mass_named: bool = False
     #: built-in events that end the run ([time] stop_at)
     stop_at: list[str] = field(default_factory=list)
+    #: a checkpoint every k levels ([output] checkpoint_every; 0: at the end only)
+    checkpoint_every: int = 0
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -474,7 +477,7 @@ def _solver(sol: Any) -> tuple[str, dict]:
     return MASS_VARIANTS.resolve(mass), given
 
 
-def _output(outp: Any) -> tuple[Path | None, int]:
+def _output(outp: Any) -> tuple[Path | None, int, int]:
     _keys("output", outp, SECTIONS["output"])
     out = outp.get("directory")
     if out is not None and not isinstance(out, str):
@@ -484,7 +487,10 @@ def _output(outp: Any) -> tuple[Path | None, int]:
     every = outp.get("snapshot_every", 0)
     if not isinstance(every, int) or isinstance(every, bool) or every < 0:
         raise InputError(f"'output.snapshot_every' must be a non-negative integer, got {every!r}")
-    return (Path(out) if out else None), every
+    ck = outp.get("checkpoint_every", 0)
+    if not isinstance(ck, int) or isinstance(ck, bool) or ck < 0:
+        raise InputError(f"'output.checkpoint_every' must be a non-negative integer, got {ck!r}")
+    return (Path(out) if out else None), every, ck
 
 
 def _limits(lim: Any) -> dict:
@@ -583,7 +589,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     if not isinstance(follow_mass, bool):
         raise InputError(f"'loads.follow_mass' must be true or false, got {follow_mass!r}")
     mass, solver_opts = _solver(data.get("solver", {}))
-    out, every = _output(data.get("output", {}))
+    out, every, checkpoint_every = _output(data.get("output", {}))
     problem = Problem(
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
         friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
@@ -593,7 +599,8 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     from ..dynamics.events import parse_stop_at
 
     stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
-    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at)
+    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at,
+                checkpoint_every)  # fmt: skip
 
 
 def case_problem(path: str | Path) -> Problem:

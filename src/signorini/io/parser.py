@@ -12,7 +12,7 @@ from ..linalg import BACKENDS, SOLVER_OPTIONS
 from ..studies.benchmarks import BENCHMARKS
 from .commands import cmd_compare, cmd_reproduce, cmd_study, cmd_template
 from .messages import OneLineParser
-from .run_command import cmd_run
+from .run_command import cmd_resume, cmd_run
 
 EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --out out/bar1d
   signorini run bar2d --scheme be --mass standard --n 4 --T 1 --out out/bar2d-be
@@ -162,6 +162,15 @@ def _add_run(sub) -> None:
     out.add_argument(
         "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps and at the end (0: none)"
     )
+    out.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=None,
+        metavar="K",
+        help="write checkpoint.h5 every K steps (atomically; default 0: only at the end, which every run does, "
+        "also when interrupted or failed); `signorini resume` continues from it (case file: [output] "
+        "checkpoint_every)",
+    )
     add_limit_arguments(
         out,
         "runs with more steps (case file: [limits] max_steps)",
@@ -171,6 +180,40 @@ def _add_run(sub) -> None:
         out, None, "output directory (default out/run, or the case file's)", "no progress bar and no summary"
     )
     r.set_defaults(func=cmd_run)
+
+
+EXAMPLES_RESUME = """  signorini run bar2d --T 1 --out out/first            # or interrupted: Ctrl-C, SIGTERM, a job limit
+  signorini resume out/first --T 2 --out out/longer    # levels 0..T=1 copied, then on to T = 2
+  signorini run bar2d --T 2 --checkpoint-every 20 --out out/long   # killed (SIGKILL)? its last checkpoint is kept
+  signorini resume out/long --T 2 --out out/long-done
+"""
+
+
+def _add_resume(sub) -> None:
+    """The sub-command ``signorini resume``."""
+    r = add_command(
+        sub,
+        "resume",
+        "continue a run from its checkpoint to a later final time",
+        "Continue the run of RESULT_DIR from its checkpoint.h5 (written at the end of every run, interrupted "
+        "and failed ones included, and every K steps with --checkpoint-every) up to --T, into a new result "
+        "directory that holds every level from t = 0 (the earlier ones copied).  The run is rebuilt as it was "
+        "started (benchmark, case file, scheme, mass, solver); a case file that changed since is refused.  The "
+        "resumed run computes what the uninterrupted run computes (bit for bit on the same machine, backend "
+        "and thread count: docs/tutorial.md).  Exit codes as `signorini run`.",
+        EXAMPLES_RESUME,
+    )
+    r.add_argument("result", metavar="RESULT_DIR", help="a result directory holding checkpoint.h5")
+    r.add_argument("--T", type=float, required=True, help="the new final time (at or after the checkpoint's time)")
+    r.add_argument(
+        "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps (default: the run's)"
+    )
+    r.add_argument(
+        "--checkpoint-every", type=int, default=None, metavar="K", help="checkpoint every K steps (default: the run's)"
+    )
+    add_output_arguments(r, None, "output directory (required; a new directory, or --overwrite)", "no progress bar "
+                         "and no summary")  # fmt: skip
+    r.set_defaults(func=cmd_resume)
 
 
 def _add_study(sub) -> None:
@@ -333,6 +376,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"signorini {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for add in (_add_run, _add_study, _add_template, _add_compare, _add_reproduce):
+    for add in (_add_run, _add_resume, _add_study, _add_template, _add_compare, _add_reproduce):
         add(sub)
     return p

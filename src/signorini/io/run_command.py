@@ -46,6 +46,41 @@ class RunSpec:
     measure: Any = None  # a benchmark's extra figures (observers, summary fields, text)
     #: built-in events that end the run (--stop-at, [time] stop_at)
     events: list = field(default_factory=list)
+    #: a checkpoint every k steps (0: at the end only)
+    checkpoint_every: int = 0
+    #: how to build this run again (the command's arguments), kept in its checkpoints
+    invocation: dict = field(default_factory=dict)
+    #: the checkpoint a resumed run continues from, and the result directory it is in
+    resume: Path | None = None
+    #: hash of the case file's text (a resumed case must be the same file)
+    case_hash: str | None = None
+
+
+#: the arguments of ``signorini run`` a checkpoint keeps to build the run again
+INVOCATION_ARGS = ("target", "scheme", "scheme_option", "mass", "friction", "backend", "solver_option", "n", "dt",
+                   "T", "set", "stop_at", "snapshot_every", "checkpoint_every", "max_steps", "max_memory", "yes")  # fmt: skip
+
+
+def invocation(args: argparse.Namespace) -> dict:
+    """The run's arguments as JSON-able data (a case file by its absolute path)."""
+    out = {k: getattr(args, k, None) for k in INVOCATION_ARGS}
+    if str(out["target"]).endswith(".toml"):
+        out["target"] = str(Path(out["target"]).resolve())
+    return out
+
+
+def case_text_hash(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _checkpoint_every(args: argparse.Namespace, default: int) -> int:
+    k = getattr(args, "checkpoint_every", None)
+    k = default if k is None else k
+    if not isinstance(k, int) or k < 0:
+        raise InputError(f"--checkpoint-every must be >= 0, got {k}")
+    return k
 
 
 def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
@@ -145,7 +180,8 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     measure = bench.measure(params) if bench.measure is not None else None
     return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
                    sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure,
-                   events=parse_stop_at(args.stop_at))  # fmt: skip
+                   events=parse_stop_at(args.stop_at), checkpoint_every=_checkpoint_every(args, 0),
+                   invocation=invocation(args))  # fmt: skip
 
 
 def case_spec(args: argparse.Namespace) -> RunSpec:
@@ -170,15 +206,25 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
     return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
-                   sch, sol, every, meta, Path(args.target), limits, events=events)  # fmt: skip
+                   sch, sol, every, meta, Path(args.target), limits, events=events,
+                   checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
+                   case_hash=case_text_hash(Path(args.target)))  # fmt: skip
 
 
 class LazyFieldWriter:
     """A :class:`~signorini.io.output.FieldWriter` into the result directory, which is
-    created only when the time loop starts (so invalid input creates nothing)."""
+    created only when the time loop starts (so invalid input creates nothing); a resumed
+    run's writer first copies the snapshots of the run it continues (``source``: its
+    fields.xdmf) up to the resumed level."""
 
-    def __init__(self, rd: ResultDirectory, every: int):
-        self.rd, self.every, self.inner = rd, every, None
+    def __init__(self, rd: ResultDirectory, every: int, source: Path | None = None):
+        self.rd, self.every, self.inner, self.source = rd, every, None, source
+
+    def resume(self, run, n, state, data) -> None:
+        if self.source is None or self.inner is None or not self.source.is_file():
+            return
+        with _rank0_only():
+            self.inner.copy_from(self.source, run.dt, n)
 
     def start(self, run) -> None:
         from .output import FieldWriter
@@ -243,7 +289,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
         raise
     comm.bcast(True)
     with rd:
-        observers = [LazyFieldWriter(rd, spec.snapshot_every)] if spec.snapshot_every else []
+        source = spec.resume.parent / "fields.xdmf" if spec.resume is not None else None
+        observers = [LazyFieldWriter(rd, spec.snapshot_every, source)] if spec.snapshot_every else []
         if spec.measure is not None:
             observers += spec.measure.observers()
         try:
@@ -258,6 +305,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 solver_options=spec.solver_options,
                 observers=observers,
                 events=spec.events,
+                **_checkpoint_arguments(spec, lambda: rd.create() / "checkpoint.h5"),
             )
         except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
             write_setup_failure(rd, spec, exc)
@@ -293,7 +341,8 @@ def execute_follower(spec: RunSpec, comm) -> int:
     observers = spec.measure.observers() if spec.measure is not None else []
     try:
         H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
-                     solver_options=spec.solver_options, observers=observers, events=spec.events)  # fmt: skip
+                     solver_options=spec.solver_options, observers=observers, events=spec.events,
+                     **_checkpoint_arguments(spec, None))  # fmt: skip
     except ConvergenceError:
         return EXIT_CODES["failed"]
     # the loop's stop is agreed: a signal from now on must not end this rank on its own
@@ -314,6 +363,57 @@ def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:
         print(f"  results in {spec.out}")
     if not H.success:
         print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out})", file=sys.stderr)
+
+
+def _checkpoint_arguments(spec: RunSpec, path) -> dict:
+    """simulate's checkpoint arguments of a run of the command line (every run checkpoints its
+    last level; rank 0 writes, the other ranks compute the same contents and write nothing)."""
+    return {"checkpoint": path if path is not None else Path("/nonexistent/checkpoint.h5"),
+            "checkpoint_every": spec.checkpoint_every, "checkpoint_meta": {"invocation": spec.invocation},
+            "case_hash": spec.case_hash, "resume": spec.resume}  # fmt: skip
+
+
+def cmd_resume(args: argparse.Namespace) -> int:
+    """``signorini resume RESULT_DIR --T T --out NEW``: the run of RESULT_DIR rebuilt from the
+    arguments its checkpoint keeps, continued from it to T (:mod:`~signorini.dynamics.checkpoint`)."""
+    from ..dynamics.checkpoint import read_meta
+
+    result = Path(args.result)
+    if not result.is_dir():
+        raise InputError(f"RESULT_DIR {str(result)!r} is not a directory (a result of `signorini run`)")
+    where = result / "checkpoint.h5"
+    meta = read_meta(where)
+    inv = dict(meta.get("meta", {}).get("invocation") or {})
+    if not inv.get("target"):
+        raise InputError(f"checkpoint {str(where)!r} was not written by `signorini run` (no command to rebuild the "
+                         "run from); resume it from Python: simulate(..., resume=PATH)")  # fmt: skip
+    if args.out is None or not str(args.out).strip():
+        raise InputError("--out is required: the resumed result goes into a new directory (RESULT_DIR is kept)")
+    if Path(args.out).resolve() == result.resolve():
+        raise InputError("--out must not be RESULT_DIR: the resumed result is a new directory")
+    ns = argparse.Namespace(**{k: inv.get(k) for k in INVOCATION_ARGS})
+    ns.out, ns.quiet, ns.overwrite = args.out, args.quiet, args.overwrite
+    case = str(ns.target).endswith(".toml")
+    if case:
+        if not Path(ns.target).is_file():
+            raise InputError(f"the case file of the run, {ns.target!r}, is gone; put it back to resume")
+        ns.T = None
+    else:
+        ns.T = args.T
+    if args.snapshot_every is not None:
+        ns.snapshot_every = args.snapshot_every
+    if args.checkpoint_every is not None:
+        ns.checkpoint_every = args.checkpoint_every
+    spec = case_spec(ns) if case else benchmark_spec(ns)
+    if case:
+        if spec.case_hash != meta.get("identity", {}).get("case_file"):
+            raise InputError(f"the case file {ns.target!r} changed since the checkpoint of {str(result)!r}; "
+                             "resume needs the same file")  # fmt: skip
+        spec.T = args.T
+    check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options)
+    spec.resume = where
+    spec.meta["resumed_from_directory"] = str(result)
+    return execute(spec, args)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -194,6 +194,9 @@ SECTIONS: tuple[Section, ...] = (
         (
             Key("directory", "string", "out/<case name>", "", "result directory"),
             Key("snapshot_every", "integer >= 0", "0", "steps", "XDMF fields every k steps and at the end (0: none)"),
+            Key("checkpoint_every", "integer >= 0", "0", "steps",
+                "checkpoint.h5 every k steps (0: only at the end; every run writes one at its end), for "
+                "`signorini resume`"),  # fmt: skip
         ),
     ),
     Section(
