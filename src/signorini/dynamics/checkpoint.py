@@ -91,7 +91,23 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
              "contact": "the contact rows or gaps", "initial_state": "the initial state", "loads": "the loads",
              "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
              "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs"}  # fmt: skip
-    for key in sorted(set(saved) | set(mine)):
+    order = (
+        "case_file",
+        "problem",
+        "scheme",
+        "mass",
+        "dt",
+        "dofs",
+        "mesh",
+        "contact_rows",
+        "fixed_dofs",
+        "stiffness",
+        "mass_matrix",
+        "contact",
+        "loads",
+        "initial_state",
+    )  # the most telling difference first
+    for key in sorted(set(saved) | set(mine), key=lambda k: (order.index(k) if k in order else len(order), k)):
         a, b = saved.get(key), mine.get(key)
         if a is None or b is None:
             if key == "case_file":

@@ -150,6 +150,9 @@ class Stepper:
         self._base_counters = run.ctx.counters()  # the set-up's (a resumed run adds the loop's only)
         self._counters_before: dict[str, int] = {}
         self._started: list[Any] = []
+        #: the counters at the current level, taken before the next step works (a step that fails
+        #: or is interrupted has solved already: its checkpoint is of the level before it)
+        self._level_counters: dict[str, int] | None = None
         try:
             for o in obs:
                 o.start(run)
@@ -224,6 +227,7 @@ class Stepper:
                 return self._stop("finished", str(exc))
             self.state, self.n = new, n
             run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired
+            self._level_counters = None  # the counters of this level: taken when a checkpoint needs them
             if self.n >= self.n_steps:
                 self.status = "finished"
             elif self.log is not None and self.log.every and self.n % self.log.every == 0:
@@ -234,6 +238,8 @@ class Stepper:
 
     def _advance(self, n: int) -> State:
         run = self.run
+        if self._level_counters is None:  # the counters at the current level (before a step's work)
+            self._level_counters = self.counters
         if n == 1 and self.starter is not None:
             return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
         return run.scheme.step(run.ctx, self.state)
@@ -267,7 +273,8 @@ class Stepper:
             key = getattr(o, "checkpoint_key", None)
             if key:
                 ckpt._flatten(f"observers/{key}", o.saved(n), arrays, attrs)
-        attrs.update(level=n, t=float(self.state.t), dt=self.dt, identity=self._identity, counters=self.counters,
+        counters = self._level_counters if self._level_counters is not None else self.counters
+        attrs.update(level=n, t=float(self.state.t), dt=self.dt, identity=self._identity, counters=counters,
                      n_solvers=len(run.ctx._systems), meta=self._meta,
                      scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
         return {"arrays": arrays, "attrs": attrs}

@@ -182,7 +182,7 @@ def _add_run(sub) -> None:
     r.set_defaults(func=cmd_run)
 
 
-EXAMPLES_RESUME = """  signorini run bar2d --T 1 --out out/first            # or interrupted: Ctrl-C, SIGTERM, a job limit
+EXAMPLES_RESUME = """  signorini run bar2d --T 1 --out out/first           # or interrupted: Ctrl-C, SIGTERM, job limit
   signorini resume out/first --T 2 --out out/longer    # levels 0..T=1 copied, then on to T = 2
   signorini run bar2d --T 2 --checkpoint-every 20 --out out/long   # killed (SIGKILL)? its last checkpoint is kept
   signorini resume out/long --T 2 --out out/long-done

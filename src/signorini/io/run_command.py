@@ -57,8 +57,10 @@ class RunSpec:
 
 
 #: the arguments of ``signorini run`` a checkpoint keeps to build the run again
-INVOCATION_ARGS = ("target", "scheme", "scheme_option", "mass", "friction", "backend", "solver_option", "n", "dt",
-                   "T", "set", "stop_at", "snapshot_every", "checkpoint_every", "max_steps", "max_memory", "yes")  # fmt: skip
+INVOCATION_ARGS = (
+    "target", "scheme", "scheme_option", "mass", "friction", "backend", "solver_option", "n", "dt", "T", "set",
+    "stop_at", "snapshot_every", "checkpoint_every", "max_steps", "max_memory", "yes",
+)  # fmt: skip
 
 
 def invocation(args: argparse.Namespace) -> dict:

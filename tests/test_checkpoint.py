@@ -1,0 +1,219 @@
+"""Checkpoints and resume (issue 33): a run to T/2 resumed to T equals the run to T, bit for bit
+on the same machine and backend (every scheme x standard, seed, moment-preserving; with
+Coulomb friction; contact pairs), a hand-driven Stepper, and hostile checkpoints refused."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from signorini.dynamics.problem import with_friction
+from signorini.dynamics.schemes import SCHEMES, friction_schemes
+from signorini.dynamics.simulate import Stepper, simulate
+from signorini.errors import InputError
+from signorini.studies.benchmarks import get_benchmark
+
+SERIES = ("t", "gap", "lam", "kinetic_energy", "elastic_energy", "load_potential", "predicted_increment",
+          "external_work", "contact_work", "numerical_dissipation", "impulse", "momentum", "active", "iterations",
+          "untagged_penetration")  # fmt: skip
+
+
+def _bar2d(friction: str | None = None):
+    b = get_benchmark("bar2d")
+    p = b.problem(4, {})
+    dt, T = b.run_times(4, {})
+    return (with_friction(p, friction) if friction else p), dt, T
+
+
+def assert_same_run(a, b) -> None:
+    """Every series and counter of two histories equal, bit for bit."""
+    for k in SERIES:
+        x, y = getattr(a, k), getattr(b, k)
+        assert np.array_equal(x, y, equal_nan=True), k
+    if a.lam_t is not None:
+        assert np.array_equal(a.lam_t, b.lam_t) and np.array_equal(a.slip, b.slip)
+    assert a.counters == b.counters
+    assert a.status == b.status == "finished"
+
+
+def _resumed(tmp_path: Path, problem, scheme: str, dt: float, T: float, mass: str, **kw):
+    ck = tmp_path / f"{scheme}-{mass}.h5"
+    half = (round(T / dt) // 2) * dt
+    first = simulate(problem, scheme, dt, half, mass=mass, checkpoint=ck, **kw)
+    assert first.meta["checkpoints"]["level"] == round(half / dt)
+    return simulate(problem, scheme, dt, T, mass=mass, resume=ck, **kw)
+
+
+@pytest.mark.parametrize("mass", ["standard", "seed", "moment-preserving"])
+@pytest.mark.parametrize("scheme", SCHEMES.names(aliases=False))
+def test_resume_equals_uninterrupted_run(tmp_path, scheme, mass):
+    """bar2d: T/2 + resume to T = T, every series and counter bit for bit (or the scheme refuses
+    the mass in both)."""
+    p, dt, T = _bar2d()
+    try:
+        full = simulate(p, scheme, dt, T, mass=mass)
+    except InputError:
+        with pytest.raises(InputError):
+            _resumed(tmp_path, p, scheme, dt, T, mass)
+        return
+    r = _resumed(tmp_path, p, scheme, dt, T, mass)
+    assert_same_run(full, r)
+    assert r.meta["resumed_from"]["level"] == round(T / dt) // 2
+
+
+@pytest.mark.parametrize("scheme", ["crank-nicolson", "backward-euler", "generalized-alpha", "moreau-jean"])
+def test_resume_with_coulomb_friction(tmp_path, scheme):
+    assert scheme in friction_schemes()
+    p, dt, T = _bar2d("coulomb:0.3")
+    mass = "standard" if scheme == "moreau-jean" else "moment-preserving"
+    full = simulate(p, scheme, dt, T, mass=mass)
+    assert_same_run(full, _resumed(tmp_path, p, scheme, dt, T, mass))
+
+
+def test_resume_contact_pairs_with_small_sliding(tmp_path):
+    """Two blocks with Coulomb friction on a pair, re-paired by small sliding before and after
+    the checkpoint: the resumed run equals the uninterrupted one."""
+    from signorini.io.config import load_case
+
+    c = load_case(Path(__file__).parents[1] / "examples" / "block_on_block.toml")
+    T = 60 * c.dt
+    full = simulate(c.problem, c.scheme, c.dt, T, mass=c.mass)
+    r = _resumed(tmp_path, c.problem, c.scheme, c.dt, T, c.mass)
+    assert full.counters["pair_rows_repaired"] > 0
+    for k in SERIES:
+        assert np.array_equal(getattr(full, k), getattr(r, k), equal_nan=True), k
+    assert r.counters["pair_rows_repaired"] == full.counters["pair_rows_repaired"]
+
+
+def test_interrupted_run_resumes_from_its_last_level(tmp_path):
+    """A KeyboardInterrupt at level 17 (Ctrl-C inside a step): the run checkpoints level 16
+    and the resume equals the uninterrupted run."""
+    from signorini.dynamics.observers import Observer
+
+    class CtrlC(Observer):
+        def record(self, run, n, state):
+            if n == 17:
+                raise KeyboardInterrupt
+
+    p, dt, T = _bar2d()
+    ck = tmp_path / "c.h5"
+    cut = simulate(p, "cn", dt, T, checkpoint=ck, observers=[CtrlC()])
+    assert cut.status == "interrupted" and cut.meta["checkpoints"]["level"] == 16
+    assert_same_run(simulate(p, "cn", dt, T), simulate(p, "cn", dt, T, resume=ck))
+
+
+def test_stepper_by_hand(tmp_path):
+    """The public loop: status, t and n follow the steps; a stepper stopped early finishes as
+    interrupted; step() after the end is an error; finish() is idempotent."""
+    p, dt, T = _bar2d()
+    s = Stepper(p, "cn", dt, T)
+    assert (s.status, s.n, s.t, s.dt) == ("running", 0, 0.0, dt)
+    while s.status == "running" and s.n < 5:
+        s.step()
+    assert s.n == 5 and s.t == 5 * dt and s.counters["steps"] == 5
+    H = s.finish()
+    assert H.status == "interrupted" and "after step 5" in H.message and len(H.t) == 6
+    assert s.finish() is H
+    with pytest.raises(RuntimeError):
+        s.step()
+    s2 = Stepper(p, "cn", dt, T)
+    while s2.step() == "running":
+        pass
+    assert_same_run(s2.finish(), simulate(p, "cn", dt, T))
+
+
+def test_checkpoint_of_another_problem_is_refused(tmp_path):
+    p, dt, T = _bar2d()
+    ck = tmp_path / "c.h5"
+    simulate(p, "cn", dt, T / 2, checkpoint=ck)
+    with pytest.raises(InputError, match="scheme differs"):
+        simulate(p, "be", dt, T, resume=ck)
+    with pytest.raises(InputError, match="dt differs"):
+        simulate(p, "cn", dt / 2, T, resume=ck)
+    b = get_benchmark("bar2d")
+    with pytest.raises(InputError, match="mesh|number of dofs"):
+        simulate(b.problem(2, {}), "cn", dt, T, resume=ck)
+    with pytest.raises(InputError, match="mass differs"):
+        simulate(p, "cn", dt, T, mass="standard", resume=ck)
+
+
+def _cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "signorini", *args], cwd=cwd, capture_output=True, text=True)
+
+
+def test_cli_resume_equals_the_uninterrupted_run(tmp_path):
+    """`signorini resume` of a run to T = 0.5 gives the files of the run to T = 1: history.csv,
+    contact.npz and every XDMF snapshot."""
+    import meshio
+
+    assert (
+        _cli("run", "bar2d", "--T", "0.5", "--snapshot-every", "10", "--quiet", "--out", "a", cwd=tmp_path).returncode
+        == 0
+    )
+    r = _cli("resume", "a", "--T", "1", "--quiet", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (
+        _cli("run", "bar2d", "--T", "1", "--snapshot-every", "10", "--quiet", "--out", "c", cwd=tmp_path).returncode
+        == 0
+    )
+    assert (tmp_path / "b/history.csv").read_text() == (tmp_path / "c/history.csv").read_text()
+    x, y = np.load(tmp_path / "b/contact.npz"), np.load(tmp_path / "c/contact.npz")
+    assert all(np.array_equal(x[k], y[k], equal_nan=True) for k in y.files)
+    summary = json.loads((tmp_path / "b/summary.json").read_text())
+    assert summary["resumed_from"]["level"] == 40 and summary["status"] == "finished"
+
+    def fields(d):
+        with meshio.xdmf.TimeSeriesReader(str(tmp_path / d / "fields.xdmf")) as reader:
+            reader.read_points_cells()
+            return [reader.read_data(k) for k in range(reader.num_steps)]
+
+    fb, fc = fields("b"), fields("c")
+    assert [f[0] for f in fb] == [f[0] for f in fc] and len(fc) == 9
+    assert all(np.array_equal(a[1][k], b[1][k]) for a, b in zip(fb, fc, strict=True) for k in b[1])
+
+
+def _hostile(path: Path, how: str) -> None:
+    if how == "truncated":
+        data = path.read_bytes()
+        path.write_bytes(data[: len(data) // 3])
+    elif how == "nan":
+        with h5py.File(path, "a") as f:
+            a = f["state/U"][()]
+            a[3] = np.nan
+            f["state/U"][...] = a
+    elif how == "shape":
+        with h5py.File(path, "a") as f:
+            a = f["state/V"][()]
+            del f["state/V"]
+            f["state/V"] = a[:-1]
+    elif how == "newer":
+        with h5py.File(path, "a") as f:
+            f.attrs["version"] = json.dumps(99)
+    elif how == "not-hdf5":
+        path.write_text("[mesh]\n")
+
+
+@pytest.mark.parametrize("how", ["truncated", "nan", "shape", "newer", "not-hdf5"])
+def test_hostile_checkpoints_are_refused(tmp_path, how):
+    assert _cli("run", "bar2d", "--T", "0.5", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    _hostile(tmp_path / "a/checkpoint.h5", how)
+    r = _cli("resume", "a", "--T", "1", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "checkpoint" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "b").exists() and not list(tmp_path.glob(".signorini-new.*"))
+
+
+def test_changed_case_file_is_refused(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text((Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text().replace("T = 1.0", "T = 0.1"))
+    assert _cli("run", str(case), "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    case.write_text(case.read_text().replace("mu = 0.5", "mu = 0.4"))
+    r = _cli("resume", "a", "--T", "0.2", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 2 and "changed since the checkpoint" in r.stderr
+    assert not (tmp_path / "b").exists()
