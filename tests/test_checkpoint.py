@@ -217,3 +217,32 @@ def test_changed_case_file_is_refused(tmp_path):
     r = _cli("resume", "a", "--T", "0.2", "--out", "b", cwd=tmp_path)
     assert r.returncode == 2 and "changed since the checkpoint" in r.stderr
     assert not (tmp_path / "b").exists()
+
+
+def test_killed_run_is_resumable(tmp_path):
+    """SIGKILL at a random moment after the first periodic checkpoint: --out holds that
+    checkpoint (status killed, resumable) and its resume equals the uninterrupted run."""
+    import os
+    import random
+    import signal
+    import time
+
+    args = ["run", "bar2d", "--n", "8", "--T", "6", "--quiet"]
+    p = subprocess.Popen([sys.executable, "-m", "signorini", *args, "--checkpoint-every", "40", "--out", "k"],
+                         cwd=tmp_path, stderr=subprocess.PIPE)  # fmt: skip
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob(".signorini-new.*/checkpoint.h5")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(random.Random(7).uniform(0.0, 0.5))
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    deadline = time.monotonic() + 20
+    while not (tmp_path / "k/summary.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    summary = json.loads((tmp_path / "k/summary.json").read_text())
+    assert summary["status"] == "killed" and summary["resumable"] and summary["checkpoint"]["level"] % 40 == 0
+    assert sorted(x.name for x in (tmp_path / "k").iterdir()) == [".signorini", "checkpoint.h5", "summary.json"]
+    assert _cli("resume", "k", "--T", "6", "--quiet", "--out", "r", cwd=tmp_path).returncode == 0
+    assert _cli(*args, "--out", "u", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "r/history.csv").read_text() == (tmp_path / "u/history.csv").read_text()
+    assert not list(tmp_path.glob(".signorini-*"))

@@ -99,6 +99,7 @@ def simulate(
     checkpoint_meta: Mapping[str, Any] | None = None,
     case_hash: str | None = None,
     resume: str | Path | None = None,
+    on_checkpoint: Callable[[dict], None] | None = None,
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
 
@@ -140,7 +141,8 @@ def simulate(
     stepper = Stepper(problem, scheme, dt, T, mass, snapshot_every, backend, memory_budget, progress,
                       scheme_options=scheme_options, solver_options=solver_options, observers=observers,
                       energy=energy, events=events, checkpoint=checkpoint, checkpoint_every=checkpoint_every,
-                      checkpoint_meta=checkpoint_meta, case_hash=case_hash, resume=resume)  # fmt: skip
+                      checkpoint_meta=checkpoint_meta, case_hash=case_hash, resume=resume,
+                      on_checkpoint=on_checkpoint)  # fmt: skip
     comm = stepper.run.ctx.comm
     with _catch_signals(handle_signals) as interrupts:
         interrupts.abort_on_second = comm.size == 1

@@ -70,6 +70,8 @@ class Stepper:
     checkpoint_meta : JSON-able data stored with every checkpoint (the command line keeps
         there how to rebuild the run) and ``case_hash`` its case file's hash (identity).
     resume : path of a checkpoint to continue from (its level must be before T).
+    on_checkpoint : called with (level, t, counters, scheme, mass) after each checkpoint
+        of the run is complete (the command line tells its watchdog).
 
     Attributes
     ----------
@@ -103,6 +105,7 @@ class Stepper:
         checkpoint_meta: Mapping[str, Any] | None = None,
         case_hash: str | None = None,
         resume: str | Path | None = None,
+        on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
     ) -> None:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
@@ -140,6 +143,7 @@ class Stepper:
         self.status, self.message = "running", ""
         self.resumed_from: dict[str, Any] | None = None
         self._checkpoint = checkpoint
+        self._on_checkpoint = on_checkpoint
         self._meta = dict(checkpoint_meta or {})
         self.log = ckpt.CheckpointLog(checkpoint_every, checkpoint) if checkpoint is not None else None
         self._identity = ckpt.identity(run, case_hash)
@@ -292,6 +296,10 @@ class Stepper:
         if self.log is not None and path is None:
             self.log.timed(lambda: ckpt.write(target, contents))
             self.log.level = self.n
+            if self._on_checkpoint is not None:
+                a = contents["attrs"]
+                self._on_checkpoint({"level": a["level"], "t": a["t"], "counters": a["counters"],
+                                     "scheme": self.run.scheme.label, "mass": self.run.ctx.disc.mass_name})  # fmt: skip
         else:
             ckpt.write(target, contents)
         return target

@@ -28,6 +28,12 @@ renames it into place only at the end (:meth:`ResultDirectory.commit`).  Guarant
   ends for any reason the pipe closes and the watchdog finishes the job: before the
   commit it removes the temporary directory; during the commit it puts a complete
   result (the new one, else the old one) under ``--out`` and removes what is aside.
+* **A killed run with a checkpoint is resumable** (:meth:`ResultDirectory.checkpointed`):
+  once a complete checkpoint.h5 is in the temporary directory, a kill before the commit
+  leaves ``--out`` holding that checkpoint, a summary.json with status ``killed`` and the
+  marker (the partial fields and history are removed: the checkpoint holds the history up
+  to its level); ``signorini resume`` continues it.  ``--out`` taken meanwhile: the
+  directory is kept beside it as ``<out>.killed-<pid>``.
 """
 
 from __future__ import annotations
@@ -56,10 +62,12 @@ _OLD_PREFIX = ".signorini-old."
 _WATCHDOG = r"""
 import json, os, shutil, sys
 out = sys.argv[1]
-tmp, created, aside, committing, done = None, [], [], False, False
+tmp, created, aside, committing, done, killed = None, [], [], False, False, None
 for line in sys.stdin.buffer:
     word, arg = json.loads(line)
-    if word == "tmp":
+    if word == "checkpoint":
+        killed = arg
+    elif word == "tmp":
         tmp = arg
     elif word == "made":
         created.insert(0, arg)
@@ -71,6 +79,23 @@ for line in sys.stdin.buffer:
         done = True
 if done or tmp is None and not created:
     sys.exit(0)
+if not committing and tmp is not None and killed is not None and os.path.isfile(os.path.join(tmp, "checkpoint.h5")):
+    try:  # a run killed after a checkpoint: its result is that checkpoint, resumable
+        for name in os.listdir(tmp):
+            if name not in ("checkpoint.h5", ".signorini"):
+                path = os.path.join(tmp, name)
+                shutil.rmtree(path) if os.path.isdir(path) and not os.path.islink(path) else os.remove(path)
+        with open(os.path.join(tmp, "summary.json"), "w") as f:
+            f.write(json.dumps(killed["summary"], indent=1))
+        with open(os.path.join(tmp, ".signorini"), "w") as f:
+            f.write(json.dumps(dict(killed["marker"], manifest=["checkpoint.h5", "summary.json"])) + "\n")
+        try:
+            os.rename(tmp, out)
+        except OSError:
+            os.rename(tmp, out + ".killed-" + str(os.getpid()))
+        sys.exit(0)
+    except OSError:
+        pass
 if committing and tmp is not None:
     if not os.path.lexists(out):
         for src in [tmp] + aside[::-1]:
@@ -342,7 +367,7 @@ class ResultDirectory:
         except OSError:  # no watchdog: cleanup on normal exits still happens
             self._watchdog = None
 
-    def _tell(self, word: str, arg: str = "") -> None:
+    def _tell(self, word: str, arg: str | dict = "") -> None:
         """One message to the watchdog: a JSON line, so no path can split it."""
         if self._watchdog is not None:
             try:
@@ -351,6 +376,14 @@ class ResultDirectory:
                 self._watchdog.stdin.flush()
             except OSError:
                 pass
+
+    def checkpointed(self, summary: dict) -> None:
+        """A complete checkpoint is in the temporary directory: if this process is killed
+        before the commit, the watchdog publishes it with ``summary`` as summary.json (status
+        ``killed``) instead of removing it, so that ``signorini resume`` can continue it."""
+        marker = {"written_by": "signorini", "version": __version__, "pid": os.getpid(),
+                  "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}  # fmt: skip
+        self._tell("checkpoint", {"summary": summary, "marker": marker})
 
     def _stop_watchdog(self, done: bool) -> None:
         if self._watchdog is not None:

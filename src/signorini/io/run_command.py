@@ -308,6 +308,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 observers=observers,
                 events=spec.events,
                 **_checkpoint_arguments(spec, lambda: rd.create() / "checkpoint.h5"),
+                on_checkpoint=lambda c: rd.checkpointed(killed_summary(spec, c)),
             )
         except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
             write_setup_failure(rd, spec, exc)
@@ -373,6 +374,15 @@ def _checkpoint_arguments(spec: RunSpec, path) -> dict:
     return {"checkpoint": path if path is not None else Path("/nonexistent/checkpoint.h5"),
             "checkpoint_every": spec.checkpoint_every, "checkpoint_meta": {"invocation": spec.invocation},
             "case_hash": spec.case_hash, "resume": spec.resume}  # fmt: skip
+
+
+def killed_summary(spec: RunSpec, c: dict) -> dict:
+    """summary.json of a run killed outright after the checkpoint ``c`` (the watchdog writes it)."""
+    return {"status": "killed", "success": False, "problem": spec.label, "steps": c["level"],
+            "message": f"killed (SIGKILL, a job limit or the kernel) after the checkpoint of level {c['level']} "
+                       f"(t = {c['t']:.6g}); continue it with `signorini resume <this directory> --T ... --out ...`",
+            "resumable": True, "checkpoint": {"level": c["level"], "t": c["t"]}, "counters": c["counters"],
+            "scheme": c["scheme"], "mass": c["mass"], **spec.meta}  # fmt: skip
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
