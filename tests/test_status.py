@@ -85,6 +85,7 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary directory left
     assert sorted(p.name for p in out.iterdir()) == [
         ".signorini",
+        "checkpoint.h5",  # of the last level: `signorini resume` continues it
         "contact.npz",
         "fields.h5",
         "fields.xdmf",

@@ -69,7 +69,7 @@ def test_signal_while_results_are_written_keeps_every_step(tmp_path, monkeypatch
 
 
 def test_signal_while_the_history_is_assembled_keeps_every_step(tmp_path, monkeypatch):
-    import signorini.dynamics.simulate as sim
+    import signorini.dynamics.setup as sim  # the History of the levels is assembled there
 
     real = sim.assemble_history
 

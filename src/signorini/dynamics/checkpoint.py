@@ -49,9 +49,10 @@ def _weights(n: int) -> np.ndarray:
 
 
 def _figures(x: np.ndarray) -> list[float]:
-    """Three numbers that change when a vector changes: sum x, sum w x, max |x|."""
+    """Three numbers that change when a vector changes: sum |x|, sum w x, max |x| (compared to
+    a relative tolerance of the largest of them: a sum near zero is round-off)."""
     x = np.asarray(x, dtype=float).ravel()
-    return [float(x.sum()), float(_weights(x.size) @ x), float(np.abs(x).max(initial=0.0))]
+    return [float(np.abs(x).sum()), float(_weights(x.size) @ x), float(np.abs(x).max(initial=0.0))]
 
 
 def identity(run, case_hash: str | None = None) -> dict[str, Any]:
@@ -69,7 +70,6 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
         "problem": str(disc.problem.name),
         "scheme": run.scheme.label,
         "mass": str(disc.mass_name),
-        "dt": float(run.dt),
         "dofs": int(n),
         "contact_rows": int(disc.contact.size),
         "mesh": [int(mesh.n_nodes), int(mesh.n_cells), *_figures(pts)],
@@ -79,6 +79,8 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
         "loads": _figures(ctx.load(0.0)),
         "initial_state": _figures(np.concatenate([disc.U0, disc.V0])),
         "fixed_dofs": int(ctx.fixed.size),
+        # the run's node numbering (a distributed run may renumber the mesh): the state's vectors are in it
+        "node_order": "mesh" if mesh.node_ids is None else _figures(mesh.node_ids.astype(float)),
     }
     if case_hash is not None:
         out["case_file"] = case_hash
@@ -90,13 +92,15 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
     names = {"case_file": "the case file (its text changed since the checkpoint)", "mass_matrix": "the mass matrix",
              "contact": "the contact rows or gaps", "initial_state": "the initial state", "loads": "the loads",
              "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
-             "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs"}  # fmt: skip
+             "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
+             "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
+                           "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
     order = (
         "case_file",
         "problem",
         "scheme",
         "mass",
-        "dt",
+        "node_order",
         "dofs",
         "mesh",
         "contact_rows",
@@ -115,7 +119,9 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
             raise InputError(f"{where}: the checkpoint does not match this run: {key} is missing on one side")
         same = a == b
         if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-            same = all(_close(x, y) for x, y in zip(a, b, strict=True))
+            nums = [abs(float(v)) for v in a + b if not isinstance(v, str)]
+            scale = max(nums, default=0.0)
+            same = all(_close(x, y, scale) for x, y in zip(a, b, strict=True))
         elif isinstance(a, float) and isinstance(b, float):
             same = a == b if key == "dt" else _close(a, b)
         if not same:
@@ -124,11 +130,12 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
             raise InputError(f"{where}: the checkpoint is of another problem: {what} differs{shown}")
 
 
-def _close(x, y) -> bool:
+def _close(x, y, scale: float = 0.0) -> bool:
+    """x == y to :data:`IDENTITY_RTOL` of max(|x|, |y|, scale)."""
     if isinstance(x, str) or isinstance(y, str):
         return x == y
     x, y = float(x), float(y)
-    return abs(x - y) <= IDENTITY_RTOL * max(abs(x), abs(y), 1e-300) or x == y
+    return abs(x - y) <= IDENTITY_RTOL * max(abs(x), abs(y), scale, 1e-300) or x == y
 
 
 # ----------------------------------------------------------------------------- contents

@@ -236,9 +236,31 @@ class Context:
         return sparse_product(A, self.solver_options.get("spmv", "auto"))
 
     # -- data of time t ------------------------------------------------------------
+    #: the start of the current segment of the time grid (:mod:`~.time_grid`): levels at t0 + j dt
+    t0 = 0.0
+
     def next_time(self, t: float) -> float:
-        """t_{n+1} = (n + 1) dt for t = t_n (computed from n, without accumulated round-off)."""
-        return (round(t / self.dt) + 1) * self.dt
+        """t_{n+1} = t0 + (j + 1) dt for t = t_n = t0 + j dt (from j, without accumulated round-off)."""
+        if self.t0 == 0.0:
+            return (round(t / self.dt) + 1) * self.dt
+        return self.t0 + (round((t - self.t0) / self.dt) + 1) * self.dt
+
+    def change_dt(self, dt: float, t0: float, operators: list[Operator]) -> None:
+        """Continue with the step ``dt`` from ``t0``: the factorizations of the old step are
+        released (their counters kept) and ``operators`` (the scheme's for the new dt) are
+        factorized."""
+        retired = dict(self._retired)
+        for sys in self._systems:
+            for k, v in sys.solver.counters.items():
+                retired[k] = retired.get(k, 0) + int(v)
+        self._retired = retired
+        self._systems, self._lookup = [], {}
+        self.dt, self.t0 = float(dt), float(t0)
+        for op in operators:
+            self.prepare(op)
+
+    #: the counters of the solvers released by :meth:`change_dt`
+    _retired: dict[str, int] = {}
 
     def load(self, t: float) -> np.ndarray:
         """F(t) (n,), full space [force]."""
@@ -535,7 +557,7 @@ class Context:
 
     def counters(self) -> dict[str, int]:
         """Sum of the solvers' counters (factorizations, linear_solves, ...)."""
-        out: dict[str, int] = {}
+        out: dict[str, int] = dict(self._retired)
         for solver in self.solvers:
             for k, v in solver.counters.items():
                 out[k] = out.get(k, 0) + int(v)

@@ -270,13 +270,15 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
 
 
 def set_up(
-    problem: Problem | Discretization, mass: str, scheme: Scheme, dt: float, T: float, opts: dict
+    problem: Problem | Discretization, mass: str, scheme: Scheme, grid, opts: dict, dt_initial: float | None = None
 ) -> tuple[Run, Scheme | None]:
     """Everything before the loop that costs time: discretization, factorization and
-    level 0 (``opts`` from :func:`run_options`).  Returns the run and the starter of a
-    two-step scheme (None for one-step schemes)."""
+    level 0 (``opts`` from :func:`run_options`; ``grid`` a :class:`~.time_grid.TimeGrid`;
+    ``dt_initial``: the step of level 0 when it is not the grid's first, a resumed run).
+    Returns the run and the starter of a two-step scheme (None for one-step schemes)."""
     starter = make_scheme(scheme.starter) if scheme.starter else None
-    N = number_of_steps(dt, T)
+    N = grid.n_steps
+    dt = grid.segments[0].dt if dt_initial is None else dt_initial
     check_history_fits(N)
     # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None

@@ -50,6 +50,7 @@ from .setup import (
     run_options,
     set_up,
 )
+from .time_grid import TimeGrid
 from .untagged import UntaggedContact
 
 #: the values of :attr:`Stepper.status`
@@ -110,13 +111,27 @@ class Stepper:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
                              f"{type(problem).__name__}")  # fmt: skip
-        number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
+        if isinstance(dt, (int, float)) and not isinstance(dt, bool):
+            number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
         if not isinstance(checkpoint_every, int) or isinstance(checkpoint_every, bool) or checkpoint_every < 0:
             raise InputError(f"checkpoint_every must be a non-negative integer, got {checkpoint_every!r}")
         if checkpoint_every and checkpoint is None:
             raise InputError("checkpoint_every needs a checkpoint path (checkpoint=...)")
         saved = ckpt.read(Path(resume)) if resume is not None else None  # a bad file: refused before the set-up
+        if saved is None:
+            grid = TimeGrid.build(dt, T)
+        else:
+            a = saved["attrs"]
+            grid = TimeGrid.build(dt, T, int(a["level"]), float(a["t"]))
+            if int(a["level"]) > grid.n_steps:
+                raise InputError(f"checkpoint {str(resume)!r} is at t = {a['t']:.10g} (level {a['level']}), after "
+                                 f"this run's T = {grid.T:.10g}; give a later T")  # fmt: skip
+        self.grid = grid
         sch = make_scheme(scheme, scheme_options)
+        steps = {s.dt for s in grid.segments} | ({float(saved["attrs"]["dt"])} if saved is not None else set())
+        if len(steps) > 1 and not getattr(sch, "variable_step", True):
+            raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
+                             "dt (and resume with the run's own)")  # fmt: skip
         opts = run_options(snapshot_every, backend, memory_budget, solver_options)
         events = list(events)
         if events:
@@ -124,7 +139,8 @@ class Stepper:
 
             parse_stop_at([e for e in events if isinstance(e, str)], "events")  # names checked before the set-up
         t0 = time.perf_counter()
-        self.run, self.starter = set_up(problem, mass, sch, dt, T, opts)
+        dt0 = None if saved is None else float(saved["attrs"].get("dt_initial", saved["attrs"]["dt"]))
+        self.run, self.starter = set_up(problem, mass, sch, grid, opts, dt_initial=dt0)
         self.setup_seconds = time.perf_counter() - t0
         run = self.run
         self.recorder, self.energies, self.snaps, obs = make_observers(snapshot_every, energy, progress, observers)
@@ -137,7 +153,8 @@ class Stepper:
             self.watch = EventWatch(events)
             obs.append(self.watch)  # last: the level is recorded before a terminal event ends the run
         self.observers = obs
-        self.dt, self.n_steps = run.dt, run.n_steps
+        self.n_steps = run.n_steps
+        self._dt_initial = float(run.dt)  # the step of level 0 (its Dirichlet rates)
         self.n, self.state = 0, run.initial
         self._first = 0  # the level the loop starts from (a resumed run: the checkpoint's)
         self.status, self.message = "running", ""
@@ -174,6 +191,11 @@ class Stepper:
     @property
     def t(self) -> float:
         return float(self.state.t)
+
+    @property
+    def dt(self) -> float:
+        """The time step of the last step taken (the first one before any) [s]."""
+        return float(self.run.ctx.dt)
 
     @property
     def counters(self) -> dict[str, int]:
@@ -242,6 +264,15 @@ class Stepper:
 
     def _advance(self, n: int) -> State:
         run = self.run
+        seg = self.grid.segment(n)
+        ctx = run.ctx
+        if seg.dt != ctx.dt:  # a new step: its factorization (the old one released)
+            ops = [op for op in (run.scheme.operator(seg.dt),) if op is not None]
+            ctx.change_dt(seg.dt, seg.start, ops)
+            if ops:
+                run.scheme.check_context(ctx, prepared=True)
+        elif seg.start != ctx.t0:
+            ctx.t0 = seg.start
         if self._level_counters is None:  # the counters at the current level (before a step's work)
             self._level_counters = self.counters
         if n == 1 and self.starter is not None:
@@ -265,7 +296,8 @@ class Stepper:
         state_arrays, flags = ckpt.state_arrays(run, self.state)
         arrays.update({f"state/{k}": v for k, v in state_arrays.items()})
         attrs["state_flags"] = flags
-        for k, sys in enumerate(run.ctx._systems):  # each factorized operator's solver, in order of creation
+        systems = run.ctx._systems if run.ctx.comm.size == 1 else []  # a rank's warm starts are its own rows
+        for k, sys in enumerate(systems):  # each factorized operator's solver, in order of creation
             arrays[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
             for name in getattr(sys.solver, "warm_state", ()):
                 arrays[f"solvers/{k}/{name}"] = np.asarray(getattr(sys.solver, name))
@@ -278,8 +310,9 @@ class Stepper:
             if key:
                 ckpt._flatten(f"observers/{key}", o.saved(n), arrays, attrs)
         counters = self._level_counters if self._level_counters is not None else self.counters
-        attrs.update(level=n, t=float(self.state.t), dt=self.dt, identity=self._identity, counters=counters,
-                     n_solvers=len(run.ctx._systems), meta=self._meta,
+        attrs.update(level=n, t=float(self.state.t), dt=self.dt, dt_initial=self._dt_initial,
+                     identity=self._identity, counters=counters,
+                     n_solvers=len(systems), meta=self._meta,
                      scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
         return {"arrays": arrays, "attrs": attrs}
 
@@ -308,14 +341,11 @@ class Stepper:
         attrs, run = saved["attrs"], self.run
         ckpt.compare_identity(attrs["identity"], self._identity, f"checkpoint {where!r}")
         n, t = int(attrs["level"]), float(attrs["t"])
-        if n > self.n_steps:
-            raise InputError(f"checkpoint {where!r} is at t = {t:.10g} (level {n}), after this run's T = "
-                             f"{self.n_steps * self.dt:.10g}; give a later T")  # fmt: skip
         state_arrays = ckpt.unflatten("state", saved)
         self.state = ckpt.restore_state(run, state_arrays, attrs.get("state_flags", {}), t)
         from .context import Operator
 
-        for k in range(int(attrs.get("n_solvers", 0))):
+        for k in range(int(attrs.get("n_solvers", 0)) if run.ctx.comm.size == 1 else 0):
             op = saved["arrays"].get(f"solvers/{k}/operator")
             if op is None or op.shape != (2,) or not np.all(np.isfinite(op)):
                 raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
@@ -385,5 +415,21 @@ class Stepper:
             H.meta["checkpoints"] = self.log.summary()
         if self.resumed_from is not None:
             H.meta["resumed_from"] = dict(self.resumed_from)
+        steps = schedule_of(H.t)
+        if len(steps) > 1:
+            H.meta["dt_schedule"] = steps
+        H.meta["T"] = float(self.grid.T)
         H.status, H.message = self.status, self.message
         return H
+
+
+def schedule_of(t: np.ndarray) -> list[dict[str, float]]:
+    """[{until, dt}] of the levels t (consecutive steps equal to a relative 1e-9 merged)."""
+    out: list[dict[str, float]] = []
+    for k in range(1, len(t)):
+        step = float(t[k] - t[k - 1])
+        if out and abs(step - out[-1]["dt"]) <= 1e-9 * out[-1]["dt"]:
+            out[-1]["until"] = float(t[k])
+        else:
+            out.append({"until": float(t[k]), "dt": step})
+    return out

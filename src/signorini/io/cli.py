@@ -107,9 +107,9 @@ def _dispatch(args: argparse.Namespace) -> int:
             warnings.simplefilter("always")
             try:
                 ranks = launched()[1]
-                if ranks > 1 and args.command != "run":
-                    raise InputError(f"started as {ranks} MPI ranks: only `signorini run ... --backend petsc` runs on "
-                                     f"several ranks, not `signorini {args.command}`")  # fmt: skip
+                if ranks > 1 and args.command not in ("run", "resume"):
+                    raise InputError(f"started as {ranks} MPI ranks: only `signorini run ... --backend petsc` (and "
+                                     f"its resume) runs on several ranks, not `signorini {args.command}`")  # fmt: skip
                 return args.func(args)
             finally:
                 _report_warnings(caught, isinstance(sys.exc_info()[1], KeyboardInterrupt))

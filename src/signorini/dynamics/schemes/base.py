@@ -136,6 +136,11 @@ class Scheme:
     #: kind, one of :data:`STATE_FIELD_KINDS`.  A checkpoint refuses a key not declared here or
     #: in :data:`COMMON_STATE_FIELDS`; a value may also be absent (None).
     state_fields: ClassVar[dict[str, str]] = {}
+    #: whether the step may change between levels (a dt schedule, ``resume --dt``): a one-step
+    #: scheme's state at t_n is its whole state; False, with the reason, for a scheme whose
+    #: state holds earlier levels of a fixed spacing
+    variable_step: ClassVar[bool] = True
+    variable_step_refusal: ClassVar[str] = ""
 
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)

@@ -48,6 +48,8 @@ class PaoliSchatzman(Scheme):
     #: the previous level and its products M U, S U; the Dirichlet reaction of the step; whether
     #: the level was made by the starter
     state_fields = {"U_prev": "dofs", "MU_prev": "dofs", "SU_prev": "dofs", "R_D": "fixed", "starter": "flag"}
+    variable_step = False
+    variable_step_refusal = "its state is the last two levels, a fixed step apart"
     description = "two-step scheme with exact contact on (U^{n+1} + e U^{n-1})/(1+e) (restitution e)"
     parameters = (Parameter("restitution", 0.0, "restitution coefficient e", float, 0.0, 1.0),)
     starter = "crank-nicolson"
