@@ -111,7 +111,7 @@ class Stepper:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
                              f"{type(problem).__name__}")  # fmt: skip
-        if isinstance(dt, (int, float)) and not isinstance(dt, bool):
+        if isinstance(dt, (int, float)) and not isinstance(dt, bool) and resume is None:
             number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
         if not isinstance(checkpoint_every, int) or isinstance(checkpoint_every, bool) or checkpoint_every < 0:
             raise InputError(f"checkpoint_every must be a non-negative integer, got {checkpoint_every!r}")
@@ -365,6 +365,8 @@ class Stepper:
                 except ValueError as exc:
                     raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
         run.ctx.restore_pairing(ckpt.unflatten("pairing", saved), t)
+        times = saved["arrays"].get("observers/history/times")
+        run.level_times = None if times is None else np.asarray(times)  # the restored levels' times
         for o in self.observers:  # each with its data; those without a key with none (e.g. to copy files)
             key = getattr(o, "checkpoint_key", None)
             if hasattr(o, "resume"):
@@ -431,5 +433,5 @@ def schedule_of(t: np.ndarray) -> list[dict[str, float]]:
         if out and abs(step - out[-1]["dt"]) <= 1e-9 * out[-1]["dt"]:
             out[-1]["until"] = float(t[k])
         else:
-            out.append({"until": float(t[k]), "dt": step})
+            out.append({"until": float(t[k]), "dt": float(f"{step:.12g}")})  # the step, not its round-off
     return out

@@ -445,7 +445,7 @@ def _rotation(key: str, table: Any, dim: int) -> Rotation:
     return Rotation(value, axis, center)
 
 
-def _time(tm: Any) -> tuple[str, float, float, dict]:
+def _time(tm: Any) -> tuple[str, float | list, float, dict]:
     if not isinstance(tm, dict):
         raise InputError("[time] must be a table")
     scheme = tm.get("scheme", "crank-nicolson")
@@ -453,6 +453,19 @@ def _time(tm: Any) -> tuple[str, float, float, dict]:
         raise InputError(f"unknown time.scheme {scheme!r}; allowed: {', '.join(SCHEMES.names())}")
     entry = SCHEMES.get(scheme)
     _keys("time", tm, TIME_KEYS | {p.name for p in entry.parameters})
+    if isinstance(tm.get("dt"), list):  # a schedule [{until, dt}, ...]: T defaults to the last until
+        from ..dynamics.time_grid import TimeGrid, parse_schedule
+
+        schedule = parse_schedule(tm["dt"], "time.dt")
+        T = check_positive("time.T", _number("time.T", tm["T"])) if "T" in tm else schedule[-1][0]
+        TimeGrid.build(schedule, T)  # every segment a whole number of steps
+        options = entry.options({k: v for k, v in tm.items() if k not in TIME_KEYS}, where="time")
+        return (
+            entry.name,
+            [{"until": u, "dt": d} for u, d in schedule],
+            T,
+            {k: v for k, v in options.items() if k in tm},
+        )
     for k in ("dt", "T"):
         if k not in tm:
             raise InputError(f"missing key 'time.{k}'")

@@ -152,18 +152,22 @@ class FieldWriter(Observer):
         if n % self.every == 0:
             self._write(n, state)
 
-    def copy_from(self, source: Path, dt: float, n: int) -> None:
+    def copy_from(self, source: Path, times: np.ndarray | None, n: int) -> None:
         """Append the snapshots of another result's ``source`` (fields.xdmf) at the levels
-        1..n that are multiples of ``every`` (a resumed run: the levels of the run it continues;
-        level 0 is this run's own, the same)."""
+        1..n that are multiples of ``every`` (a resumed run: the levels of the run it continues,
+        whose times are ``times``; level 0 is this run's own, the same)."""
         import meshio
 
+        if times is None or len(times) < n + 1:
+            return
+        times = np.asarray(times[: n + 1], dtype=float)
+        tol = 1e-9 * max(float(np.abs(times).max()), 1e-300)
         with meshio.xdmf.TimeSeriesReader(str(source)) as reader:
             reader.read_points_cells()
             for k in range(reader.num_steps):
                 t, point_data, cell_data = reader.read_data(k)
-                level = round(float(t) / dt)
-                if 0 < level <= n and level % self.every == 0 and abs(level * dt - float(t)) <= 1e-9 * max(dt, 1.0):
+                level = int(np.argmin(np.abs(times - float(t))))
+                if 0 < level <= n and level % self.every == 0 and abs(times[level] - float(t)) <= tol:
                     self._check_room()
                     self._writer.data(float(t), dict(point_data), {k: list(v) for k, v in cell_data.items()})
                     self.times.append(float(t))

@@ -206,6 +206,13 @@ def _add_resume(sub) -> None:
     r.add_argument("result", metavar="RESULT_DIR", help="a result directory holding checkpoint.h5")
     r.add_argument("--T", type=float, required=True, help="the new final time (at or after the checkpoint's time)")
     r.add_argument(
+        "--dt",
+        type=float,
+        default=None,
+        help="continue with this time step from the checkpoint (a new factorization; T - t_checkpoint must be a "
+        "multiple of it; schemes that cannot change their step refuse); default: the run's own steps",
+    )
+    r.add_argument(
         "--snapshot-every", type=int, default=None, help="stream XDMF fields every k steps (default: the run's)"
     )
     r.add_argument(

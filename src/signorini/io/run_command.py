@@ -102,7 +102,12 @@ def _limits(args: argparse.Namespace, case_limits: dict) -> dict:
 
 
 def check_size(
-    counts: tuple[int, int, int, int, int], dt: float, T: float, limits: dict, solver: dict | None = None
+    counts: tuple[int, int, int, int, int],
+    dt: float,
+    T: float,
+    limits: dict,
+    solver: dict | None = None,
+    steps: int | None = None,
 ) -> None:
     """Refuse (exit 2, with the estimate) a run over the step or memory limit unless confirmed.
 
@@ -124,7 +129,11 @@ def check_size(
     if not 0.0 <= budget < float("inf"):
         budget = COLUMNS_BUDGET
     backend = str(solver.get("backend") or "auto")
-    est = estimate_run(*counts, number_of_steps(dt, T), backend=backend, ranks=local_ranks(), condense_budget=budget)
+    from ..dynamics.time_grid import TimeGrid
+
+    if steps is None:
+        steps = number_of_steps(dt, T) if isinstance(dt, (int, float)) else TimeGrid.build(dt, T).n_steps
+    est = estimate_run(*counts, steps, backend=backend, ranks=local_ranks(), condense_budget=budget)
     mem = limits.get("max_memory")
     check_run_size(est, limits.get("max_steps"), None if mem is None else mem * 2**30, bool(limits.get("yes")))
 
@@ -226,7 +235,7 @@ class LazyFieldWriter:
         if self.source is None or self.inner is None or not self.source.is_file():
             return
         with _rank0_only():
-            self.inner.copy_from(self.source, run.dt, n)
+            self.inner.copy_from(self.source, getattr(run, "level_times", None), n)
 
     def start(self, run) -> None:
         from .output import FieldWriter
@@ -417,12 +426,18 @@ def cmd_resume(args: argparse.Namespace) -> int:
     if args.checkpoint_every is not None:
         ns.checkpoint_every = args.checkpoint_every
     spec = case_spec(ns) if case else benchmark_spec(ns)
-    if case:
-        if spec.case_hash != meta.get("identity", {}).get("case_file"):
-            raise InputError(f"the case file {ns.target!r} changed since the checkpoint of {str(result)!r}; "
-                             "resume needs the same file")  # fmt: skip
-        spec.T = args.T
-    check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options)
+    if case and spec.case_hash != meta.get("identity", {}).get("case_file"):
+        raise InputError(f"the case file {ns.target!r} changed since the checkpoint of {str(result)!r}; "
+                         "resume needs the same file")  # fmt: skip
+    spec.T = args.T
+    if args.dt is not None:
+        from ..errors import check_positive
+
+        spec.dt = check_positive("--dt", args.dt)
+    from ..dynamics.time_grid import TimeGrid
+
+    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), float(meta["t"]))  # T and --dt checked
+    check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
     spec.resume = where
     spec.meta["resumed_from_directory"] = str(result)
     return execute(spec, args)

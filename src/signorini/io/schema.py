@@ -173,8 +173,12 @@ SECTIONS: tuple[Section, ...] = (
         "(dt^2 must be a normal double).  The scheme's own parameters are keys of this section too.",
         (
             Key("scheme", "string", "crank-nicolson", "", "a name of the scheme registry", _same('"crank-nicolson"')),
-            Key("dt", "number > 0", "required", "time", "time step", _ex("0.0125", "0.0125", "0.0125")),
-            Key("T", "number >= dt", "required", "time", "final time", _ex("3.0", "1.0", "0.5")),
+            Key("dt", "number > 0, or a schedule [{until, dt}, ...]", "required", "time",
+                "time step; a schedule changes it: from the previous until (0 first) to its own, its dt "
+                "(e.g. [{until = 0.2, dt = 1e-3}, {until = 1.0, dt = 1e-2}]; T then defaults to the last until)",
+                _ex("0.0125", "0.0125", "0.0125")),  # fmt: skip
+            Key("T", "number >= dt", "required (a dt schedule: its last until)", "time", "final time",
+                _ex("3.0", "1.0", "0.5")),  # fmt: skip
             Key("stop_at", "string or list of strings", "none", "",
                 "end the run (status finished) at the first level where an event occurs: first-contact, "
                 "separation, rest[:FRACTION] (summary.json events)"),

@@ -171,6 +171,9 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     """One level (the case file's mesh, dt and T), no errors."""
     if not pairs:
         raise InputError("nothing to compare: give at least one scheme and one mass")
+    if not isinstance(target.dt, (int, float)):
+        raise InputError(f"compare runs every pair with one time step; case file {target.label} gives a schedule "
+                         "([time] dt = [{until, dt}, ...]): give one dt for the comparison")  # fmt: skip
     _steps(target.dt, target.T, f"case file {target.label}")
     problem = target.problem(None) if problem is None or target.friction else problem
     check_friction_schemes(run_friction(problem), [p.scheme.name for p in pairs])
