@@ -44,6 +44,14 @@ def test_tutorial_example(capsys):
     assert float(std["TV(force)"]) > 3 * float(seed["TV(force)"])
 
 
+def test_tutorial_stepper_example(capsys):
+    """The hand-driven loop stops at the first contact (t = 0.4 for the bar lifted 0.2 at
+    speed 0.5) and the resume with half the step ends at T with 32 + 96 steps."""
+    out = _run("examples/tutorial_stepper.py", capsys)
+    assert "contact at t = 0.4000 (level 32 of 80)" in out and "interrupted: 33 levels" in out
+    assert "finished, 129 levels" in out and "'dt': 0.00625" in out
+
+
 def test_tutorial_friction_example(capsys):
     """The sliding acceleration it prints is the closed form g (sin 30 - 0.3 cos 30)."""
     out = _run("examples/tutorial_slope.py", capsys)
