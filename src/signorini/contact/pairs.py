@@ -102,9 +102,17 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
     Each facet is matched (as a set of nodes) to the face of the one cell it bounds; the
     reference element lists faces outward (:class:`~signorini.fem.elements.ReferenceElement`).
     """
-    ref = reference_element(mesh.cell_type)
-    loc = np.array(ref.facets)
-    faces = mesh.cells[:, loc].reshape(-1, loc.shape[1])  # every cell face, outward order
+    blocks = [b for b in mesh.blocks if len(reference_element(b.cell_type).facets[0]) == facets.shape[1]]
+    if not blocks:
+        raise InputError(f"contact pair: facets of {facets.shape[1]} nodes are faces of no cell of the mesh")
+    b = blocks[0] if len(blocks) == 1 else None
+    if b is None:  # 2D triangles and quads (edges alike): faces of every block, with their cells
+        loc = None
+        faces = np.vstack([blk.cells[:, np.array(reference_element(blk.cell_type).facets)].reshape(-1, facets.shape[1])
+                           for blk in blocks])  # fmt: skip
+    else:
+        loc = np.array(reference_element(b.cell_type).facets)
+        faces = b.cells[:, loc].reshape(-1, loc.shape[1])  # every cell face, outward order
     key_faces = _keys(faces, mesh.n_nodes)
     key_tag = _keys(facets, mesh.n_nodes)
     order = np.argsort(key_faces, kind="stable")
@@ -117,9 +125,9 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
     oriented = faces[order[pos]]
     X = mesh.points
     d = mesh.dim
-    if d == 1:  # a vertex: outward is away from the other node of its cell
+    if d == 1:  # a vertex: outward is away from the other node of its cell (1D: one block)
         cell = order[pos] // loc.shape[0]
-        other = mesh.cells[cell].sum(axis=1) - oriented[:, 0]
+        other = b.cells[cell].sum(axis=1) - oriented[:, 0]
         n = np.sign(X[oriented[:, 0], 0] - X[other, 0])[:, None]
         return n.astype(float), oriented
     if d == 2:

@@ -32,13 +32,19 @@ def body_meshes(mesh: Mesh) -> list[tuple[np.ndarray, np.ndarray, Mesh]]:
     if label.max(initial=0) == 0:
         return [(np.arange(mesh.n_nodes), np.arange(mesh.n_cells), mesh)]
     out = []
-    cell_body = label[mesh.cells[:, 0]]
+    cell_body = label[mesh.first_nodes()]
     for b in range(int(label.max()) + 1):
         nodes = np.flatnonzero(label == b)
         renum = np.full(mesh.n_nodes, -1)
         renum[nodes] = np.arange(nodes.size)
         cells = np.flatnonzero(cell_body == b)
-        out.append((nodes, cells, Mesh(mesh.points[nodes], renum[mesh.cells[cells]], mesh.cell_type)))
+        types, arrays = [], []
+        for blk in mesh.blocks:  # the body's cells of each type (a body may be of one type, or several)
+            mine = cells[(cells >= blk.start) & (cells < blk.stop)] - blk.start
+            if mine.size:
+                types.append(blk.cell_type)
+                arrays.append(renum[blk.cells[mine]])
+        out.append((nodes, cells, Mesh(mesh.points[nodes], arrays, types)))
     return out
 
 

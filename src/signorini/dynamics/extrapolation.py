@@ -57,10 +57,8 @@ COMPACT = 2
 
 def node_graph(mesh: Mesh) -> sp.csr_matrix:
     """(n, n) boolean adjacency of the nodes (two nodes adjacent when they share a cell), diagonal included."""
-    c = mesh.cells
-    k = c.shape[1]
-    rows = np.repeat(c, k, axis=1).ravel()
-    cols = np.tile(c, (1, k)).ravel()
+    rows = np.concatenate([np.repeat(b.cells, b.cells.shape[1], axis=1).ravel() for b in mesh.blocks])
+    cols = np.concatenate([np.tile(b.cells, (1, b.cells.shape[1])).ravel() for b in mesh.blocks])
     A = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(mesh.n_nodes, mesh.n_nodes))
     A.data[:] = 1
     return A
@@ -123,7 +121,7 @@ def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, is_c: np.ndarray) -> I
     if label.max(initial=0) > 0:  # several bodies: name the one (its regions) and count its own nodes
         b = int(label[nodes[e]])
         in_b = np.zeros(mesh.n_cells, dtype=bool)
-        in_b[np.flatnonzero(label[mesh.cells[:, 0]] == b)] = True
+        in_b[np.flatnonzero(label[mesh.first_nodes()] == b)] = True
         regions = sorted(t for t, c in mesh.regions.items() if c.size and in_b[c].any())
         which = f" of body {b}" + (f" (regions {', '.join(regions)})" if regions else "")
         n_free = int(np.count_nonzero(~is_c & (label == b)))

@@ -55,7 +55,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..fem.assembly import assemble_vector, element_mass_matrices, lumped_mass_matrix, scalar_mass_matrix, vectorize
+from ..fem.assembly import (
+    assemble_vector,
+    element_mass_matrices,
+    lumped_mass_matrix,
+    part_value,
+    scalar_mass_matrix,
+    sum_of,
+    vectorize,
+)
 from ..fem.mesh import Mesh
 from ..linalg.row_block import RowBlock
 from ..linalg.sparse import count_per_row
@@ -187,7 +195,7 @@ def touching_cells(mesh: Mesh, nodes: np.ndarray) -> np.ndarray:
     """Boolean mask of the cells that have at least one node in ``nodes``."""
     mark = np.zeros(mesh.n_nodes, dtype=bool)
     mark[nodes] = True
-    return mark[mesh.cells].any(axis=1)
+    return np.concatenate([mark[b.cells].any(axis=1) for b in mesh.blocks])
 
 
 def seed_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
@@ -213,6 +221,11 @@ def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals:
     d = mesh.dim
     if normals is None:
         raise InputError("mass 'seed-normal' needs the contact normals")
+    if mesh.mixed:  # the seed part on the whole mesh, the projected part per cell type
+        base = vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
+        return sum_of([base] + [seed_normal_mass(part, part_value(rho, cut), contact_nodes, normals)
+                                - vectorize(seed_scalar_mass(part, part_value(rho, cut), contact_nodes), d)
+                                for part, cut in mesh.parts()])  # fmt: skip
     nu = np.asarray(normals, dtype=float)
     cells = mesh.cells
     near = touching_cells(mesh, contact_nodes)
@@ -277,10 +290,20 @@ def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
     M = scalar_mass_matrix(mesh, rho, cell_weight=(~touch).astype(float))
     is_c = np.zeros(mesh.n_nodes, dtype=bool)
     is_c[contact_nodes] = True
-    cells = mesh.cells[touch]
+    vols = (rho if np.ndim(rho) == 0 else np.asarray(rho)) * cell_volumes(mesh)
+    diag = np.zeros(mesh.n_nodes)
+    for b in mesh.blocks:  # one cell type at a time (one block unless the mesh is mixed)
+        t = touch[b.start : b.stop]
+        diag += _free_share(mesh, b.cells[t], is_c, vols[b.start : b.stop][t])
+    return (M + sp.diags(diag)).tocsr()
+
+
+def _free_share(mesh: Mesh, cells: np.ndarray, is_c: np.ndarray, vol: np.ndarray) -> np.ndarray:
+    """The mass ``vol`` of each cell (k, nv) split equally on its non-contact nodes, as a
+    diagonal (n_nodes,); a cell with every node on Gamma_C gives it to the nearest
+    non-contact nodes."""
     free = ~is_c[cells]
     count = free.sum(axis=1)
-    vol = (rho if np.ndim(rho) == 0 else np.asarray(rho)[touch]) * cell_volumes(mesh)[touch]
     w = vol / np.maximum(count, 1)
     diag = np.bincount(cells[free], weights=np.repeat(w, count), minlength=mesh.n_nodes)
     closed = count == 0  # every node on Gamma_C: its mass goes to the nearest non-contact nodes
@@ -291,7 +314,7 @@ def mass_free_surface_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndar
             (np.ones(c.size), (np.repeat(np.arange(len(c)), k), c.ravel())), shape=(len(c), mesh.n_nodes)
         )
         diag += nearest_free_nodes(mesh, seeds, is_c, "mass-free-surface").T @ vol[closed]
-    return (M + sp.diags(diag)).tocsr()
+    return diag
 
 
 # ----------------------------------------------------------------------------- moment preserving

@@ -48,6 +48,9 @@ def consistent_moments(mesh: Mesh, rho: float | np.ndarray, chunk: int = 65536) 
     cells: no global matrix and no per-cell geometry beyond a chunk.  ``rho``: a number or
     one density per cell (n_cells,).
     """
+    if mesh.mixed:  # the sum over the one-type parts
+        return sum(consistent_moments(part, rho if np.ndim(rho) == 0 else np.asarray(rho)[cut], chunk)
+                   for part, cut in mesh.parts())  # fmt: skip
     ref = reference_element(mesh.cell_type)
     wdet, _ = _element_data(mesh)
     Me = np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)

@@ -282,6 +282,11 @@ def set_up(
     check_history_fits(N)
     # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
+    mesh = problem.mesh if isinstance(problem, Problem) else problem.problem.mesh
+    if comm is not None and mesh.mixed:
+        types = ", ".join(sorted({b.cell_type for b in mesh.blocks}))
+        raise InputError(f"backend {opts['backend']!r} does not run meshes of several cell types ({types}) yet; use "
+                         "a serial backend (auto, superlu, cholmod, pardiso, cg)")  # fmt: skip
     if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
         order = choose_order(opts.get("node_order", "auto"), problem.mesh)
         if order != "mesh" and problem.mesh.grid is not None and MASS_VARIANTS.resolve(mass) in GRID_MASSES:

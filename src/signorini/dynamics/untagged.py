@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
-from ..fem.mesh import Mesh, bodies, boundary_facets
+from ..fem.mesh import Mesh, bodies, mesh_boundary
 from .observers import Observer, Run
 from .schemes import State
 
@@ -44,7 +44,7 @@ TIE = 1e-12
 
 def boundary_nodes(mesh: Mesh) -> np.ndarray:
     """(nb,) sorted indices of the nodes on the boundary of the mesh."""
-    return np.unique(boundary_facets(mesh.cells, mesh.cell_type))
+    return np.unique(np.concatenate([f.ravel() for f in mesh_boundary(mesh)]))
 
 
 def body_size(mesh: Mesh) -> float:

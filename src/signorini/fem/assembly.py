@@ -7,6 +7,11 @@ matrices are assembled from the node-to-node sparsity pattern of the mesh, compu
 once per mesh (and cached on it), by ``np.bincount`` of the element values onto the
 pattern slots.  The vector matrices are built as block-sparse (BSR, d x d blocks on
 the node pattern) and returned as CSR.  There is no Python loop over elements or nodes.
+
+A mixed mesh (several cell types, :attr:`Mesh.blocks`) is assembled as the sum of its
+one-type parts (:meth:`Mesh.parts`, a loop over the two or three cell types), each with
+its cells' materials and weights; per-cell results are concatenated in the mesh's cell
+numbering.
 """
 
 from __future__ import annotations
@@ -17,9 +22,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
-from ..fem.elements import FACET_TYPES, determinants, jacobians, reference_element
+from ..fem.elements import determinants, jacobians, reference_element
 from ..fem.material import Material
-from ..fem.mesh import Mesh, uniform_cells
+from ..fem.mesh import Mesh, facet_type, uniform_cells
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -33,6 +38,8 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     """
     if "geometry" in mesh._cache:
         return mesh._cache["geometry"]
+    if mesh.mixed:  # per-cell arrays of different quadrature sizes: per part
+        raise MeshError("geometry() of a mixed mesh: use the parts (Mesh.parts()), one cell type each")
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (ne, nv, d)
     J = jacobians(ref.dN, X)  # J_ik = dx_i / dxi_k
@@ -55,7 +62,19 @@ def quadrature_points(mesh: Mesh) -> np.ndarray:
 
 def cell_volumes(mesh: Mesh) -> np.ndarray:
     """Measure of every cell, shape (n_cells,)."""
+    if mesh.mixed:
+        return np.concatenate([cell_volumes(part) for part, _ in mesh.parts()])
     return geometry(mesh)[0].sum(axis=1)
+
+
+def part_material(material: Material, cut: slice) -> Material:
+    """The material of the cells ``cut`` of a mixed mesh's part (one material: itself)."""
+    return material.take(cut) if hasattr(material, "take") else material
+
+
+def part_value(value, cut: slice):
+    """A number as it is, a per-cell array (n_cells,) restricted to the cells ``cut``."""
+    return value if value is None or np.ndim(value) == 0 else np.asarray(value)[cut]
 
 
 def _element_data(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -160,10 +179,23 @@ def stiffness_matrix(mesh: Mesh, material: Material) -> sp.csr_matrix:
     :class:`~signorini.fem.material.IsotropicElastic`, or a
     :class:`~signorini.fem.material.CellMaterial` (lam, mu per cell: regions of different materials).
     """
+    if mesh.mixed:
+        return sum_of(stiffness_matrix(part, part_material(material, cut)) for part, cut in mesh.parts())
     Ke = element_stiffness_matrices(mesh, material)
     if mesh.dim == 1:
         return assemble_scalar(mesh, Ke[..., 0, 0])
     return assemble_vector(mesh, Ke)
+
+
+def sum_of(matrices) -> sp.csr_matrix:
+    """The sum of a mixed mesh's parts' matrices (CSR, canonical)."""
+    out = None
+    for m in matrices:
+        out = m if out is None else out + m
+    out = sp.csr_matrix(out)
+    out.sum_duplicates()
+    out.sort_indices()
+    return out
 
 
 def element_stiffness_matrices(mesh: Mesh, material: Material) -> np.ndarray:
@@ -207,6 +239,9 @@ def scalar_mass_matrix(
     ``cell_weight`` (n_cells,) multiplies each element's contribution (0 drops it; this
     is how the ``seed`` mass removes the elements touching the contact boundary).
     """
+    if mesh.mixed:
+        return sum_of(scalar_mass_matrix(part, part_value(rho, cut), part_value(cell_weight, cut))
+                      for part, cut in mesh.parts())  # fmt: skip
     Ke = element_mass_matrices(mesh, rho)
     if cell_weight is not None:
         Ke = Ke * np.asarray(cell_weight, dtype=float)[:, None, None]
@@ -264,6 +299,8 @@ def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) ->
 
     ``f`` is a constant vector of length d or a function of points (n, d) -> (n, d).
     """
+    if mesh.mixed:
+        return sum(body_load(part, f) for part, _ in mesh.parts())
     ref = reference_element(mesh.cell_type)
     wdet, _ = geometry(mesh)
     xq = quadrature_points(mesh)
@@ -286,7 +323,7 @@ def facet_weights(mesh: Mesh, tag: str) -> np.ndarray:
     facets = mesh.facets_of(tag)
     if mesh.dim == 1:
         return np.bincount(facets.ravel(), minlength=mesh.n_nodes).astype(float)
-    fref = reference_element(FACET_TYPES[mesh.cell_type])
+    fref = reference_element(facet_type(facets, mesh.dim))
     X = mesh.points[facets]  # (nf, nfv, d)
     J = np.einsum("qak,fai->fqik", fref.dN, X)  # (nf, nq, d, d-1)
     area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))
@@ -311,7 +348,7 @@ def surface_load(mesh: Mesh, tag: str, traction: np.ndarray | Callable[[np.ndarr
         F = np.zeros((mesh.n_nodes, 1))
         np.add.at(F, facets[:, 0], t)
         return F.ravel()
-    fref = reference_element(FACET_TYPES[mesh.cell_type])
+    fref = reference_element(facet_type(facets, mesh.dim))
     X = mesh.points[facets]  # (nf, nfv, d)
     J = np.einsum("qak,fai->fqik", fref.dN, X)
     area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))  # (nf, nq)
@@ -337,12 +374,14 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
     """Volume-weighted average at the nodes of per-cell values (n_cells, ...)."""
     vol = cell_volumes(mesh)
     flat = cell_values.reshape(mesh.n_cells, -1)
-    out = np.empty((mesh.n_nodes, flat.shape[1]))
-    idx = mesh.cells.ravel()
-    nv = mesh.cells.shape[1]
-    den = np.bincount(idx, weights=np.repeat(vol, nv), minlength=mesh.n_nodes)
-    for k in range(flat.shape[1]):
-        out[:, k] = np.bincount(idx, weights=np.repeat(vol * flat[:, k], nv), minlength=mesh.n_nodes)
+    out = np.zeros((mesh.n_nodes, flat.shape[1]))
+    den = np.zeros(mesh.n_nodes)
+    for b in mesh.blocks:  # one cell type at a time (one block unless the mesh is mixed)
+        idx, nv = b.cells.ravel(), b.cells.shape[1]
+        v = vol[b.start : b.stop]
+        den += np.bincount(idx, weights=np.repeat(v, nv), minlength=mesh.n_nodes)
+        for k in range(flat.shape[1]):
+            out[:, k] += np.bincount(idx, weights=np.repeat(v * flat[b.start : b.stop, k], nv), minlength=mesh.n_nodes)
     out /= den[:, None]
     return out.reshape((mesh.n_nodes,) + cell_values.shape[1:])
 
@@ -350,6 +389,10 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
 def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """von Mises stress of the displacement ``u``: per cell (mean over quadrature
     points) or, with ``nodal=True``, averaged at the nodes."""
+    if mesh.mixed:
+        cell = np.concatenate([von_mises(part, part_material(material, cut), u, nodal=False)
+                               for part, cut in mesh.parts()])  # fmt: skip
+        return nodal_average(mesh, cell) if nodal else cell
     wdet, _ = geometry(mesh)
     vm = material.von_mises(strain(mesh, u))  # (ne, nq)
     cell = (vm * wdet).sum(axis=1) / wdet.sum(axis=1)
@@ -358,6 +401,10 @@ def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True)
 
 def stress(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
+    if mesh.mixed:
+        cell = np.concatenate([stress(part, part_material(material, cut), u, nodal=False)
+                               for part, cut in mesh.parts()])  # fmt: skip
+        return nodal_average(mesh, cell) if nodal else cell
     wdet, _ = geometry(mesh)
     sig = material.stress(strain(mesh, u))
     cell = np.einsum("eq,eqij->eij", wdet, sig) / wdet.sum(axis=1)[:, None, None]

@@ -30,15 +30,32 @@ from ..errors import MeshError, not_a_file
 from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
 
 
+@dataclass(frozen=True)
+class CellBlock:
+    """The cells of one type: ``cells`` (k, nv) node indices, numbered ``start`` .. ``start + k - 1``
+    in the mesh."""
+
+    cell_type: str
+    cells: np.ndarray
+    start: int
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.cells.shape[0]
+
+
 @dataclass
 class Mesh:
-    """An unstructured mesh with one cell type.
+    """An unstructured mesh: one cell type, or several (a mixed mesh).
 
     Attributes
     ----------
     points : (n_nodes, dim) float array, coordinates in length units.
-    cells : (n_cells, nv) int array, node indices (meshio ordering).
-    cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra``.
+    cells : (n_cells, nv) int array, node indices (meshio ordering); None for a mixed mesh,
+        whose cells are in :attr:`blocks`.
+    cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra``; ``mixed`` for
+        several.  A mixed mesh is given as lists: ``Mesh(points, [tets, hexes], ["tetra",
+        "hexahedron"])``; its cells are numbered block after block.
     facets : dict tag -> (n_facets, nfv) int array of boundary facets.
     grid : for structured tensor-product meshes made by the generators, the 1D node
         coordinates along x, y (, z); node ``i + (nx+1) (j + (ny+1) k)`` sits at
@@ -62,6 +79,19 @@ class Mesh:
         self.points = np.ascontiguousarray(self.points, dtype=float)
         if self.points.ndim == 1:
             self.points = self.points[:, None]
+        self._blocks: list[CellBlock] | None = None
+        if isinstance(self.cell_type, (list, tuple)):  # blocks of cells, maybe of several types
+            types, arrays = list(self.cell_type), list(self.cells)
+            if len(types) != len(arrays) or not types:
+                raise MeshError(f"a mesh of blocks needs one cell type per block, got {len(types)} types for "
+                                f"{len(arrays)} blocks")  # fmt: skip
+            if len(set(types)) == 1:  # one type after all: one block
+                self.cell_type, self.cells = types[0], np.vstack([np.asarray(a) for a in arrays])
+            else:
+                self._blocks = self._make_blocks(types, arrays)
+                self.cells, self.cell_type = None, "mixed"
+                self._finish_post_init()
+                return
         cells = np.asarray(self.cells)
         if cells.dtype.kind not in "iu":
             if cells.dtype.kind != "f" or not np.all(cells == np.round(cells)):
@@ -74,14 +104,71 @@ class Mesh:
             raise MeshError(f"cell type {self.cell_type!r} needs {ref.dim}D points, got {self.points.shape[1]}D")
         if self.cells.ndim != 2 or self.cells.shape[1] != ref.n_nodes:
             raise MeshError(f"cells of type {self.cell_type!r} need {ref.n_nodes} nodes each")
+        if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
+            raise MeshError("cells reference nodes that do not exist")
+        self._finish_post_init()
+
+    def _finish_post_init(self) -> None:
         if not np.all(np.isfinite(self.points)) or np.abs(self.points).max(initial=0.0) > 1e100:
             i = int(np.flatnonzero(~(np.abs(self.points) <= 1e100).all(axis=1))[0])
             raise MeshError(f"mesh node {i} has a non-finite or huge (> 1e100) coordinate {self.points[i].tolist()}")
-        if self.cells.size and (self.cells.min() < 0 or self.cells.max() >= len(self.points)):
-            raise MeshError("cells reference nodes that do not exist")
         self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}
         self.regions = {k: _region_cells(k, v, self.n_cells) for k, v in self.regions.items()}
         self._cache: dict = {}
+
+    def _make_blocks(self, types: list[str], arrays: list) -> list[CellBlock]:
+        """The blocks of a mixed mesh, each validated as the cells of a one-type mesh."""
+        blocks, start = [], 0
+        dims = set()
+        for t, a in zip(types, arrays, strict=True):
+            part = Mesh(self.points, a, t)  # the checks of one type (integers, node count, range)
+            dims.add(reference_element(t).dim)
+            blocks.append(CellBlock(t, part.cells, start))
+            start += part.cells.shape[0]
+        if len(dims) > 1:
+            raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one dimension")
+        return blocks
+
+    @property
+    def mixed(self) -> bool:
+        """Several cell types (:attr:`blocks`; ``cells`` is None)."""
+        return self._blocks is not None
+
+    @property
+    def blocks(self) -> list[CellBlock]:
+        """The cells by type: one block for a one-type mesh."""
+        if self._blocks is not None:
+            return self._blocks
+        return [CellBlock(self.cell_type, self.cells, 0)]
+
+    def parts(self) -> list[tuple[Mesh, slice]]:
+        """One one-type mesh per block (the same points, no tags) and the slice of its cells in
+        this mesh's numbering: the assembly of a mixed mesh is the sum over its parts."""
+        if "parts" not in self._cache:
+            if self._blocks is None:
+                self._cache["parts"] = [(self, slice(0, self.n_cells))]
+            else:
+                self._cache["parts"] = [(Mesh(self.points, b.cells, b.cell_type), slice(b.start, b.stop))
+                                        for b in self._blocks]  # fmt: skip
+        return self._cache["parts"]
+
+    def cell_nodes(self, cells: np.ndarray | None = None) -> np.ndarray:
+        """Sorted unique nodes of the cells ``cells`` (indices; None: every cell)."""
+        if self._blocks is None:
+            return np.unique(self.cells if cells is None else self.cells[cells])
+        out = []
+        for b in self._blocks:
+            if cells is None:
+                out.append(b.cells.ravel())
+            else:
+                c = np.asarray(cells)
+                mine = c[(c >= b.start) & (c < b.stop)] - b.start
+                out.append(b.cells[mine].ravel())
+        return np.unique(np.concatenate(out))
+
+    def first_nodes(self) -> np.ndarray:
+        """The first node of every cell (n_cells,): a cell's body is that node's."""
+        return np.concatenate([b.cells[:, 0] for b in self.blocks])
 
     def node_id(self, i: int) -> int:
         """The user's number of node ``i``: its index in the mesh as read (meshio's points,
@@ -104,6 +191,8 @@ class Mesh:
 
     @property
     def n_cells(self) -> int:
+        if self._blocks is not None:
+            return self._blocks[-1].stop
         return self.cells.shape[0]
 
     @property
@@ -125,7 +214,7 @@ class Mesh:
 
     def region_nodes(self, region: str | Sequence[str]) -> np.ndarray:
         """Sorted unique node indices of the cells of ``region``."""
-        return np.unique(self.cells[self.cells_of(region)])
+        return self.cell_nodes(self.cells_of(region))
 
     def facets_of(self, tag: str | Sequence[str]) -> np.ndarray:
         """Facets of a tag, or the union of the facets of several tags (each facet once);
@@ -150,6 +239,13 @@ class Mesh:
 
     def check_cells(self) -> None:
         """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
+        if self.mixed:
+            for part, cut in self.parts():
+                try:
+                    part.check_cells()
+                except MeshError as exc:
+                    raise MeshError(f"{exc} (cells of the {part.cell_type} block, numbered from {cut.start})") from None
+            return
         ref = reference_element(self.cell_type)
         # translates of one element (structured generators): checking the first suffices
         uniform = uniform_cells(self, cached=False)  # points may have moved since it was cached
@@ -186,7 +282,7 @@ def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
     ``cached=False`` recomputes it (and refreshes the cache)."""
     if cached and "uniform" in mesh._cache:
         return mesh._cache["uniform"]
-    if mesh.cells.shape[0] == 0:
+    if mesh.mixed or mesh.cells.shape[0] == 0:
         return False
     first = mesh.points[mesh.cells[0]]
     scale = max(float(np.abs(first - first[:1]).max()), 1e-300)
@@ -200,6 +296,15 @@ def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
             break
     mesh._cache["uniform"] = out
     return out
+
+
+#: the meshio type of a facet by its number of nodes
+FACET_OF_WIDTH = {1: "vertex", 2: "line", 3: "triangle", 4: "quad"}
+
+
+def facet_type(facets: np.ndarray, dim: int) -> str:
+    """The cell type of facets (n, nfv): a point in 1D, a line in 2D, a triangle or a quad in 3D."""
+    return FACET_OF_WIDTH[1 if dim == 1 else int(np.shape(facets)[1])]
 
 
 # ----------------------------------------------------------------------------- boundary
@@ -226,14 +331,38 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
     return faces[counts[inv] == 1]
 
 
+def mesh_boundary(mesh: Mesh) -> list[np.ndarray]:
+    """The boundary facets of a mesh, one (n, nfv) array per facet type (a facet of a mixed
+    mesh between two blocks, a 2D edge of a triangle and a quad, is inside)."""
+    if not mesh.mixed:
+        return [boundary_facets(mesh.cells, mesh.cell_type)]
+    faces = []
+    for b in mesh.blocks:
+        loc = np.array(reference_element(b.cell_type).facets)
+        faces.append(b.cells[:, loc].reshape(-1, loc.shape[1]))
+    keys = [face_keys(f, mesh.n_nodes) for f in faces]
+    if len({k.dtype for k in keys}) > 1:  # the opaque row values of a huge mesh: compare as rows of 3
+        keys = [_rows(np.sort(f, axis=1)[:, :3]) for f in faces]
+    _, inv, counts = np.unique(np.concatenate(keys), return_inverse=True, return_counts=True)
+    once = counts[inv] == 1
+    out, start = {}, 0
+    for f in faces:
+        mine = f[once[start : start + len(f)]]
+        start += len(f)
+        out.setdefault(f.shape[1], []).append(mine)
+    return [np.vstack(v) for _, v in sorted(out.items())]
+
+
 def join(parts: dict[str, Mesh]) -> Mesh:
     """One mesh of several bodies: the parts' nodes and cells side by side (no node shared),
     each part's facet tag ``t`` renamed ``<part>_<t>``; every part is a region ``<part>``
-    (all its cells) and its own regions ``r`` become ``<part>_<r>``.  The parts must have
-    one cell type."""
+    (all its cells) and its own regions ``r`` become ``<part>_<r>``.  Parts of different cell
+    types (of one dimension) make a mixed mesh."""
     meshes = list(parts.values())
-    if not meshes or len({m.cell_type for m in meshes}) != 1:
-        raise MeshError("join needs one or more meshes of one cell type")
+    if not meshes:
+        raise MeshError("join needs one or more meshes")
+    if any(m.mixed for m in meshes) or len({m.cell_type for m in meshes}) > 1:
+        return _join_blocks(parts)
     offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
     first = np.cumsum([0] + [m.n_cells for m in meshes])
     facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
@@ -246,15 +375,33 @@ def join(parts: dict[str, Mesh]) -> Mesh:
                 strict=False)]), meshes[0].cell_type, facets, regions=regions)  # fmt: skip
 
 
+def _join_blocks(parts: dict[str, Mesh]) -> Mesh:
+    """:func:`join` of parts of several cell types: one block per part's block."""
+    meshes = list(parts.values())
+    offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
+    first = np.cumsum([0] + [m.n_cells for m in meshes])
+    facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
+              for t, f in m.facets.items()}  # fmt: skip
+    regions = {}
+    types, arrays = [], []
+    for (name, m), c0, off in zip(parts.items(), first, offsets, strict=False):
+        regions[name] = c0 + np.arange(m.n_cells)
+        regions.update({f"{name}_{r}": c0 + c for r, c in m.regions.items()})
+        for b in m.blocks:
+            types.append(b.cell_type)
+            arrays.append(b.cells + off)
+    return Mesh(np.vstack([m.points for m in meshes]), arrays, types, facets, regions=regions)
+
+
 def bodies(mesh: Mesh) -> np.ndarray:
     """The body (connected component of the cells) of every node, (n_nodes,) int, numbered in
     the order of their first node; a node of no cell is a body of its own."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    c = mesh.cells
-    rows = np.repeat(c[:, 0], c.shape[1])
-    A = coo_matrix((np.ones(rows.size), (rows, c.ravel())), shape=(mesh.n_nodes, mesh.n_nodes))
+    rows = np.concatenate([np.repeat(b.cells[:, 0], b.cells.shape[1]) for b in mesh.blocks])
+    cols = np.concatenate([b.cells.ravel() for b in mesh.blocks])
+    A = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(mesh.n_nodes, mesh.n_nodes))
     _, label = connected_components(A, directed=False)
     first = np.full(label.max(initial=-1) + 1, mesh.n_nodes)
     np.minimum.at(first, label, np.arange(mesh.n_nodes))
@@ -504,21 +651,25 @@ def read_mesh(path: str | Path) -> Mesh:
             f"{p.name}: no supported cells (found {sorted(kinds)}); supported: {', '.join(SUPPORTED_CELLS)}"
         )
     dim = max(_DIM_OF[t] for t in volume)
-    top = [t for t in volume if _DIM_OF[t] == dim]
-    if len(top) > 1:
-        raise MeshError(f"{p.name}: mixed cell types {sorted(top)} are not supported")
+    top = sorted(t for t in volume if _DIM_OF[t] == dim)  # several: a mixed mesh, block by type
     if unsupported:
         raise MeshError(
             f"{p.name}: unsupported cell types {sorted(unsupported)}; supported: {', '.join(SUPPORTED_CELLS)}"
         )
-    cell_type = top[0]
-    cells = np.vstack([b.data for b in m.cells if b.type == cell_type])
-    ftype = FACET_TYPES[cell_type]
-    _check_indices(p.name, "cells", cells, len(m.points))
+    by_type = {t: np.vstack([b.data for b in m.cells if b.type == t]) for t in top}
+    for t, c in by_type.items():
+        _check_indices(p.name, f"{t} cells", c, len(m.points))
     _check_points(p.name, m.points, dim)
     # physical names per (id, dimension): "skin" (surface 1) and "body" (volume 1) may share an id
     names = {int(v[0]): k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1}
-    facets = _tagged_facets(m, ftype, names, dim - 1)
+    facets: dict[str, list[np.ndarray]] = {}
+    for ftype in sorted({FACET_TYPES[t] for t in top}):
+        for k, v in _tagged_facets(m, ftype, names, dim - 1).items():
+            if k in facets:
+                raise MeshError(f"{p.name}: tag {k!r} holds facets of two types (triangles and quads); a tag holds "
+                                "one type: split it into two physical groups")  # fmt: skip
+            facets[k] = v
+    ftype = "/".join(sorted({FACET_TYPES[t] for t in top}))
     for k, v in facets.items():
         _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))
     declared = sorted(k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1)
@@ -528,7 +679,7 @@ def read_mesh(path: str | Path) -> Mesh:
             "(no mesh entity is attached to them); add the surfaces to the groups in gmsh and mesh again"
         )
     # drop unused points (gmsh keeps geometry points)
-    used = np.unique(cells)
+    used = np.unique(np.concatenate([c.ravel() for c in by_type.values()]))
     renum = -np.ones(len(m.points), dtype=np.int64)
     renum[used] = np.arange(used.size)
     pts = m.points[used, :dim]
@@ -537,8 +688,17 @@ def read_mesh(path: str | Path) -> Mesh:
         if (v < 0).any():
             raise MeshError(f"{p.name}: facets of tag {k!r} use nodes that belong to no cell")
     cell_names = {int(v[0]): k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim}
-    regions = _tagged_cells(m, cell_type, cell_names, dim)
-    mesh = Mesh(pts, renum[cells], cell_type, tagged, regions=regions)
+    regions: dict[str, list[np.ndarray]] = {}
+    start = 0
+    for t, c in by_type.items():  # the cells numbered block after block, in sorted type order
+        for k, v in _tagged_cells(m, t, cell_names, dim).items():
+            regions.setdefault(k, []).append(start + v)
+        start += len(c)
+    regions = {k: np.concatenate(v) for k, v in regions.items()}
+    if len(top) == 1:
+        mesh = Mesh(pts, renum[by_type[top[0]]], top[0], tagged, regions=regions)
+    else:
+        mesh = Mesh(pts, [renum[c] for c in by_type.values()], list(by_type), tagged, regions=regions)
     mesh.check_cells()
     _check_facets(p.name, mesh)
     return mesh
@@ -584,19 +744,26 @@ def _check_facets(name: str, mesh: Mesh) -> None:
     count twice in the contact weights), a tagged facet that is not a face of a cell or
     that lies inside the body (shared by two cells).
     """
-    ref = reference_element(mesh.cell_type)
-    cells = _rows(np.sort(mesh.cells, axis=1))
-    if np.unique(cells).size != cells.size:
-        raise MeshError(f"{name}: two cells have the same nodes (a duplicated or corrupt cell)")
-    loc = np.array(ref.facets)
-    faces = _rows(np.sort(mesh.cells[:, loc].reshape(-1, loc.shape[1]), axis=1))
-    known, counts = np.unique(faces, return_counts=True)
-    if (counts > 2).any():
-        raise MeshError(
-            f"{name}: {int((counts > 2).sum())} face(s) shared by more than two cells: the mesh does not conform "
-            "(overlapping cells, or a node reference that wrapped)"
-        )
+    faces_by_width: dict[int, list[np.ndarray]] = {}
+    for b in mesh.blocks:
+        cells = _rows(np.sort(b.cells, axis=1))
+        if np.unique(cells).size != cells.size:
+            raise MeshError(f"{name}: two cells have the same nodes (a duplicated or corrupt cell)")
+        loc = np.array(reference_element(b.cell_type).facets)
+        faces_by_width.setdefault(loc.shape[1], []).append(b.cells[:, loc].reshape(-1, loc.shape[1]))
+    table = {}
+    for width, parts in faces_by_width.items():
+        known, counts = np.unique(_rows(np.sort(np.vstack(parts), axis=1)), return_counts=True)
+        if (counts > 2).any():
+            raise MeshError(
+                f"{name}: {int((counts > 2).sum())} face(s) shared by more than two cells: the mesh does not "
+                "conform (overlapping cells, or a node reference that wrapped)"
+            )
+        table[width] = (known, counts)
     for tag, f in mesh.facets.items():
+        if f.shape[1] not in table:
+            raise MeshError(f"{name}: tag {tag!r} has facets of {f.shape[1]} nodes, which no cell of the mesh has")
+        known, counts = table[f.shape[1]]
         key, n = np.unique(_rows(np.sort(f, axis=1)), return_counts=True)
         if (n > 1).any():
             raise MeshError(
@@ -621,7 +788,6 @@ def write_mesh(mesh: Mesh, path: str | Path) -> None:
     cells are refused (:class:`MeshError`): Gmsh 2.2 holds one group per element."""
     import meshio
 
-    ftype = FACET_TYPES[mesh.cell_type]
     blocks, phys, field_data = [], [], {}
     seen = np.full(mesh.n_cells, -1)
     names = sorted(mesh.regions)
@@ -645,10 +811,11 @@ def write_mesh(mesh: Mesh, path: str | Path) -> None:
         field_data["domain"] = np.array([ids, mesh.dim])
         group[group == 0] = ids
         ids += 1
-    blocks.append((mesh.cell_type, mesh.cells))
-    phys.append(group)
+    for b in mesh.blocks:
+        blocks.append((b.cell_type, b.cells))
+        phys.append(group[b.start : b.stop])
     for name, f in sorted(mesh.facets.items()):
-        blocks.append((ftype, f))
+        blocks.append((facet_type(f, mesh.dim), f))
         phys.append(np.full(len(f), ids, dtype=int))
         field_data[name] = np.array([ids, mesh.dim - 1])
         ids += 1

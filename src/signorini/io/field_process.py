@@ -48,7 +48,7 @@ def _serve(conn, path: str) -> None:
             if msg[0] == "mesh":
                 writer = meshio.xdmf.TimeSeriesWriter(target.name)
                 writer.__enter__()
-                writer.write_points_cells(msg[1], [(msg[2], msg[3])])
+                writer.write_points_cells(msg[1], msg[2])  # [(cell type, cells), ...]: one block per type
             elif msg[0] == "data":
                 writer.write_data(msg[1], point_data=msg[2], cell_data=msg[3] if len(msg) > 3 else None)
             elif msg[0] == "close":
@@ -138,8 +138,9 @@ class FieldProcess:
                 raise OSError(errno.ENOSPC, f"No space left on device while streaming fields ({detail})")
             raise OSError(errno.EIO, f"the field writer failed: {answer[1]}: {answer[2]}")
 
-    def mesh(self, points: np.ndarray, cell_type: str, cells: np.ndarray) -> None:
-        self._ask(("mesh", points, cell_type, cells))
+    def mesh(self, points: np.ndarray, blocks: list[tuple[str, np.ndarray]]) -> None:
+        """The points and the cell blocks (one per cell type) of the time series."""
+        self._ask(("mesh", points, list(blocks)))
 
     def data(self, t: float, point_data: dict[str, Any], cell_data: dict[str, Any] | None = None) -> None:
         self._ask(("data", float(t), point_data, cell_data))

@@ -94,7 +94,9 @@ class FieldWriter(Observer):
         mesh = run.problem.mesh
         self._mesh, self._material = mesh, run.ctx.disc.material  # per cell with regions
         # every cell's region (k + 1: the k-th region tag in sorted order, 0: none) and body
-        self._cell_data = {"region": [region_ids(mesh)], "body": [bodies(mesh)[mesh.cells[:, 0]]]}
+        ids, body = region_ids(mesh), bodies(mesh)[mesh.first_nodes()]
+        self._cell_data = {"region": [ids[b.start : b.stop] for b in mesh.blocks],
+                           "body": [body[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
         self._nodes = run.ctx.disc.contact.nodes
         self._weights = run.ctx.disc.contact.weights
         self._contact = run.ctx.disc.contact
@@ -103,14 +105,14 @@ class FieldWriter(Observer):
         # displacement, velocity, traction (n, 3) and three scalars per node, in double precision
         self._snapshot_bytes = 8 * 12 * mesh.n_nodes
         self._hold_reserve()
-        self._snapshot_bytes += pts.nbytes + mesh.cells.nbytes
+        self._snapshot_bytes += pts.nbytes + sum(b.cells.nbytes for b in mesh.blocks)
         self._check_room()
         # HDF5 runs in a child process: a crash inside it (the disk filled by another program
         # during a write) costs the fields, not the run (:mod:`signorini.io.field_process`)
         self._writer = FieldProcess(self.path)
         try:
-            cells = mesh.cells if mesh.node_ids is None else mesh.node_ids[mesh.cells]  # the user's numbers
-            self._writer.mesh(to_user_nodes(mesh, pts), mesh.cell_type, cells)
+            user = (lambda c: c) if mesh.node_ids is None else (lambda c: mesh.node_ids[c])  # the user's numbers
+            self._writer.mesh(to_user_nodes(mesh, pts), [(b.cell_type, user(b.cells)) for b in mesh.blocks])
         except OSError:
             self._writer = None
             self._release_reserve()

@@ -140,7 +140,7 @@ def check_size(
 
 def mesh_counts(problem) -> tuple[int, int, int, int, int]:
     m = problem.mesh
-    return m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, contact_node_count(problem)
+    return m.n_nodes, m.n_cells, max(b.cells.shape[1] for b in m.blocks), m.dim, contact_node_count(problem)
 
 
 def _options(args: argparse.Namespace, scheme_options: dict, solver_options: dict) -> tuple[dict, dict]:

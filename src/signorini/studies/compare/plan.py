@@ -178,7 +178,7 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     problem = target.problem(None) if problem is None or target.friction else problem
     check_friction_schemes(run_friction(problem), [p.scheme.name for p in pairs])
     m = problem.mesh
-    counts = (m.n_nodes, m.n_cells, m.cells.shape[1], m.dim, contact_node_count(problem))
+    counts = (m.n_nodes, m.n_cells, max(b.cells.shape[1] for b in m.blocks), m.dim, contact_node_count(problem))
     return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
                 length_scale=_length_scale(problem), counts=counts, friction=friction_summary(problem))  # fmt: skip
 
