@@ -160,8 +160,38 @@ def block_on_block(where: Path = HERE) -> None:
     _write("block_on_block.msh", where)
 
 
+def ball_on_hex_plate(where: Path = HERE) -> None:
+    """Two cell types in one file: a tetrahedral ball (R = 1 cm, 1.5 mm cells, 0.05 mm above
+    the plate) on a structured hexahedral plate 6 x 6 x 0.6 cm (30 x 30 x 3 cells of 2 mm)."""
+    R, gap, side, thick = 0.01, 5e-5, 0.06, 0.006
+    occ = gmsh.model.occ
+    gmsh.model.add("ball_on_hex_plate")
+    plate = occ.addBox(-side / 2, -side / 2, -thick, side, side, thick)
+    ball = occ.addSphere(0.0, 0.0, R + gap, R)
+    occ.synchronize()
+    for _, c in gmsh.model.getEntities(1):
+        b = gmsh.model.getBoundingBox(1, c)
+        if b[5] < R / 2:  # the plate's edges (the ball's are above z = R / 2)
+            vertical = b[5] - b[2] > thick / 2
+            gmsh.model.mesh.setTransfiniteCurve(c, 4 if vertical else 31)
+    for _, s in gmsh.model.getBoundary([(3, plate)], oriented=False):
+        gmsh.model.mesh.setTransfiniteSurface(s)
+        gmsh.model.mesh.setRecombine(2, s)
+    gmsh.model.mesh.setTransfiniteVolume(plate)
+    gmsh.model.mesh.setRecombine(3, plate)
+    gmsh.model.addPhysicalGroup(3, [ball], name="ball")
+    gmsh.model.addPhysicalGroup(3, [plate], name="plate")
+    gmsh.model.addPhysicalGroup(2, [t for _, t in gmsh.model.getBoundary([(3, ball)], oriented=False)],
+                                name="ball_skin")  # fmt: skip
+    gmsh.model.addPhysicalGroup(2, _faces(3, plate, lambda b: b[2] > -thick / 2), name="plate_top")
+    gmsh.model.addPhysicalGroup(2, _faces(3, plate, lambda b: b[5] - b[2] > thick / 2), name="plate_sides")
+    gmsh.model.mesh.setSize(gmsh.model.getBoundary([(3, ball)], oriented=False, recursive=True), 0.0015)
+    gmsh.model.mesh.generate(3)
+    _write("ball_on_hex_plate.msh", where)
+
+
 PARTS = {"cylinder": cylinder, "bracket": bracket, "plate_hole": plate_hole, "ball_on_plate": ball_on_plate,
-         "block_on_block": block_on_block}  # fmt: skip
+         "block_on_block": block_on_block, "ball_on_hex_plate": ball_on_hex_plate}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> None:
