@@ -258,56 +258,44 @@ def write(path: Path, contents: dict[str, Any]) -> int:
     return path.stat().st_size
 
 
-def read_meta(path: Path) -> dict[str, Any]:
-    """The attributes of a checkpoint (level, t, identity, meta), format and version checked
-    (the arrays and the checksum are checked when the run resumes: :func:`read`)."""
+def _open(path: Path, arrays: bool) -> dict[str, Any]:
+    """The attributes (and, with ``arrays``, the datasets) of a checkpoint file, its format
+    and version checked: an InputError (one line) for anything else."""
     path = Path(path)
     where = f"checkpoint {str(path)!r}"
     if not path.is_file():
         raise InputError(f"{where}: no such file (every run of `signorini run` writes it at its end)")
+    data: dict[str, np.ndarray] = {}
     try:
         import h5py
 
         with h5py.File(path, "r") as f:
-            raw = {k: f.attrs[k] for k in f.attrs}
-        attrs = {k: json.loads(v) for k, v in raw.items()}
-    except Exception as exc:
-        raise InputError(f"{where}: unreadable ({type(exc).__name__}); a truncated or corrupt file") from None
+            attrs = {k: json.loads(f.attrs[k]) for k in f.attrs}
+            if attrs.get("format") == FORMAT and isinstance(attrs.get("version"), int) and arrays:
+                f.visititems(lambda name, obj: data.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
+    except Exception as exc:  # truncated, corrupt: h5py raises OSError, KeyError, ValueError, ...
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        raise InputError(f"{where}: unreadable ({type(exc).__name__}: {first}); a truncated or corrupt file") from None
     if attrs.get("format") != FORMAT:
         raise InputError(f"{where}: not a signorini checkpoint (format {attrs.get('format')!r})")
     if not isinstance(attrs.get("version"), int) or attrs["version"] > VERSION:
         raise InputError(f"{where}: format version {attrs.get('version')!r} is newer than this signorini reads "
                          f"({VERSION}); resume it with the signorini that wrote it")  # fmt: skip
-    return attrs
+    return {"arrays": data, "attrs": attrs}
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The attributes of a checkpoint (level, t, identity, meta), format and version checked
+    (the arrays and the checksum are checked when the run resumes: :func:`read`)."""
+    return _open(path, arrays=False)["attrs"]
 
 
 def read(path: Path) -> dict[str, Any]:
     """The ``arrays`` and ``attrs`` of a checkpoint file, its format, version and checksum
     checked: an InputError (one line) for anything else than a complete checkpoint."""
-    path = Path(path)
+    contents = _open(path, arrays=True)
+    arrays, attrs = contents["arrays"], contents["attrs"]
     where = f"checkpoint {str(path)!r}"
-    if not path.is_file():
-        raise InputError(f"{where}: no such file (a run writes it with --checkpoint-every, or when it ends early)")
-    try:
-        import h5py
-
-        with h5py.File(path, "r") as f:
-            raw = {k: f.attrs[k] for k in f.attrs}
-            fmt = json.loads(raw.get("format", '""'))
-            if fmt != FORMAT:
-                raise InputError(f"{where}: not a signorini checkpoint (format {fmt!r})")
-            version = json.loads(raw.get("version", "0"))
-            if not isinstance(version, int) or version > VERSION:
-                raise InputError(f"{where}: format version {version!r} is newer than this signorini reads "
-                                 f"({VERSION}); resume it with the signorini that wrote it")  # fmt: skip
-            attrs = {k: json.loads(v) for k, v in raw.items()}
-            arrays: dict[str, np.ndarray] = {}
-            f.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
-    except InputError:
-        raise
-    except Exception as exc:  # truncated, corrupt: h5py raises OSError, KeyError, ValueError, ...
-        raise InputError(f"{where}: unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
-                         "; a truncated or corrupt file") from None  # fmt: skip
     checksum = attrs.pop("checksum", None)
     if checksum != _digest(arrays, attrs):
         raise InputError(f"{where}: its checksum does not match its contents (a corrupt or edited file)")
