@@ -111,7 +111,7 @@ class Stepper:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
                              f"{type(problem).__name__}")  # fmt: skip
-        if isinstance(dt, (int, float)) and not isinstance(dt, bool) and resume is None:
+        if not isinstance(dt, (list, tuple)) and resume is None:
             number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
         if not isinstance(checkpoint_every, int) or isinstance(checkpoint_every, bool) or checkpoint_every < 0:
             raise InputError(f"checkpoint_every must be a non-negative integer, got {checkpoint_every!r}")

@@ -102,13 +102,13 @@ class TimeGrid:
         until), from level ``start_level`` at ``start_time`` (a resumed run)."""
         from .setup import number_of_steps
 
-        if isinstance(dt, (int, float)) and not isinstance(dt, bool):
+        if not isinstance(dt, (list, tuple)):  # one step (number_of_steps names a wrong type)
             if T is None:
                 raise InputError("T is needed with one time step")
             if start_level == 0:
                 return cls([Segment(0.0, float(dt), 0, number_of_steps(dt, T))])
             T = check_positive("T", T)
-            pieces = [(0.0, T, float(dt))]
+            pieces = [(0.0, T, check_positive("dt", dt))]
         else:
             schedule = parse_schedule(dt)
             T = schedule[-1][0] if T is None else check_positive("T", T)
