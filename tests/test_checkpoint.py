@@ -239,7 +239,8 @@ def test_killed_run_is_resumable(tmp_path):
         time.sleep(0.05)
     summary = json.loads((tmp_path / "k/summary.json").read_text())
     assert summary["status"] == "killed" and summary["resumable"] and summary["checkpoint"]["level"] % 40 == 0
-    assert sorted(x.name for x in (tmp_path / "k").iterdir()) == [".signorini", "checkpoint.h5", "summary.json"]
+    assert sorted(x.name for x in (tmp_path / "k").iterdir()) == [".signorini", "checkpoint.h5", "checkpoint.series",
+                                                                   "summary.json"]  # fmt: skip
     assert _cli("resume", "k", "--T", "6", "--quiet", "--out", "r", cwd=tmp_path).returncode == 0
     assert _cli(*args, "--out", "u", cwd=tmp_path).returncode == 0
     assert (tmp_path / "r/history.csv").read_text() == (tmp_path / "u/history.csv").read_text()
@@ -324,3 +325,83 @@ def test_case_file_schedule(tmp_path):
     case.write_text(text.replace("dt = 0.0125\nT = 1.0", "dt = [{ until = 0.3, dt = 0.007 }]"))
     r = _cli("run", str(case), "--quiet", "--out", "b", cwd=tmp_path)
     assert r.returncode == 2 and "not an integer multiple" in r.stderr and not (tmp_path / "b").exists()
+
+
+def test_a_checkpoint_that_cannot_be_written_does_not_end_the_run(tmp_path, monkeypatch):
+    """A full disk at the second periodic checkpoint: the run goes on to T (finished), the
+    summary counts the failure and warns, the first checkpoint is intact and resumes."""
+    import errno
+
+    import signorini.dynamics.checkpoint as ckpt
+
+    real, calls = ckpt.write, []
+
+    def write(path, contents):
+        calls.append(contents["attrs"]["level"])
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path, contents)
+
+    monkeypatch.setattr(ckpt, "write", write)
+    p, dt, T = _bar2d()
+    H = simulate(p, "cn", dt, T, checkpoint=tmp_path / "c.h5", checkpoint_every=20)
+    assert H.status == "finished" and len(H.t) == 81
+    assert H.meta["checkpoints"]["failed"] == 1 and "No space left" in H.meta["checkpoints"]["error"]
+    assert any("could not be written" in w for w in H.meta["warnings"])
+    assert calls == [20, 40, 60, 80]
+    monkeypatch.setattr(ckpt, "write", real)  # the last one (level 80) was written: on to 1.5
+    assert_same_run(simulate(p, "cn", dt, 1.5), simulate(p, "cn", dt, 1.5, resume=tmp_path / "c.h5"))
+
+
+def test_terminal_event_then_resume_with_sliding_pairs(tmp_path):
+    """A terminal event at a level after which small sliding re-pairs (block_on_block, level 1):
+    the checkpoint holds the pairing of after that level and the resume equals the run."""
+    from signorini.dynamics.events import Event
+    from signorini.io.config import load_case
+
+    c = load_case(Path(__file__).parents[1] / "examples" / "block_on_block.toml")
+    T = 40 * c.dt
+    full = simulate(c.problem, c.scheme, c.dt, T, mass=c.mass)
+    stop = Event("stop", lambda t, s: 1.0 if t < 0.5 * c.dt else -1.0, terminal=True, direction=-1)
+    first = simulate(c.problem, c.scheme, c.dt, T, mass=c.mass, events=[stop], checkpoint=tmp_path / "c.h5")
+    assert first.status == "finished" and len(first.t) == 2 and first.counters["pair_rows_repaired"] > 0
+    r = simulate(c.problem, c.scheme, c.dt, T, mass=c.mass, resume=tmp_path / "c.h5")
+    for k in SERIES:
+        assert np.array_equal(getattr(full, k), getattr(r, k), equal_nan=True), k
+
+
+def test_resume_in_a_later_segment_of_a_schedule(tmp_path):
+    """Checkpointed in the second segment of a schedule (other step than the first), with
+    Coulomb friction: the resume solves with that segment's factorization and warm starts, bit
+    for bit, counters included."""
+    p, _, _ = _bar2d("coulomb:0.3")
+    schedule = [{"until": 0.4, "dt": 0.0125}, {"until": 0.7, "dt": 0.00625}, {"until": 1.2, "dt": 0.025}]
+    full = simulate(p, "cn", schedule, None)
+    simulate(p, "cn", schedule, 0.5, checkpoint=tmp_path / "c.h5")
+    assert_same_run(full, simulate(p, "cn", schedule, None, resume=tmp_path / "c.h5"))
+
+
+def test_friction_is_part_of_the_identity(tmp_path):
+    p, dt, T = _bar2d("coulomb:0.3")
+    simulate(p, "cn", dt, T / 2, checkpoint=tmp_path / "c.h5")
+    for other in (_bar2d("coulomb:0.5")[0], _bar2d()[0]):
+        with pytest.raises(InputError, match="the friction law or its coefficients differs"):
+            simulate(other, "cn", dt, T, resume=tmp_path / "c.h5")
+
+
+@pytest.mark.parametrize(
+    "attr, value", [("level", "x"), ("t", float("nan")), ("counters", []), ("n_solvers", "2"), ("segment", [0, -1, 0])]
+)
+def test_forged_attributes_are_refused_in_one_line(tmp_path, attr, value):
+    """An attribute of the wrong type with the checksum recomputed (a forged file): exit 2 in one
+    line, not an internal error."""
+    import signorini.dynamics.checkpoint as ckpt
+
+    assert _cli("run", "bar2d", "--T", "0.5", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    path = tmp_path / "a/checkpoint.h5"
+    contents = ckpt.read(path)
+    contents["attrs"][attr] = value
+    ckpt.write(path, {"arrays": contents["arrays"], "attrs": contents["attrs"]})
+    r = _cli("resume", "a", "--T", "1", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "b").exists()

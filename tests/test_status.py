@@ -86,6 +86,7 @@ def test_sigint_stops_cli_cleanly(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == [
         ".signorini",
         "checkpoint.h5",  # of the last level: `signorini resume` continues it
+        "checkpoint.series",  # the levels' series up to it
         "contact.npz",
         "fields.h5",
         "fields.xdmf",

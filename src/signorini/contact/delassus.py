@@ -134,13 +134,15 @@ class DelassusColumns:
             self._log.append((J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
 
-    def history(self) -> dict[str, np.ndarray] | None:
-        """The blocks solved so far (nodes, slots, block sizes), for a checkpoint; None once
-        a re-pairing changed B's rows (the columns then depend on the rows of each moment)."""
+    def history(self, blocks: int | None = None) -> dict[str, np.ndarray] | None:
+        """The blocks solved so far (or the first ``blocks`` of them): nodes, slots, block sizes,
+        for a checkpoint; None once a re-pairing changed B's rows (the columns then depend on
+        the rows of each moment)."""
         if not self._replayable:
             return None
-        sizes = np.array([J.size for J, _ in self._log], dtype=np.int64)
-        cat = lambda k: np.concatenate([b[k] for b in self._log]) if self._log else np.zeros(0, np.int64)  # noqa: E731
+        log = self._log if blocks is None else self._log[:blocks]
+        sizes = np.array([J.size for J, _ in log], dtype=np.int64)
+        cat = lambda k: np.concatenate([b[k] for b in log]) if log else np.zeros(0, np.int64)  # noqa: E731
         return {"nodes": cat(0).astype(np.int64), "slots": cat(1).astype(np.int64), "sizes": sizes}
 
     def replay(self, data: dict[str, np.ndarray]) -> None:

@@ -23,6 +23,7 @@ the previous checkpoint (``os.replace``): a kill during the write leaves the pre
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import time
@@ -32,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from .problem import friction_summary
 from .schemes.base import COMMON_STATE_FIELDS, STATE_FIELD_KINDS, State
 
 FORMAT = "signorini-checkpoint"
@@ -81,6 +83,7 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
         "fixed_dofs": int(ctx.fixed.size),
         # the run's node numbering (a distributed run may renumber the mesh): the state's vectors are in it
         "node_order": "mesh" if mesh.node_ids is None else _figures(mesh.node_ids.astype(float)),
+        "friction": json.dumps(friction_summary(disc.problem), sort_keys=True, default=str),
     }
     if case_hash is not None:
         out["case_file"] = case_hash
@@ -93,6 +96,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
              "contact": "the contact rows or gaps", "initial_state": "the initial state", "loads": "the loads",
              "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
              "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
+             "friction": "the friction law or its coefficients",
              "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
                            "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
     order = (
@@ -101,6 +105,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
         "scheme",
         "mass",
         "node_order",
+        "friction",
         "dofs",
         "mesh",
         "contact_rows",
@@ -190,6 +195,8 @@ def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: 
             raise InputError(f"checkpoint: the state has no {key!r}")
         if a.shape != shape:
             raise InputError(f"checkpoint: state field {key!r} has shape {a.shape}, expected {shape}")
+        if a.dtype != np.float64:
+            raise InputError(f"checkpoint: state field {key!r} is {a.dtype}, expected float64")
         if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
             raise InputError(f"checkpoint: state field {key!r} holds non-finite values")
     for key, v in flags.items():
@@ -231,31 +238,116 @@ def write(path: Path, contents: dict[str, Any]) -> int:
     arrays, attrs = contents["arrays"], dict(contents["attrs"])
     attrs["format"], attrs["version"] = FORMAT, VERSION
     attrs["checksum"] = _digest(arrays, {k: v for k, v in attrs.items() if k != "checksum"})
+    # the HDF5 image is made in memory and written by Python: a full disk or a file-size
+    # limit is an OSError here, never a failure inside the HDF5 library (which then crashes
+    # the process when the file is closed; the field writer runs in a child for that reason)
+    buf = io.BytesIO()
+    with h5py.File(buf, "w") as f:
+        for k, a in arrays.items():
+            f.create_dataset(k, data=a)
+        for k, v in attrs.items():
+            f.attrs[k] = json.dumps(v)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        with h5py.File(tmp, "w") as f:
-            for k, a in arrays.items():
-                f.create_dataset(k, data=a)
-            for k, v in attrs.items():
-                f.attrs[k] = json.dumps(v)
-        fd = os.open(tmp, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        with open(tmp, "wb") as fh:
+            fh.write(buf.getbuffer())
+            fh.flush()
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    _fsync_directory(path.parent)
+    return len(buf.getbuffer())
+
+
+def _fsync_directory(directory: Path) -> None:
     try:
-        dfd = os.open(path.parent, os.O_RDONLY)
+        dfd = os.open(directory, os.O_RDONLY)
         try:
             os.fsync(dfd)
         finally:
             os.close(dfd)
     except OSError:
         pass
-    return path.stat().st_size
+
+
+# ----------------------------------------------------------------------------- per-level series
+def series_path(path: Path) -> Path:
+    """The file of a checkpoint's per-level series: ``checkpoint.h5`` -> ``checkpoint.series``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".series")
+
+
+class SeriesLog:
+    """The per-level series of a run (history, energies, untagged watch) appended to a raw
+    file of fixed-size records, one per level, beside the checkpoint, so that a checkpoint
+    costs the levels since the previous one, not the whole history (the checkpoint h5 holds
+    the layout, the number of valid records and a running digest of them).
+
+    A kill during an append leaves the previous checkpoint valid: it counts only its records.
+    """
+
+    def __init__(self) -> None:
+        self.layout: list[tuple[str, str, tuple[int, ...]]] | None = None
+        self.written = 0  # records in the file (levels 0 .. written - 1)
+        self.digests: list[Any] = []  # the running digest after each checkpoint's records
+        self.path: Path | None = None
+        self._hash = hashlib.blake2b(digest_size=16)
+
+    def record_bytes(self) -> int:
+        return sum(int(np.dtype(t).itemsize * np.prod(s, dtype=np.int64)) for _, t, s in self.layout)
+
+    def append(self, path: Path, series: dict[str, np.ndarray], n: int) -> tuple[list, int, str]:
+        """Write the records of the levels not yet written up to n; returns (layout, records,
+        digest of records 0..n)."""
+        path = Path(path)
+        layout = [(k, np.asarray(v).dtype.str, tuple(np.shape(v)[1:])) for k, v in sorted(series.items())]
+        if self.layout != layout or self.path != path or self.written > n + 1:  # a new file
+            self.layout, self.path, self.written = layout, path, 0
+            self._hash = hashlib.blake2b(digest_size=16)
+        if self.written < n + 1:
+            rows = slice(self.written, n + 1)
+            block = np.concatenate(
+                [np.ascontiguousarray(np.asarray(series[k])[rows]).view(np.uint8).reshape(rows.stop - rows.start, -1)
+                 for k, _, _ in layout], axis=1)  # fmt: skip
+            with open(path, "r+b" if self.written and path.exists() else "wb") as fh:
+                fh.seek(self.written * self.record_bytes())
+                fh.write(block.tobytes())
+                fh.truncate()
+                fh.flush()
+                os.fsync(fh.fileno())
+            self._hash.update(block.tobytes())
+            self.written = n + 1
+        return [list(x[:2]) + [list(x[2])] for x in layout], n + 1, self._hash.hexdigest()
+
+
+def read_series(path: Path, layout: list, records: int, digest: str, where: str) -> dict[str, np.ndarray]:
+    """The series of the first ``records`` records of a checkpoint's series file, checked
+    against its layout and digest (an InputError for a short, edited or missing file)."""
+    try:
+        lay = [(str(k), np.dtype(t), tuple(int(x) for x in s)) for k, t, s in layout]
+        size = sum(int(t.itemsize * np.prod(s, dtype=np.int64)) for _, t, s in lay)
+        records = int(records)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}: its series layout is malformed ({exc})") from None
+    p = series_path(path)
+    if not p.is_file():
+        raise InputError(f"{where}: its series file {p.name} is missing (it holds the levels before the checkpoint)")
+    need = size * records
+    with open(p, "rb") as fh:
+        raw = fh.read(need)
+    if len(raw) != need:
+        raise InputError(f"{where}: its series file {p.name} is truncated ({len(raw)} of {need} bytes)")
+    if hashlib.blake2b(raw, digest_size=16).hexdigest() != digest:
+        raise InputError(f"{where}: its series file {p.name} does not match the checkpoint (edited or of another run)")
+    table = np.frombuffer(raw, dtype=np.uint8).reshape(records, size) if records else np.zeros((0, size), np.uint8)
+    out, col = {}, 0
+    for k, t, s in lay:
+        width = int(t.itemsize * np.prod(s, dtype=np.int64))
+        out[k] = np.ascontiguousarray(table[:, col : col + width]).view(t).reshape((records,) + s)
+        col += width
+    return out
 
 
 def _open(path: Path, arrays: bool) -> dict[str, Any]:
@@ -284,10 +376,40 @@ def _open(path: Path, arrays: bool) -> dict[str, Any]:
     return {"arrays": data, "attrs": attrs}
 
 
+def check_attrs(attrs: dict[str, Any], where: str) -> None:
+    """The types and ranges of a checkpoint's attributes (a file whose checksum was forged
+    gets a one-line refusal, not a failure further on)."""
+
+    def bad(what: str) -> InputError:
+        return InputError(f"{where}: malformed checkpoint: {what}")
+
+    level, t, dt = attrs.get("level"), attrs.get("t"), attrs.get("dt")
+    if not isinstance(level, int) or isinstance(level, bool) or level < 0:
+        raise bad(f"level {level!r} is not a non-negative integer")
+    for name, v in (("t", t), ("dt", dt)):
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
+            raise bad(f"{name} {v!r} is not a finite number")
+    if not dt > 0 or t < 0:
+        raise bad(f"dt = {dt!r} or t = {t!r} out of range")
+    for name, kind in (("identity", dict), ("counters", dict), ("state_flags", dict), ("series", dict),
+                       ("n_solvers", int)):  # fmt: skip
+        if not isinstance(attrs.get(name), kind) or isinstance(attrs.get(name), bool):
+            raise bad(f"{name} is missing or not a {kind.__name__}")
+    if any(not isinstance(v, int) or isinstance(v, bool) for v in attrs["counters"].values()):
+        raise bad("a counter is not an integer")
+    seg = attrs.get("segment")
+    if seg is not None and (not isinstance(seg, list) or len(seg) != 3
+                            or not all(isinstance(x, (int, float)) and np.isfinite(x) for x in seg)
+                            or not seg[1] > 0):  # fmt: skip
+        raise bad(f"segment {seg!r} is not [start, dt > 0, first level]")
+
+
 def read_meta(path: Path) -> dict[str, Any]:
     """The attributes of a checkpoint (level, t, identity, meta), format and version checked
     (the arrays and the checksum are checked when the run resumes: :func:`read`)."""
-    return _open(path, arrays=False)["attrs"]
+    attrs = _open(path, arrays=False)["attrs"]
+    check_attrs(attrs, f"checkpoint {str(path)!r}")
+    return attrs
 
 
 def read(path: Path) -> dict[str, Any]:
@@ -299,6 +421,7 @@ def read(path: Path) -> dict[str, Any]:
     checksum = attrs.pop("checksum", None)
     if checksum != _digest(arrays, attrs):
         raise InputError(f"{where}: its checksum does not match its contents (a corrupt or edited file)")
+    check_attrs(attrs, where)
     return {"arrays": arrays, "attrs": attrs}
 
 
@@ -322,7 +445,7 @@ class CheckpointLog:
     def __init__(self, every: int, path) -> None:
         self.every, self.path = int(every), path
         self.written, self.seconds, self.bytes, self.level = 0, 0.0, 0, -1
-        self.error = ""
+        self.error, self.failed = "", 0
 
     def timed(self, write_fn) -> None:
         t0 = time.perf_counter()
@@ -334,5 +457,5 @@ class CheckpointLog:
         out = {"every": self.every, "written": self.written, "seconds": self.seconds, "bytes": self.bytes,
                "level": self.level}  # fmt: skip
         if self.error:
-            out["error"] = self.error
+            out["error"], out["failed"] = self.error, self.failed
         return out

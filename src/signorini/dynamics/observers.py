@@ -85,11 +85,16 @@ class HistoryRecorder(Observer):
         self._put(run, 0, run.initial)
 
     def saved(self, n: int) -> dict[str, Any]:
-        return {"times": self.times[: n + 1], **{k: v[: n + 1] for k, v in self.series.items()}}
+        return {"series": {"times": self.times[: n + 1], **{k: v[: n + 1] for k, v in self.series.items()}}}
 
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
-        _restore_series(self.series, data, n, "history")
-        self.times[: n + 1] = data["times"]
+        series = data.get("series", {})
+        _restore_series(self.series, series, n, "history")
+        times = np.asarray(series.get("times", []), dtype=float)
+        if times.shape != (n + 1,) or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (
+                times[-1] != state.t):  # fmt: skip
+            raise InputError("checkpoint: the levels' times are not increasing up to the checkpoint's t")
+        self.times[: n + 1] = times
         self._prev = self.last = state
 
     def _put(self, run: Run, n: int, s: State) -> None:
@@ -129,6 +134,8 @@ def _restore_series(series: dict[str, np.ndarray], data: dict[str, Any], n: int,
         if k not in data:
             raise InputError(f"checkpoint: the {what} series {k!r} is missing")
         a = np.asarray(data[k])
+        if a.dtype != v.dtype:
+            raise InputError(f"checkpoint: the {what} series {k!r} is {a.dtype}, expected {v.dtype}")
         if a.shape != (n + 1,) + v.shape[1:]:
             raise InputError(f"checkpoint: the {what} series {k!r} has shape {a.shape}, expected "
                              f"{(n + 1,) + v.shape[1:]}")  # fmt: skip
@@ -154,12 +161,14 @@ class EnergyRecorder(Observer):
     checkpoint_key = "energy"
 
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
-        _restore_series(self.series, data, n, "energy")
+        _restore_series(self.series, data.get("series", {}), n, "energy")
         self._prev = state
-        self._dt = float(data.get("dt", run.ctx.dt))  # the step the last level's energy was computed with
+        self._dt = float(data["dt"])  # the step the last level's energy was computed with
+        if not self._dt > 0:
+            raise InputError(f"checkpoint: the energy's step {self._dt!r} is not a positive number")
 
     def saved(self, n: int) -> dict[str, Any]:
-        return {**{k: v[: n + 1] for k, v in self.series.items()}, "dt": float(getattr(self, "_dt", np.nan))}
+        return {"series": {k: v[: n + 1] for k, v in self.series.items()}, "dt": float(self._dt)}
 
     def start(self, run: Run) -> None:
         n = run.n_steps + 1

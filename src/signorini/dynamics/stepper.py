@@ -122,7 +122,7 @@ class Stepper:
             grid = TimeGrid.build(dt, T)
         else:
             a = saved["attrs"]
-            grid = TimeGrid.build(dt, T, int(a["level"]), float(a["t"]))
+            grid = TimeGrid.build(dt, T, int(a["level"]), float(a["t"]), a.get("segment"))
             if int(a["level"]) > grid.n_steps:
                 raise InputError(f"checkpoint {str(resume)!r} is at t = {a['t']:.10g} (level {a['level']}), after "
                                  f"this run's T = {grid.T:.10g}; give a later T")  # fmt: skip
@@ -139,7 +139,9 @@ class Stepper:
 
             parse_stop_at([e for e in events if isinstance(e, str)], "events")  # names checked before the set-up
         t0 = time.perf_counter()
-        dt0 = None if saved is None else float(saved["attrs"].get("dt_initial", saved["attrs"]["dt"]))
+        # a resumed run: factorized for the checkpoint's step (the solvers' warm starts and Delassus
+        # columns restored are of that step)
+        dt0 = None if saved is None else float(saved["attrs"]["dt"])
         self.run, self.starter = set_up(problem, mass, sch, grid, opts, dt_initial=dt0)
         self.setup_seconds = time.perf_counter() - t0
         run = self.run
@@ -161,6 +163,7 @@ class Stepper:
         self.resumed_from: dict[str, Any] | None = None
         self._checkpoint = checkpoint
         self._on_checkpoint = on_checkpoint
+        self._series = ckpt.SeriesLog()  # the levels' series written beside the checkpoint
         self._meta = dict(checkpoint_meta or {})
         self.log = ckpt.CheckpointLog(checkpoint_every, checkpoint) if checkpoint is not None else None
         self._identity = ckpt.identity(run, case_hash)
@@ -174,6 +177,7 @@ class Stepper:
         #: the counters at the current level, taken before the next step works (a step that fails
         #: or is interrupted has solved already: its checkpoint is of the level before it)
         self._level_counters: dict[str, int] | None = None
+        self._level_warm: list[tuple] | None = None  # the warm starts at the current level
         try:
             for o in obs:
                 o.start(run)
@@ -234,36 +238,84 @@ class Stepper:
             try:
                 new = self._advance(n)
             except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
-                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): {exc}")
+                return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): {exc}")
             if not new.is_finite():
-                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): non-finite value in the state")
+                return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): non-finite value in the state")
             if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
                 return self._stop(
                     "failed",
-                    f"step {n} (t = {n * self.dt:.6g}): the contact solve did not reach complementarity "
+                    f"step {n} (t = {self._time_of(n):.6g}): the contact solve did not reach complementarity "
                     f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})",
                 )
             try:
                 for o in self.observers:
                     o.record(run, n, new)
             except ConvergenceError as exc:  # e.g. an energy that overflows
-                return self._stop("failed", f"step {n} (t = {n * self.dt:.6g}): {exc}")
+                return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): {exc}")
             except StopRun as exc:  # a terminal event after this level (the last observer): it is kept
-                self.state, self.n = new, n
+                self._accept(new, n)  # and re-paired as after any level: a resume continues from there
                 return self._stop("finished", str(exc))
-            self.state, self.n = new, n
-            run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired
+            self._accept(new, n)
             self._level_counters = None  # the counters of this level: taken when a checkpoint needs them
             if self.n >= self.n_steps:
                 self.status = "finished"
             elif self.log is not None and self.log.every and self.n % self.log.every == 0:
-                self.save_checkpoint()
+                self._periodic_checkpoint()
             return self.status
         finally:
             self._loop_seconds += time.perf_counter() - t0
 
+    def _time_of(self, n: int) -> float:
+        """The time of level n on the run's grid (for messages)."""
+        seg = self.grid.segment(n)
+        return seg.start + (n - seg.first) * seg.dt
+
+    def _accept(self, new: State, n: int) -> None:
+        """Level n is the run's: small sliding re-pairs after it, its counters and warm starts
+        are what a checkpoint of it holds (taken again before the next step's work)."""
+        self.state, self.n = new, n
+        self.run.ctx.slide(new.U, new.t)  # contact pairs: slave nodes that left their master facet re-paired
+        self._level_counters = None
+        self._level_warm = None
+
+    def _periodic_checkpoint(self) -> None:
+        """A checkpoint every K levels; one that cannot be written (a full disk, a file-size
+        limit) is said in the summary and the run goes on (the previous one is intact)."""
+        try:
+            self.save_checkpoint()
+        except (OSError, RuntimeError, ValueError) as exc:
+            self.log.error = f"level {self.n}: {type(exc).__name__}: {exc}"
+            self.log.failed += 1
+
+    def _warm_starts(self) -> list[tuple]:
+        """The solvers' warm starts (copies: a few vectors) and the lengths of their Delassus
+        logs now, per factorized operator: what a checkpoint of this level holds of them."""
+        systems = self.run.ctx._systems if self.run.ctx.comm.size == 1 else []  # a rank's are its own rows
+        out = []
+        for sys in systems:  # each factorized operator's solver, in order of creation
+            warm = {
+                name: np.array(getattr(sys.solver, name), copy=True) for name in getattr(sys.solver, "warm_state", ())
+            }
+            delassus = getattr(sys.solver, "delassus", None)
+            out.append((sys, warm, len(delassus._log) if hasattr(delassus, "_log") else None))
+        return out
+
+    @staticmethod
+    def _warm_arrays(warm: list[tuple]) -> dict[str, np.ndarray]:
+        """``solvers/k/...`` arrays of :meth:`_warm_starts`."""
+        out: dict[str, np.ndarray] = {}
+        for k, (sys, arrays, blocks) in enumerate(warm):
+            out[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
+            out.update({f"solvers/{k}/{name}": a for name, a in arrays.items()})
+            log = sys.solver.delassus.history(blocks) if blocks is not None else None
+            if log is not None:  # the Delassus columns solved, to solve them again alike on resume
+                out.update({f"solvers/{k}/delassus/{name}": a for name, a in log.items()})
+        return out
+
     def _advance(self, n: int) -> State:
         run = self.run
+        if self.log is not None and self._level_warm is None:  # what a checkpoint of this level holds, if
+            self._level_warm = self._warm_starts()  # this step fails or is interrupted midway
         seg = self.grid.segment(n)
         ctx = run.ctx
         if seg.dt != ctx.dt:  # a new step: its factorization (the old one released)
@@ -296,25 +348,24 @@ class Stepper:
         state_arrays, flags = ckpt.state_arrays(run, self.state)
         arrays.update({f"state/{k}": v for k, v in state_arrays.items()})
         attrs["state_flags"] = flags
-        systems = run.ctx._systems if run.ctx.comm.size == 1 else []  # a rank's warm starts are its own rows
-        for k, sys in enumerate(systems):  # each factorized operator's solver, in order of creation
-            arrays[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
-            for name in getattr(sys.solver, "warm_state", ()):
-                arrays[f"solvers/{k}/{name}"] = np.asarray(getattr(sys.solver, name))
-            log = getattr(getattr(sys.solver, "delassus", None), "history", lambda: None)()
-            if log is not None:  # the Delassus columns solved, to solve them again alike on resume
-                arrays.update({f"solvers/{k}/delassus/{name}": a for name, a in log.items()})
+        warm = self._warm_arrays(self._level_warm if self._level_warm is not None else self._warm_starts())
+        arrays.update(warm)
         ckpt._flatten("pairing", run.ctx.pairing_state(self.state.t), arrays, attrs)
+        series: dict[str, np.ndarray] = {}
         for o in self.observers:
             key = getattr(o, "checkpoint_key", None)
             if key:
-                ckpt._flatten(f"observers/{key}", o.saved(n), arrays, attrs)
+                data = dict(o.saved(n))
+                series.update({f"{key}/{k}": v for k, v in data.pop("series", {}).items()})
+                ckpt._flatten(f"observers/{key}", data, arrays, attrs)
         counters = self._level_counters if self._level_counters is not None else self.counters
+        seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
+        attrs.update(segment=[seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n])
         attrs.update(level=n, t=float(self.state.t), dt=self.dt, dt_initial=self._dt_initial,
                      identity=self._identity, counters=counters,
-                     n_solvers=len(systems), meta=self._meta,
+                     n_solvers=sum(1 for k in warm if k.endswith("/operator")), meta=self._meta,
                      scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
-        return {"arrays": arrays, "attrs": attrs}
+        return {"arrays": arrays, "attrs": attrs, "series": series}
 
     def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
         """Write the checkpoint of the current level (to ``path``, else the stepper's own;
@@ -326,18 +377,32 @@ class Stepper:
         if self.run.ctx.comm.rank != 0:
             return None
         target = Path(target() if callable(target) else target)
+
+        def write() -> int:  # the levels' series appended beside it, then the checkpoint that counts them
+            layout, records, digest = self._series.append(ckpt.series_path(target), contents.pop("series"), self.n)
+            contents["attrs"]["series"] = {"layout": layout, "records": records, "digest": digest}
+            return ckpt.write(target, contents)
+
         if self.log is not None and path is None:
-            self.log.timed(lambda: ckpt.write(target, contents))
+            self.log.timed(write)
             self.log.level = self.n
             if self._on_checkpoint is not None:
                 a = contents["attrs"]
                 self._on_checkpoint({"level": a["level"], "t": a["t"], "counters": a["counters"],
                                      "scheme": self.run.scheme.label, "mass": self.run.ctx.disc.mass_name})  # fmt: skip
         else:
-            ckpt.write(target, contents)
+            write()
         return target
 
     def _resume(self, saved: dict[str, Any], where: str) -> None:
+        try:
+            self._restore(saved, where)
+        except InputError:
+            raise
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # a forged file, in one line
+            raise InputError(f"checkpoint {where!r}: malformed ({type(exc).__name__}: {exc})") from None
+
+    def _restore(self, saved: dict[str, Any], where: str) -> None:
         attrs, run = saved["attrs"], self.run
         ckpt.compare_identity(attrs["identity"], self._identity, f"checkpoint {where!r}")
         n, t = int(attrs["level"]), float(attrs["t"])
@@ -365,12 +430,21 @@ class Stepper:
                 except ValueError as exc:
                     raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
         run.ctx.restore_pairing(ckpt.unflatten("pairing", saved), t)
-        times = saved["arrays"].get("observers/history/times")
+        info = attrs.get("series", {})
+        series = ckpt.read_series(Path(where), info.get("layout", []), info.get("records", -1), info.get("digest", ""),
+                                  f"checkpoint {where!r}")  # fmt: skip
+        if any(len(v) != n + 1 for v in series.values()):
+            raise InputError(f"checkpoint {where!r}: its series hold {info.get('records')} levels, not {n + 1}")
+        times = series.get("history/times")
         run.level_times = None if times is None else np.asarray(times)  # the restored levels' times
         for o in self.observers:  # each with its data; those without a key with none (e.g. to copy files)
             key = getattr(o, "checkpoint_key", None)
-            if hasattr(o, "resume"):
-                o.resume(run, n, self.state, ckpt.unflatten(f"observers/{key}", saved) if key else {})
+            if not hasattr(o, "resume"):
+                continue
+            data = ckpt.unflatten(f"observers/{key}", saved) if key else {}
+            if key:
+                data["series"] = {k[len(key) + 1 :]: v for k, v in series.items() if k.startswith(f"{key}/")}
+            o.resume(run, n, self.state, data)
         self.n = self._first = n
         self._counters_before = {k: int(v) for k, v in attrs["counters"].items() if k != "steps"}
         self.resumed_from = {"level": n, "t": t, "checkpoint": where, "created": attrs.get("created", "")}
@@ -393,8 +467,9 @@ class Stepper:
         if self.log is not None and self.n > 0 and self.log.level != self.n:
             try:
                 self.save_checkpoint()
-            except (OSError, InputError) as exc:  # the levels computed matter more: said in the summary
-                self.log.error = str(exc)
+            except (OSError, InputError, RuntimeError, ValueError) as exc:  # the levels computed matter more
+                self.log.error = f"level {self.n}: {type(exc).__name__}: {exc}"
+                self.log.failed += 1
         try:
             self._close_observers()
         finally:
@@ -415,6 +490,10 @@ class Stepper:
             H.meta["warnings"].append(self.untagged.message())
         if self.log is not None:
             H.meta["checkpoints"] = self.log.summary()
+            if self.log.error:
+                last = f"the last written is of level {self.log.level}" if self.log.level >= 0 else "none was written"
+                H.meta["warnings"].append(f"{self.log.failed} checkpoint(s) could not be written (the last: "
+                                          f"{self.log.error}); {last}")  # fmt: skip
         if self.resumed_from is not None:
             H.meta["resumed_from"] = dict(self.resumed_from)
         steps = schedule_of(H.t)

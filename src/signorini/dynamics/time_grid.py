@@ -97,10 +97,22 @@ class TimeGrid:
         return len({s.dt for s in self.segments}) > 1
 
     @classmethod
-    def build(cls, dt: Any, T: float | None, start_level: int = 0, start_time: float = 0.0) -> TimeGrid:
+    def build(cls, dt: Any, T: float | None, start_level: int = 0, start_time: float = 0.0,
+              segment: Sequence[float] | None = None) -> TimeGrid:  # fmt: skip
         """The grid of ``dt`` (a number or a schedule) up to ``T`` (None: the schedule's last
-        until), from level ``start_level`` at ``start_time`` (a resumed run)."""
+        until), from level ``start_level`` at ``start_time`` (a resumed run; ``segment``: the
+        (start, dt, first) of the checkpoint's segment, continued as it is when ``dt`` is its
+        step, so that the levels' times are those of the uninterrupted run)."""
         from .setup import number_of_steps
+
+        if start_level and segment is not None and not isinstance(dt, (list, tuple)):
+            start, step, first = float(segment[0]), float(segment[1]), int(segment[2])
+            if check_positive("dt", dt) == step and start_level >= first:
+                T = check_positive("T", T)
+                n = _steps(T - start, step, f"the steps of dt = {step:g} from t = {start:.10g} to T = {T:.10g}")
+                if first + n <= start_level:
+                    raise InputError(f"T = {T:.10g} leaves no step after the checkpoint's t = {start_time:.10g}")
+                return cls([Segment(start, step, first, first + n)])
 
         if not isinstance(dt, (list, tuple)):  # one step (number_of_steps names a wrong type)
             if T is None:

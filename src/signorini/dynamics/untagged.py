@@ -160,11 +160,11 @@ class UntaggedContact(Observer):
     checkpoint_key = "untagged"
 
     def saved(self, n: int) -> dict:
-        return {"series": self.series[: n + 1], "worst": list(self.worst), "surface": self._surface}
+        return {"series": {"penetration": self.series[: n + 1]}, "worst": list(self.worst), "surface": self._surface}
 
     def resume(self, run: Run, n: int, state: State, data: dict) -> None:
-        series = np.asarray(data["series"], dtype=float)
-        if series.shape != (n + 1,):
+        series = np.asarray(data.get("series", {}).get("penetration", []))
+        if series.shape != (n + 1,) or series.dtype != self.series.dtype:
             raise InputError(f"checkpoint: the untagged series has shape {series.shape}, expected {(n + 1,)}")
         self.series[: n + 1] = series
         p, node, t = data["worst"]

@@ -204,7 +204,7 @@ def _add_resume(sub) -> None:
         EXAMPLES_RESUME,
     )
     r.add_argument("result", metavar="RESULT_DIR", help="a result directory holding checkpoint.h5")
-    r.add_argument("--T", type=float, required=True, help="the new final time (at or after the checkpoint's time)")
+    r.add_argument("--T", type=float, required=True, help="the new final time (after the checkpoint's time)")
     r.add_argument(
         "--dt",
         type=float,
@@ -218,6 +218,8 @@ def _add_resume(sub) -> None:
     r.add_argument(
         "--checkpoint-every", type=int, default=None, metavar="K", help="checkpoint every K steps (default: the run's)"
     )
+    add_limit_arguments(r, "runs with more steps (as `signorini run`)",
+                        "runs whose estimated memory exceeds this many GiB (as `signorini run`)")  # fmt: skip
     add_output_arguments(r, None, "output directory (required; a new directory, or --overwrite)", "no progress bar "
                          "and no summary")  # fmt: skip
     r.set_defaults(func=cmd_resume)

@@ -82,13 +82,14 @@ if done or tmp is None and not created:
 if not committing and tmp is not None and killed is not None and os.path.isfile(os.path.join(tmp, "checkpoint.h5")):
     try:  # a run killed after a checkpoint: its result is that checkpoint, resumable
         for name in os.listdir(tmp):
-            if name not in ("checkpoint.h5", ".signorini"):
+            if name not in ("checkpoint.h5", "checkpoint.series", ".signorini"):
                 path = os.path.join(tmp, name)
                 shutil.rmtree(path) if os.path.isdir(path) and not os.path.islink(path) else os.remove(path)
         with open(os.path.join(tmp, "summary.json"), "w") as f:
             f.write(json.dumps(killed["summary"], indent=1))
         with open(os.path.join(tmp, ".signorini"), "w") as f:
-            f.write(json.dumps(dict(killed["marker"], manifest=["checkpoint.h5", "summary.json"])) + "\n")
+            kept = sorted(set(os.listdir(tmp)) - {".signorini"})
+            f.write(json.dumps(dict(killed["marker"], manifest=kept)) + "\n")
         try:
             os.rename(tmp, out)
         except OSError:

@@ -68,6 +68,10 @@ def invocation(args: argparse.Namespace) -> dict:
     out = {k: getattr(args, k, None) for k in INVOCATION_ARGS}
     if str(out["target"]).endswith(".toml"):
         out["target"] = str(Path(out["target"]).resolve())
+    scheme = out.get("scheme")
+    if isinstance(scheme, str) and ".py:" in scheme:  # a scheme file: found again from any directory
+        file, _, cls = scheme.rpartition(":")
+        out["scheme"] = f"{Path(file).resolve()}:{cls}"
     return out
 
 
@@ -414,6 +418,7 @@ def cmd_resume(args: argparse.Namespace) -> int:
         raise InputError("--out must not be RESULT_DIR: the resumed result is a new directory")
     ns = argparse.Namespace(**{k: inv.get(k) for k in INVOCATION_ARGS})
     ns.out, ns.quiet, ns.overwrite = args.out, args.quiet, args.overwrite
+    ns.max_steps, ns.max_memory, ns.yes = args.max_steps, args.max_memory, args.yes
     case = str(ns.target).endswith(".toml")
     if case:
         if not Path(ns.target).is_file():
@@ -434,9 +439,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
         from ..errors import check_positive
 
         spec.dt = check_positive("--dt", args.dt)
+    elif not isinstance(spec.dt, (list, tuple)):  # one step: the checkpoint's (a resume --dt goes on with its own)
+        spec.dt = float(meta["dt"])
+    if not spec.T > float(meta["t"]):
+        raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {float(meta['t']):.10g}")
     from ..dynamics.time_grid import TimeGrid
 
-    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), float(meta["t"]))  # T and --dt checked
+    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), float(meta["t"]), meta.get("segment"))  # T, --dt
     check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
     spec.resume = where
     spec.meta["resumed_from_directory"] = str(result)
