@@ -234,9 +234,14 @@ class LazyFieldWriter:
 
     def __init__(self, rd: ResultDirectory, every: int, source: Path | None = None):
         self.rd, self.every, self.inner, self.source = rd, every, None, source
+        self.warning = ""
 
     def resume(self, run, n, state, data) -> None:
-        if self.source is None or self.inner is None or not self.source.is_file():
+        if self.source is None or self.inner is None:
+            return
+        if not self.source.is_file():  # a killed run: its partial fields were not kept
+            self.warning = (f"the fields before the resumed level {n} are not in this result: the run it continues "
+                            f"has no {self.source.name} (killed, or run without --snapshot-every)")  # fmt: skip
             return
         with _rank0_only():
             self.inner.copy_from(self.source, getattr(run, "level_times", None), n)
@@ -329,6 +334,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             return EXIT_CODES["failed"]
         with deferred_signals() as late:  # a signal now would lose every computed step: record it
             H.meta.update(spec.meta)
+            H.meta["warnings"] += [o.warning for o in observers if getattr(o, "warning", "")]
             if spec.measure is not None:
                 H.meta.update(spec.measure.summary(H))
             tmp = rd.create()
