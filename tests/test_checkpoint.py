@@ -405,3 +405,55 @@ def test_forged_attributes_are_refused_in_one_line(tmp_path, attr, value):
     r = _cli("resume", "a", "--T", "1", "--out", "b", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "b").exists()
+
+
+#: the default suite runs these schemes on the gmsh part; the others are in the slow suite
+QUICK_ON_THE_PART = ("crank-nicolson", "backward-euler", "paoli-schatzman", "moreau-jean")
+
+
+@pytest.mark.parametrize("friction", [None, "coulomb:0.3"])
+@pytest.mark.parametrize("mass", ["standard", "seed", "moment-preserving"])
+@pytest.mark.parametrize(
+    "scheme",
+    [pytest.param(s, marks=() if s in QUICK_ON_THE_PART else pytest.mark.slow) for s in SCHEMES.names(aliases=False)],
+)
+def test_resume_on_a_gmsh_part_with_its_whole_skin_in_contact(tmp_path, scheme, mass, friction):
+    """examples/cylinder_drop.toml (a committed gmsh cylinder, its whole skin tagged for contact
+    with a tilted plane), 110 levels (first contact at level 50, the checkpoint at 55 in
+    contact): T/2 + resume = T, bit for bit, or a refusal (scheme x mass, friction) in both."""
+    from signorini.io.config import load_case
+
+    c = load_case(Path(__file__).parents[1] / "examples" / "cylinder_drop.toml")
+    p = with_friction(c.problem, friction) if friction else c.problem
+    dt, T = c.dt, 110 * c.dt
+    try:
+        full = simulate(p, scheme, dt, T, mass=mass)
+    except InputError:
+        with pytest.raises(InputError):
+            _resumed(tmp_path, p, scheme, dt, T, mass)
+        return
+    assert full.active.max() > 0  # the impact is in the levels compared
+    assert_same_run(full, _resumed(tmp_path, p, scheme, dt, T, mass))
+
+
+def test_sigint_at_a_random_moment_resumes_from_the_last_level(tmp_path):
+    """SIGINT to the command line at a random moment (seeded): exit 130, the result holds the
+    checkpoint of its last level, and its resume equals the uninterrupted run."""
+    import random
+    import signal
+    import time
+
+    args = ["run", "bar2d", "--n", "8", "--T", "12", "--quiet"]
+    p = subprocess.Popen([sys.executable, "-m", "signorini", *args, "--snapshot-every", "100000", "--out", "i"],
+                         cwd=tmp_path, stderr=subprocess.PIPE)  # fmt: skip
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob(".signorini-new.*")) and time.monotonic() < deadline:  # the loop has started
+        time.sleep(0.02)
+    time.sleep(random.Random(11).uniform(1.5, 3.0))  # the field writer's child starts first (~0.5 s)
+    p.send_signal(signal.SIGINT)
+    assert p.wait(timeout=120) == 130
+    s = json.loads((tmp_path / "i/summary.json").read_text())
+    assert s["status"] == "interrupted" and s["checkpoints"]["level"] == s["steps"] > 0
+    assert _cli("resume", "i", "--T", "12", "--quiet", "--out", "r", cwd=tmp_path).returncode == 0
+    assert _cli(*args, "--out", "u", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "r/history.csv").read_text() == (tmp_path / "u/history.csv").read_text()

@@ -183,7 +183,8 @@ class Stepper:
                 o.start(run)
                 self._started.append(o)
             if saved is not None:
-                self._resume(saved, str(resume))
+                with blas_threads(self._threads):  # the Delassus blocks solved again as in the loop that solved them
+                    self._resume(saved, str(resume))
                 self._base_counters = run.ctx.counters()  # after the operators the restore factorized
         except BaseException:
             self._close_observers()
