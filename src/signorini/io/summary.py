@@ -117,6 +117,7 @@ def one_screen_summary(H) -> str:
         f"  status {s['status']}{': ' + s['message'] if s['message'] else ''}\n"
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
         f"fallbacks {s['fallbacks']}\n"
+        f"{time_lines(s)}"
         f"{energy_line(H, s)}"
         f"{friction_line(H, s)}"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
@@ -125,6 +126,23 @@ def one_screen_summary(H) -> str:
         f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
         f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves" + factorization_tip(s)
     )
+
+
+def time_lines(s: dict) -> str:
+    """Where a resumed run resumed, the steps of a schedule, and the checkpoints written."""
+    out = ""
+    r = s.get("resumed_from")
+    if r:
+        out += f"  resumed from level {r['level']} (t = {r['t']:.6g}) of {r['checkpoint']}\n"
+    steps = s.get("dt_schedule")
+    if steps:
+        out += "  time steps " + ", ".join(f"{x['dt']:.4g} to t = {x['until']:.6g}" for x in steps) + "\n"
+    c = s.get("checkpoints")
+    if c and c.get("written"):
+        out += f"  checkpoint of level {c['level']} ({c['written']} written, {c['seconds']:.3g} s)"
+        out += f"; {c['failed']} failed" if c.get("failed") else ""
+        out += "\n"
+    return out
 
 
 def factorization_tip(s: dict) -> str:
