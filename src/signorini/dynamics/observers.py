@@ -43,6 +43,8 @@ class Run:
     dt: float
     initial: State
     problem: Any = None
+    #: a resumed run: the times of the levels 0..n restored from its checkpoint
+    level_times: np.ndarray | None = None
 
 
 class Observer:

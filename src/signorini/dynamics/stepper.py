@@ -156,7 +156,6 @@ class Stepper:
             obs.append(self.watch)  # last: the level is recorded before a terminal event ends the run
         self.observers = obs
         self.n_steps = run.n_steps
-        self._dt_initial = float(run.dt)  # the step of level 0 (its Dirichlet rates)
         self.n, self.state = 0, run.initial
         self._first = 0  # the level the loop starts from (a resumed run: the checkpoint's)
         self.status, self.message = "running", ""
@@ -326,8 +325,8 @@ class Stepper:
                 run.scheme.check_context(ctx, prepared=True)
         elif seg.start != ctx.t0:
             ctx.t0 = seg.start
-        if self._level_counters is None:  # the counters at the current level (before a step's work)
-            self._level_counters = self.counters
+        if self.log is not None and self._level_counters is None:  # the counters at this level (before a
+            self._level_counters = self.counters  # step's work): what a checkpoint of it holds
         if n == 1 and self.starter is not None:
             return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
         return run.scheme.step(run.ctx, self.state)
@@ -362,7 +361,7 @@ class Stepper:
         counters = self._level_counters if self._level_counters is not None else self.counters
         seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
         attrs.update(segment=[seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n])
-        attrs.update(level=n, t=float(self.state.t), dt=self.dt, dt_initial=self._dt_initial,
+        attrs.update(level=n, t=float(self.state.t), dt=self.dt,
                      identity=self._identity, counters=counters,
                      n_solvers=sum(1 for k in warm if k.endswith("/operator")), meta=self._meta,
                      scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
@@ -437,7 +436,7 @@ class Stepper:
         if any(len(v) != n + 1 for v in series.values()):
             raise InputError(f"checkpoint {where!r}: its series hold {info.get('records')} levels, not {n + 1}")
         times = series.get("history/times")
-        run.level_times = None if times is None else np.asarray(times)  # the restored levels' times
+        run.level_times = None if times is None else np.asarray(times)
         for o in self.observers:  # each with its data; those without a key with none (e.g. to copy files)
             key = getattr(o, "checkpoint_key", None)
             if not hasattr(o, "resume"):

@@ -669,7 +669,7 @@ def read_mesh(path: str | Path) -> Mesh:
                 raise MeshError(f"{p.name}: tag {k!r} holds facets of two types (triangles and quads); a tag holds "
                                 "one type: split it into two physical groups")  # fmt: skip
             facets[k] = v
-    ftype = "/".join(sorted({FACET_TYPES[t] for t in top}))
+    ftype = " or ".join(sorted({FACET_TYPES[t] for t in top}))  # named in the message below
     for k, v in facets.items():
         _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))
     declared = sorted(k for k, v in (m.field_data or {}).items() if len(v) > 1 and int(v[1]) == dim - 1)

@@ -244,7 +244,7 @@ class LazyFieldWriter:
                             f"has no {self.source.name} (killed, or run without --snapshot-every)")  # fmt: skip
             return
         with _rank0_only():
-            self.inner.copy_from(self.source, getattr(run, "level_times", None), n)
+            self.inner.copy_from(self.source, run.level_times, n)
 
     def start(self, run) -> None:
         from .output import FieldWriter
