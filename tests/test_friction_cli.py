@@ -69,8 +69,8 @@ def test_example_case_with_friction(tmp_path):
 def test_friction_option_overrides_the_case(tmp_path):
     out = tmp_path / "r"
     case = str(ROOT / "examples" / "block_on_slope.toml")
-    assert main(["run", case, "--friction", "tresca:100", "--T", "0.05", "--out", str(out), "--quiet"]) == 2
-    assert not out.exists()  # --T does not apply to a case file: refused before anything is written
+    assert main(["run", case, "--friction", "tresca:100", "--T", "-1", "--out", str(out), "--quiet"]) == 2
+    assert not out.exists()  # a bad --T: refused before anything is written
     assert main(["run", case, "--friction", "tresca:100", "--out", str(out), "--quiet"]) == 0
     assert json.loads((out / "summary.json").read_text())["friction"] == {"law": "tresca", "threshold": 100.0}
 

@@ -42,7 +42,7 @@ def test_template_runs_as_printed(tmp_path, capsys, dim):
     assert text.count("#") >= 10  # every key is commented
 
 
-@pytest.mark.parametrize("flag", [["--n", "4"], ["--dt", "0.1"], ["--T", "1"], ["--set", "gap=0.1"]])
+@pytest.mark.parametrize("flag", [["--n", "4"], ["--set", "gap=0.1"]])
 def test_benchmark_only_options_are_errors_with_a_case_file(tmp_path, capsys, flag):
     main(["template", "--dim", "1"])
     case = tmp_path / "case.toml"

@@ -109,6 +109,17 @@ def test_pairs_watch_the_nodes_of_either_body_against_the_other_surface(tmp_path
     assert H.lam.min() < 0 and H.untagged_penetration.max() == 0.0
 
 
+def test_the_count_of_watched_nodes_includes_the_pairs_watch():
+    """``untagged_boundary_nodes`` counts every node watched, against the rigid obstacle and
+    against a pair's surface (it was 0 in every pair run)."""
+    from signorini.dynamics.untagged import pair_watch
+
+    p = _block_on_plate("block_ymin")
+    watch = pair_watch(p.mesh, p.pairs, 2 * p.mesh.n_nodes)
+    H = simulate(p, "cn", 0.01, 0.02)
+    assert H.meta["untagged_boundary_nodes"] == np.unique(watch.nodes).size > 0
+
+
 def test_contact_npz_says_the_pair_and_master_facet_of_each_row(tmp_path):
     from signorini.contact.obstacles import PlaneObstacle
 

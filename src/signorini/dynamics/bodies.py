@@ -60,15 +60,22 @@ def region_summaries(mesh: Mesh, default, materials: dict) -> list[dict]:
 
 def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None) -> list[dict]:
     """``summary.json`` ``bodies`` (see the module docstring); ``M`` the run's vector mass
-    (a sparse matrix; a distributed one's rows give no per-body effect: None), ``rho`` the
+    (a sparse matrix, or a distributed one, whose products are reductions over the ranks and
+    which gives no per-body ``mass_effect``: None), ``rho`` the
     density (a number or one per cell), ``V`` the last level's velocity (None: no level)."""
     d = mesh.dim
     out = []
     local = sp.issparse(M)
-    MV = M @ V if V is not None and local else None
+    MV = M @ V if V is not None else None  # a distributed M (rows per rank): one reduction over the ranks
+    parts = body_meshes(mesh)
+    body_dofs = [(nodes[:, None] * d + np.arange(d)).ravel() for nodes, _, _ in parts]
+    if not local:  # the mass of each body from one product with the bodies' indicators (n, bodies)
+        E = np.zeros((M.shape[0], len(parts)))
+        for k, dofs in enumerate(body_dofs):
+            E[dofs, k] = 1.0
+        ME = M @ E
     in_body = np.zeros(mesh.n_cells, dtype=bool)
-    for nodes, cells, sub in body_meshes(mesh):
-        dofs = (nodes[:, None] * d + np.arange(d)).ravel()
+    for k, ((nodes, cells, sub), dofs) in enumerate(zip(parts, body_dofs, strict=True)):
         in_body[:] = False
         in_body[cells] = True
         regions = sorted(t for t, c in mesh.regions.items() if c.size and in_body[c].any())
@@ -77,8 +84,9 @@ def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None)
             Mb = M[dofs][:, dofs].tocsr()
             entry["mass"] = float(Mb[0::d].sum())
             entry["mass_effect"] = mass_effect(Mb, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells])
-        else:
-            entry["mass"] = entry["mass_effect"] = None
+        else:  # sum over the body's x rows of M 1_body = Mb[0::d].sum(); the effect needs the block: not kept
+            entry["mass"] = float(ME[dofs[0::d], k].sum())
+            entry["mass_effect"] = None
         if MV is not None:
             entry["momentum"] = [float(MV[dofs][k::d].sum()) for k in range(d)]
             entry["kinetic_energy"] = 0.5 * float(V[dofs] @ MV[dofs])

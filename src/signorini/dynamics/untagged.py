@@ -173,6 +173,10 @@ class UntaggedContact(Observer):
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = self.series[: n_last + 1]
 
+    def watched_nodes(self) -> int:
+        """The number of distinct nodes watched (against the rigid obstacle or a pair's surface)."""
+        return int(np.unique(getattr(self, "all_nodes", np.zeros(0, dtype=int))).size)
+
     def exceeded(self) -> bool:
         return self.worst[0] > self.tolerance
 

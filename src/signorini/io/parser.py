@@ -145,10 +145,20 @@ def _add_run(sub) -> None:
         help="elements across the width (2D/3D, 10n along) or along the bar (1D); default 40 in 1D, 4 in 2D/3D; "
         "hertz: elements across the Hertz contact radius, default 8 (2D), 3 (3D)",
     )
-    bench.add_argument(
-        "--dt", type=float, default=None, help="time step (default h/2; hertz: t_c/(25n)); T must be a multiple of it"
+    both.add_argument(
+        "--dt",
+        type=float,
+        default=None,
+        help="time step (default h/2; hertz: t_c/(25n); a case file's [time] dt otherwise, which this overrides: "
+        "the summary says so); T must be a multiple of it",
     )
-    bench.add_argument("--T", type=float, default=None, help="final time (default 6 in 1D, 1 in 2D/3D; hertz: 1.5 t_c)")
+    both.add_argument(
+        "--T",
+        type=float,
+        default=None,
+        help="final time (default 6 in 1D, 1 in 2D/3D; hertz: 1.5 t_c; a case file's [time] T otherwise, which this "
+        "overrides: the summary says so)",
+    )
     both.add_argument(
         "--stop-at",
         default=None,
@@ -185,7 +195,8 @@ def _add_run(sub) -> None:
 EXAMPLES_RESUME = """  signorini run bar2d --T 1 --out out/first           # or interrupted: Ctrl-C, SIGTERM, job limit
   signorini resume out/first --T 2 --out out/longer    # levels 0..T=1 copied, then on to T = 2
   signorini run bar2d --T 2 --checkpoint-every 20 --out out/long   # killed (SIGKILL)? its last checkpoint is kept
-  signorini resume out/long --T 2 --out out/long-done
+  signorini resume out/long --out out/long-done      # to the run's own T
+  signorini resume out/mine --scheme my_schemes.py:MyScheme --out out/mine-done   # a scheme of your own
 """
 
 
@@ -196,15 +207,29 @@ def _add_resume(sub) -> None:
         "resume",
         "continue a run from its checkpoint to a later final time",
         "Continue the run of RESULT_DIR from its checkpoint.h5 (written at the end of every run, interrupted "
-        "and failed ones included, and every K steps with --checkpoint-every) up to --T, into a new result "
-        "directory that holds every level from t = 0 (the earlier ones copied).  The run is rebuilt as it was "
-        "started (benchmark, case file, scheme, mass, solver); a case file that changed since is refused.  The "
+        "and failed ones included, and every K steps with --checkpoint-every) up to --T (default: the run's own "
+        "final time), into a new result directory that holds every level from t = 0 (the earlier ones copied).  "
+        "The run is rebuilt as it was started (benchmark, case file, scheme, mass, solver); a case file that "
+        "changed since is refused.  A checkpoint is data: nothing it names is imported or executed, and a "
+        "scheme of your own (module:Class, file.py:Class) must be named again with --scheme.  The "
         "resumed run computes what the uninterrupted run computes (bit for bit on the same machine, backend "
         "and thread count: docs/tutorial.md).  Exit codes as `signorini run`.",
         EXAMPLES_RESUME,
     )
     r.add_argument("result", metavar="RESULT_DIR", help="a result directory holding checkpoint.h5")
-    r.add_argument("--T", type=float, required=True, help="the new final time (after the checkpoint's time)")
+    r.add_argument(
+        "--T",
+        type=float,
+        default=None,
+        help="the final time (after the checkpoint's time; default: the interrupted run's own T)",
+    )
+    r.add_argument(
+        "--scheme",
+        default=None,
+        metavar="SCHEME",
+        help="the run's scheme of your own (module:Class or path/to/file.py:Class), named again: a checkpoint "
+        "never imports code; checked against the checkpoint's record (another scheme is refused)",
+    )
     r.add_argument(
         "--dt",
         type=float,

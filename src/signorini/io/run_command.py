@@ -63,6 +63,24 @@ INVOCATION_ARGS = (
 )  # fmt: skip
 
 
+#: the JSON type of each kept argument: an edited checkpoint's invocation is checked against
+#: it, by name, before anything of it is used
+INVOCATION_TYPES: dict[str, tuple[type, ...]] = {
+    "target": (str,), "scheme": (str,), "scheme_option": (list,), "mass": (str,), "friction": (str,),
+    "backend": (str,), "solver_option": (list,), "n": (int,), "dt": (int, float), "T": (int, float),
+    "set": (list,), "stop_at": (str,), "snapshot_every": (int,), "checkpoint_every": (int,), "max_steps": (int,),
+    "max_memory": (int, float), "yes": (bool,),
+}  # fmt: skip
+
+
+def is_plugin_scheme(name: str | None) -> bool:
+    """True for ``--scheme module:Class``, ``module.Class`` or ``file.py:Class`` (code of the
+    user's own, imported), False for a name of the scheme registry (or None)."""
+    from ..dynamics.schemes import SCHEMES
+
+    return isinstance(name, str) and name not in SCHEMES and (":" in name or "." in name)
+
+
 def invocation(args: argparse.Namespace) -> dict:
     """The run's arguments as JSON-able data (a case file by its absolute path)."""
     out = {k: getattr(args, k, None) for k in INVOCATION_ARGS}
@@ -185,7 +203,8 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     limits = _limits(args, {})
     sch, sol = _options(args, {}, {})
     nodes, cells, per_cell = bench.mesh_counts(n, overrides)
-    check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol)
+    if not getattr(args, "resuming", False):  # a resume checks the size of its own grid
+        check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol)
     problem = with_friction(bench.problem(n, overrides), args.friction)
     params = bench.params(overrides)
     meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
@@ -199,12 +218,33 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
                    invocation=invocation(args))  # fmt: skip
 
 
+def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float, dict]:
+    """``--dt`` and ``--T`` over a case file's ``[time]`` values, checked as the file's are;
+    the overrides as ``{key: {"case_file": ..., "command_line": ...}}`` for the summary."""
+    from ..dynamics.time_grid import TimeGrid
+    from ..errors import check_positive
+
+    overrides: dict[str, dict] = {}
+    if getattr(args, "dt", None) is not None:
+        new_dt = check_positive("--dt", args.dt)
+        overrides["dt"] = {"case_file": dt, "command_line": new_dt}
+        dt = new_dt
+    if getattr(args, "T", None) is not None:
+        new_T = check_positive("--T", args.T)
+        overrides["T"] = {"case_file": T, "command_line": new_T}
+        T = new_T
+    if overrides and not getattr(args, "resuming", False):  # a resume checks its own grid, from its checkpoint
+        if not isinstance(dt, (list, tuple)) and T < dt:
+            raise InputError(f"--T must be >= the time step, got T={T} < dt={dt}")
+        TimeGrid.build(dt, T)  # a whole number of steps (of each segment of a schedule)
+    return dt, T, overrides
+
+
 def case_spec(args: argparse.Namespace) -> RunSpec:
     from .config import load_case
 
-    for flag in ("n", "dt", "T"):
-        if getattr(args, flag) is not None:
-            raise InputError(f"--{flag} does not apply to a case file; set it in the file")
+    if getattr(args, "n", None) is not None:
+        raise InputError("--n does not apply to a case file; its mesh is set in the file")
     if args.set:
         raise InputError("--set does not apply to a case file; edit the file")
     _check_out_given(args)
@@ -216,11 +256,15 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     if every < 0:
         raise InputError(f"--snapshot-every must be >= 0, got {every}")
     limits = _limits(args, case.limits)
-    check_size(mesh_counts(case.problem), case.dt, case.T, limits, sol)
+    dt, T, overrides = _time_overrides(args, case.dt, case.T)
+    if not getattr(args, "resuming", False):  # a resume checks the size of its own grid
+        check_size(mesh_counts(case.problem), dt, T, limits, sol)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
+    if overrides:
+        meta["overrides"] = overrides
     problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
-    return RunSpec(problem, scheme, case.dt, case.T, args.mass or case.mass, out, Path(args.target).name,
+    return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits, events=events,
                    checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
                    case_hash=case_text_hash(Path(args.target)))  # fmt: skip
@@ -404,56 +448,98 @@ def killed_summary(spec: RunSpec, c: dict) -> dict:
             "scheme": c["scheme"], "mass": c["mass"], **spec.meta}  # fmt: skip
 
 
+def _kept_invocation(attrs: dict, where: str) -> dict:
+    """The arguments of ``signorini run`` a checkpoint keeps, each checked against
+    :data:`INVOCATION_TYPES` (an edited file is refused by name, never used as is)."""
+    inv = (attrs.get("meta") or {}).get("invocation") if isinstance(attrs.get("meta"), dict) else None
+    if not isinstance(inv, dict) or not inv.get("target"):
+        raise InputError(f"{where} was not written by `signorini run` (no command to rebuild the run from); "
+                         "resume it from Python: simulate(..., resume=PATH)")  # fmt: skip
+    for key, value in inv.items():
+        kinds = INVOCATION_TYPES.get(key)
+        if kinds is None:
+            raise InputError(f"{where}: malformed checkpoint: its invocation holds an unknown argument {key!r}")
+        ok = value is None or (isinstance(value, kinds) and (bool in kinds or not isinstance(value, bool)))
+        if ok and isinstance(value, list):
+            ok = all(isinstance(x, str) for x in value)
+        if not ok:
+            allowed = " or ".join(k.__name__ for k in kinds)
+            raise InputError(f"{where}: malformed checkpoint: invocation argument {key!r} is {value!r}, "
+                             f"expected {allowed} or null")  # fmt: skip
+    return inv
+
+
+def _resume_scheme(recorded: str | None, given: str | None, where: str) -> str | None:
+    """The scheme a resumed run is rebuilt with.  A checkpoint never names code to import: a
+    scheme of the user's own must be named again with ``--scheme`` (the resumed run then
+    compares its label with the checkpoint's record and refuses another one by name)."""
+    if given is not None:
+        return given
+    if is_plugin_scheme(recorded):
+        raise InputError(
+            f"{where} was computed with a scheme of your own ({recorded!r}); a checkpoint never imports code: "
+            "name it again with --scheme (it is checked against the checkpoint's record)"
+        )
+    return recorded
+
+
 def cmd_resume(args: argparse.Namespace) -> int:
-    """``signorini resume RESULT_DIR --T T --out NEW``: the run of RESULT_DIR rebuilt from the
-    arguments its checkpoint keeps, continued from it to T (:mod:`~signorini.dynamics.checkpoint`)."""
-    from ..dynamics.checkpoint import read_meta
+    """``signorini resume RESULT_DIR [--T T] --out NEW``: the run of RESULT_DIR rebuilt from the
+    arguments its checkpoint keeps, continued from it to T (default: the run's own final time;
+    :mod:`~signorini.dynamics.checkpoint`).
+
+    The checkpoint's checksum is verified and every kept argument type-checked before any is
+    used; nothing it names is imported or executed (a scheme of the user's own is named again
+    with ``--scheme``)."""
+    from ..dynamics.checkpoint import read
 
     result = Path(args.result)
     if not result.is_dir():
         raise InputError(f"RESULT_DIR {str(result)!r} is not a directory (a result of `signorini run`)")
     where = result / "checkpoint.h5"
-    meta = read_meta(where)
-    inv = dict(meta.get("meta", {}).get("invocation") or {})
-    if not inv.get("target"):
-        raise InputError(f"checkpoint {str(where)!r} was not written by `signorini run` (no command to rebuild the "
-                         "run from); resume it from Python: simulate(..., resume=PATH)")  # fmt: skip
+    meta = read(where)["attrs"]  # format, version, checksum and attribute types checked first
+    label = f"checkpoint {str(where)!r}"
+    inv = _kept_invocation(meta, label)
     if args.out is None or not str(args.out).strip():
         raise InputError("--out is required: the resumed result goes into a new directory (RESULT_DIR is kept)")
     if Path(args.out).resolve() == result.resolve():
         raise InputError("--out must not be RESULT_DIR: the resumed result is a new directory")
     ns = argparse.Namespace(**{k: inv.get(k) for k in INVOCATION_ARGS})
+    ns.scheme = _resume_scheme(inv.get("scheme"), getattr(args, "scheme", None), label)
     ns.out, ns.quiet, ns.overwrite = args.out, args.quiet, args.overwrite
     ns.max_steps, ns.max_memory, ns.yes = args.max_steps, args.max_memory, args.yes
     case = str(ns.target).endswith(".toml")
-    if case:
-        if not Path(ns.target).is_file():
-            raise InputError(f"the case file of the run, {ns.target!r}, is gone; put it back to resume")
-        ns.T = None
-    else:
-        ns.T = args.T
+    if case and not Path(ns.target).is_file():
+        raise InputError(f"the case file of the run, {ns.target!r}, is gone; put it back to resume")
     if args.snapshot_every is not None:
         ns.snapshot_every = args.snapshot_every
     if args.checkpoint_every is not None:
         ns.checkpoint_every = args.checkpoint_every
+    if args.T is not None:
+        ns.T = args.T
+    ns.resuming = True
     spec = case_spec(ns) if case else benchmark_spec(ns)
     if case and spec.case_hash != meta.get("identity", {}).get("case_file"):
         raise InputError(f"the case file {ns.target!r} changed since the checkpoint of {str(result)!r}; "
                          "resume needs the same file")  # fmt: skip
-    spec.T = args.T
+    t_ckpt = float(meta["t"])
     if args.dt is not None:
         from ..errors import check_positive
 
         spec.dt = check_positive("--dt", args.dt)
     elif not isinstance(spec.dt, (list, tuple)):  # one step: the checkpoint's (a resume --dt goes on with its own)
         spec.dt = float(meta["dt"])
-    if not spec.T > float(meta["t"]):
-        raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {float(meta['t']):.10g}")
+    if not spec.T > t_ckpt:
+        if args.T is None:
+            raise InputError(f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
+                             "give a later --T to continue it")  # fmt: skip
+        raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {t_ckpt:.10g}")
     from ..dynamics.time_grid import TimeGrid
 
-    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), float(meta["t"]), meta.get("segment"))  # T, --dt
+    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
     check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
     spec.resume = where
+    spec.invocation["T"] = spec.T  # a resume of this run's result continues to this T
     spec.meta["resumed_from_directory"] = str(result)
     return execute(spec, args)
 

@@ -131,6 +131,13 @@ def one_screen_summary(H) -> str:
 def time_lines(s: dict) -> str:
     """Where a resumed run resumed, the steps of a schedule, and the checkpoints written."""
     out = ""
+    over = s.get("overrides")
+    if over:
+        out += (
+            "  over the case file: "
+            + ", ".join(f"{k} {v['command_line']:.6g} (the file's {_value(v['case_file'])})" for k, v in over.items())
+            + "\n"
+        )
     r = s.get("resumed_from")
     if r:
         out += f"  resumed from level {r['level']} (t = {r['t']:.6g}) of {r['checkpoint']}\n"
@@ -143,6 +150,11 @@ def time_lines(s: dict) -> str:
         out += f"; {c['failed']} failed" if c.get("failed") else ""
         out += "\n"
     return out
+
+
+def _value(x) -> str:
+    """A number as %.6g, a step schedule as 'a schedule'."""
+    return f"{x:.6g}" if isinstance(x, (int, float)) else "schedule"
 
 
 def factorization_tip(s: dict) -> str:
