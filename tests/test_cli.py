@@ -181,3 +181,77 @@ def test_backend_given_twice_must_agree(tmp_path, capsys):
     assert main([*args, "--solver-option", "backend=cg"]) == 2
     assert "disagree" in capsys.readouterr().err and not out.exists()
     assert main([*args, "--solver-option", "backend=superlu"]) == 0
+
+
+def test_reproduce_says_when_hertz_was_skipped_and_how_to_get_it(tmp_path, capsys, monkeypatch):
+    """Without gmsh the main command's own output (not only report.md) says that section 7 was
+    skipped and how to install it."""
+    import signorini.studies.report as report
+
+    def fake(out, size, progress=None):
+        (out / "report.md").write_text("# report\n")
+        return {"hertz": None, "bar2d_histories": {}}
+
+    monkeypatch.setattr(report, "reproduce", fake)
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    assert "section 7 (Hertz impact) skipped: gmsh is not installed" in out and 'pip install ".[mesh]"' in out
+
+
+def test_the_readme_lists_every_column_of_history_csv(tmp_path):
+    """The README's list of history.csv columns is the header a 2D run writes (x, y of the
+    vector columns; the README writes `name_x` (`_y`, `_z`))."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    text = readme[readme.index("`run` writes `history.csv`") :]
+    text = text[: text.index("; `energy` =")]
+    listed = []
+    for name in re.findall(r"[a-z_]+", " ".join(re.findall(r"`([^`]*)`", text))):
+        listed += [name, name[:-1] + "y"] if name.endswith("_x") else [name] if not name.startswith("_") else []
+    assert main(["run", "bar2d", "--n", "1", "--T", "0.1", "--quiet", "--out", str(tmp_path / "o")]) == 0
+    header = (tmp_path / "o" / "history.csv").read_text().splitlines()[0].split(",")
+    assert [c for c in listed if c not in ("run", "history", "csv")] == header
+
+
+def test_a_batch_log_gets_plain_progress_lines_at_a_bounded_rate(tmp_path):
+    """stderr not a terminal (a cluster job's log): plain lines (no carriage return), the first
+    with the set-up time, then step, elapsed and ETA, a last one when done; --quiet: none.
+    SIGNORINI_PROGRESS_EVERY=0 lifts the rate bound (default: after 10 s, then every 30 s)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "SIGNORINI_PROGRESS_EVERY": "0"}
+    args = [sys.executable, "-m", "signorini", "run", "bar2d", "--n", "1", "--T", "0.1", "--out"]
+    r = subprocess.run([*args, str(tmp_path / "a")], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.startswith("bar2d:")]
+    assert "\r" not in r.stderr
+    assert len(lines) == 2  # 2 steps of dt = h/2 = 0.05
+    assert lines[0].startswith("bar2d: set-up ") and "step 1/2 (50%)" in lines[0] and "ETA" in lines[0]
+    assert "step 2/2 (100%)" in lines[-1] and lines[-1].endswith("done")
+    r = subprocess.run([*args, str(tmp_path / "b"), "--quiet"], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0 and r.stderr == ""
+    r = subprocess.run([*args, str(tmp_path / "c")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and not any(x.startswith("bar2d:") for x in r.stderr.splitlines())  # a short run
+
+
+def test_progress_lines_are_bounded_in_rate(monkeypatch):
+    """With the default bounds, 1,000 steps over 100 simulated seconds give the first line after
+    10 s and then one per 30 s: 4 lines with the last."""
+    import io
+
+    from signorini.io import summary
+
+    clock = iter(np.linspace(0.0, 100.0, 1002))
+    monkeypatch.setattr(summary.time, "perf_counter", lambda: float(next(clock)))
+    monkeypatch.delenv("SIGNORINI_PROGRESS_EVERY", raising=False)
+    out = io.StringIO()
+    p = summary.Progress(False, "job", stream=out)
+    for i in range(1, 1001):
+        p(i, 1000)
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 4 and lines[-1].endswith("done") and lines[0].startswith("job: set-up 0.1 s; step 101/")
+    assert "step 402/1000 (40%), 40 s elapsed, ETA 60 s" in lines[1]

@@ -8,15 +8,37 @@ import time
 import numpy as np
 
 
-class Progress:
-    """A one-line progress bar on stderr, only when it is a terminal and not quiet."""
+#: a batch log's first progress line comes after this many seconds [s] (shorter runs print none)
+LOG_FIRST = 10.0
+#: and then at most one line per this many seconds [s] (``SIGNORINI_PROGRESS_EVERY`` sets both)
+LOG_EVERY = 30.0
 
-    def __init__(self, quiet: bool, label: str):
-        self.enabled = (not quiet) and sys.stderr.isatty()
+
+class Progress:
+    """Progress on stderr, unless quiet: a one-line bar redrawn in place when stderr is a
+    terminal; otherwise (a batch job's log) plain lines at a bounded rate, the first after
+    :data:`LOG_FIRST` s with the set-up time, then at most one per :data:`LOG_EVERY` s (step,
+    time, elapsed, ETA), and a last one when the loop ends (only if one was printed)."""
+
+    def __init__(self, quiet: bool, label: str, stream=None):
+        import os
+
+        self.stream = stream if stream is not None else sys.stderr
+        tty = self.stream.isatty()
+        self.enabled = not quiet
+        self.mode = "bar" if tty else "log"
         self.label = label
         self.t0 = time.perf_counter()
         self.last = 0.0
         self.first: tuple[float, int] | None = None  # (time, step) of the first step seen
+        every = os.environ.get("SIGNORINI_PROGRESS_EVERY", "")
+        try:
+            self.log_first = self.log_every = float(every) if every else None
+        except ValueError:
+            self.log_first = self.log_every = None
+        if self.log_every is None or not self.log_every >= 0:
+            self.log_first, self.log_every = LOG_FIRST, LOG_EVERY
+        self.lines = 0
 
     def __call__(self, i: int, n: int) -> None:
         if not self.enabled:
@@ -24,17 +46,41 @@ class Progress:
         now = time.perf_counter()
         if self.first is None:  # the estimate starts with the loop: set-up time is not a step's
             self.first = (now, i)
+        if self.mode == "log":
+            self._log(now, i, n)
+            return
         if now - self.t0 < 2.0 or (now - self.last < 0.2 and i < n):
             return
         self.last = now
         frac = i / n
         bar = "#" * int(30 * frac)
-        t1, i1 = self.first
-        eta = (now - t1) / max(i - i1, 1) * (n - i)
-        sys.stderr.write(f"\r{self.label} [{bar:<30}] {i}/{n} steps, {eta:5.1f}s left")
+        self.stream.write(f"\r{self.label} [{bar:<30}] {i}/{n} steps, {self._eta(now, i, n):5.1f}s left")
         if i == n:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+            self.stream.write("\n")
+        self.stream.flush()
+
+    def _eta(self, now: float, i: int, n: int) -> float:
+        t1, i1 = self.first
+        return (now - t1) / max(i - i1, 1) * (n - i)
+
+    def _log(self, now: float, i: int, n: int) -> None:
+        """A plain line for a log file (no carriage return), at a bounded rate."""
+        if i < n:
+            if self.lines == 0 and now - self.t0 < self.log_first:
+                return
+            if self.lines and now - self.last < self.log_every:
+                return
+        elif self.lines == 0:  # a short run: no line at all
+            return
+        first = ""
+        if self.lines == 0:
+            first = f"set-up {self.first[0] - self.t0:.1f} s; "
+        self.last = now
+        self.lines += 1
+        state = "done" if i == n else f"ETA {self._eta(now, i, n):.0f} s"
+        self.stream.write(f"{self.label}: {first}step {i}/{n} ({100 * i / n:.0f}%), {now - self.t0:.0f} s elapsed, "
+                          f"{state}\n")  # fmt: skip
+        self.stream.flush()
 
 
 def mass_effect_line(s: dict) -> str:
