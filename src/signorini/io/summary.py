@@ -7,7 +7,6 @@ import time
 
 import numpy as np
 
-
 #: a batch log's first progress line comes after this many seconds [s] (shorter runs print none)
 LOG_FIRST = 10.0
 #: and then at most one line per this many seconds [s] (``SIGNORINI_PROGRESS_EVERY`` sets both)
