@@ -18,6 +18,32 @@ from .frames import frame_rows, tangent_frames
 from .obstacles import RigidObstacle
 
 
+def check_pair_tags(mesh, pairs: Sequence) -> None:
+    """InputError for pairs the node-to-facet method does not do: a pair listed in both
+    directions (each pair is one-sided: list it once, the finer side as slave) and a pair
+    whose two sides are on one body (self-contact, not supported: the pair would face the
+    body's own far side from t = 0)."""
+    from ..fem.mesh import bodies
+
+    seen: dict[tuple[str, str], int] = {}
+    label = bodies(mesh)
+    for k, p in enumerate(pairs):
+        j = seen.get((p.master, p.slave))
+        if j is not None:
+            raise InputError(
+                f"contact pairs {j} ({pairs[j].slave!r} / {pairs[j].master!r}) and {k} ({p.slave!r} / {p.master!r}) "
+                "are one pair listed in both directions: list it once (node to facet is one-sided; the finer or "
+                "curved side as slave, docs/bodies.md)"
+            )
+        seen[(p.slave, p.master)] = k
+        own = np.intersect1d(np.unique(label[mesh.nodes_of(p.slave)]), np.unique(label[mesh.nodes_of(p.master)]))
+        if own.size:
+            raise InputError(
+                f"contact pair {k} ({p.slave!r} / {p.master!r}): both tags are on body {int(own[0])} (one connected "
+                "part of the mesh): self-contact is not supported; a pair joins two bodies"
+            )
+
+
 @dataclass
 class ContactSet:
     """Contact nodes of a boundary tag facing a rigid obstacle.
@@ -254,6 +280,7 @@ class ContactSet:
 
         mesh = space.mesh
         parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
+        check_pair_tags(mesh, pairs)
         for p, r in zip(pairs, parts, strict=True):
             if r.nodes.size == 0:
                 n = mesh.nodes_of(p.slave).size

@@ -355,6 +355,8 @@ def _open(path: Path, arrays: bool) -> dict[str, Any]:
     and version checked: an InputError (one line) for anything else."""
     path = Path(path)
     where = f"checkpoint {str(path)!r}"
+    if path.is_dir():
+        raise InputError(f"{where} is a directory, not a checkpoint file (give the checkpoint.h5 inside a result)")
     if not path.is_file():
         raise InputError(f"{where}: no such file (every run of `signorini run` writes it at its end)")
     data: dict[str, np.ndarray] = {}

@@ -20,6 +20,7 @@ case file ``[time] stop_at = "NAME"``, each then terminal):
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,6 +78,27 @@ EVENTS.register(
     "the kinetic energy 1/2 V.MV below a fraction of its largest value so far (rest:FRACTION)",
     parameters=(Parameter("fraction", 0.01, "fraction of the initial kinetic energy", float, 0.0, 1.0),),
 )
+
+
+def events_list(events: Any) -> list:
+    """``simulate``'s ``events`` as a list: one name (``"separation"``, or comma-separated
+    names) or one :class:`Event` is a list of one, not a sequence of characters."""
+    if events is None:
+        return []
+    if isinstance(events, str):
+        return parse_stop_at(events, "events")
+    if isinstance(events, Event):
+        return [events]
+    try:
+        out = list(events)
+    except TypeError:
+        raise InputError(f"events must be event names, Event objects or a list of them, got "
+                         f"{type(events).__name__}") from None  # fmt: skip
+    for e in out:
+        if not isinstance(e, (str, Event)):
+            raise InputError(f"events: {e!r} is neither an event name ({', '.join(EVENTS.names(aliases=False))}) "
+                             "nor an Event")  # fmt: skip
+    return out
 
 
 def parse_stop_at(spec: str | Sequence[str] | None, where: str = "--stop-at") -> list[str]:

@@ -304,6 +304,16 @@ def make_observers(
     snapshot_every: int, energy: bool, progress: Callable[[int, int], None] | None, extra: Iterable[Observer]
 ) -> tuple[HistoryRecorder, EnergyRecorder | None, SnapshotRecorder | None, list[Observer]]:
     """The recorders of the history, the energies and the snapshots, then ``extra``."""
+    extra = list(extra)
+    for o in extra:  # duck typing allowed, but the three calls the loop makes must be there
+        missing = [m for m in ("start", "record", "close") if not callable(getattr(o, m, None))]
+        if missing:
+            raise InputError(
+                f"observers: {type(o).__name__} object is not an observer (no {', '.join(missing)}); give "
+                "instances of signorini.dynamics.observers.Observer (override start, record, close)"
+            )
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress must be a callable progress(step, n_steps), got {type(progress).__name__}")
     recorder, energies = HistoryRecorder(), EnergyRecorder() if energy else None
     snaps = SnapshotRecorder(snapshot_every) if snapshot_every else None
     obs: list[Observer] = [recorder] + [o for o in (energies, snaps) if o is not None] + list(extra)

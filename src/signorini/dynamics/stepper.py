@@ -37,7 +37,7 @@ import numpy as np
 from ..errors import ConvergenceError, InputError
 from ..linalg.threads import blas_threads
 from . import checkpoint as ckpt
-from .events import StopRun
+from .events import StopRun, events_list
 from .history import History
 from .mass import DEFAULT_MASS
 from .problem import Discretization, Problem
@@ -133,7 +133,7 @@ class Stepper:
             raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
                              "dt (and resume with the run's own)")  # fmt: skip
         opts = run_options(snapshot_every, backend, memory_budget, solver_options)
-        events = list(events)
+        events = events_list(events)
         if events:
             from .events import parse_stop_at
 

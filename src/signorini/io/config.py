@@ -576,6 +576,10 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     pairs = _pairs(mesh, c)
     rigid = not pairs or "tag" in c or "obstacle" in c
     tag = _contact_tags(mesh, c) if rigid else None
+    if not rigid and "where" in c:
+        raise InputError("'contact.where' restricts the contact nodes of [contact] tag against the rigid obstacle; "
+                         "this case has contact pairs only, where it would not apply: remove it (a pair's slave "
+                         "nodes are those of its slave tag)")  # fmt: skip
     where = _where(c) if rigid else None
     obstacle = _obstacle(c.get("obstacle"), dim, path.parent) if rigid else None
     friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None

@@ -1,0 +1,80 @@
+"""Inputs that used to be accepted silently, split or end in an internal error (issue 38,
+item 6): each is now a one-line refusal naming what is wrong, or does what it says."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from signorini.contact.pairs import ContactPair
+from signorini.dynamics.events import Event
+from signorini.dynamics.simulate import simulate
+from signorini.errors import InputError
+from signorini.io.cli import main
+from test_pairs import bars
+
+
+def test_one_event_name_is_one_event_not_its_characters():
+    """``simulate(events="separation")`` (a string, not a list) stops at the separation, as
+    ``events=["separation"]`` does (it was split into 's', 'e', ...)."""
+    p, dt = bars(1, 2, 2), 0.025
+    H = simulate(p, "cn", dt, 3.0, events="separation")
+    H_list = simulate(p, "cn", dt, 3.0, events=["separation"])
+    assert H.meta["events"] == H_list.meta["events"] and H.meta["events"][0]["name"] == "separation"
+    one = Event("x > 0", lambda t, s: 1.0, terminal=False)
+    assert simulate(p, "cn", dt, 0.1, events=one).status == "finished"
+    with pytest.raises(InputError, match="events: 3 is neither an event name"):
+        simulate(p, "cn", dt, 0.1, events=[3])
+
+
+@pytest.mark.parametrize("observer, says", [(3, "int object is not an observer"), ("x", "str object is not")])
+def test_an_observer_of_the_wrong_type_is_refused_by_name(observer, says):
+    with pytest.raises(InputError, match=says):
+        simulate(bars(1, 2, 2), "cn", 0.025, 0.1, observers=[observer])
+
+
+def test_a_checkpoint_path_that_is_a_directory_says_so(tmp_path):
+    with pytest.raises(InputError, match="is a directory, not a checkpoint file"):
+        simulate(bars(1, 2, 2), "cn", 0.025, 0.1, resume=tmp_path)
+
+
+def test_a_pair_listed_in_both_directions_is_refused():
+    p = bars(2, 1, 1)
+    pairs = [ContactPair("right_ymin", "left_ymax"), ContactPair("left_ymax", "right_ymin")]
+    with pytest.raises(InputError, match="one pair listed in both directions: list it once"):
+        simulate(dataclasses.replace(p, pairs=pairs), "cn", 0.01, 0.02)
+
+
+def test_a_pair_on_one_body_is_refused_as_self_contact():
+    """A pair whose slave and master tags are on one body (the faces of a U-shaped part): the
+    pair faced the body's own far side from t = 0 (a penetration reported at t = 0)."""
+    from signorini.contact.obstacles import PlaneObstacle
+    from signorini.dynamics.problem import Problem
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import rectangle
+
+    m = rectangle(2, 6, 0.2, 0.6)
+    p = Problem(m, IsotropicElastic.from_young(1.0, 0.3, 1.0), "xmin", PlaneObstacle([-0.1, 0.0], [1.0, 0.0]),
+                pairs=[ContactPair("ymax", "ymin")])  # fmt: skip
+    with pytest.raises(InputError, match=r"both tags are on body 0 .*self-contact is not supported"):
+        simulate(p, "cn", 0.01, 0.02)
+
+
+def test_contact_where_with_pairs_only_is_refused(tmp_path, capsys):
+    """``[contact] where`` restricts the rigid obstacle's nodes; with pairs only it was never
+    applied (silently)."""
+    from pathlib import Path
+
+    case = (Path(__file__).parent / "test_pairs_backends.py").read_text()
+    text = case[case.index('CASE_FILE = """') + len('CASE_FILE = """') :]
+    text = text[: text.index('"""')]
+    from signorini.fem.mesh import write_mesh
+    from test_pairs_backends import block_on_plate
+
+    write_mesh(block_on_plate().mesh, tmp_path / "block_on_plate.msh")
+    bad = tmp_path / "case.toml"
+    bad.write_text(text.replace("[contact]\n", '[contact]\nwhere = "x < 0.5"\n'))
+    assert main(["run", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "'contact.where'" in err and "contact pairs only" in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
