@@ -486,3 +486,21 @@ def test_python_api_refusals():
         SurfaceObstacle(42)
     with pytest.raises(InputError, match="the obstacle is 2D and the mesh 3D"):
         discretize(dataclasses.replace(get_benchmark("bar3d").problem(1), obstacle=SurfaceObstacle((pts, cells))))
+
+
+def test_resume_refuses_a_surface_file_edited_after_the_run(tmp_path):
+    """The files a case reads are part of its identity: a surface obstacle moved (its file
+    rewritten) after the run makes `signorini resume` refuse, naming the files; the same file
+    back resumes."""
+    _write(tmp_path / "floor.vtk", *_polyline_on_line([0.0, 0.0], [0.0, 1.0], 1.0, 6))
+    original = (tmp_path / "floor.vtk").read_bytes()
+    case = _case(tmp_path, '{ type = "surface", file = "floor.vtk" }')
+    assert main(["run", str(case), "--T", "0.5", "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    _write(tmp_path / "floor.vtk", *_polyline_on_line([0.0, 0.01], [0.0, 1.0], 1.0, 6))
+    resume = ["resume", str(tmp_path / "a"), "--T", "1", "--out", str(tmp_path / "b"), "--quiet"]
+    assert main(resume) == 2
+    assert not (tmp_path / "b").exists()
+    (tmp_path / "floor.vtk").write_bytes(original)
+    assert main(resume) == 0
+    s = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert s["status"] == "finished" and s["T"] == 1.0

@@ -112,6 +112,8 @@ class Case:
     stop_at: list[str] = field(default_factory=list)
     #: a checkpoint every k levels ([output] checkpoint_every; 0: at the end only)
     checkpoint_every: int = 0
+    #: the other files the case reads (a mesh file, a surface obstacle), part of its identity
+    files: list[Path] = field(default_factory=list)
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -200,7 +202,7 @@ def _where(table: dict):
     return lambda p: check_finite("contact.where", text, ex(p), p, 0.0) != 0
 
 
-def _mesh(m: dict, base: Path, guard=None) -> Mesh:
+def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
     _keys("mesh", m, SECTIONS["mesh"])
     gen = m.get("generator", "file" if "file" in m else None)
     gen = check_choice("mesh.generator", gen, {"interval", "rectangle", "box", "file"}) if gen else None
@@ -209,6 +211,8 @@ def _mesh(m: dict, base: Path, guard=None) -> Mesh:
     if gen == "file":
         if "file" not in m or not isinstance(m["file"], str):
             raise InputError("'mesh.file' must be the path of a mesh file")
+        if files is not None:
+            files.append(base / m["file"])
         return read_mesh(base / m["file"])
     dim = {"interval": 1, "rectangle": 2, "box": 3}[gen]
     cells = m.get("cells")
@@ -361,7 +365,7 @@ def _tractions(blocks: Any, mesh: Mesh) -> dict:
     return out
 
 
-def _obstacle(ob: Any, dim: int, base: Path | None = None) -> RigidObstacle:
+def _obstacle(ob: Any, dim: int, base: Path | None = None, files: list | None = None) -> RigidObstacle:
     """An obstacle of the registry; vector parameters may be expressions of t, ``rotation`` is a
     table of :data:`~signorini.contact.obstacles.ROTATION_KEYS`, a ``file`` is relative to ``base``
     (the case file's directory).  A parameter of default None is required; the others may be
@@ -384,7 +388,10 @@ def _obstacle(ob: Any, dim: int, base: Path | None = None) -> RigidObstacle:
         elif p.kind is RotationTable:
             kwargs[p.name] = _rotation(key, ob[p.name], dim)
         elif p.kind is FilePath:
-            kwargs[p.name] = read_surface(_file_path(key, ob[p.name], base), dim, where=f"'{key}'")
+            file = _file_path(key, ob[p.name], base)
+            if files is not None:
+                files.append(file)
+            kwargs[p.name] = read_surface(file, dim, where=f"'{key}'")
         elif p.kind is bool:
             kwargs[p.name] = _bool(key, ob[p.name])
         else:
@@ -565,7 +572,8 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
         def guard(counts):
             size_check(counts, dt, T, limits, options)
 
-    mesh = _mesh(data["mesh"], path.parent, guard)
+    files: list[Path] = []
+    mesh = _mesh(data["mesh"], path.parent, guard, files)
     dim = mesh.dim
     material = _material(data["material"])
     materials = _material_regions(data["material"], mesh)
@@ -581,7 +589,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
                          "this case has contact pairs only, where it would not apply: remove it (a pair's slave "
                          "nodes are those of its slave tag)")  # fmt: skip
     where = _where(c) if rigid else None
-    obstacle = _obstacle(c.get("obstacle"), dim, path.parent) if rigid else None
+    obstacle = _obstacle(c.get("obstacle"), dim, path.parent, files) if rigid else None
     friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None
     init = data.get("initial", {})
     _keys("initial", init, SECTIONS["initial"])
@@ -617,7 +625,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
 
     stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at,
-                checkpoint_every)  # fmt: skip
+                checkpoint_every, files)  # fmt: skip
 
 
 def case_problem(path: str | Path) -> Problem:

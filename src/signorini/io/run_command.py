@@ -93,10 +93,18 @@ def invocation(args: argparse.Namespace) -> dict:
     return out
 
 
-def case_text_hash(path: Path) -> str:
+def case_text_hash(path: Path, files: list[Path] | tuple = ()) -> str:
+    """The identity of a case: sha256 of its text, and, when it reads other files (a mesh
+    file, a surface obstacle), of its text and each file's name and contents, so that a
+    resume refuses a case whose data changed in any of them."""
     import hashlib
 
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    h = hashlib.sha256(Path(path).read_bytes())
+    if not files:
+        return h.hexdigest()
+    for f in files:
+        h.update(b"\0" + str(Path(f).name).encode() + b"\0" + hashlib.sha256(Path(f).read_bytes()).digest())
+    return h.hexdigest()
 
 
 def _checkpoint_every(args: argparse.Namespace, default: int) -> int:
@@ -267,7 +275,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits, events=events,
                    checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
-                   case_hash=case_text_hash(Path(args.target)))  # fmt: skip
+                   case_hash=case_text_hash(Path(args.target), case.files))  # fmt: skip
 
 
 class LazyFieldWriter:
@@ -520,8 +528,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
     ns.resuming = True
     spec = case_spec(ns) if case else benchmark_spec(ns)
     if case and spec.case_hash != meta.get("identity", {}).get("case_file"):
-        raise InputError(f"the case file {ns.target!r} changed since the checkpoint of {str(result)!r}; "
-                         "resume needs the same file")  # fmt: skip
+        raise InputError(f"the case file {ns.target!r} or a file it reads (mesh, surface obstacle) changed since "
+                         f"the checkpoint of {str(result)!r}; resume needs the same files")  # fmt: skip
     t_ckpt = float(meta["t"])
     if args.dt is not None:
         from ..errors import check_positive
