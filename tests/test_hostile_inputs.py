@@ -78,3 +78,31 @@ def test_contact_where_with_pairs_only_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "'contact.where'" in err and "contact pairs only" in err and err.count("\n") == 1
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("stiffness", ["1e9", "1e12"])
+def test_an_energy_identity_that_does_not_close_warns_or_fails(tmp_path, capsys, stiffness):
+    """A unit mismatch (the bar's Lame constants 1e9 to 1e12 times too large for its density):
+    the identity's residual (1.8e-4 and 0.16 of the largest energy, measured) warns; with
+    energy_check=fail the run stops at the first such step (exit 3) and keeps its levels.
+    The same bar in consistent units closes to 1e-14 and says nothing."""
+    import json
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text()
+    case = tmp_path / "units.toml"
+    case.write_text(text.replace("lam = 0.25", f"lam = {stiffness}").replace("mu = 0.5", f"mu = {stiffness}"))
+    assert main(["run", str(case), "--T", "0.25", "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert any("the energy identity does not close" in w for w in s["warnings"])
+    assert "check the units" in capsys.readouterr().err
+    out = str(tmp_path / "b")
+    assert main(["run", str(case), "--T", "0.25", "--out", out, "--quiet", "--solver-option", "energy_check=fail"]) == 3
+    s = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert s["status"] == "failed" and "energy identity does not close" in s["message"] and s["steps"] == 0
+    assert (tmp_path / "b" / "history.csv").read_text().count("\n") == 2  # the header and level 0, kept
+    case.write_text(text)
+    out = str(tmp_path / "c")
+    assert main(["run", str(case), "--T", "0.25", "--out", out, "--quiet", "--solver-option", "energy_check=fail"]) == 0
+    s = json.loads((tmp_path / "c" / "summary.json").read_text())
+    assert not any("energy identity" in w for w in s["warnings"])

@@ -146,6 +146,8 @@ class Stepper:
         self.setup_seconds = time.perf_counter() - t0
         run = self.run
         self.recorder, self.energies, self.snaps, obs = make_observers(snapshot_every, energy, progress, observers)
+        if self.energies is not None:
+            self.energies.check = run.ctx.solver_options.get("energy_check", "warn")
         self.untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
         obs.insert(1, self.untagged)
         self.watch = None
@@ -489,6 +491,8 @@ class Stepper:
         H.meta["untagged_worst_penetration"] = self.untagged.worst[0]  # the failing level of untagged_contact=fail too
         if self.untagged.exceeded():
             H.meta["warnings"].append(self.untagged.message())
+        if self.energies is not None and self.energies.exceeded() and self.status != "failed":
+            H.meta["warnings"].append(self.energies.message())
         if self.log is not None:
             H.meta["checkpoints"] = self.log.summary()
             if self.log.error:

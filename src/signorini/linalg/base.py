@@ -249,6 +249,16 @@ SOLVER_OPTIONS = (
         choices=("warn", "fail"),
     ),
     Parameter(
+        "energy_check",
+        "warn",
+        "the scheme's energy identity (E^{n+1} - E^n equals the work and dissipation it predicts), checked at every "
+        "step: a residual above 1e-6 of the run's largest energy (operators too ill-conditioned for double "
+        "precision: a unit mismatch, stiffnesses far apart) warns (summary.json and stderr) or, with fail, stops "
+        "the run (status failed, exit 3, keeping the levels computed)",
+        str,
+        choices=("warn", "fail"),
+    ),
+    Parameter(
         "pairing",
         "small-sliding",
         "contact pairs: small-sliding (a slave node whose projection leaves its master facet is re-paired to the "
