@@ -3,7 +3,6 @@ item 6): each is now a one-line refusal naming what is wrong, or does what it sa
 
 import dataclasses
 
-import numpy as np
 import pytest
 
 from signorini.contact.pairs import ContactPair

@@ -20,8 +20,8 @@ case file ``[time] stop_at = "NAME"``, each then terminal):
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
