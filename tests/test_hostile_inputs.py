@@ -105,3 +105,52 @@ def test_an_energy_identity_that_does_not_close_warns_or_fails(tmp_path, capsys,
     assert main(["run", str(case), "--T", "0.25", "--out", out, "--quiet", "--solver-option", "energy_check=fail"]) == 0
     s = json.loads((tmp_path / "c" / "summary.json").read_text())
     assert not any("energy identity" in w for w in s["warnings"])
+
+
+def test_a_file_size_limit_at_the_final_write_keeps_a_resumable_result(tmp_path):
+    """ulimit -f between the checkpoint.s files (73 KiB at most) and history.csv (96 KiB): the run
+    used to lose everything, its complete checkpoint included, with a message naming no file.
+    Now exit 4 naming history.csv; --out holds the checkpoint and a summary saying what failed,
+    and `signorini resume` continues it."""
+    import json
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (90 * 1024, 90 * 1024))
+
+    args = [sys.executable, "-m", "signorini", "run", "bar2d", "--n", "4", "--T", "4", "--quiet", "--out"]
+    r = subprocess.run([*args, str(tmp_path / "a")], capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert r.returncode == 4, r.stderr
+    assert "writing history.csv failed: File too large" in r.stderr and "resumable" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["status"] == "failed" and s["resumable"] and "writing history.csv failed" in s["message"]
+    assert not (tmp_path / "a" / "history.csv").exists() and (tmp_path / "a" / "checkpoint.h5").is_file()
+    r = subprocess.run([sys.executable, "-m", "signorini", "resume", str(tmp_path / "a"), "--T", "4.5", "--quiet",
+                        "--out", str(tmp_path / "b")], capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "b" / "history.csv").read_text().count("\n") == 1 + 361  # levels 0..360 (dt = 0.0125)
+
+
+def test_a_pair_with_the_worse_slave_side_warns_naming_the_better_choice():
+    """Node to facet is one-sided: a slave side coarser than the master (two bars, the slave's
+    face in one cell against two) or flat against a curved master (the plate's top as slave
+    under the ball's skin) gets a warning naming the swap; the right choice gets none."""
+    from pathlib import Path
+
+    from signorini.contact.pairs import pair_side_warning
+    from signorini.io.config import load_case
+
+    H = simulate(bars(2, 2, 1), "cn", 0.025, 0.05)  # slave right_ymin: 1 cell across, master: 2
+    (w,) = [w for w in H.meta["warnings"] if "contact pair" in w]
+    assert "the slave side is the coarser one" in w and "slave = 'left_ymax', master = 'right_ymin'" in w
+    assert H.meta["pairs"][0]["warning"] == w
+    H = simulate(bars(2, 1, 2), "cn", 0.025, 0.05)  # the finer side as slave
+    assert not any("contact pair" in w for w in H.meta["warnings"]) and H.meta["pairs"][0]["warning"] == ""
+    case = load_case(Path(__file__).parents[1] / "examples" / "ball_on_plate.toml")
+    (p,) = case.problem.pairs
+    assert pair_side_warning(case.problem.mesh, p) == ""  # the ball's skin is the slave
+    w = pair_side_warning(case.problem.mesh, ContactPair(p.master, p.slave))
+    assert "the slave side is flat and the master curved" in w and f"slave = {p.slave!r}" in w

@@ -276,7 +276,7 @@ class ContactSet:
     def with_pairs(self, space: VectorSpace, pairs: Sequence) -> ContactSet:
         """This set (the rigid obstacle's rows, maybe none) followed by the rows of ``pairs``
         (:class:`~.pairs.ContactPair`), pair k's rows tagged k in :attr:`pair`."""
-        from .pairs import pair_rows
+        from .pairs import pair_rows, pair_side_warning
 
         mesh = space.mesh
         parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
@@ -311,7 +311,8 @@ class ContactSet:
         )
         master_shape = np.concatenate([np.zeros((nr, nfv))] + [r.xi for r in parts])
         info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive,
-                 "repaired_rows": 0} for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
+                 "repaired_rows": 0, "warning": pair_side_warning(mesh, p)}
+                for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
         # every node of the slave and master tags (a slave node facing nothing at t = 0 included)
         inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([mesh.nodes_of(p.slave), r.master_nodes])
                                                            for p, r in zip(pairs, parts, strict=True)]))  # fmt: skip

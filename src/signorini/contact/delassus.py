@@ -16,6 +16,7 @@ byte budget, the Z columns (n per node), so that
 
 from __future__ import annotations
 
+import hashlib
 import time
 
 import numpy as np
@@ -50,10 +51,11 @@ class DelassusColumns:
         # then reads contiguous memory
         self._Zt: np.ndarray | None = np.empty((0, self._rows()))
         self.seconds = 0.0
-        #: the blocks solved, in order: (nodes, slots) of each (:meth:`replay` redoes them)
-        self._log: list[tuple[np.ndarray, np.ndarray]] = []
+        #: what changed the columns, in order (:meth:`replay` redoes it): ("solve", nodes, slots) of
+        #: each block solved, ("rows", rows, B'[rows]) of each :meth:`replace_rows`
+        self._log: list[tuple[str, np.ndarray, np.ndarray | sp.csr_matrix]] = []
         self.replayed = 0  # columns solved again by :meth:`replay`
-        self._replayable = True  # False once B's rows changed (replace_rows): the log no longer rebuilds it
+        self._origin = _digest(self.B)  # the rows the log starts from (a replay needs the same)
 
     def _rows(self) -> int:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
@@ -131,42 +133,89 @@ class DelassusColumns:
                 self._Zt[s] = Zj.T
             self.slot[J] = s
             self.solved += J.size
-            self._log.append((J.copy(), s.copy()))
+            self._log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
 
-    def history(self, blocks: int | None = None) -> dict[str, np.ndarray] | None:
-        """The blocks solved so far (or the first ``blocks`` of them): nodes, slots, block sizes,
-        for a checkpoint; None once a re-pairing changed B's rows (the columns then depend on
-        the rows of each moment)."""
-        if not self._replayable:
-            return None
+    def history(self, blocks: int | None = None) -> dict[str, np.ndarray]:
+        """What changed the columns so far (or its first ``blocks`` entries), for a checkpoint:
+        the blocks solved (nodes, slots, block sizes) and, when B's rows changed (re-pairing),
+        each change in order (``kinds``: 0 a block, 1 a change; its rows and their new
+        entries), and a digest of the rows the log starts from."""
         log = self._log if blocks is None else self._log[:blocks]
-        sizes = np.array([J.size for J, _ in log], dtype=np.int64)
-        cat = lambda k: np.concatenate([b[k] for b in log]) if log else np.zeros(0, np.int64)  # noqa: E731
-        return {"nodes": cat(0).astype(np.int64), "slots": cat(1).astype(np.int64), "sizes": sizes}
+        solves = [e for e in log if e[0] == "solve"]
+        changes = [e for e in log if e[0] == "rows"]
 
-    def replay(self, data: dict[str, np.ndarray]) -> None:
-        """Solve the blocks of :meth:`history` again, with the same right-hand sides in the same
-        slots: the columns, and every product that sums over them, are those of the run that
-        wrote the checkpoint, bit for bit (a resumed run)."""
+        def cat(items, dtype=np.int64):
+            return np.concatenate(items).astype(dtype) if items else np.zeros(0, dtype)
+
+        out = {"nodes": cat([e[1] for e in solves]), "slots": cat([e[2] for e in solves]),
+               "sizes": np.array([e[1].size for e in solves], dtype=np.int64),
+               "origin": np.frombuffer(self._origin, dtype=np.uint8).copy()}  # fmt: skip
+        if changes:
+            out["kinds"] = np.array([e[0] == "rows" for e in log], dtype=np.int8)
+            out["rows"] = cat([e[1] for e in changes])
+            out["row_sizes"] = np.array([e[1].size for e in changes], dtype=np.int64)
+            out["row_nnz"] = cat([np.diff(e[2].indptr) for e in changes])
+            out["row_indices"] = cat([e[2].indices for e in changes])
+            out["row_data"] = cat([e[2].data for e in changes], np.float64)
+        return out
+
+    def replay(self, data: dict[str, np.ndarray]) -> bool:
+        """Redo the log of :meth:`history`: the same blocks of right-hand sides in the same slots,
+        and B's row changes at the same moments, so that the columns, their slots and every
+        product that sums over them are those of the run that wrote the checkpoint, bit for bit
+        (a resumed run).  False (nothing done) when this run's columns start from other rows
+        of B than the log's (an operator factorized after a re-pairing)."""
         nodes, slots, sizes = (np.asarray(data[k], dtype=np.intp) for k in ("nodes", "slots", "sizes"))
-        nc = self.B.shape[0]
+        origin = data.get("origin")
+        if origin is not None and np.asarray(origin, dtype=np.uint8).tobytes() != self._origin:
+            return False
+        nc, n = self.B.shape
+        kinds = np.asarray(data.get("kinds", np.zeros(sizes.size, np.int8)), dtype=np.intp)
+        rows_all, row_sizes, row_nnz, row_indices, row_data = (
+            np.asarray(data.get(k, np.zeros(0)), dtype=float if k == "row_data" else np.intp)
+            for k in ("rows", "row_sizes", "row_nnz", "row_indices", "row_data"))  # fmt: skip
         if nodes.shape != slots.shape or sizes.sum() != nodes.size or (nodes.size and (
-                nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)):  # fmt: skip
+                nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)) or (
+                np.count_nonzero(kinds == 0) != sizes.size or np.count_nonzero(kinds == 1) != row_sizes.size
+                or kinds.size != sizes.size + row_sizes.size or row_sizes.sum() != rows_all.size
+                or row_nnz.size != rows_all.size or row_nnz.sum() != row_indices.size or row_indices.size != row_data.size
+                or (rows_all.size and (rows_all.min() < 0 or rows_all.max() >= nc))
+                or (row_indices.size and (row_indices.min() < 0 or row_indices.max() >= n))):  # fmt: skip
             raise ValueError("the Delassus column log is inconsistent")
         t0 = time.perf_counter()
-        start = 0
+        start = rstart = nzstart = 0
+        blocks, changes = iter(sizes), iter(row_sizes)
         done = list(self._log)  # blocks this run solved already (the set-up's): not again
-        for size in sizes:
+        for kind in kinds:
+            if kind == 1:
+                size = next(changes)
+                rows = rows_all[rstart : rstart + size]
+                nnz = row_nnz[rstart : rstart + size]
+                rstart += size
+                stop = nzstart + int(nnz.sum())
+                R = sp.csr_matrix((row_data[nzstart:stop], row_indices[nzstart:stop],
+                                   np.concatenate([[0], np.cumsum(nnz)])), shape=(size, n))  # fmt: skip
+                nzstart = stop
+                if done:
+                    raise ValueError("the Delassus column log does not start with this run's set-up columns")
+                solved = self.solved
+                self.replace_rows(rows, _with_rows(self.B, rows, R))
+                self.replayed += self.solved - solved  # not in ``solved``: the run that wrote the log counted them
+                self.solved = solved
+                continue
+            size = next(blocks)
             J, s = nodes[start : start + size], slots[start : start + size]
             start += size
             if done:
-                J0, s0 = done.pop(0)
-                if np.array_equal(J0, J) and np.array_equal(s0, s):
+                k0, J0, s0 = done.pop(0)
+                if k0 == "solve" and np.array_equal(J0, J) and np.array_equal(s0, s):
                     continue
                 raise ValueError("the Delassus column log does not start with this run's set-up columns")
             self._grow(max(self.count, int(s.max()) + 1))
             self.count = max(self.count, int(s.max()) + 1)
+            taken = set(s.tolist())
+            self._free = [f for f in self._free if f not in taken]  # slots a block took back
             Zj, Wj = self._solve_block(J)
             self._W[:, s] = Wj
             if self._Zt is not None:
@@ -174,8 +223,9 @@ class DelassusColumns:
             self.slot[np.isin(self.slot, s)] = -1  # a slot reused by a later block
             self.slot[J] = s
             self.replayed += J.size  # not in ``solved``: the run that wrote the log counted them
-            self._log.append((J.copy(), s.copy()))
+            self._log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
+        return True
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
         """B's rows ``rows`` changed (a contact pair re-paired).
@@ -186,9 +236,12 @@ class DelassusColumns:
         are solved now (in their slots or new ones) and, K being symmetric, W's rows ``rows``
         in every stored column follow from them: W[i, j] = B_j K^-1 B_i^T = W[j, i]."""
         rows = np.unique(np.asarray(rows, dtype=np.intp))
-        self.B = sp.csr_matrix(B)
+        B = sp.csr_matrix(B)
+        if _digest(B) == _digest(self.B):  # these rows already (a resumed run's pairing, its log replayed)
+            return
+        self.B = B
         self.Bt = self.B.T.tocsc()
-        self._replayable = False
+        self._log.append(("rows", rows.copy(), self.B[rows]))
         t0 = time.perf_counter()
         if self._Zt is not None:
             dropped = rows[self.slot[rows] >= 0]
@@ -255,3 +308,19 @@ class DelassusColumns:
         if self.keeps_Z:
             return x_free + self.Z_times(A, lam[A])
         return x_free + self.factor.solve(self.B.T @ lam)
+
+
+def _digest(B: sp.csr_matrix) -> bytes:
+    """A digest of a CSR matrix's shape, structure and values (bit for bit)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(np.asarray(B.shape, dtype=np.int64).tobytes())
+    for a in (B.indptr.astype(np.int64), B.indices.astype(np.int64), B.data.astype(np.float64)):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.digest()
+
+
+def _with_rows(B: sp.csr_matrix, rows: np.ndarray, R: sp.csr_matrix) -> sp.csr_matrix:
+    """B with its rows ``rows`` replaced by those of R (each row's entries in their order)."""
+    order = np.arange(B.shape[0])
+    order[rows] = B.shape[0] + np.arange(rows.size)
+    return sp.vstack([sp.csr_matrix(B), R], format="csr")[order]

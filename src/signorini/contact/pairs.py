@@ -430,3 +430,51 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
         n_m = normals_f[new]
     gaps = np.einsum("md,md->m", mesh.points[slave] - np.einsum("mk,mkd->md", N, P), n_m)
     return SlidRows(rows, -n_m, gaps, new, N, oriented[new])
+
+
+#: a slave side whose facets are this many times larger than the master's gets a warning
+COARSER_SLAVE_RATIO = 1.5
+#: facets whose unit normals agree to this (1 - |n_i . n_j|) make a flat surface
+FLAT_TOLERANCE = 1e-8
+
+
+def facet_sizes_and_normals(mesh: Mesh, tag: str) -> tuple[np.ndarray, np.ndarray]:
+    """(m,) root mean square of each facet's edges (its size [length]) and (m, d) unit normals
+    (up to sign) of the facets of ``tag``: a segment's perpendicular, a polygon's (first
+    three vertices' for a triangle, the diagonals' cross product for a quadrilateral)."""
+    f = mesh.facets_of(tag)
+    x = mesh.points[f]  # (m, k, d)
+    edges = np.roll(x, -1, axis=1) - x
+    size = np.sqrt(np.mean(np.sum(edges**2, axis=2), axis=1))
+    d = mesh.dim
+    if d == 1:
+        return size, np.ones((f.shape[0], 1))
+    if d == 2:
+        t = x[:, 1] - x[:, 0]
+        n = np.stack([-t[:, 1], t[:, 0]], axis=1)
+    else:
+        a, b = (x[:, 2] - x[:, 0], x[:, 1] - x[:, 0]) if f.shape[1] == 3 else (x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
+        n = np.cross(a, b)
+    return size, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _is_flat(normals: np.ndarray) -> bool:
+    return bool(normals.shape[0] < 2 or np.min(np.abs(normals @ normals[0])) >= 1.0 - FLAT_TOLERANCE)
+
+
+def pair_side_warning(mesh: Mesh, pair: ContactPair) -> str:
+    """A warning when the pair's slave side is the worse choice for node to facet: coarser
+    than the master (:data:`COARSER_SLAVE_RATIO`), or flat against a curved master (the
+    curved side's nodes then cross the flat facets between the slave nodes); "" otherwise."""
+    hs, ns = facet_sizes_and_normals(mesh, pair.slave)
+    hm, nm = facet_sizes_and_normals(mesh, pair.master)
+    swap = f"swap them (slave = {pair.master!r}, master = {pair.slave!r})"
+    if float(np.mean(hs)) > COARSER_SLAVE_RATIO * float(np.mean(hm)):
+        return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is the coarser one (facets "
+                f"{np.mean(hs):.3g} against {np.mean(hm):.3g}); node to facet enforces contact at the slave nodes only, "
+                f"so the master's finer nodes may cross between them: {swap} (docs/bodies.md)")  # fmt: skip
+    if mesh.dim > 1 and _is_flat(ns) and not _is_flat(nm):
+        return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is flat and the master curved; the "
+                f"curved side touches between the slave nodes, which node to facet does not see (a shorter, "
+                f"stiffer contact): {swap} (docs/bodies.md)")  # fmt: skip
+    return ""

@@ -276,9 +276,15 @@ class History:
     def save(self, out: str | Path) -> None:
         """Write ``history.csv``, ``contact.npz`` and ``summary.json`` into ``out``."""
         out = Path(out)
-        self.write_csv(out / "history.csv")
-        self.write_contact_npz(out / "contact.npz")
-        (out / "summary.json").write_text(json.dumps(finite_json(self.summary()), indent=2, default=_json_default))
+        text = json.dumps(finite_json(self.summary()), indent=2, default=_json_default)
+        for name, write in (("history.csv", self.write_csv), ("contact.npz", self.write_contact_npz),
+                            ("summary.json", lambda p: p.write_text(text))):  # fmt: skip
+            try:
+                write(out / name)
+            except OSError as exc:  # a full disk, a file-size limit: the error names the file
+                if exc.filename is None:
+                    exc.filename = str(out / name)
+                raise
 
     def summary(self) -> dict:
         E = self.energy

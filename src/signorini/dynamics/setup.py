@@ -364,6 +364,7 @@ def finish_history(
                 H.meta["warnings"].append(f"mass {disc.mass_name!r} on body {k}{regions} {text}")
     if disc.contact.pair_info is not None:  # per pair: tags, rows, inactive slave nodes, contact law
         H.meta["pairs"] = [dict(p) for p in disc.contact.pair_info]
+        H.meta["warnings"] += [p["warning"] for p in disc.contact.pair_info if p.get("warning")]
     if disc.contact.obstacle_info and disc.contact.obstacle_info["nodes_beyond_edge"]:
         H.meta["obstacle"] = dict(disc.contact.obstacle_info)  # a surface obstacle: tagged nodes that face nothing
     H.to_user_order(run.ctx.disc.space.mesh, run.ctx.disc.contact.nodes)  # a renumbered mesh's results

@@ -424,9 +424,10 @@ class Stepper:
                     raise InputError(f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
                                      f"has another shape (another backend?)")  # fmt: skip
                 setattr(sys.solver, name, a.astype(old.dtype, copy=True))
-            log = {name: saved["arrays"].get(f"solvers/{k}/delassus/{name}") for name in ("nodes", "slots", "sizes")}
+            prefix = f"solvers/{k}/delassus/"
+            log = {name[len(prefix) :]: a for name, a in saved["arrays"].items() if name.startswith(prefix)}
             delassus = getattr(sys.solver, "delassus", None)
-            if all(v is not None for v in log.values()) and hasattr(delassus, "replay"):
+            if all(name in log for name in ("nodes", "slots", "sizes")) and hasattr(delassus, "replay"):
                 try:
                     delassus.replay(log)
                 except ValueError as exc:

@@ -9,7 +9,10 @@ Point data per time: ``displacement`` and ``velocity`` (n_nodes, 3, padded with 
 below 3D), ``von_mises`` (n_nodes,), ``contact_pressure`` (n_nodes,, zero off Gamma_C,
 positive in compression, -lambda_i / w_i), ``contact_traction`` (n_nodes, 3): the traction
 vector the obstacle exerts, (lambda_i nu_i + lambda_t,i . t_i) / w_i [force / length^(d-1)],
-zero off Gamma_C (tangential part with friction only), and ``contact_status`` (n_nodes,):
+zero off Gamma_C (tangential part with friction only); on the master side of a contact
+pair, both from the slave forces carried to the master facet's nodes through its shape
+functions, per unit area of the master surface (so ParaView shows the pressure on both
+bodies), and ``contact_status`` (n_nodes,), of the contact and slave nodes:
 -1 off Gamma_C, 0 separated, 1 stick, 2 slip (without friction: 2 for every node in
 contact, nothing holds it tangentially).  Cell data per time: ``region`` (n_cells,): k + 1
 for the k-th region tag in sorted order (``summary.json`` ``regions``), 0 for none, and
@@ -100,6 +103,15 @@ class FieldWriter(Observer):
         self._nodes = run.ctx.disc.contact.nodes
         self._weights = run.ctx.disc.contact.weights
         self._contact = run.ctx.disc.contact
+        self._dofmap = run.ctx.disc.space.dofmap
+        # the master sides of the pairs: their nodal weights (the pressure there is the slave
+        # forces carried to the master facet's nodes, per unit area of the master surface)
+        self._master_weights = None
+        if self._contact.has_pair_rows:
+            from ..fem.assembly import facet_weights
+
+            masters = sorted({p.master for p in run.problem.pairs})
+            self._master_weights = sum(facet_weights(mesh, tag) for tag in masters)
         pts = np.zeros((mesh.n_nodes, 3))
         pts[:, : mesh.dim] = mesh.points
         # displacement, velocity, traction (n, 3) and three scalars per node, in double precision
@@ -128,6 +140,7 @@ class FieldWriter(Observer):
         v[:, :d] = s.V.reshape(-1, d)
         p = np.zeros(mesh.n_nodes)
         p[self._nodes] = -s.lam / self._weights
+        self._lam = s.lam
         vm = von_mises(mesh, self._material, s.U)
         c = self._contact
         traction = np.zeros((mesh.n_nodes, 3))
@@ -135,6 +148,8 @@ class FieldWriter(Observer):
         if s.lam_t is not None and s.lam_t.size:
             force = force + np.einsum("ik,ikd->id", s.lam_t, c.tangents)
         traction[self._nodes, :d] = force / self._weights[:, None]
+        if self._master_weights is not None:
+            self._add_master_side(p, traction, force)
         status = np.full(mesh.n_nodes, -1.0)
         info_status = s.info.status if s.info is not None else None
         status[self._nodes] = info_status if info_status is not None else np.where(s.lam < 0, 2.0, 0.0)
@@ -149,6 +164,24 @@ class FieldWriter(Observer):
             raise
         self.times.append(float(s.t))
         self._last = n
+
+    def _add_master_side(self, p: np.ndarray, traction: np.ndarray, force: np.ndarray) -> None:
+        """The pairs' master sides: node j of the master facet a slave row i faces carries
+        -N_j(xi_i) f_i (the slave's force f_i = lambda_i nu_i + ..., the reaction), so its pressure
+        is sum_i N_j(xi_i) (-lambda_i) / w_j and its traction -sum_i N_j(xi_i) f_i / w_j, with w_j
+        the master surface's nodal weight (the pairing of the current level, after sliding)."""
+        c, d = self._contact, self._mesh.dim
+        rows = np.flatnonzero(c.pair >= 0)
+        dofs = c.master_dofs[rows][:, :, 0]  # (r, nfv): the first dof of each master node
+        ok = dofs >= 0
+        nodes = self._dofmap.nodes_of(dofs[ok])
+        share = c.master_shape[rows][ok]  # N_j(xi_i)
+        lam = np.broadcast_to(self._lam[rows][:, None], dofs.shape)[ok]
+        f = np.broadcast_to(force[rows][:, None, :], dofs.shape + (d,))[ok]
+        w = self._master_weights[nodes]
+        w = np.where(w > 0, w, 1.0)
+        np.add.at(p, nodes, -share * lam / w)
+        np.add.at(traction[:, :d], nodes, -share[:, None] * f / w[:, None])
 
     def record(self, run: Run, n: int, state: State) -> None:
         if n % self.every == 0:

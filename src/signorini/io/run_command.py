@@ -392,7 +392,10 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             tmp = rd.create()
             if spec.case_file is not None:
                 shutil.copy(spec.case_file, tmp / "case.toml")
-            H.save(tmp)
+            try:
+                H.save(tmp)
+            except OSError as exc:  # a full disk, a file-size limit: keep the checkpoint, name the file
+                raise keep_after_write_failure(rd, tmp, H, spec, exc) from None
             if late.name and H.status == "finished":
                 H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
                 H.save(tmp)
@@ -403,6 +406,33 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     if late_signal:
         print(f"signorini: {late_signal} received after the results were written; nothing lost", file=sys.stderr)
     return EXIT_CODES[H.status]
+
+
+def keep_after_write_failure(rd: ResultDirectory, tmp: Path, H, spec: RunSpec, exc: OSError) -> OSError:
+    """The run's results could not all be written (``exc``, a full disk or a file-size limit):
+    the file that failed is removed, a summary saying so is written if it fits, and the
+    directory, with its complete checkpoint of the last level (every level's series), is
+    published as a resumable result.  Returns the error to raise (exit 4), naming the file."""
+    name = Path(exc.filename).name if exc.filename else "the results"
+    why = exc.strerror or str(exc)
+    if exc.filename and Path(exc.filename).parent == tmp:
+        Path(exc.filename).unlink(missing_ok=True)  # a partial file of this run
+    resumable = (tmp / "checkpoint.h5").is_file()
+    how = (f"checkpoint.h5 holds the {H.steps} step(s) computed: `signorini resume {spec.out} --T <later T> --out "
+           "<new directory>` continues it") if resumable else "no checkpoint was written"  # fmt: skip
+    message = f"the run {H.status} ({H.steps} step(s)) but writing {name} failed: {why}; {how}"
+    try:
+        s = {**H.summary(), "status": "failed", "success": False, "message": message, "resumable": resumable}
+        (tmp / "summary.json").write_text(json.dumps(s, indent=1, default=str))
+    except (OSError, ValueError, TypeError):
+        (tmp / "summary.json").unlink(missing_ok=True)
+    try:
+        rd.commit()
+        kept = f"what was computed is in {str(spec.out)!r}"
+    except OSError as again:
+        kept = f"the result directory could not be published either ({again.strerror or again})"
+    return OSError(exc.errno, f"writing {name} failed: {why}; the run computed {H.steps} step(s); {kept}"
+                   + (" (resumable from its checkpoint.h5)" if resumable else ""))  # fmt: skip
 
 
 def execute_follower(spec: RunSpec, comm) -> int:
