@@ -96,7 +96,8 @@ def test_history_csv_and_summary_have_the_impulse(tmp_path):
     assert main(["run", "bar1d-impact", "--scheme", "moreau-jean", "--mass", "standard", "--n", "20", "--T", "1",
                  "--out", str(out), "--quiet"]) == 0  # fmt: skip
     header = (out / "history.csv").read_text().splitlines()[0].split(",")
-    assert tuple(header) == history_columns(1) and header[16] == "impulse"
+    # the fixed columns, then one reaction column per Dirichlet tag and component (the clamp)
+    assert tuple(header) == history_columns(1) + ("reaction_xmax_x",) and header[16] == "impulse"
     assert tuple(header[: len(HISTORY_COLUMNS)]) == HISTORY_COLUMNS  # new columns only added after
     before = "t energy kinetic_energy elastic_energy energy_increment predicted_increment lambda_sum gap_mean gap_min "
     before += "active_contacts newton_iterations complementarity_residual external_work contact_work "

@@ -77,6 +77,8 @@ def scale(key: str, col: np.ndarray, h: dict) -> float:
         return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("contact_force"))
     if "penetration" in key or key.startswith("gap"):
         return float(np.abs(h["gap_mean"]).max())
+    if key.startswith("reaction_"):  # a component that is round-off: the largest reaction
+        return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("reaction_"))
     if key.startswith("momentum"):  # a component that is round-off: the momentum's scale
         return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("momentum"))
     if "energy" in key or "work" in key or "dissipation" in key or "increment" in key or "potential" in key:

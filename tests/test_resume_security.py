@@ -164,3 +164,24 @@ def test_dt_and_T_override_a_case_file_and_the_summary_says_so(tmp_path):
     assert "over the case file: dt 0.025 (the file's 0.0125), T 0.5 (the file's 1)" in r.stdout
     r = _cli("run", str(case), "--dt", "0.3", "--T", "0.5", "--out", "b", cwd=tmp_path)
     assert r.returncode == 2 and "not an integer multiple" in r.stderr and not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("damage", ["missing-h5", "truncated-h5", "garbage-xdmf"])
+def test_damaged_fields_of_the_source_run_are_refused_before_the_resume_starts(tmp_path, damage):
+    """The earlier fields a resume copies are read first: missing, truncated or edited, exit 2 in
+    one line naming them (the checkpoint is intact; --snapshot-every 0 leaves them out), nothing
+    written; they used to fail midway (an internal error, or a machine failure, exit 4)."""
+    r = _cli("run", "bar2d", "--n", "2", "--T", "0.3", "--snapshot-every", "4", "--quiet", "--out", "a", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    h5, xdmf = tmp_path / "a/fields.h5", tmp_path / "a/fields.xdmf"
+    if damage == "missing-h5":
+        h5.unlink()
+    elif damage == "truncated-h5":
+        h5.write_bytes(h5.read_bytes()[: h5.stat().st_size // 2])
+    else:
+        xdmf.write_text("garbage")
+    r = _cli("resume", "a", "--T", "0.6", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert "the fields of the run to resume" in r.stderr and "--snapshot-every 0" in r.stderr
+    r = _cli("resume", "a", "--T", "0.6", "--snapshot-every", "0", "--quiet", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr

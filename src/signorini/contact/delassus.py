@@ -179,7 +179,8 @@ class DelassusColumns:
                 nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)) or (
                 np.count_nonzero(kinds == 0) != sizes.size or np.count_nonzero(kinds == 1) != row_sizes.size
                 or kinds.size != sizes.size + row_sizes.size or row_sizes.sum() != rows_all.size
-                or row_nnz.size != rows_all.size or row_nnz.sum() != row_indices.size or row_indices.size != row_data.size
+                or row_nnz.size != rows_all.size or row_nnz.sum() != row_indices.size
+                or row_indices.size != row_data.size
                 or (rows_all.size and (rows_all.min() < 0 or rows_all.max() >= nc))
                 or (row_indices.size and (row_indices.min() < 0 or row_indices.max() >= n))):  # fmt: skip
             raise ValueError("the Delassus column log is inconsistent")

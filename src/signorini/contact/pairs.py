@@ -471,8 +471,8 @@ def pair_side_warning(mesh: Mesh, pair: ContactPair) -> str:
     swap = f"swap them (slave = {pair.master!r}, master = {pair.slave!r})"
     if float(np.mean(hs)) > COARSER_SLAVE_RATIO * float(np.mean(hm)):
         return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is the coarser one (facets "
-                f"{np.mean(hs):.3g} against {np.mean(hm):.3g}); node to facet enforces contact at the slave nodes only, "
-                f"so the master's finer nodes may cross between them: {swap} (docs/bodies.md)")  # fmt: skip
+                f"{np.mean(hs):.3g} against {np.mean(hm):.3g}); node to facet enforces contact at the slave nodes "
+                f"only, so the master's finer nodes may cross between them: {swap} (docs/bodies.md)")  # fmt: skip
     if mesh.dim > 1 and _is_flat(ns) and not _is_flat(nm):
         return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is flat and the master curved; the "
                 f"curved side touches between the slave nodes, which node to facet does not see (a shorter, "

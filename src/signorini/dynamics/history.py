@@ -126,6 +126,10 @@ class History:
     friction_work: np.ndarray | None = None
     load_potential: np.ndarray | None = None
     momentum: np.ndarray | None = None
+    #: (N+1, m, d) the reaction of each Dirichlet tag (:mod:`~signorini.dynamics.reactions`)
+    reaction: np.ndarray | None = None
+    #: the names of its history.csv columns, ``reaction_<tag>_<axis>`` (m x d of them)
+    reaction_columns: tuple[str, ...] = ()
     tangents: np.ndarray | None = None
     #: (nc,) the mesh's number of each contact node (the user's, whatever the run's order)
     nodes: np.ndarray | None = None
@@ -198,7 +202,15 @@ class History:
             "load_potential": _or_nan(self.load_potential, self.t.size),
             **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
+            **self._reaction_columns(),
         }  # fmt: skip
+
+    def _reaction_columns(self) -> dict[str, np.ndarray]:
+        """``reaction_<tag>_<axis>`` (one per Dirichlet tag and component), after every other column."""
+        if self.reaction is None or not self.reaction_columns:
+            return {}
+        flat = self.reaction.reshape(self.reaction.shape[0], -1)
+        return {name: flat[:, k] for k, name in enumerate(self.reaction_columns)}
 
     def _base_columns(self) -> dict[str, np.ndarray]:
         return {
@@ -247,7 +259,7 @@ class History:
         cols = self.columns()
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            names = history_columns(self.dim)
+            names = history_columns(self.dim) + tuple(self.reaction_columns if self.reaction is not None else ())
             w.writerow(names)
             for row in zip(*(cols[c] for c in names), strict=True):
                 w.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else int(v) for v in row])

@@ -82,6 +82,12 @@ class HistoryRecorder(Observer):
         self.series = empty_series(run.n_steps + 1, nc, run.ctx.disc.space.dim, run.ctx.components - 1)
         for k in ("kinetic_energy", "elastic_energy"):
             del self.series[k]
+        self.reactions = None
+        if run.ctx.has_fixed and run.ctx.disc.problem.dirichlet:
+            from .reactions import Reactions
+
+            self.reactions = Reactions(run.ctx, run.ctx.disc.problem.dirichlet)
+            self.series["reaction"] = np.zeros((run.n_steps + 1, len(self.reactions.tags), run.ctx.disc.space.dim))
         self.times = np.full(run.n_steps + 1, np.nan)
         self._prev = run.initial
         self._put(run, 0, run.initial)
@@ -91,6 +97,8 @@ class HistoryRecorder(Observer):
 
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
         series = data.get("series", {})
+        if "reaction" in self.series and "reaction" not in series:  # a checkpoint of before the reactions
+            series = {**series, "reaction": np.full((n + 1,) + self.series["reaction"].shape[1:], np.nan)}
         _restore_series(self.series, series, n, "history")
         times = np.asarray(series.get("times", []), dtype=float)
         if times.shape != (n + 1,) or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (
@@ -109,6 +117,8 @@ class HistoryRecorder(Observer):
         S["lam"][n] = s.lam
         S["active"][n] = int(np.count_nonzero(s.lam))
         S["contact_force"][n] = run.ctx.disc.contact.force_components(s.lam, s.lam_t)
+        if self.reactions is not None:
+            S["reaction"][n] = self.reactions(run.ctx, s)
         if "lam_t" in S and s.lam_t is not None:
             S["lam_t"][n] = s.lam_t
             if s.info is not None and s.info.slip is not None:

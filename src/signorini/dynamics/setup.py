@@ -414,8 +414,10 @@ def assemble_history(
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())
         series["load_potential"] = nan.copy()
+    reactions = getattr(recorder, "reactions", None)
     return History(
         t=recorder.times[: n_last + 1].copy(),
+        reaction_columns=tuple(reactions.columns()) if reactions is not None else (),
         **series,
         **work,
         coordinates=disc.problem.mesh.points[disc.contact.nodes],

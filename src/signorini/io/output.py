@@ -60,6 +60,28 @@ def _no_space() -> OSError:
     )
 
 
+def check_fields(source: Path) -> None:
+    """InputError (one line) when a result's ``fields.xdmf`` (with its ``fields.h5``) cannot be
+    read to its last snapshot: a resumed run copies them, and must refuse before it starts
+    rather than fail midway (missing, truncated or edited files)."""
+    import meshio
+
+    from ..errors import InputError
+
+    try:
+        with meshio.xdmf.TimeSeriesReader(str(source)) as reader:
+            reader.read_points_cells()
+            for k in range(reader.num_steps):
+                reader.read_data(k)
+    except Exception as exc:  # meshio and h5py raise many kinds (OSError, ParseError, KeyError, ...)
+        first = (str(exc).splitlines() or [""])[0][:200]
+        raise InputError(
+            f"the fields of the run to resume ({source.name} and {source.with_suffix('.h5').name} in "
+            f"{str(source.parent)!r}) cannot be read ({type(exc).__name__}: {first}); the checkpoint is intact: "
+            "resume with --snapshot-every 0 to leave the earlier fields out, or restore the files"
+        ) from None
+
+
 class FieldWriter(Observer):
     """Stream displacement, velocity, von Mises stress and contact pressure to XDMF."""
 

@@ -576,6 +576,11 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
     grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
     check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
+    fields = result / "fields.xdmf"
+    if spec.snapshot_every and fields.is_file():  # copied into the new result: readable, or refused now
+        from .output import check_fields
+
+        check_fields(fields)
     spec.resume = where
     spec.invocation["T"] = spec.T  # a resume of this run's result continues to this T
     spec.meta["resumed_from_directory"] = str(result)
