@@ -499,3 +499,23 @@ def test_checkpoint_on_two_ranks_resumes_on_one_and_three(tmp_path):
                 continue
             assert np.allclose(got[key], col, rtol=0, atol=TOLERANCE * scale(key, col, full), equal_nan=True), key
         assert json.loads((tmp_path / f"r{ranks}" / "summary.json").read_text())["resumed_from"]["level"] == 40
+
+
+@pytest.mark.parametrize("edit, says", [("T = -1.0", "rank 1 of 2 refused its input (time.T must be > 0"),
+                                        ("T = 0.5", "rank 1 of 2 read another input than rank 0")])  # fmt: skip
+def test_an_input_that_differs_on_one_rank_stops_every_rank_in_one_line(tmp_path, edit, says):
+    """A case file that differs on one rank (a node-local copy; here mpiexec's MPMD syntax gives
+    each rank its own copy at the same name): rank 1 refusing it, or reading another valid case,
+    used to leave rank 0 waiting forever.  Now exit 2 on every rank, one line, nothing written."""
+    text = (Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text()
+    for d, t in (("r0", text), ("r1", text.replace("T = 1.0", edit))):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / "case.toml").write_text(t)
+    run = [str(VENV / "signorini"), "run", "case.toml", "--backend", "petsc", "--quiet", "--out", str(tmp_path / "o")]
+    cmd = [str(VENV / "mpiexec"), "-n", "1", "-wdir", str(tmp_path / "r0"), *run, ":", "-n", "1", "-wdir",
+           str(tmp_path / "r1"), *run]  # fmt: skip
+    r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120, env=_env())
+    assert r.returncode == 2, r.stderr[-2000:]
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("signorini:")]
+    assert len(lines) == 1 and says in lines[0], r.stderr
+    assert not (tmp_path / "o").exists()

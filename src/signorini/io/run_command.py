@@ -521,7 +521,7 @@ def _resume_scheme(recorded: str | None, given: str | None, where: str) -> str |
     return recorded
 
 
-def cmd_resume(args: argparse.Namespace) -> int:
+def resume_spec(args: argparse.Namespace) -> RunSpec:
     """``signorini resume RESULT_DIR [--T T] --out NEW``: the run of RESULT_DIR rebuilt from the
     arguments its checkpoint keeps, continued from it to T (default: the run's own final time;
     :mod:`~signorini.dynamics.checkpoint`).
@@ -584,9 +584,58 @@ def cmd_resume(args: argparse.Namespace) -> int:
     spec.resume = where
     spec.invocation["T"] = spec.T  # a resume of this run's result continues to this T
     spec.meta["resumed_from_directory"] = str(result)
-    return execute(spec, args)
+    return spec
+
+
+def cmd_resume(args: argparse.Namespace) -> int:
+    """``signorini resume RESULT_DIR [--T T] --out NEW`` (:func:`resume_spec`), on every rank alike."""
+    return execute(agreed(lambda: resume_spec(args)), args)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    spec = case_spec(args) if args.target.endswith(".toml") else benchmark_spec(args)
+    spec = agreed(lambda: case_spec(args) if args.target.endswith(".toml") else benchmark_spec(args))
     return execute(spec, args)
+
+
+def _spec_identity(spec: RunSpec) -> str:
+    """What every rank of a run must have read alike: the case's hash (its text and the files it
+    reads) and the arguments (the case file's path left out: ranks may see it at other paths)."""
+    inv = {k: v for k, v in spec.invocation.items() if k != "target"}
+    return json.dumps([spec.case_hash, spec.label, inv], sort_keys=True, default=str)
+
+
+def agreed(build) -> RunSpec:
+    """``build()``'s spec, agreed between the ranks of ``mpiexec``: a rank that refuses its
+    input, or one that read another input than rank 0 (a node-local case file that differs),
+    makes every rank stop with exit 2 and one line, never the others wait for it forever.
+    One process: ``build()`` as it is."""
+    from ..parallel import MPIComm, launched
+
+    size = launched()[1]
+    if size < 2:
+        return build()
+    try:
+        spec, error = build(), ""
+    except InputError as exc:
+        spec, error = None, one_line(exc)
+    try:
+        comm = MPIComm()
+    except InputError:  # no mpi4py: no collective follows, each rank refuses on its own
+        if error:
+            raise InputError(error) from None
+        return spec
+    errors = comm.gather(error)
+    bad = [k for k, e in enumerate(errors) if e]
+    if bad:
+        if len(bad) == size and all(e == errors[0] for e in errors):
+            raise InputError(errors[0])
+        raise InputError(f"rank {bad[0]} of {size} refused its input ({errors[bad[0]]}) and "
+                         f"{size - len(bad)} rank(s) did not: every rank must read the same input (a file that "
+                         "differs between the machines?)")  # fmt: skip
+    ids = comm.gather(_spec_identity(spec))
+    other = [k for k, i in enumerate(ids) if i != ids[0]]
+    if other:
+        raise InputError(f"rank {other[0]} of {size} read another input than rank 0 (the arguments, the case file or "
+                         "a file it reads differ): every rank must read the same input (a node-local copy that "
+                         "differs?)")  # fmt: skip
+    return spec
