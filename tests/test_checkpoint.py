@@ -519,3 +519,15 @@ def test_sigint_at_a_random_moment_resumes_from_the_last_level(tmp_path):
     s = json.loads((tmp_path / "i/summary.json").read_text())
     assert s["status"] == "interrupted" and s["checkpoints"]["level"] == s["steps"] > 0
     _resume_equals_a_run_to(tmp_path, "i", args, s["steps"], s["dt"])
+
+
+def test_a_run_stopped_at_level_0_is_resumable(tmp_path):
+    """Ctrl-C between the set-up and the first step (status interrupted, no step): its result
+    used to have no checkpoint, which `resume` then refused; now level 0 is checkpointed and the
+    resumed run equals the uninterrupted one."""
+    p, dt, T = _bar2d()
+    s = Stepper(p, "cn", dt, T, checkpoint=tmp_path / "c.h5")
+    s.interrupt("SIGINT after step 0 of 80")
+    H = s.finish()
+    assert H.status == "interrupted" and H.steps == 0 and H.meta["checkpoints"]["level"] == 0
+    assert_same_run(simulate(p, "cn", dt, T, resume=tmp_path / "c.h5"), simulate(p, "cn", dt, T))

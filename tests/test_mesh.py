@@ -230,3 +230,45 @@ def test_face_keys_do_not_overflow_on_large_meshes():
     k = face_keys(f, big)
     assert k[0] == k[1] and k[0] != k[2] and len(np.unique(k)) == 3
     assert face_keys(f[3:], 10).dtype == np.int64  # small meshes keep the fast integer keys
+
+
+#: a unit hexahedron (nodes 0..7, z = 0 then z = 1) and two tetrahedra on its top face
+HEX_POINTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1],
+                       [0.5, 0.5, 2.0]], float)  # fmt: skip
+
+
+def _write_3d(path, blocks, physical, names):
+    import meshio
+
+    mesh = meshio.Mesh(HEX_POINTS, blocks, cell_data={"gmsh:physical": physical, "gmsh:geometrical": physical},
+                       field_data=names)  # fmt: skip
+    meshio.write(path, mesh, file_format="gmsh22", binary=False)
+
+
+def test_a_facet_tag_holding_faces_no_cell_has_is_refused(tmp_path):
+    """A hexahedral mesh whose physical surface also lists triangles (faces no hexahedron has):
+    they were dropped silently; now the tag is named."""
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    blocks = [("hexahedron", np.array([[0, 1, 2, 3, 4, 5, 6, 7]])), ("quad", np.array([[0, 1, 2, 3]])),
+              ("triangle", np.array([[4, 5, 6]]))]  # fmt: skip
+    names = {"body": np.array([1, 3]), "bottom": np.array([2, 2])}
+    _write_3d(tmp_path / "m.msh", blocks, [np.array([1]), np.array([2]), np.array([2])], names)
+    with pytest.raises(MeshError, match=r"tag 'bottom' holds triangle facets, but the mesh's cells \(hexahedron\)"):
+        read_mesh(tmp_path / "m.msh")
+    _write_3d(tmp_path / "ok.msh", blocks[:2], [np.array([1]), np.array([2])], names)
+    assert read_mesh(tmp_path / "ok.msh").facets_of("bottom").shape == (1, 4)
+
+
+def test_tetrahedra_glued_to_a_hexahedron_face_are_refused(tmp_path):
+    """Four tetrahedra on the top face of a hexahedron, sharing its nodes but not its face
+    (no pyramid): the body would be cut along that face; refused by name."""
+    from signorini.errors import MeshError
+    from signorini.fem.mesh import read_mesh
+
+    tets = np.array([[4, 5, 6, 8], [4, 6, 7, 8]])  # the top face split in two triangles, apex above
+    blocks = [("hexahedron", np.array([[0, 1, 2, 3, 4, 5, 6, 7]])), ("tetra", tets)]
+    _write_3d(tmp_path / "m.msh", blocks, [np.array([1]), np.array([1, 1])], {"body": np.array([1, 3])})
+    with pytest.raises(MeshError, match=r"2 face\(s\) of tetrahedra lie on a face of a hexahedron.*pyramids"):
+        read_mesh(tmp_path / "m.msh")

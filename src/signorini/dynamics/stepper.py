@@ -467,7 +467,8 @@ class Stepper:
             return self._history
         if self.status == "running":
             self._stop("interrupted", f"finish() called after step {self.n} of {self.n_steps}")
-        if self.log is not None and self.n > 0 and self.log.level != self.n:
+        # level 0 too: a run interrupted (or failed) before its first step is resumable
+        if self.log is not None and self.log.level != self.n:
             try:
                 self.save_checkpoint()
             except (OSError, InputError, RuntimeError, ValueError) as exc:  # the levels computed matter more

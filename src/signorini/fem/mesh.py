@@ -669,6 +669,11 @@ def read_mesh(path: str | Path) -> Mesh:
                 raise MeshError(f"{p.name}: tag {k!r} holds facets of two types (triangles and quads); a tag holds "
                                 "one type: split it into two physical groups")  # fmt: skip
             facets[k] = v
+    for other in sorted({FACET_TYPES[t] for t in FACET_TYPES if _DIM_OF.get(t) == dim} - {FACET_TYPES[t] for t in top}):
+        for k in _tagged_facets(m, other, names, dim - 1):  # facets no cell of this mesh has: never dropped
+            raise MeshError(f"{p.name}: tag {k!r} holds {other} facets, but the mesh's cells ({', '.join(top)}) have "
+                            f"no {other} faces; remove them from the physical group (or mesh the part with cells "
+                            "that have them)")  # fmt: skip
     ftype = " or ".join(sorted({FACET_TYPES[t] for t in top}))  # named in the message below
     for k, v in facets.items():
         _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))
@@ -760,6 +765,8 @@ def _check_facets(name: str, mesh: Mesh) -> None:
                 "conform (overlapping cells, or a node reference that wrapped)"
             )
         table[width] = (known, counts)
+    if 3 in table and 4 in table:  # tetrahedra and hexahedra: they may meet across a pair, not in a body
+        _check_no_glued_faces(name, table[3], table[4])
     for tag, f in mesh.facets.items():
         if f.shape[1] not in table:
             raise MeshError(f"{name}: tag {tag!r} has facets of {f.shape[1]} nodes, which no cell of the mesh has")
@@ -780,6 +787,27 @@ def _check_facets(name: str, mesh: Mesh) -> None:
                 f"{name}: tag {tag!r} has {int(inside.sum())} facet(s) inside the body (shared by two cells); "
                 "boundary tags hold boundary facets only"
             )
+
+
+def _check_no_glued_faces(name: str, triangles: tuple, quads: tuple) -> None:
+    """Refuse tetrahedra glued to a hexahedron's face: the two triangles of the tetrahedra and
+    the quadrilateral share their nodes but no face, so each side sees a free boundary there
+    (the body would be cut in two along it).  A conforming mesh of both needs pyramids."""
+    tri = triangles[0][triangles[1] == 1]  # boundary triangles (sorted node triples, as rows)
+    quad = quads[0][quads[1] == 1]
+    if tri.size == 0 or quad.size == 0:
+        return
+    q = np.frombuffer(quad.tobytes(), dtype=np.int64).reshape(-1, 4)  # sorted nodes of each quad
+    t = np.frombuffer(tri.tobytes(), dtype=np.int64).reshape(-1, 3)
+    triples = np.vstack([q[:, [0, 1, 2]], q[:, [0, 1, 3]], q[:, [0, 2, 3]], q[:, [1, 2, 3]]])
+    glued = np.isin(_rows(t), _rows(triples))
+    if glued.any():
+        raise MeshError(
+            f"{name}: {int(glued.sum())} face(s) of tetrahedra lie on a face of a hexahedron, sharing its nodes but "
+            "not the face: the mesh does not conform there (a tetrahedral block glued to a hexahedral one needs "
+            "pyramids, which are not supported); make them two bodies in contact through a pair, or mesh both "
+            "parts with one cell type"
+        )
 
 
 def write_mesh(mesh: Mesh, path: str | Path) -> None:
