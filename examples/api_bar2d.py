@@ -3,8 +3,7 @@
 The README shows this file verbatim (tests/test_examples.py checks both).
 """
 
-from signorini.dynamics.simulate import simulate
-from signorini.studies.benchmarks import get_benchmark
+from signorini import get_benchmark, simulate
 
 bar = get_benchmark("bar2d")                      # the paper's 2D bar
 problem = bar.problem(n=4, overrides={"gap": 0.2})

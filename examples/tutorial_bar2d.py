@@ -5,12 +5,7 @@ The tutorial shows this file verbatim (tests/test_examples.py checks both).
 
 import numpy as np
 
-from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
-from signorini.fem.material import IsotropicElastic
-from signorini.fem.mesh import rectangle
-from signorini.fem.space import Dirichlet
+from signorini import Dirichlet, IsotropicElastic, PlaneObstacle, Problem, rectangle, simulate
 
 n = 4                                            # elements across the width
 problem = Problem(

@@ -7,8 +7,7 @@ The tutorial shows this file verbatim (tests/test_examples.py checks both).
 import tempfile
 from pathlib import Path
 
-from signorini.dynamics.simulate import Stepper, simulate
-from signorini.studies.benchmarks import get_benchmark
+from signorini import Stepper, get_benchmark, simulate
 
 problem = get_benchmark("bar2d").problem(4, {})  # the bar of the first example
 dt, T = 0.0125, 1.0
