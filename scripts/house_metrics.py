@@ -1,0 +1,145 @@
+"""The measures of issue 39 ("the house for what comes next"), read off the source tree.
+
+    python3 scripts/house_metrics.py [--json]
+
+Printed, with the places that count:
+
+* classes with more than 20 methods (the issue asks none);
+* the parameters of ``Stepper.__init__`` (at most 8);
+* accesses to another object's ``_private`` attribute across modules (``x._name`` where ``x``
+  is not ``self``/``cls`` and ``_name`` is not defined in the same module; none);
+* ``mesh.mixed`` branches (none outside the one loop over cell blocks);
+* ``d * node + c`` computed by hand outside ``fem/dofmap.py`` (``<name> * <dim> + ...`` or
+  ``<dim> * <name> + ...`` with a dimension-like name: d, dim, block_size, components);
+* backend names compared outside the backend choice (``== "petsc"`` and the like, ``in
+  ("cg", ...)``, outside ``linalg/base.py``).
+
+A measure, not a test: it reads the tree as text (ast), as the issue's verification does.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import sys
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[1] / "src" / "signorini"
+BACKEND_NAMES = {"superlu", "pardiso", "cholmod", "cg", "petsc", "petsc-cg", "mkl", "auto"}
+DIM_NAMES = {"d", "dim", "block_size", "components", "nd", "ncomp"}
+MAX_METHODS = 20
+
+
+def _modules():
+    for path in sorted(PKG.rglob("*.py")):
+        yield path.relative_to(PKG.parent).as_posix(), ast.parse(path.read_text(), str(path))
+
+
+def big_classes() -> list[tuple[str, str, int]]:
+    out = []
+    for name, tree in _modules():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                methods = [n for n in node.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]
+                if len(methods) > MAX_METHODS:
+                    out.append((name, node.name, len(methods)))
+    return out
+
+
+def stepper_parameters() -> int:
+    tree = ast.parse((PKG / "dynamics" / "stepper.py").read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ClassDef) and node.name == "Stepper":
+            for f in node.body:
+                if isinstance(f, ast.FunctionDef) and f.name == "__init__":
+                    a = f.args
+                    return len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) - 1  # without self
+    return -1
+
+
+def private_access() -> list[tuple[str, int, str]]:
+    out = []
+    for name, tree in _modules():
+        own = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store)}
+        own |= {n.name for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+        for n in ast.walk(tree):
+            if not (isinstance(n, ast.Attribute) and n.attr.startswith("_") and not n.attr.startswith("__")):
+                continue
+            base = n.value
+            if isinstance(base, ast.Name) and base.id in ("self", "cls", "np", "sys", "os", "ckpt", "_signals"):
+                continue
+            if n.attr in own:
+                continue
+            out.append((name, n.lineno, ast.unparse(n)))
+    return out
+
+
+def mixed_branches() -> list[tuple[str, int]]:
+    out = []
+    for name, tree in _modules():
+        for n in ast.walk(tree):
+            if isinstance(n, (ast.If, ast.IfExp)) and "mixed" in ast.unparse(n.test).split("."):
+                out.append((name, n.lineno))
+            elif isinstance(n, (ast.If, ast.IfExp)) and ast.unparse(n.test).endswith(".mixed"):
+                out.append((name, n.lineno))
+    return sorted(set(out))
+
+
+def _is_dim(node: ast.AST) -> bool:
+    return isinstance(node, ast.Name) and node.id in DIM_NAMES or (
+        isinstance(node, ast.Attribute) and node.attr in DIM_NAMES
+    )
+
+
+def hand_dofs() -> list[tuple[str, int, str]]:
+    out = []
+    for name, tree in _modules():
+        if name.endswith("fem/dofmap.py"):
+            continue
+        for n in ast.walk(tree):
+            if isinstance(n, ast.BinOp) and isinstance(n.op, ast.Add):
+                left = n.left
+                if isinstance(left, ast.BinOp) and isinstance(left.op, ast.Mult):
+                    if _is_dim(left.left) or _is_dim(left.right):
+                        out.append((name, n.lineno, ast.unparse(n)[:80]))
+    return out
+
+
+def backend_comparisons() -> list[tuple[str, int, str]]:
+    out = []
+    for name, tree in _modules():
+        if name.endswith("linalg/base.py"):
+            continue
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Compare):
+                consts = [c.value for c in ast.walk(n) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+                text = ast.unparse(n)
+                if any(c in BACKEND_NAMES for c in consts) and "backend" in text:
+                    out.append((name, n.lineno, text[:80]))
+    return out
+
+
+def main(argv: list[str]) -> int:
+    m = {
+        "classes_over_20_methods": big_classes(),
+        "stepper_init_parameters": stepper_parameters(),
+        "private_access_across_objects": private_access(),
+        "mesh_mixed_branches": mixed_branches(),
+        "dofs_by_hand": hand_dofs(),
+        "backend_name_comparisons": backend_comparisons(),
+    }
+    if "--json" in argv:
+        print(json.dumps(m, indent=1))
+        return 0
+    for key, value in m.items():
+        if isinstance(value, list):
+            print(f"{key}: {len(value)}")
+            for row in value:
+                print("   ", *row)
+        else:
+            print(f"{key}: {value}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
