@@ -102,3 +102,18 @@ def test_an_integer_beyond_double_precision_is_a_clear_input_error(kind):
     with pytest.raises(InputError, match=r"'time.stiffness' must be a finite number .* an integer of 401 digits"):
         p.convert(10**400, "time")
     assert p.convert(10**15, "time") == kind(10**15)
+
+
+def test_every_backend_declares_its_traits_and_the_distributed_list_agrees():
+    """Backends are registry entries with what they support (issue 39, item 4): the traits are
+    there for every entry, a factor's entry names its Factor class, and the core layer's list
+    of distributed backends (signorini.parallel, which cannot import linalg) is the traits'."""
+    from signorini.linalg.base import BACKENDS, BackendTraits
+    from signorini.parallel import DISTRIBUTED_BACKENDS
+
+    for e in BACKENDS:
+        assert isinstance(e.traits, BackendTraits), e.name
+        assert e.traits.factor == isinstance(e.obj, str), e.name
+        assert not (e.traits.factor and e.traits.iterative), e.name
+    assert tuple(e.name for e in BACKENDS if e.traits.distributed) == DISTRIBUTED_BACKENDS
+    assert [e.name for e in BACKENDS if e.traits.chooses] == ["auto"]

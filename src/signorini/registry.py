@@ -122,6 +122,9 @@ class Entry:
     description: str
     aliases: tuple[str, ...] = ()
     parameters: tuple[Parameter, ...] = ()
+    #: what the entry supports, read by the choices and refusals that concern it (e.g. a
+    #: backend's :class:`~signorini.linalg.base.BackendTraits`); None when the kind has none
+    traits: Any = None
 
     def parameter(self, name: str) -> Parameter:
         for p in self.parameters:
@@ -152,6 +155,7 @@ class Registry:
         description: str = "",
         aliases: tuple[str, ...] = (),
         parameters: tuple[Parameter, ...] = (),
+        traits: Any = None,
     ) -> Any:
         """Register ``obj`` under ``name``; usable as a decorator when ``obj`` is omitted."""
 
@@ -160,7 +164,7 @@ class Registry:
             for key in (name, *aliases):
                 if key in taken:
                     raise ValueError(f"{self.kind} name {key!r} is already registered")
-            self.entries[name] = Entry(name, o, description, tuple(aliases), tuple(parameters))
+            self.entries[name] = Entry(name, o, description, tuple(aliases), tuple(parameters), traits)
             return o
 
         return add if obj is _MISSING else add(obj)

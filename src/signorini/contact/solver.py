@@ -49,6 +49,8 @@ import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
 from ..linalg import (
+    BACKENDS,
+    backend_traits,
     choose_backend,
     factor_class,
     factorize,
@@ -211,7 +213,7 @@ def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budge
         raise InputError(f"solver option 'condensation' must be one of {allowed}; got {condensation!r}")
     supported = factor_class(backend).supports_schur
     if condensation == "schur" and not supported:
-        why = " (PETSc has no parallel MUMPS Schur complement)" if backend == "petsc" else ""
+        why = " (PETSc has no parallel MUMPS Schur complement)" if backend_traits(backend).distributed else ""
         raise InputError(f"solver option condensation='schur' needs the pardiso backend, not {backend!r}{why}; "
                          "use condensation='lazy' or 'full' with this backend")  # fmt: skip
     if condensation != "auto":
@@ -751,31 +753,33 @@ def make_contact_solver(
     ``components``: rows of B per contact node (d with friction: B is the frame matrix H)."""
     opts = solver_options(options)
     backend = opts["backend"]
-    if components > 1 and backend in ("cg", "petsc-cg"):
-        direct = "petsc" if backend == "petsc-cg" else "superlu, pardiso, cholmod or auto"
+    traits = backend_traits(backend)
+    if components > 1 and not traits.friction:
+        direct = ", ".join(e.name for e in BACKENDS if e.traits.friction and e.traits.distributed == traits.distributed)
         raise InputError(f"friction needs the Delassus matrix of a direct backend ({direct}), not {backend}")
-    if backend == "auto" and opts["condensation"] == "schur":
+    if traits.chooses and opts["condensation"] == "schur":
         if not has_pardiso():
             raise InputError("solver option condensation='schur' needs the pardiso backend, which is not installed "
                              "(pip install '.[pardiso]'); use condensation='lazy' or 'full'")  # fmt: skip
         backend = "pardiso"  # the only backend that computes the Schur complement
-    if backend == "auto":
+    if backend_traits(backend).chooses:
         budget = opts["memory_budget"] or 0.4 * total_memory()
         nc = B.shape[0]
         # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
         fits = 8.0 * nc * nc < budget
         backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if fits else "cg"
-        if backend == "cg" and components > 1:
+        if not backend_traits(backend).friction and components > 1:
             raise InputError(
                 f"friction needs the dense Delassus matrix of {nc} x {nc} entries ({8.0 * nc * nc / 2**30:.3g} GiB), "
                 "more than the memory budget; raise solver.memory_budget or coarsen the contact boundary"
             )
-    if backend in ("petsc", "petsc-cg"):
+    traits = backend_traits(backend)
+    if traits.distributed:
         from ..linalg.petsc.factor import check_options_used, clear_options, set_options
 
         set_options(opts)
         try:
-            if backend == "petsc-cg":
+            if traits.iterative:
                 from .distributed_cg import DistributedCGSolver
 
                 pc = opts["preconditioner"]
@@ -806,7 +810,7 @@ def make_contact_solver(
         finally:
             clear_options(opts)
         return solver
-    if backend == "cg":
+    if traits.iterative:
         return ActiveSetCGSolver(
             K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
             opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0), opts["spmv"],

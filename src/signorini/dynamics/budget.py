@@ -45,8 +45,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from ..errors import InputError
-from ..linalg.base import choose_backend, estimate_factor_bytes, total_memory
-from ..parallel import DISTRIBUTED_BACKENDS
+from ..linalg.base import BACKENDS, backend_traits, choose_backend, estimate_factor_bytes, total_memory
 
 BASE_BYTES = 80e6
 TRIPLET_BYTES = 32.0
@@ -137,17 +136,20 @@ def estimate_run(
     history = 8.0 * (steps + 1) * (2 * n_contact + SCALAR_SERIES)
     fields = FIELD_BYTES * (steps + 1) * n_nodes * dim if kept_fields else 0.0
     n = int(n_nodes * dim)
-    backend = choose_backend(n, dim) if backend == "auto" else backend
-    if backend in ("cg", "petsc-cg"):
+    if backend not in BACKENDS:  # a misspelling, refused by the options' validation with its own message
+        backend = "auto"
+    backend = choose_backend(n, dim) if backend_traits(backend).chooses else backend
+    traits = backend_traits(backend)
+    if traits.iterative:
         factor = 0.0
     else:  # MUMPS (petsc): a nested-dissection Cholesky, as Pardiso's
-        factor = estimate_factor_bytes(n, dim, "pardiso" if backend == "petsc" else backend)
-    if backend not in DISTRIBUTED_BACKENDS:
+        factor = estimate_factor_bytes(n, dim, "pardiso" if traits.distributed else backend)
+    if not traits.distributed:
         ranks = (1, 1)
     P, L = max(1, int(ranks[0])), max(1, min(int(ranks[1]), int(ranks[0])))
     # petsc: the lazy Delassus columns Z = K^-1 B^T (n x contact nodes at most), each rank
     # its rows, up to condense_budget per rank (2.1 GiB of bar3d n = 24's 9.7 by default)
-    columns = min(8.0 * n * n_contact, float(condense_budget) * P) if backend == "petsc" else 0.0
+    columns = min(8.0 * n * n_contact, float(condense_budget) * P) if traits.distributed and traits.factor else 0.0
     return RunEstimate(int(steps), n, int(n_contact), setup, history, fields, factor, P, L, columns)
 
 

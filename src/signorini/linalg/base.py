@@ -25,6 +25,7 @@ import importlib.util
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -155,6 +156,27 @@ NODE_ORDER = Parameter(
     choices=("auto", "mesh", "morton"),
 )
 
+
+@dataclass(frozen=True)
+class BackendTraits:
+    """What a backend supports, read by the automatic choice and by every refusal that concerns
+    it (adding a backend is adding one entry of :data:`BACKENDS` with its traits).
+
+    ``factor``: a direct factorization (the entry's object is its :class:`Factor` class);
+    ``iterative``: CG, no factor; ``distributed``: runs on the ranks of mpiexec;
+    ``friction``: gives the Delassus matrix that friction needs; ``schur``: can compute the
+    Schur complement on the contact dofs; ``mixed_meshes``: several cell types;
+    ``chooses``: picks another backend (``auto``)."""
+
+    factor: bool = False
+    iterative: bool = False
+    distributed: bool = False
+    friction: bool = True
+    schur: bool = False
+    mixed_meshes: bool = True
+    chooses: bool = False
+
+
 BACKENDS = Registry("linear solver backend")
 BACKENDS.register(
     "auto",
@@ -164,20 +186,26 @@ BACKENDS.register(
     "superlu; cg when no factor fits memory_budget",
     (),
     CG_PARAMETERS,
+    BackendTraits(chooses=True),
 )
 BACKENDS.register(
     "superlu",
     ".superlu:SuperLUFactor",
     "scipy SuperLU, symmetric mode, nested dissection on large 3D systems (always available)",
+    traits=BackendTraits(factor=True),
 )
 BACKENDS.register(
-    "pardiso", ".pardiso:PardisoFactor", "MKL Pardiso via pypardiso (extra 'pardiso'), nested dissection, SPD"
+    "pardiso",
+    ".pardiso:PardisoFactor",
+    "MKL Pardiso via pypardiso (extra 'pardiso'), nested dissection, SPD",
+    traits=BackendTraits(factor=True, schur=True),
 )
 BACKENDS.register(
     "cholmod",
     ".cholmod:CholmodFactor",
     "supernodal Cholesky, CHOLMOD via cvxopt (core where it has wheels, else extra 'cholmod'), nested "
     "dissection (METIS with pymetis: core on Linux x86-64 and macOS, else extra 'metis')",
+    traits=BackendTraits(factor=True),
 )
 BACKENDS.register(
     "petsc",
@@ -186,8 +214,16 @@ BACKENDS.register(
     "options petsc.NAME=VALUE pass through as -signorini_NAME",
     (),
     (NODE_ORDER,),
+    BackendTraits(factor=True, distributed=True, mixed_meshes=False),
 )
-BACKENDS.register("cg", None, "no factor: projected CG with an active-set contact solve", (), CG_PARAMETERS)
+BACKENDS.register(
+    "cg",
+    None,
+    "no factor: projected CG with an active-set contact solve",
+    (),
+    CG_PARAMETERS,
+    BackendTraits(iterative=True, friction=False),
+)
 PETSC_CG_PARAMETERS = (
     Parameter(
         "preconditioner",
@@ -207,6 +243,7 @@ BACKENDS.register(
     "scripts/mpi-env.sh); options petsc.NAME=VALUE pass through to its preconditioner as -signorini_NAME",
     (),
     PETSC_CG_PARAMETERS,
+    BackendTraits(iterative=True, distributed=True, friction=False, mixed_meshes=False),
 )
 
 
@@ -385,6 +422,11 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
     if superlu <= budget:
         return "superlu"
     return "cg"
+
+
+def backend_traits(backend: str) -> BackendTraits:
+    """The :class:`BackendTraits` of a registered backend (or of an alias)."""
+    return BACKENDS.get(backend).traits
 
 
 def factor_class(backend: str) -> type[Factor]:
