@@ -401,6 +401,8 @@ def test_ctrl_c_during_the_start_up_ends_every_rank_with_one_line(tmp_path, dela
         (["run", "bar3d", "--n", "2", "--backend", "petsc", "--solver-option", "node_order=hilbert"],
          "auto, mesh, morton"),
         (["run", "bar3d", "--n", "2", "--backend", "petsc-gc"], "unknown solver.backend 'petsc-gc'; allowed:"),
+        (["run", str(Path(__file__).parents[1] / "examples" / "ball_on_hex_plate.toml"), "--backend", "petsc"],
+         "does not run meshes of several cell types (hexahedron, tetra) yet; use one that does (auto, superlu"),
     ],
 )  # fmt: skip
 def test_refusals_on_two_ranks_are_one_line_exit_2_nothing_written(tmp_path, args, says):

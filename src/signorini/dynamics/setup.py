@@ -19,7 +19,7 @@ import scipy.sparse.linalg as spla
 from ..errors import InputError, check_positive
 from ..fem.node_order import choose_order
 from ..linalg import solver_options as validate_solver_options
-from ..linalg.base import IMPORT_FAILURES, memory_info, total_memory
+from ..linalg.base import BACKENDS, IMPORT_FAILURES, backend_traits, memory_info, total_memory
 from ..linalg.row_block import RowBlock
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
@@ -283,10 +283,11 @@ def set_up(
     # a distributed backend: S and M by rows, each rank its own (docs/parallel.md)
     comm = run_comm(opts["backend"]) if opts.get("backend") in DISTRIBUTED_BACKENDS else None
     mesh = problem.mesh if isinstance(problem, Problem) else problem.problem.mesh
-    if comm is not None and mesh.mixed:
+    if mesh.mixed and opts.get("backend") in BACKENDS and not backend_traits(opts["backend"]).mixed_meshes:
         types = ", ".join(sorted({b.cell_type for b in mesh.blocks}))
+        able = ", ".join(e.name for e in BACKENDS if e.traits.mixed_meshes)
         raise InputError(f"backend {opts['backend']!r} does not run meshes of several cell types ({types}) yet; use "
-                         "a serial backend (auto, superlu, cholmod, pardiso, cg)")  # fmt: skip
+                         f"one that does ({able})")  # fmt: skip
     if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
         order = choose_order(opts.get("node_order", "auto"), problem.mesh)
         if order != "mesh" and problem.mesh.grid is not None and MASS_VARIANTS.resolve(mass) in GRID_MASSES:
