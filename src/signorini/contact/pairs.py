@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..fem.assembly import facet_weights
+from ..fem.dofmap import DofMap
 from ..fem.elements import reference_element
 from ..fem.mesh import Mesh
 from .friction import Friction, make_friction
@@ -271,7 +272,7 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     master = oriented[facet]  # (m, nfv)
     nodes_all = np.concatenate([nodes[:, None], master], axis=1)  # (m, 1 + nfv)
     coef = np.concatenate([-np.ones((m, 1)), N], axis=1)  # (m, 1 + nfv)
-    dofs = (nodes_all[:, :, None] * d + np.arange(d)).reshape(m, (1 + nfv) * d)
+    dofs = DofMap.serial(mesh.n_nodes, d).dofs(nodes_all.ravel()).reshape(m, (1 + nfv) * d)
     vals = (coef[:, :, None] * normals_m[:, None, :]).reshape(m, (1 + nfv) * d)
     B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
     B.sum_duplicates()

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..fem.dofmap import DofMap
 from ..fem.mesh import Mesh, bodies
 from .mass_effect import mass_effect
 
@@ -68,7 +69,8 @@ def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None)
     local = sp.issparse(M)
     MV = M @ V if V is not None else None  # a distributed M (rows per rank): one reduction over the ranks
     parts = body_meshes(mesh)
-    body_dofs = [(nodes[:, None] * d + np.arange(d)).ravel() for nodes, _, _ in parts]
+    dofmap = DofMap.serial(mesh.n_nodes, d)
+    body_dofs = [dofmap.dofs(nodes).ravel() for nodes, _, _ in parts]
     if not local:  # the mass of each body from one product with the bodies' indicators (n, bodies)
         E = np.zeros((M.shape[0], len(parts)))
         for k, dofs in enumerate(body_dofs):

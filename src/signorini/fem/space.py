@@ -135,15 +135,18 @@ class Constraints:
             if clash.any():
                 cand = np.flatnonzero(clash)  # name the clash at the dof the user numbered first
                 mesh, dim = self.space.mesh, self.space.dim
-                ids = d[cand] // dim if mesh.node_ids is None else mesh.node_ids[d[cand] // dim]
-                i = int(cand[np.argmin(ids * dim + d[cand] % dim)])
+                dm = self.space.dofmap
+                nodes_c, comps = dm.nodes_of(d[cand]), d[cand] - dm.dofs(dm.nodes_of(d[cand]), [0]).ravel()
+                ids = nodes_c if mesh.node_ids is None else mesh.node_ids[nodes_c]
+                i = int(cand[np.lexsort((comps, ids))[0]])  # the user's first node, then its first component
                 j = int(owner[d[i]])
-                node, c = divmod(int(d[i]), dim)
-                node = mesh.node_id(node)
+                node = int(dm.nodes_of(d[i]))
+                c = int(d[i] - dm.dofs(np.array([node]), [0])[0, 0])
+                user = mesh.node_id(node)
                 raise InputError(
                     f"Dirichlet conditions on tags {self._parts[j][0].tag!r} and {bc.tag!r} prescribe different values "
-                    f"({seen[d[i]]:g} and {v[i]:g}) on the dof {node * self.space.dim + c} they share "
-                    f"(node {node}); make them agree there"
+                    f"({seen[d[i]]:g} and {v[i]:g}) on the dof {int(dm.dofs(np.array([user]), [c])[0, 0])} they "
+                    f"share (node {user}); make them agree there"
                 )
             seen[d], owner[d] = v, k
 
