@@ -134,7 +134,7 @@ class Constraints:
             clash = both & ~np.isclose(seen[d], v, rtol=1e-12, atol=1e-300)
             if clash.any():
                 cand = np.flatnonzero(clash)  # name the clash at the dof the user numbered first
-                mesh, dim = self.space.mesh, self.space.dim
+                mesh = self.space.mesh
                 dm = self.space.dofmap
                 nodes_c, comps = dm.nodes_of(d[cand]), d[cand] - dm.dofs(dm.nodes_of(d[cand]), [0]).ravel()
                 ids = nodes_c if mesh.node_ids is None else mesh.node_ids[nodes_c]
