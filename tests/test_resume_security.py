@@ -185,3 +185,81 @@ def test_damaged_fields_of_the_source_run_are_refused_before_the_resume_starts(t
     assert "the fields of the run to resume" in r.stderr and "--snapshot-every 0" in r.stderr
     r = _cli("resume", "a", "--T", "0.6", "--snapshot-every", "0", "--quiet", "--out", "b", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+
+
+def _set(path_in_attrs, value):
+    def edit(attrs):
+        node = attrs
+        for k in path_in_attrs[:-1]:
+            node = node[k]
+        node[path_in_attrs[-1]] = value
+
+    return edit
+
+
+#: forged attributes (checksum recomputed) that used to crash, allocate without bound or be
+#: copied into the result: each is now a one-line refusal
+FORGED = {
+    "n-huge": (_set(["meta", "invocation", "n"], 10**6), "estimated memory"),
+    "n-absurd": (_set(["meta", "invocation", "n"], 10**30), "estimated memory"),
+    "segment-huge-level": (_set(["segment"], [0.0, 1e-300, 10**30]), "segment"),
+    "series-records": (_set(["series", "records"], 10**18), "series file"),
+    "series-layout": (lambda a: a["series"]["layout"][0].__setitem__(2, [10**15]), "series file"),
+    "negative-counter": (lambda a: a["counters"].__setitem__("linear_solves", -5), "counter"),
+    "untagged-worst-node": (_set(["observers/untagged/worst"], [1.0, 999999, 0.1]), "untagged watch"),
+}
+
+
+@pytest.mark.parametrize("how", sorted(FORGED))
+def test_forged_sizes_and_indices_are_refused_before_the_run(tmp_path, how):
+    assert _cli("run", "bar2d", "--n", "2", "--T", "0.3", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    edit, says = FORGED[how]
+    _forge(tmp_path / "a/checkpoint.h5", edit)
+    r = _cli("resume", "a", "--T", "0.6", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert says in r.stderr, r.stderr
+
+
+def test_a_forged_delassus_log_is_refused_not_run(tmp_path):
+    """A sliding pair's re-pairing log with a negative row count (the sum kept): the resume used
+    to build a malformed sparse matrix and corrupt the heap (double free); now exit 2."""
+    text = (ROOT / "examples" / "block_on_block.toml").read_text()
+    text = text.replace('"meshes/block_on_block.msh"', repr(str(ROOT / "examples/meshes/block_on_block.msh")))
+    text = text.replace("velocity = [0.2, 0.0]", "velocity = [1.0, 0.0]")
+    (tmp_path / "slide.toml").write_text(text)
+    r = _cli("run", "slide.toml", "--T", "0.012", "--quiet", "--out", "a", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+
+    def edit(arrays):
+        x = arrays["solvers/0/delassus/row_nnz"].copy()
+        x[0], x[1] = -6, x[1] + x[0] + 6
+        arrays["solvers/0/delassus/row_nnz"] = x
+
+    c = ckpt.read(tmp_path / "a/checkpoint.h5")
+    edit(c["arrays"])
+    ckpt.write(tmp_path / "a/checkpoint.h5", {"arrays": c["arrays"], "attrs": c["attrs"]})
+    r = _cli("resume", "a", "--T", "0.024", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert "the Delassus column log is inconsistent" in r.stderr
+
+
+def test_a_fifo_in_the_fields_is_refused_not_waited_on(tmp_path):
+    import os
+
+    r = _cli("run", "bar2d", "--n", "2", "--T", "0.3", "--snapshot-every", "4", "--quiet", "--out", "a", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    (tmp_path / "a/fields.h5").unlink()
+    os.mkfifo(tmp_path / "a/fields.h5")
+    r = _cli("resume", "a", "--T", "0.6", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert "not a regular file" in r.stderr
+
+
+def test_a_changed_scheme_file_is_refused_on_resume(tmp_path, plugin_run):
+    """Same class name and options, other code: the checkpoint's identity holds the source
+    file's hash, so the resumed run would not be the uninterrupted one: refused by name."""
+    (tmp_path / "alt").mkdir()
+    (tmp_path / "alt/my_schemes.py").write_text((ROOT / "examples" / "my_schemes.py").read_text() + "# changed\n")
+    r = _cli("resume", "a", "--scheme", "alt/my_schemes.py:MyTheta", "--T", "0.6", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert "the source file of the scheme of your own" in r.stderr

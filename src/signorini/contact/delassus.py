@@ -175,6 +175,11 @@ class DelassusColumns:
         rows_all, row_sizes, row_nnz, row_indices, row_data = (
             np.asarray(data.get(k, np.zeros(0)), dtype=float if k == "row_data" else np.intp)
             for k in ("rows", "row_sizes", "row_nnz", "row_indices", "row_data"))  # fmt: skip
+        counts_ok = all(a.ndim == 1 and (a.size == 0 or a.min() >= low) for a, low in
+                        ((sizes, 1), (row_sizes, 1), (row_nnz, 0), (kinds, 0)))  # fmt: skip
+        finite = bool(np.all(np.isfinite(row_data))) and (kinds.size == 0 or int(kinds.max()) <= 1)
+        if not counts_ok or not finite:
+            raise ValueError("the Delassus column log is inconsistent (negative counts or unknown entries)")
         if nodes.shape != slots.shape or sizes.sum() != nodes.size or (nodes.size and (
                 nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)) or (
                 np.count_nonzero(kinds == 0) != sizes.size or np.count_nonzero(kinds == 1) != row_sizes.size
@@ -197,6 +202,7 @@ class DelassusColumns:
                 stop = nzstart + int(nnz.sum())
                 R = sp.csr_matrix((row_data[nzstart:stop], row_indices[nzstart:stop],
                                    np.concatenate([[0], np.cumsum(nnz)])), shape=(size, n))  # fmt: skip
+                R.check_format(full_check=True)  # a forged log must not reach scipy's C code malformed
                 nzstart = stop
                 if done:
                     raise ValueError("the Delassus column log does not start with this run's set-up columns")

@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -87,7 +88,30 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
     }
     if case_hash is not None:
         out["case_file"] = case_hash
+    source = _scheme_source_hash(run.scheme)
+    if source is not None:
+        out["scheme_source"] = source
     return out
+
+
+def _scheme_source_hash(scheme) -> str | None:
+    """sha256 of the source file of a scheme of the user's own (None for a registered one): a
+    resume that names a changed file (same name and options, other code) is refused."""
+    import inspect
+
+    from .schemes import SCHEMES
+
+    cls = type(scheme)
+    try:
+        if SCHEMES.get(scheme.name).obj is cls:
+            return None
+    except InputError:
+        pass
+    try:
+        path = inspect.getsourcefile(cls)
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest() if path else None
+    except (OSError, TypeError):
+        return None
 
 
 def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) -> None:
@@ -97,12 +121,14 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
              "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
              "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
              "friction": "the friction law or its coefficients",
+             "scheme_source": "the source file of the scheme of your own (its code changed since the checkpoint)",
              "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
                            "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
     order = (
         "case_file",
         "problem",
         "scheme",
+        "scheme_source",
         "mass",
         "node_order",
         "friction",
@@ -119,7 +145,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
     for key in sorted(set(saved) | set(mine), key=lambda k: (order.index(k) if k in order else len(order), k)):
         a, b = saved.get(key), mine.get(key)
         if a is None or b is None:
-            if key == "case_file":
+            if key in ("case_file", "scheme_source"):
                 continue  # a checkpoint of the Python API resumed from a case file, or the reverse
             raise InputError(f"{where}: the checkpoint does not match this run: {key} is missing on one side")
         same = a == b
@@ -327,14 +353,19 @@ def read_series(path: Path, layout: list, records: int, digest: str, where: str)
     against its layout and digest (an InputError for a short, edited or missing file)."""
     try:
         lay = [(str(k), np.dtype(t), tuple(int(x) for x in s)) for k, t, s in layout]
-        size = sum(int(t.itemsize * np.prod(s, dtype=np.int64)) for _, t, s in lay)
+        if any(x < 0 for _, _, s in lay for x in s):
+            raise ValueError("a negative dimension")
+        size = sum(t.itemsize * math.prod(s) for _, t, s in lay)  # Python integers: no overflow
         records = int(records)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"{where}: its series layout is malformed ({exc})") from None
     p = series_path(path)
     if not p.is_file():
         raise InputError(f"{where}: its series file {p.name} is missing (it holds the levels before the checkpoint)")
     need = size * records
+    if records < 0 or size <= 0 or need > p.stat().st_size:  # checked before anything is read or allocated
+        raise InputError(f"{where}: its series file {p.name} is shorter than the checkpoint says ({records} records of "
+                         f"{size} bytes; a truncated or forged file)")  # fmt: skip
     with open(p, "rb") as fh:
         raw = fh.read(need)
     if len(raw) != need:
@@ -344,7 +375,7 @@ def read_series(path: Path, layout: list, records: int, digest: str, where: str)
     table = np.frombuffer(raw, dtype=np.uint8).reshape(records, size) if records else np.zeros((0, size), np.uint8)
     out, col = {}, 0
     for k, t, s in lay:
-        width = int(t.itemsize * np.prod(s, dtype=np.int64))
+        width = t.itemsize * math.prod(s)
         out[k] = np.ascontiguousarray(table[:, col : col + width]).view(t).reshape((records,) + s)
         col += width
     return out
@@ -397,13 +428,19 @@ def check_attrs(attrs: dict[str, Any], where: str) -> None:
                        ("n_solvers", int)):  # fmt: skip
         if not isinstance(attrs.get(name), kind) or isinstance(attrs.get(name), bool):
             raise bad(f"{name} is missing or not a {kind.__name__}")
-    if any(not isinstance(v, int) or isinstance(v, bool) for v in attrs["counters"].values()):
-        raise bad("a counter is not an integer")
+    if any(not isinstance(v, int) or isinstance(v, bool) or v < 0 for v in attrs["counters"].values()):
+        raise bad("a counter is not a non-negative integer")
     seg = attrs.get("segment")
-    if seg is not None and (not isinstance(seg, list) or len(seg) != 3
-                            or not all(isinstance(x, (int, float)) and np.isfinite(x) for x in seg)
-                            or not seg[1] > 0):  # fmt: skip
-        raise bad(f"segment {seg!r} is not [start, dt > 0, first level]")
+
+    def finite(x) -> bool:
+        try:
+            return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(float(x))
+        except OverflowError:
+            return False
+
+    if seg is not None and (not isinstance(seg, list) or len(seg) != 3 or not all(finite(x) for x in seg)
+                            or not seg[1] > 0 or not isinstance(seg[2], int) or not 0 <= seg[2] <= level):  # fmt: skip
+        raise bad(f"segment {seg!r} is not [start, dt > 0, first level <= level]")
 
 
 def read_meta(path: Path) -> dict[str, Any]:

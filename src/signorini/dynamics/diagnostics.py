@@ -70,3 +70,34 @@ def impact_impulses(force: np.ndarray, impulse: np.ndarray, separation: int = 20
     if not np.isfinite(impulse).any():
         return []
     return [float(np.nansum(impulse[a : b + 2])) for a, b in impact_windows(np.asarray(force, dtype=float), separation)]
+
+
+def single_level_contacts(lam: np.ndarray) -> int:
+    """The contact episodes that last a single level: levels n where some contact row is active
+    (lambda < 0) while none is at n - 1 and n + 1 (an episode at the last level is not counted:
+    it may go on).  A step longer than the contact itself shows this way."""
+    active = (np.asarray(lam) < 0).reshape(len(lam), -1).any(axis=1) if np.size(lam) else np.zeros(0, bool)
+    if active.size < 3:
+        return 0
+    inner = active[1:-1] & ~active[:-2] & ~active[2:]
+    return int(np.count_nonzero(inner))
+
+
+def contact_duration_estimate(problem) -> float | None:
+    """About how long a contact lasts [time]: 2 H / c_p, the time a compression wave takes to
+    cross the body (extent H along a plane obstacle's normal, else its smallest extent) and back,
+    c_p = sqrt((lam + 2 mu) / rho) of the default material (the elastic bar's impact duration;
+    a Hertzian contact lasts longer).  None without a material to tell."""
+    mat = getattr(problem, "material", None)
+    mesh = getattr(problem, "mesh", None)
+    if mat is None or mesh is None:
+        return None
+    c = float(np.sqrt((mat.lam + 2.0 * mat.mu) / mat.rho))
+    normal = getattr(problem.obstacle, "normal", None)
+    pts = mesh.points
+    if normal is not None and np.size(normal) == mesh.dim and not callable(normal):
+        n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+        extent = float(np.ptp(pts @ n))
+    else:
+        extent = float(np.ptp(pts, axis=0).min()) if mesh.dim > 1 else float(np.ptp(pts))
+    return 2.0 * extent / c if c > 0 and extent > 0 else None

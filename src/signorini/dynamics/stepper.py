@@ -267,6 +267,22 @@ class Stepper:
         finally:
             self._loop_seconds += time.perf_counter() - t0
 
+    def _report_spurious(self, H: History) -> None:
+        """``summary.json`` ``spurious_energy`` and ``single_level_contacts``, and the warning of a
+        run whose scheme created more than 1% of its energy scale (:class:`~.observers.EnergyRecorder`)."""
+        from .diagnostics import contact_duration_estimate, single_level_contacts
+
+        e = self.energies
+        single = single_level_contacts(H.lam)
+        H.meta["single_level_contacts"] = single
+        H.meta["spurious_energy"] = {"absolute": e.spurious, "relative": e.spurious_relative(),
+                                     "scale": e.energy_scale, "first_level": e.spurious_first}  # fmt: skip
+        if e.spurious_exceeded() and self.status != "failed":
+            first = e.spurious_first
+            times = (float(H.t[first]), float(H.t[first])) if 0 <= first < H.t.size else None
+            duration = contact_duration_estimate(self.run.ctx.disc.problem)
+            H.meta["warnings"].append(e.spurious_message(single, times, duration, self.run.dt))
+
     def _time_of(self, n: int) -> float:
         """The time of level n on the run's grid (for messages)."""
         seg = self.grid.segment(n)
@@ -495,6 +511,8 @@ class Stepper:
             H.meta["warnings"].append(self.untagged.message())
         if self.energies is not None and self.energies.exceeded() and self.status != "failed":
             H.meta["warnings"].append(self.energies.message())
+        if self.energies is not None:
+            self._report_spurious(H)
         if self.log is not None:
             H.meta["checkpoints"] = self.log.summary()
             if self.log.error:

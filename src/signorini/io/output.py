@@ -64,10 +64,29 @@ def check_fields(source: Path) -> None:
     """InputError (one line) when a result's ``fields.xdmf`` (with its ``fields.h5``) cannot be
     read to its last snapshot: a resumed run copies them, and must refuse before it starts
     rather than fail midway (missing, truncated or edited files)."""
+    import re
+    import stat
+
     import meshio
 
     from ..errors import InputError
 
+    h5 = source.with_suffix(".h5")
+    for f in (source, h5):  # a FIFO or a device would block or never end: regular files only
+        try:
+            regular = stat.S_ISREG(f.lstat().st_mode)
+        except OSError:
+            regular = False
+        if not regular:
+            raise InputError(f"the fields of the run to resume: {str(f)!r} is missing or not a regular file; "
+                             "resume with --snapshot-every 0 to leave the earlier fields out")  # fmt: skip
+    text = source.read_text(errors="replace")
+    formats = set(re.findall(r'Format="([^"]*)"', text))
+    files = {m.split(":")[0].strip() for m in re.findall(r">\s*([^<>\s]+:/[^<>\s]*)\s*<", text)}
+    if formats - {"HDF"} or files - {h5.name}:
+        raise InputError(f"the fields of the run to resume: {source.name} reads other data than its {h5.name} "
+                         f"(formats {sorted(formats)}, files {sorted(files)}): not a field file of signorini; resume "
+                         "with --snapshot-every 0 to leave the earlier fields out")  # fmt: skip
     try:
         with meshio.xdmf.TimeSeriesReader(str(source)) as reader:
             reader.read_points_cells()

@@ -211,8 +211,9 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     limits = _limits(args, {})
     sch, sol = _options(args, {}, {})
     nodes, cells, per_cell = bench.mesh_counts(n, overrides)
-    if not getattr(args, "resuming", False):  # a resume checks the size of its own grid
-        check_size((nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides)), dt, T, limits, sol)
+    counts = (nodes, cells, per_cell, bench.dim, bench.contact_count(n, overrides))
+    # a resume checks the steps of its own grid later; the mesh and operators now, before they are built
+    check_size(counts, dt, T, limits, sol, steps=1 if getattr(args, "resuming", False) else None)
     problem = with_friction(bench.problem(n, overrides), args.friction)
     params = bench.params(overrides)
     meta = {"benchmark": args.target, "n": n, "parameters": params, "mass_named": args.mass is not None}
@@ -265,8 +266,8 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         raise InputError(f"--snapshot-every must be >= 0, got {every}")
     limits = _limits(args, case.limits)
     dt, T, overrides = _time_overrides(args, case.dt, case.T)
-    if not getattr(args, "resuming", False):  # a resume checks the size of its own grid
-        check_size(mesh_counts(case.problem), dt, T, limits, sol)
+    # a resume checks the steps of its own grid later (the case's mesh is built: its size is the file's)
+    check_size(mesh_counts(case.problem), dt, T, limits, sol, steps=1 if getattr(args, "resuming", False) else None)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
     if overrides:
         meta["overrides"] = overrides
@@ -466,7 +467,10 @@ def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:
             print(spec.measure.text(H.meta))
         print(f"  results in {spec.out}")
     if not H.success:
-        print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out})", file=sys.stderr)
+        again = ""
+        if (H.meta.get("checkpoints") or {}).get("written"):
+            again = f"; continue with `signorini resume {spec.out} --out NEW`"
+        print(f"signorini: {H.status}: {one_line(H.message)} (partial results in {spec.out}{again})", file=sys.stderr)
 
 
 def _checkpoint_arguments(spec: RunSpec, path) -> dict:
