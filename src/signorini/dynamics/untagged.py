@@ -168,11 +168,10 @@ class UntaggedContact(Observer):
             raise InputError(f"checkpoint: the untagged series has shape {series.shape}, expected {(n + 1,)}")
         self.series[: n + 1] = series
         p, node, t = data["worst"]
-        if not (
-            np.isfinite(p) and p >= 0 and np.isfinite(t) and isinstance(node, int) and -1 <= node < self.mesh.n_nodes
-        ):
-            raise InputError(f"checkpoint: the untagged watch's worst {data['worst']!r} is not (penetration >= 0, a node "
-                             "of the mesh, t)")  # fmt: skip
+        node_ok = isinstance(node, int) and -1 <= node < self.mesh.n_nodes
+        if not (node_ok and np.isfinite(p) and p >= 0 and np.isfinite(t)):
+            raise InputError(f"checkpoint: the untagged watch's worst {data['worst']!r} is not (penetration >= 0, "
+                             "a node of the mesh, t)")  # fmt: skip
         self.worst, self._surface = (float(p), int(node), float(t)), str(data["surface"])
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
