@@ -188,9 +188,10 @@ class EnergyRecorder(Observer):
     check = "warn"
     #: (residual, level) of the largest relative residual so far
     worst: tuple[float, int] = (0.0, -1)
-    #: the energy the scheme created so far [energy]: the sum over the steps of the positive part
-    #: of (work of the contact forces of a fixed obstacle and of the pairs + the numerical part),
-    #: which the exact dynamics make zero; and the level where it first grew
+    #: the energy the scheme created so far [energy]: the largest running sum of (the work of the
+    #: contact forces of a fixed obstacle and of the pairs + the numerical part), which the
+    #: exact dynamics make zero (an exchange that the next steps give back is not counted
+    #: twice); and the level where it first exceeded :data:`SPURIOUS_TOLERANCE` of the scale
     spurious: float = 0.0
     spurious_first: int = -1
     #: the run's energy scale: max(|E^0|, the largest kinetic energy, |the loads' work|) so far
@@ -207,7 +208,7 @@ class EnergyRecorder(Observer):
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
         _restore_series(self.series, data.get("series", {}), n, "energy")
         self._scale, self.worst = 0.0, (0.0, -1)
-        self.spurious, self.spurious_first, self.energy_scale = 0.0, -1, 0.0
+        self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
         for k in range(n + 1):  # the check's running figures, from the levels restored
             self._check(run, k, check=False)
         self._prev = state
@@ -224,7 +225,7 @@ class EnergyRecorder(Observer):
         for k in self.PARTS:
             self.series[k][0] = 0.0
         self._scale, self.worst = 0.0, (0.0, -1)
-        self.spurious, self.spurious_first, self.energy_scale = 0.0, -1, 0.0
+        self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
         obstacle = run.ctx.disc.problem.obstacle
         self.obstacle_moves = bool(getattr(obstacle, "moving", False))
         rtol = run.ctx.solver_options.get("rtol")
@@ -281,12 +282,12 @@ class EnergyRecorder(Observer):
         scale = max(abs(float(e0)), float(S["kinetic_energy"][n]), abs(float(S["external"][n])))
         self.energy_scale = max(self.energy_scale, scale if np.isfinite(scale) else 0.0)
         if n > 0 and np.isfinite(S["predicted_increment"][n]):
-            created = float(S["numerical"][n] - S["numerical"][n - 1])
+            self._net += float(S["numerical"][n] - S["numerical"][n - 1])
             if not self.obstacle_moves:
-                created += float(S["contact"][n] - S["contact"][n - 1])
-            if created > 0.0:
-                self.spurious += created
-                if self.spurious_first < 0:
+                self._net += float(S["contact"][n] - S["contact"][n - 1])
+            if self._net > self.spurious:
+                self.spurious = self._net
+                if self.spurious_first < 0 and self.spurious_exceeded():
                     self.spurious_first = n
             if check and self.check == "fail" and self.spurious_exceeded():
                 raise ConvergenceError(self.spurious_message())
@@ -316,9 +317,10 @@ class EnergyRecorder(Observer):
                          duration: float | None = None, dt: float | None = None) -> str:  # fmt: skip
         """The warning of a run whose scheme created more than :data:`SPURIOUS_TOLERANCE` of its
         energy scale: how much, from which level, the contact episodes a single level long, and the fix."""
-        where = f" from level {self.spurious_first}" if self.spurious_first >= 0 else ""
-        if times is not None:
-            where += f" (t = {times[0]:.6g})"
+        where = ""
+        if self.spurious_first >= 0:
+            at = f", t = {times[0]:.6g}" if times is not None else ""
+            where = f"; above {100 * SPURIOUS_TOLERANCE:g}% from level {self.spurious_first}{at} on"
         single = (f"; {single_level} contact episode(s) lasted a single level: the step does not resolve the "
                   "contact") if single_level else ""  # fmt: skip
         fix = "a smaller time step"
@@ -326,8 +328,8 @@ class EnergyRecorder(Observer):
             fix = (f"a time step well below the contact duration (about {duration:.3g} s for this body: 2 x its size "
                    f"along the obstacle's normal / its wave speed; dt = {dt:.3g} s)")  # fmt: skip
         return (
-            f"the scheme created {self.spurious:.4g} of energy{where}, {100 * self.spurious_relative():.3g}% of the "
-            f"run's energy scale {self.energy_scale:.4g} (work that a fixed obstacle and the contact between bodies "
+            f"the scheme created {self.spurious:.4g} of energy, {100 * self.spurious_relative():.3g}% of the run's "
+            f"energy scale {self.energy_scale:.4g}{where} (work that a fixed obstacle and the contact between bodies "
             f"cannot do, and the scheme's numerical part){single}: the result gains energy that is not physics; "
             f"use {fix}"
         )
