@@ -38,7 +38,8 @@ pytestmark = needs_venv
 #: columns compared with the serial run, to this fraction of the column's scale
 TOLERANCE = 1e-8
 #: per-body momentum and kinetic energy at the last level against the serial run's, relative
-#: to the body's momentum scale (two factorizations' round-off through the contact steps)
+#: to the body's momentum scale (two factorizations' round-off through the contact steps; a
+#: case with a looser history tolerance uses that: bar3d n = 4 with the lumped mass, 8e-8)
 BODY_RTOL = 1e-10
 #: columns that count iterations
 ITERATION_COUNTS = ("newton_iterations",)
@@ -123,12 +124,15 @@ def check_summary(ref: Path, par: Path, ranks: int, rtol: float = 1e-8) -> dict:
     assert len(p["rank_cells"]) == ranks and sum(p["rank_cells"]) >= 1 and "rank_cells" not in s
     assert p["node_order"] in ("mesh", "morton") and "node_order" not in s
     assert p["warnings"] == s["warnings"]  # the same words, the same nodes named (the user's numbers)
+    # per body: the mass to 1e-12 (one reduction); the last level's momentum and kinetic energy
+    # to the histories' own tolerance (two factorizations' round-off through the steps)
+    body_rtol = max(BODY_RTOL, rtol)
     for a, b in zip(s["bodies"], p["bodies"], strict=True):  # computed on the ranks (reductions), not n/a
         assert b["mass"] is not None and np.isclose(b["mass"], a["mass"], rtol=1e-12, atol=0)
         if a.get("momentum") is not None:
             scale = max(np.abs(a["momentum"]).max(), np.sqrt(2 * a["mass"] * a["kinetic_energy"]), 1e-300)
-            assert np.abs(np.subtract(b["momentum"], a["momentum"])).max() <= BODY_RTOL * scale
-            assert np.isclose(b["kinetic_energy"], a["kinetic_energy"], rtol=BODY_RTOL, atol=1e-300)
+            assert np.abs(np.subtract(b["momentum"], a["momentum"])).max() <= body_rtol * scale
+            assert np.isclose(b["kinetic_energy"], a["kinetic_energy"], rtol=body_rtol, atol=1e-300)
     for k, v in s.items():  # the same figures, up to timings, ranks and backend
         if any(w in k for w in RUN_DEPENDENT) or k in ("message",):
             continue
