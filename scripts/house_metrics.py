@@ -91,32 +91,36 @@ def _is_dim(node: ast.AST) -> bool:
     )
 
 
-def hand_dofs() -> list[tuple[str, int, str]]:
+def _matches(owner: str, test) -> list[tuple[str, int, str]]:
+    """(module, line, expression) of every node for which ``test(node)`` holds, outside the
+    module ``owner`` (the one place allowed to do it)."""
     out = []
     for name, tree in _modules():
-        if name.endswith("fem/dofmap.py"):
-            continue
-        for n in ast.walk(tree):
-            if isinstance(n, ast.BinOp) and isinstance(n.op, ast.Add):
-                left = n.left
-                if isinstance(left, ast.BinOp) and isinstance(left.op, ast.Mult):
-                    if _is_dim(left.left) or _is_dim(left.right):
-                        out.append((name, n.lineno, ast.unparse(n)[:80]))
+        if not name.endswith(owner):
+            out += [(name, n.lineno, ast.unparse(n)[:80]) for n in ast.walk(tree) if test(n)]
     return out
+
+
+def _dof_by_hand(n: ast.AST) -> bool:
+    """``<a> * <dim> + ...`` or ``<dim> * <a> + ...`` with a dimension-like name."""
+    left = getattr(n, "left", None)
+    return (isinstance(n, ast.BinOp) and isinstance(n.op, ast.Add) and isinstance(left, ast.BinOp)
+            and isinstance(left.op, ast.Mult) and (_is_dim(left.left) or _is_dim(left.right)))  # fmt: skip
+
+
+def _backend_comparison(n: ast.AST) -> bool:
+    if not isinstance(n, ast.Compare):
+        return False
+    consts = [c.value for c in ast.walk(n) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+    return any(c in BACKEND_NAMES for c in consts) and "backend" in ast.unparse(n)
+
+
+def hand_dofs() -> list[tuple[str, int, str]]:
+    return _matches("fem/dofmap.py", _dof_by_hand)
 
 
 def backend_comparisons() -> list[tuple[str, int, str]]:
-    out = []
-    for name, tree in _modules():
-        if name.endswith("linalg/base.py"):
-            continue
-        for n in ast.walk(tree):
-            if isinstance(n, ast.Compare):
-                consts = [c.value for c in ast.walk(n) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
-                text = ast.unparse(n)
-                if any(c in BACKEND_NAMES for c in consts) and "backend" in text:
-                    out.append((name, n.lineno, text[:80]))
-    return out
+    return _matches("linalg/base.py", _backend_comparison)
 
 
 def main(argv: list[str]) -> int:

@@ -56,6 +56,7 @@ class DelassusColumns:
         self._log: list[tuple[str, np.ndarray, np.ndarray | sp.csr_matrix]] = []
         self.replayed = 0  # columns solved again by :meth:`replay`
         self._origin = _digest(self.B)  # the rows the log starts from (a replay needs the same)
+        self._digest_B = self._origin  # the digest of the current B
 
     def _rows(self) -> int:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
@@ -244,9 +245,10 @@ class DelassusColumns:
         in every stored column follow from them: W[i, j] = B_j K^-1 B_i^T = W[j, i]."""
         rows = np.unique(np.asarray(rows, dtype=np.intp))
         B = sp.csr_matrix(B)
-        if _digest(B) == _digest(self.B):  # these rows already (a resumed run's pairing, its log replayed)
+        digest = _digest(B)
+        if digest == self._digest_B:  # these rows already (a resumed run's pairing, its log replayed)
             return
-        self.B = B
+        self.B, self._digest_B = B, digest
         self.Bt = self.B.T.tocsc()
         self._log.append(("rows", rows.copy(), self.B[rows]))
         t0 = time.perf_counter()

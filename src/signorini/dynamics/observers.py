@@ -313,13 +313,13 @@ class EnergyRecorder(Observer):
     def spurious_exceeded(self) -> bool:
         return self.spurious_relative() > SPURIOUS_TOLERANCE
 
-    def spurious_message(self, single_level: int = 0, times: tuple[float, float] | None = None,
+    def spurious_message(self, single_level: int = 0, t_first: float | None = None,
                          duration: float | None = None, dt: float | None = None) -> str:  # fmt: skip
         """The warning of a run whose scheme created more than :data:`SPURIOUS_TOLERANCE` of its
         energy scale: how much, from which level, the contact episodes a single level long, and the fix."""
         where = ""
         if self.spurious_first >= 0:
-            at = f", t = {times[0]:.6g}" if times is not None else ""
+            at = f", t = {t_first:.6g}" if t_first is not None else ""
             where = f"; above {100 * SPURIOUS_TOLERANCE:g}% from level {self.spurious_first}{at} on"
         single = (f"; {single_level} contact episode(s) lasted a single level: the step does not resolve the "
                   "contact") if single_level else ""  # fmt: skip

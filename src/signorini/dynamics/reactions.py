@@ -45,14 +45,15 @@ class Reactions:
         self.G = sp.csr_matrix(
             (np.ones(int(keep.sum())), (rows[keep], np.flatnonzero(keep))), shape=(len(self.tags) * d, D.size)
         )
-        self.D, self.d = D, d
-        self.MD, self.SD = ctx.M[D], ctx.S[D]
+        self.d = d
+        self.rows = (ctx.M[D], ctx.S[D])  # taken once: the reactions are summed at every level
 
     def columns(self) -> list[str]:
         """``reaction_<tag>_<axis>`` for every tag and component, in the order of :meth:`__call__`."""
         return [f"reaction_{tag}_{AXES[c]}" for tag in self.tags for c in range(self.d)]
 
     def __call__(self, ctx, s) -> np.ndarray:
-        """(m, d) the reactions of level ``s`` [force]."""
-        R = self.MD @ s.A + self.SD @ s.U - ctx.load(s.t)[self.D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
-        return (self.G @ R).reshape(len(self.tags), self.d)
+        """(m, d) the reactions of level ``s`` [force] (:func:`~.schemes.base.fixed_reaction`)."""
+        from .schemes.base import fixed_reaction
+
+        return (self.G @ fixed_reaction(ctx, s, self.rows)).reshape(len(self.tags), self.d)

@@ -267,21 +267,24 @@ class Stepper:
         finally:
             self._loop_seconds += time.perf_counter() - t0
 
-    def _report_spurious(self, H: History) -> None:
-        """``summary.json`` ``spurious_energy`` and ``single_level_contacts``, and the warning of a
-        run whose scheme created more than 1% of its energy scale (:class:`~.observers.EnergyRecorder`)."""
+    def _report_energy(self, H: History) -> None:
+        """What the energy recorder found (:class:`~.observers.EnergyRecorder`): the warning of an
+        identity that did not close; ``summary.json`` ``spurious_energy`` and ``single_level_contacts``,
+        and the warning of a run whose scheme created more than 1% of its energy scale."""
         from .diagnostics import contact_duration_estimate, single_level_contacts
 
         e = self.energies
+        if e.exceeded() and self.status != "failed":
+            H.meta["warnings"].append(e.message())
         single = single_level_contacts(H.lam)
         H.meta["single_level_contacts"] = single
         H.meta["spurious_energy"] = {"absolute": e.spurious, "relative": e.spurious_relative(),
                                      "scale": e.energy_scale, "first_level": e.spurious_first}  # fmt: skip
         if e.spurious_exceeded() and self.status != "failed":
             first = e.spurious_first
-            times = (float(H.t[first]), float(H.t[first])) if 0 <= first < H.t.size else None
+            t_first = float(H.t[first]) if 0 <= first < H.t.size else None
             duration = contact_duration_estimate(self.run.ctx.disc.problem)
-            H.meta["warnings"].append(e.spurious_message(single, times, duration, self.run.dt))
+            H.meta["warnings"].append(e.spurious_message(single, t_first, duration, self.run.dt))
 
     def _time_of(self, n: int) -> float:
         """The time of level n on the run's grid (for messages)."""
@@ -509,10 +512,8 @@ class Stepper:
         H.meta["untagged_worst_penetration"] = self.untagged.worst[0]  # the failing level of untagged_contact=fail too
         if self.untagged.exceeded():
             H.meta["warnings"].append(self.untagged.message())
-        if self.energies is not None and self.energies.exceeded() and self.status != "failed":
-            H.meta["warnings"].append(self.energies.message())
         if self.energies is not None:
-            self._report_spurious(H)
+            self._report_energy(H)
         if self.log is not None:
             H.meta["checkpoints"] = self.log.summary()
             if self.log.error:

@@ -181,7 +181,6 @@ class FieldWriter(Observer):
         v[:, :d] = s.V.reshape(-1, d)
         p = np.zeros(mesh.n_nodes)
         p[self._nodes] = -s.lam / self._weights
-        self._lam = s.lam
         vm = von_mises(mesh, self._material, s.U)
         c = self._contact
         traction = np.zeros((mesh.n_nodes, 3))
@@ -190,7 +189,7 @@ class FieldWriter(Observer):
             force = force + np.einsum("ik,ikd->id", s.lam_t, c.tangents)
         traction[self._nodes, :d] = force / self._weights[:, None]
         if self._master_weights is not None:
-            self._add_master_side(p, traction, force)
+            self._add_master_side(p, traction, force, s.lam)
         status = np.full(mesh.n_nodes, -1.0)
         info_status = s.info.status if s.info is not None else None
         status[self._nodes] = info_status if info_status is not None else np.where(s.lam < 0, 2.0, 0.0)
@@ -206,7 +205,7 @@ class FieldWriter(Observer):
         self.times.append(float(s.t))
         self._last = n
 
-    def _add_master_side(self, p: np.ndarray, traction: np.ndarray, force: np.ndarray) -> None:
+    def _add_master_side(self, p: np.ndarray, traction: np.ndarray, force: np.ndarray, lam: np.ndarray) -> None:
         """The pairs' master sides: node j of the master facet a slave row i faces carries
         -N_j(xi_i) f_i (the slave's force f_i = lambda_i nu_i + ..., the reaction), so its pressure
         is sum_i N_j(xi_i) (-lambda_i) / w_j and its traction -sum_i N_j(xi_i) f_i / w_j, with w_j
@@ -217,7 +216,7 @@ class FieldWriter(Observer):
         ok = dofs >= 0
         nodes = self._dofmap.nodes_of(dofs[ok])
         share = c.master_shape[rows][ok]  # N_j(xi_i)
-        lam = np.broadcast_to(self._lam[rows][:, None], dofs.shape)[ok]
+        lam = np.broadcast_to(lam[rows][:, None], dofs.shape)[ok]
         f = np.broadcast_to(force[rows][:, None, :], dofs.shape + (d,))[ok]
         w = self._master_weights[nodes]
         w = np.where(w > 0, w, 1.0)

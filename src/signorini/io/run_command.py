@@ -56,13 +56,6 @@ class RunSpec:
     case_hash: str | None = None
 
 
-#: the arguments of ``signorini run`` a checkpoint keeps to build the run again
-INVOCATION_ARGS = (
-    "target", "scheme", "scheme_option", "mass", "friction", "backend", "solver_option", "n", "dt", "T", "set",
-    "stop_at", "snapshot_every", "checkpoint_every", "max_steps", "max_memory", "yes",
-)  # fmt: skip
-
-
 #: the JSON type of each kept argument: an edited checkpoint's invocation is checked against
 #: it, by name, before anything of it is used
 INVOCATION_TYPES: dict[str, tuple[type, ...]] = {
@@ -71,6 +64,10 @@ INVOCATION_TYPES: dict[str, tuple[type, ...]] = {
     "set": (list,), "stop_at": (str,), "snapshot_every": (int,), "checkpoint_every": (int,), "max_steps": (int,),
     "max_memory": (int, float), "yes": (bool,),
 }  # fmt: skip
+
+
+#: the arguments of ``signorini run`` a checkpoint keeps to build the run again
+INVOCATION_ARGS = tuple(INVOCATION_TYPES)
 
 
 def is_plugin_scheme(name: str | None) -> bool:

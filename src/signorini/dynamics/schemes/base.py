@@ -266,12 +266,24 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
             R = s.extra["R0"].copy()
         if varying:
             R = np.zeros(s.U.size) if R is None else R
-            D = ctx.fixed
-            RD = ctx.M[D] @ s.A + ctx.S[D] @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
-            R[D] = RD
+            R[ctx.fixed] = fixed_reaction(ctx, s)
         return R
 
     return s.product("R", compute)
+
+
+def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndarray:
+    """R_D = (M A + S U - F - B^T lambda - T^T lambda_t)_D (|D|,) [force]: the reactions of the
+    Dirichlet dofs D at level ``s``, computed once per level (the state's products); ``rows``:
+    (M_D, S_D) taken once by a caller that needs them at every level
+    (:class:`~signorini.dynamics.reactions.Reactions`)."""
+
+    def compute():
+        D = ctx.fixed
+        MD, SD = rows if rows is not None else (ctx.M[D], ctx.S[D])
+        return MD @ s.A + SD @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
+
+    return s.product("RD", compute)
 
 
 def load_work(ctx: Context, old: State, new: State, w_new: float) -> float:
