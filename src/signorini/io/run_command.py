@@ -233,11 +233,13 @@ def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float,
     overrides: dict[str, dict] = {}
     if getattr(args, "dt", None) is not None:
         new_dt = check_positive("--dt", args.dt)
-        overrides["dt"] = {"case_file": dt, "command_line": new_dt}
+        if new_dt != dt:  # the file's own value given again is not an override
+            overrides["dt"] = {"case_file": dt, "command_line": new_dt}
         dt = new_dt
     if getattr(args, "T", None) is not None:
         new_T = check_positive("--T", args.T)
-        overrides["T"] = {"case_file": T, "command_line": new_T}
+        if new_T != T:
+            overrides["T"] = {"case_file": T, "command_line": new_T}
         T = new_T
     if overrides and not getattr(args, "resuming", False):  # a resume checks its own grid, from its checkpoint
         if not isinstance(dt, (list, tuple)) and T < dt:
