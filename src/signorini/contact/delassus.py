@@ -57,6 +57,11 @@ class DelassusColumns:
         self.replayed = 0  # columns solved again by :meth:`replay`
         self._origin = _digest(self.B)  # the rows the log starts from (a replay needs the same)
         self._digest_B = self._origin  # the digest of the current B
+        # K^-1 e_k of the dofs k that re-paired rows moved to or from (:meth:`replace_rows`),
+        # stored transposed like Z: a re-paired row's column is updated from them, not solved
+        self._dof_slot = np.full(n, -1, dtype=np.intp)
+        self._Zd = np.empty((0, self._rows()))
+        self.dof_columns = 0  # dof columns solved (counted in ``solved`` too)
 
     def _rows(self) -> int:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
@@ -77,9 +82,13 @@ class DelassusColumns:
         """Whether the Z columns of every computed node are stored."""
         return self._Zt is not None
 
+    #: whether :meth:`replace_rows` updates the stored columns of re-paired rows from cached
+    #: dof columns (False: they are dropped and solved again when asked for)
+    updates_columns = True
+
     @property
     def nbytes(self) -> int:
-        return self._W.nbytes + (self._Zt.nbytes if self._Zt is not None else 0)
+        return self._W.nbytes + (self._Zt.nbytes if self._Zt is not None else 0) + self._Zd.nbytes
 
     def _grow(self, need: int) -> None:
         """Room for ``need`` columns: W grows by doubling (at most nc); Z gets its own
@@ -248,14 +257,18 @@ class DelassusColumns:
         digest = _digest(B)
         if digest == self._digest_B:  # these rows already (a resumed run's pairing, its log replayed)
             return
+        B_before = self.B
         self.B, self._digest_B = B, digest
         self.Bt = self.B.T.tocsc()
         self._log.append(("rows", rows.copy(), self.B[rows]))
         t0 = time.perf_counter()
         if self._Zt is not None:
-            dropped = rows[self.slot[rows] >= 0]
-            self._free.extend(self.slot[dropped].tolist())
-            self.slot[dropped] = -1  # their columns: solved again when asked for
+            kept = rows[self.slot[rows] >= 0]
+            if kept.size and self.updates_columns and self._update_columns(kept, B_before):
+                self._W[:, self.slot[kept]] = _products(self.B, self._Zt, self.slot[kept])
+            elif kept.size:
+                self._free.extend(self.slot[kept].tolist())
+                self.slot[kept] = -1  # their columns: solved again when asked for
             known = np.flatnonzero(self.slot >= 0)
             if known.size:
                 s = self.slot[known]
@@ -279,9 +292,48 @@ class DelassusColumns:
             self._W[J[:, None], self.slot[known][None, :]] = Wj[known].T
         self.seconds += time.perf_counter() - t0
 
+    def _update_columns(self, rows: np.ndarray, B_before: sp.csr_matrix) -> bool:
+        """Z[:, rows] += K^-1 (B - B_before)[rows]^T from the cached columns K^-1 e_k of the
+        dofs k where the rows changed (the master dofs of the facets left and reached, the
+        slave node's when its frame turned), the missing ones solved in blocks of 64 right-hand
+        sides.  Once a slide has visited a master region, its re-pairings cost no solve.
+        False (nothing changed) when the cached dof columns would not fit in the budget."""
+        D = (self.B[rows] - B_before[rows]).tocsr()
+        D.eliminate_zeros()
+        dofs = np.unique(D.indices)
+        new = dofs[self._dof_slot[dofs] < 0]
+        if new.size:
+            need = self.dof_columns + new.size
+            z_max = int(self.budget // (8 * max(self._budget_rows(), 1)))
+            z_max -= self._Zt.shape[0] if self._Zt is not None else 0
+            if need > z_max:
+                return False
+            if need > self._Zd.shape[0]:
+                Zd = np.empty((min(max(need, 2 * self._Zd.shape[0], BLOCK), z_max), self._rows()))
+                Zd[: self.dof_columns] = self._Zd[: self.dof_columns]
+                self._Zd = Zd
+            for k in range(0, new.size, BLOCK):
+                J = new[k : k + BLOCK]
+                E = np.zeros((self.B.shape[1], J.size))
+                E[J, np.arange(J.size)] = 1.0
+                Zj = self._solve_rhs(E)
+                self._Zd[self.dof_columns : self.dof_columns + J.size] = Zj.T
+                self._dof_slot[J] = np.arange(self.dof_columns, self.dof_columns + J.size)
+                self.dof_columns += J.size
+                self.solved += J.size
+        if dofs.size:
+            Dl = sp.csr_matrix((D.data, np.searchsorted(dofs, D.indices), D.indptr), shape=(rows.size, dofs.size))
+            s = self.slot[rows]
+            self._Zt[s] += np.asarray(Dl @ self._Zd[self._dof_slot[dofs]])
+        return True
+
+    def _solve_rhs(self, E: np.ndarray) -> np.ndarray:
+        """K^-1 E for dense right-hand sides E (n, k), the rows this object stores."""
+        return self.factor.solve(E).reshape(self.B.shape[1], -1)
+
     def _row_products(self, rows: np.ndarray, slots: np.ndarray) -> np.ndarray:
         """B[rows] Z[:, slots] from the stored Z (|rows|, |slots|)."""
-        return np.asarray(self.B[rows] @ self._Zt[slots].T)
+        return _products(self.B[rows], self._Zt, slots)
 
     def W(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """W[rows][:, cols] (the columns must be known), shape (len(rows), len(cols))."""
@@ -326,6 +378,16 @@ def _digest(B: sp.csr_matrix) -> bytes:
     for a in (B.indptr.astype(np.int64), B.indices.astype(np.int64), B.data.astype(np.float64)):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.digest()
+
+
+def _products(B: sp.csr_matrix, Zt: np.ndarray, slots: np.ndarray) -> np.ndarray:
+    """B Z[:, slots] with Z stored transposed (Zt, one row per slot), shape (B rows, |slots|):
+    only the columns of Zt that B touches are read (a contact matrix touches a few hundred
+    dofs of n), instead of copying the selected rows of Zt whole."""
+    B = sp.csr_matrix(B)
+    cols, local = np.unique(B.indices, return_inverse=True)
+    Bc = sp.csr_matrix((B.data, local.reshape(-1), B.indptr), shape=(B.shape[0], cols.size))
+    return np.asarray(Bc @ Zt[np.asarray(slots)[:, None], cols[None, :]].T)
 
 
 def _with_rows(B: sp.csr_matrix, rows: np.ndarray, R: sp.csr_matrix) -> sp.csr_matrix:

@@ -19,6 +19,9 @@ class DistributedColumns(DelassusColumns):
         self.Bloc = sp.csr_matrix(B)[:, factor.lo : factor.hi]
         super().__init__(factor, B, budget)  # condense_budget is per rank: the Z rows it stores
 
+    #: the re-paired rows' columns are solved again (a cache of dof columns is not distributed)
+    updates_columns = False
+
     def _rows(self) -> int:
         return self.factor.hi - self.factor.lo
 
