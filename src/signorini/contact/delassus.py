@@ -103,9 +103,10 @@ class DelassusColumns:
             self._W = W
         if self._Zt is None or need <= self._Zt.shape[0]:
             return
-        z_max = int(self.budget // (8 * max(self._budget_rows(), 1)))
+        z_max = int(self.budget // (8 * max(self._budget_rows(), 1))) - self._Zd.shape[0]  # the dof columns' share
         if need > z_max:
             self._Zt = None  # does not fit: keep W only, one more solve per contact step
+            self._Zd, self._dof_slot[:] = np.empty((0, n)), -1  # nor the dof columns (Z's updates)
             return
         Zt = np.empty((min(z_max, max(need, 2 * self._Zt.shape[0], BLOCK), nc), n))
         Zt[: self.count] = self._Zt[: self.count]
