@@ -37,7 +37,7 @@ BASE = (Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text()
 @pytest.mark.parametrize(
     "old, new, message",
     [
-        ("dt = 0.0125", "dtt = 0.0125", "unknown key 'time.dtt'; allowed: T, dt, scheme"),
+        ("dt = 0.0125", "dtt = 0.0125", "unknown key 'time.dtt'; allowed: T, control, dt, dt_min, scheme"),
         ("dt = 0.0125", "dt = -0.0125", "time.dt must be > 0"),
         ("dt = 0.0125", "dt = 0.0", "time.dt must be > 0"),
         ("dt = 0.0125", 'dt = "small"', "'time.dt' must be a number"),

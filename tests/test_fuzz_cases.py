@@ -1016,7 +1016,7 @@ NULLABLE = {"energy_max_relative_drift", "min_gap", "max_lambda", "energy_identi
 # nan in history.csv: energy_increment and impulse at level 0, predicted_increment at level 0 and
 # wherever the scheme has no energy identity (History docstring)
 NAN_COLUMNS = {"predicted_increment"}
-LEVEL0_NAN_COLUMNS = {"energy_increment", "impulse"}  # per-step columns: no step ends at level 0
+LEVEL0_NAN_COLUMNS = {"energy_increment", "impulse", "dt"}  # per-step columns: no step ends at level 0
 RESIDUAL_TOL = 1e-6
 
 
@@ -1102,7 +1102,14 @@ def check_finished(case: Case, o: Outcome, info: str) -> None:
         else:
             assert math.isfinite(v), f"summary.json: {key} = {v}{info}"
     steps = case.meta.get("steps")
-    if case.kind == "valid":
+    if case.kind == "valid" and s["time_control"]["control"] == "energy":  # the default: dt is the largest step
+        tc = s["time_control"]
+        assert s["steps"] >= steps and len(H) == s["steps"] + 1 == tc["steps_accepted"] + 1, f"steps {tc}{info}"
+        if isinstance(case.meta["dt"], (int, float)):
+            k = [math.log2(case.meta["dt"] / float(row["dt"])) for row in H[1:]]
+            assert all(abs(x - round(x)) <= 1e-6 and 0 <= round(x) <= 10 for x in k), f"steps not dt / 2^k{info}"
+        assert math.isclose(float(H[-1]["t"]), case.meta["T"], rel_tol=1e-9, abs_tol=0.0), f"last t != T{info}"
+    elif case.kind == "valid":
         assert s["steps"] == steps and len(H) == steps + 1, f"steps {s['steps']} != {steps}{info}"
         # 1e-9 relative: how far from a multiple of dt a valid T may be (number_of_steps); measured 0
         assert math.isclose(float(H[-1]["t"]), case.meta["T"], rel_tol=1e-9, abs_tol=0.0), f"last t != T{info}"

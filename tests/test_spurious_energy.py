@@ -34,7 +34,7 @@ def _run(tmp_path, capsys, dt, *extra):
     case = tmp_path / f"steel-{dt}.toml"
     case.write_text(STEEL.replace("DT", dt))
     out = tmp_path / f"o-{dt}-{len(extra)}"
-    rc = main(["run", str(case), "--out", str(out), "--quiet", *extra])
+    rc = main(["run", str(case), "--out", str(out), "--quiet", "--dt-control", "fixed", *extra])  # the steps asked for
     return rc, json.loads((out / "summary.json").read_text()), capsys.readouterr().err
 
 

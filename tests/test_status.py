@@ -141,6 +141,7 @@ obstacle = { type = "plane", point = [-1.0], normal = [1.0] }
 [time]
 dt = 0.05
 T = 1.0
+control = "fixed"
 """
     )
     out = tmp_path / "o"
@@ -208,12 +209,16 @@ def test_a_second_sigint_late_in_the_loop_keeps_every_level(tmp_path):
     proc = subprocess.Popen(cmd + ["--snapshot-every", "1000", "--out", str(out)], stderr=subprocess.PIPE, text=True)
     deadline = time.perf_counter() + 60
 
-    def started() -> bool:  # the field writer has written the mesh: the loop runs
-        return any(p.name.startswith(".signorini-new.") and (p / "fields.h5").exists() for p in tmp_path.iterdir())
+    def fields_size() -> int:  # the field writer's file: the mesh at the start, a snapshot per 1000 levels
+        found = [p / "fields.h5" for p in tmp_path.iterdir() if p.name.startswith(".signorini-new.")]
+        return found[0].stat().st_size if found and found[0].exists() else 0
 
-    while not started() and time.perf_counter() < deadline:
+    while not fields_size() and time.perf_counter() < deadline:
         time.sleep(0.05)
-    time.sleep(1.5)
+    first = fields_size()
+    while fields_size() == first and time.perf_counter() < deadline:  # a snapshot of the loop: it runs
+        time.sleep(0.05)
+    time.sleep(0.5)
     proc.send_signal(signal.SIGINT)
     time.sleep(0.05)
     proc.send_signal(signal.SIGINT)

@@ -89,6 +89,26 @@ def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+class AgreedInterrupt(KeyboardInterrupt):
+    """A signal that every rank raises at the same point, after a collective agreed on it: the
+    ranks end together, each normally (no MPI_Abort, whose teardown can lose rank 0's line)."""
+
+
+def _defer(signum, frame) -> None:
+    """Several ranks, from MPI's start to the time loop: a rank may be inside a collective
+    when the signal comes, so none leaves alone; the signal waits for :func:`agree_deferred`."""
+    _signals.DEFERRED.append(int(signum))
+
+
+def agree_deferred(comm: Comm) -> None:
+    """Before the time loop (every rank at the same point, the loop's handlers in place): a
+    signal deferred on any rank during the set-up stops every rank (:class:`AgreedInterrupt`)."""
+    pending = max(_signals.DEFERRED, default=0)
+    del _signals.DEFERRED[:]
+    if comm.size > 1 and comm.max(pending):
+        raise AgreedInterrupt
+
+
 def peak_memory_bytes() -> int:
     """Peak resident memory of this process (``getrusage``, kilobytes on Linux) [bytes]."""
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
@@ -138,18 +158,19 @@ class MPIComm(Comm):
 
     def _start(self) -> None:
         """MPI has started (the first MPIComm, at the same point on every rank): the signals
-        deferred until now stop every rank together, as a KeyboardInterrupt (exit 130,
-        nothing written); later ones raise it at once, as in a serial run."""
+        deferred until now stop every rank together (:class:`AgreedInterrupt`: exit 130,
+        nothing written); later ones stay deferred until the time loop (:func:`agree_deferred`)."""
         deferred = list(_signals.DEFERRED)
-        if deferred:
-            signal.alarm(0)  # MPI has started: the start-up alarm of a deferred signal is off
         got = self.max(max(deferred, default=0))
         if threading.current_thread() is threading.main_thread():
             for s in (signal.SIGINT, signal.SIGTERM):
                 if signal.getsignal(s) in _signals.STARTUP_HANDLERS:
-                    signal.signal(s, _interrupt)
-        if got or len(_signals.DEFERRED) > len(deferred):  # one during the agreement
-            raise KeyboardInterrupt
+                    signal.signal(s, _defer if self.size > 1 else _interrupt)
+        if _signals.DEFERRED:  # one before or during the agreement set the start-up alarm
+            signal.alarm(0)
+        if got:
+            del _signals.DEFERRED[:]
+            raise AgreedInterrupt
 
     def any(self, flag: bool) -> bool:
         return bool(self.comm.allreduce(bool(flag), op=self.MPI.LOR))

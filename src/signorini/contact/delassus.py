@@ -56,6 +56,7 @@ class DelassusColumns:
         self._log: list[tuple[str, np.ndarray, np.ndarray | sp.csr_matrix]] = []
         self.replayed = 0  # columns solved again by :meth:`replay`
         self._origin = _digest(self.B)  # the rows the log starts from (a replay needs the same)
+        self._origin_B = self.B  # those rows (a system made after a re-pairing starts from them on resume)
         self._digest_B = self._origin  # the digest of the current B
         # K^-1 e_k of the dofs k that re-paired rows moved to or from (:meth:`replace_rows`),
         # stored transposed like Z: a re-paired row's column is updated from them, not solved
@@ -159,9 +160,12 @@ class DelassusColumns:
         def cat(items, dtype=np.int64):
             return np.concatenate(items).astype(dtype) if items else np.zeros(0, dtype)
 
+        O = self._origin_B
         out = {"nodes": cat([e[1] for e in solves]), "slots": cat([e[2] for e in solves]),
                "sizes": np.array([e[1].size for e in solves], dtype=np.int64),
-               "origin": np.frombuffer(self._origin, dtype=np.uint8).copy()}  # fmt: skip
+               "origin": np.frombuffer(self._origin, dtype=np.uint8).copy(),
+               "origin_indptr": O.indptr.astype(np.int64), "origin_indices": O.indices.astype(np.int64),
+               "origin_data": O.data.astype(np.float64)}  # fmt: skip
         if changes:
             out["kinds"] = np.array([e[0] == "rows" for e in log], dtype=np.int8)
             out["rows"] = cat([e[1] for e in changes])
@@ -180,7 +184,8 @@ class DelassusColumns:
         nodes, slots, sizes = (np.asarray(data[k], dtype=np.intp) for k in ("nodes", "slots", "sizes"))
         origin = data.get("origin")
         if origin is not None and np.asarray(origin, dtype=np.uint8).tobytes() != self._origin:
-            return False
+            if not self._start_from(data, np.asarray(origin, dtype=np.uint8).tobytes()):
+                return False
         nc, n = self.B.shape
         kinds = np.asarray(data.get("kinds", np.zeros(sizes.size, np.int8)), dtype=np.intp)
         rows_all, row_sizes, row_nnz, row_indices, row_data = (
@@ -243,6 +248,26 @@ class DelassusColumns:
             self.replayed += J.size  # not in ``solved``: the run that wrote the log counted them
             self._log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
+        return True
+
+    def _start_from(self, data: dict[str, np.ndarray], origin: bytes) -> bool:
+        """Take the log's starting rows of B (``origin_*``: a system made after a re-pairing, its
+        columns not begun yet) when their digest is the log's; False when they cannot be taken."""
+        if self.count or self._log or not all(f"origin_{k}" in data for k in ("indptr", "indices", "data")):
+            return False
+        nc, n = self.B.shape
+        indptr, indices = (np.asarray(data[f"origin_{k}"], dtype=np.int64) for k in ("indptr", "indices"))
+        values = np.asarray(data["origin_data"], dtype=np.float64)
+        out_of_range = indices.size and (indices.min() < 0 or indices.max() >= n)
+        if indptr.shape != (nc + 1,) or indices.shape != values.shape or indices.ndim != 1 or out_of_range or (
+                not np.all(np.isfinite(values))):  # fmt: skip
+            raise ValueError("the Delassus column log's starting rows are inconsistent")
+        O = sp.csr_matrix((values, indices, indptr), shape=(nc, n))
+        O.check_format(full_check=True)  # a forged log must not reach scipy's C code malformed
+        if _digest(O) != origin:
+            return False
+        self.B, self._origin_B, self.Bt = O, O, O.T.tocsc()
+        self._origin = self._digest_B = origin
         return True
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:

@@ -262,6 +262,55 @@ class Context:
     #: the counters of the solvers released by :meth:`change_dt`
     _retired: dict[str, int] = {}
 
+    def use_step(self, dt: float, t0: float, operators: list[Operator], keep_bytes: float) -> None:
+        """Continue with the step ``dt`` from ``t0`` keeping the factorizations of the steps used
+        before (an adaptive control's ladder dt / 2^k, :mod:`~.step_control`): those of ``dt``
+        are taken back when kept, else ``operators`` are factorized; the steps used least
+        recently are released while the kept factors exceed ``keep_bytes``.  The contact
+        solvers' warm starts (active set, previous multipliers) pass from the systems of the
+        step left to those of ``dt``, position by position, so that a step starts from the
+        last accepted level whatever operator computed it."""
+        dt = float(dt)
+        if dt == self.dt:
+            self.t0 = float(t0)
+            return
+        before = self._systems
+        self._ladder[self.dt] = (self._systems, self._lookup)
+        self._systems, self._lookup = self._ladder.pop(dt, ([], {}))
+        self.dt, self.t0 = dt, float(t0)
+        for op in operators:
+            self.prepare(op)
+        for old, new in zip(before, self._systems, strict=False):
+            for name in getattr(new.solver, "warm_state", ()):
+                a, b = getattr(old.solver, name, None), getattr(new.solver, name)
+                if a is not None and np.shape(a) == np.shape(b):
+                    setattr(new.solver, name, np.array(a, copy=True))
+        kept = sum(sys.solver.factor_bytes for systems, _ in self._ladder.values() for sys in systems)
+        while self._ladder and kept > keep_bytes:  # least recently used first
+            step = next(iter(self._ladder))
+            systems, _ = self._ladder.pop(step)
+            self._retired = dict(self._retired)  # the instance's own (not the class's empty one)
+            for sys in systems:
+                kept -= sys.solver.factor_bytes
+                for k, v in sys.solver.counters.items():
+                    self._retired[k] = self._retired.get(k, 0) + int(v)
+
+    @functools.cached_property
+    def _ladder(self) -> dict[float, tuple[list[_System], dict]]:
+        """The systems of the steps an adaptive control used before, least recently used first."""
+        return {}
+
+    def systems_by_step(self) -> list[tuple[float, _System]]:
+        """(dt, system) of the steps kept by :meth:`use_step`, least recently used first, then
+        the current step's."""
+        kept = self._ladder.items() if "_ladder" in self.__dict__ else []
+        return [(dt, sys) for dt, (systems, _) in kept for sys in systems] + [(self.dt, s) for s in self._systems]
+
+    def _all_systems(self) -> list[_System]:
+        """The systems of the current step, then those kept for other steps."""
+        kept = [sys for systems, _ in self._ladder.values() for sys in systems] if "_ladder" in self.__dict__ else []
+        return self._systems + kept
+
     def load(self, t: float) -> np.ndarray:
         """F(t) (n,), full space [force]."""
         return self.disc.load(t)
@@ -425,7 +474,7 @@ class Context:
         self.BD = BD if BD is not None and BD.nnz else None
         if self.components > 1:
             self._frame_rows()
-        for sys in self._systems:
+        for sys in self._all_systems():  # the kept steps' too: they must use the current pairing
             sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
         self.repaired += int(rows.size)
 
@@ -558,7 +607,7 @@ class Context:
     def counters(self) -> dict[str, int]:
         """Sum of the solvers' counters (factorizations, linear_solves, ...)."""
         out: dict[str, int] = dict(self._retired)
-        for solver in self.solvers:
+        for solver in (sys.solver for sys in self._all_systems()):
             for k, v in solver.counters.items():
                 out[k] = out.get(k, 0) + int(v)
         if self.disc.problem.pairs:

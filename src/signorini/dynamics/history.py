@@ -42,11 +42,15 @@ FRICTION_COLUMNS = ("stick_nodes", "slip_nodes", "friction_dissipation")
 LATER_COLUMNS = ("load_potential",)
 #: the total linear momentum 1^T M V of all bodies per component, after those
 MOMENTUM_COLUMNS = ("momentum_x", "momentum_y", "momentum_z")
+#: after the momentum: the step that ended at each level (nan at level 0; an adaptive control's
+#: levels are not evenly spaced)
+STEP_COLUMNS = ("dt",)
 
 
 def history_columns(dim: int) -> tuple[str, ...]:
-    """The header of ``history.csv`` for a run in ``dim`` space dimensions."""
-    return HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
+    """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
+    return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
+            + STEP_COLUMNS)  # fmt: skip
 
 
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
@@ -202,6 +206,7 @@ class History:
             "load_potential": _or_nan(self.load_potential, self.t.size),
             **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
+            "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
             **self._reaction_columns(),
         }  # fmt: skip
 

@@ -31,6 +31,7 @@ from ..errors import ConvergenceError, InputError, NonFiniteError
 from .context import Context
 from .history import empty_series
 from .schemes import Scheme, State
+from .schemes.base import EnergyParts
 
 
 @dataclass
@@ -129,6 +130,11 @@ class HistoryRecorder(Observer):
             S["fallbacks"][n] = s.info.fallback
             S["residual"][n] = s.info.residual
 
+    def grow(self, size: int) -> None:
+        """Room for levels 0 .. size - 1 (an adaptive run's levels are not known in advance)."""
+        self.series = _grown({**self.series, "_times": self.times}, size)
+        self.times = self.series.pop("_times")
+
     def record(self, run: Run, n: int, state: State) -> None:
         self._put(run, n, state)
         self.series["impulse"][n] = float(np.sum(run.scheme.impulse(run.ctx, self._prev, state)))
@@ -138,6 +144,21 @@ class HistoryRecorder(Observer):
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
         self.times = self.times[: n_last + 1]
         self._prev = None
+
+
+def _grown(series: dict[str, np.ndarray], size: int) -> dict[str, np.ndarray]:
+    """The arrays of ``series`` with room for ``size`` levels (new levels: nan, or 0 for
+    integers), the levels recorded kept."""
+    out = {}
+    for k, v in series.items():
+        if v.shape[0] >= size:
+            out[k] = v
+            continue
+        fill = np.nan if np.issubdtype(v.dtype, np.floating) else 0
+        a = np.full((size,) + v.shape[1:], fill, dtype=v.dtype)
+        a[: v.shape[0]] = v
+        out[k] = a
+    return out
 
 
 def _restore_series(series: dict[str, np.ndarray], data: dict[str, Any], n: int, what: str) -> None:
@@ -244,9 +265,11 @@ class EnergyRecorder(Observer):
         S["load_potential"][n] = run.scheme.load_potential(run.ctx, state)
         S["elastic_energy"][n] = potential - S["load_potential"][n]
 
-    def record(self, run: Run, n: int, state: State) -> None:
+    def step_parts(self, run: Run, n: int, state: State) -> EnergyParts | None:
+        """The parts of the energy identity of the step from the last recorded level to
+        ``state`` (level n), without recording it (the adaptive control judges a step with
+        them, :mod:`~.step_control`)."""
         S = self.series
-        self._put(run, n, state)
         parts = run.scheme.energy_increment(run.ctx, self._prev, state)
         if parts is not None and getattr(self, "_dt", run.ctx.dt) != run.ctx.dt:
             # the step changed before this step (a dt schedule, a resume with another dt): a
@@ -256,6 +279,30 @@ class EnergyRecorder(Observer):
             kinetic, potential = _finite_energy(run.scheme.energy(run.ctx, self._prev), n - 1)
             recorded = S["kinetic_energy"][n - 1] + S["elastic_energy"][n - 1] + S["load_potential"][n - 1]
             parts.numerical += kinetic + potential - recorded
+        return parts
+
+    def indicator(self, run: Run, n: int, state: State) -> tuple[float, float]:
+        """(delta, E_scale) of the step to ``state`` for the adaptive control: the energy that no
+        physical work explains (the contact work when the obstacle is fixed, the numerical
+        part: :mod:`~.step_control`) and the run's energy scale with this level's kinetic energy."""
+        parts = self.step_parts(run, n, state)
+        kinetic, _ = _finite_energy(run.scheme.energy(run.ctx, state), n)
+        scale = max(self.energy_scale, kinetic)
+        if parts is None:
+            return 0.0, scale
+        numerical = parts.numerical if run.scheme.conserving else max(parts.numerical, 0.0)
+        contact = 0.0 if self.obstacle_moves else parts.contact
+        external = abs(float(self.series["external"][n - 1] + parts.external))
+        return contact + numerical, max(scale, external)
+
+    def grow(self, size: int) -> None:
+        """Room for levels 0 .. size - 1 (an adaptive run's levels are not known in advance)."""
+        self.series = _grown(self.series, size)
+
+    def record(self, run: Run, n: int, state: State) -> None:
+        S = self.series
+        self._put(run, n, state)
+        parts = self.step_parts(run, n, state)
         self._dt = run.ctx.dt
         if parts is not None:
             S["predicted_increment"][n] = parts.total
@@ -327,6 +374,7 @@ class EnergyRecorder(Observer):
         if duration is not None and dt is not None:
             fix = (f"a time step well below the contact duration (about {duration:.3g} s for this body: 2 x its size "
                    f"along the obstacle's normal / its wave speed; dt = {dt:.3g} s)")  # fmt: skip
+        fix = f'the energy control ([time] control = "energy", --dt-control energy) or {fix}'
         return (
             f"the scheme created {self.spurious:.4g} of energy, {100 * self.spurious_relative():.3g}% of the run's "
             f"energy scale {self.energy_scale:.4g}{where} (work that a fixed obstacle and the contact between bodies "
@@ -429,6 +477,10 @@ class CentreOfMassRecorder(Observer):
         self.position = np.full(run.n_steps + 1, np.nan)
         self.velocity = np.full(run.n_steps + 1, np.nan)
         self._put(0, run.initial)
+
+    def grow(self, size: int) -> None:
+        grown = _grown({"position": self.position, "velocity": self.velocity}, size)
+        self.position, self.velocity = grown["position"], grown["velocity"]
 
     def _put(self, n: int, s: State) -> None:
         self.position[n] = self.weights @ s.U

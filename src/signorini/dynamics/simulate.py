@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from ..linalg.threads import blas_threads
+from ..parallel import agree_deferred
 from ..signals import handled, interrupts_must_raise
 from .history import History
 from .mass import DEFAULT_MASS
@@ -60,14 +61,17 @@ class _Interrupts:
         self.signal_name = signal.Signals(signum).name
         self.signum = int(signum)
 
-    def agree(self, comm) -> None:
-        """On several ranks: every rank stops when a signal reached any of them (one
-        reduction per step), with the name of the highest signal number received."""
+    def agree(self, comm) -> str | None:
+        """The signal to stop for (None: go on).  On several ranks: every rank stops when a
+        signal reached any of them (one reduction per step), with the name of the highest
+        signal number received; the decision is the reduction's, never this rank's flag (its
+        handler may set it after the reduction: this rank alone would stop, the others wait)."""
         if comm.size == 1:
-            return
+            return self.signal_name
         signum = comm.max(self.signum)
         if signum and not self.signum:
             self.signum, self.signal_name = signum, signal.Signals(signum).name
+        return signal.Signals(signum).name if signum else None
 
 
 @contextmanager
@@ -100,6 +104,7 @@ def simulate(
     case_hash: str | None = None,
     resume: str | Path | None = None,
     on_checkpoint: Callable[[dict], None] | None = None,
+    control: str | Mapping[str, Any] | None = None,
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
 
@@ -133,6 +138,11 @@ def simulate(
     resume : a checkpoint to continue from: the same problem, scheme, mass and dt (checked;
         a mismatch is an InputError naming what differs); the History holds every level
         from t = 0, ``meta['resumed_from']`` says where it resumed.
+    control : the time-step control (:mod:`~.step_control`): ``"fixed"`` (None, the default
+        here: the steps asked for) or ``"energy"`` (dt as the largest step; steps rejected and
+        halved where the energy identity shows energy no physical work explains, down to
+        dt_min), or ``{"control": "energy", "tolerance": 1e-3, "dt_min": ..., "grow_after": 4}``;
+        ``meta['time_control']`` says what ran.
 
     Returns
     -------
@@ -142,17 +152,23 @@ def simulate(
                       scheme_options=scheme_options, solver_options=solver_options, observers=observers,
                       energy=energy, events=events, checkpoint=checkpoint, checkpoint_every=checkpoint_every,
                       checkpoint_meta=checkpoint_meta, case_hash=case_hash, resume=resume,
-                      on_checkpoint=on_checkpoint)  # fmt: skip
+                      on_checkpoint=on_checkpoint, control=control)  # fmt: skip
     comm = stepper.run.ctx.comm
     with _catch_signals(handle_signals) as interrupts:
         interrupts.abort_on_second = comm.size == 1
         try:
+            agree_deferred(comm)  # several ranks: a signal of the set-up stops every rank here
+        except KeyboardInterrupt:
+            stepper.status = "interrupted"
+            stepper._close_observers()
+            raise
+        try:
             with blas_threads(stepper._threads):
                 stepper._in_loop = True
                 while stepper.status == "running":
-                    interrupts.agree(comm)
-                    if interrupts.signal_name:
-                        stepper.interrupt(f"{interrupts.signal_name} after step {stepper.n} of {stepper.n_steps}")
+                    name = interrupts.agree(comm)
+                    if name:
+                        stepper.interrupt(f"{name} after step {stepper.n} of {stepper.n_steps}")
                         break
                     try:
                         interrupts.in_step = True
@@ -164,10 +180,10 @@ def simulate(
         finally:
             stepper._in_loop = False
             H = stepper.finish()  # observers closed on every exit
-        interrupts.agree(comm)
-        if interrupts.signal_name and H.status == "finished":  # after the last step: every step kept
+        name = interrupts.agree(comm)
+        if name and H.status == "finished":  # after the last step: every step kept
             H.status = "interrupted"
-            H.message = f"{interrupts.signal_name} after the time loop (all {stepper.n} steps kept)"
+            H.message = f"{name} after the time loop (all {stepper.n} steps kept)"
     if H.status == "interrupted" and interrupts_must_raise():  # a study of many runs: not a truncated one
         raise KeyboardInterrupt(H.message)
     return H

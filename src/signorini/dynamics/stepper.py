@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConvergenceError, InputError
+from ..linalg import total_memory
 from ..linalg.threads import blas_threads
 from . import checkpoint as ckpt
 from .events import StopRun, events_list
@@ -50,6 +51,7 @@ from .setup import (
     run_options,
     set_up,
 )
+from .step_control import EnergyControl, control_spec
 from .time_grid import TimeGrid
 from .untagged import UntaggedContact
 
@@ -107,6 +109,7 @@ class Stepper:
         case_hash: str | None = None,
         resume: str | Path | None = None,
         on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
+        control: str | Mapping[str, Any] | None = None,
     ) -> None:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
@@ -118,8 +121,11 @@ class Stepper:
         if checkpoint_every and checkpoint is None:
             raise InputError("checkpoint_every needs a checkpoint path (checkpoint=...)")
         saved = ckpt.read(Path(resume)) if resume is not None else None  # a bad file: refused before the set-up
+        control_name, control_options = control_spec(control)
         if saved is None:
             grid = TimeGrid.build(dt, T)
+        elif control_name == "energy" and "time_control" in saved["attrs"]:
+            grid = adaptive_grid(dt, T, saved["attrs"], str(resume))
         else:
             a = saved["attrs"]
             grid = TimeGrid.build(dt, T, int(a["level"]), float(a["t"]), a.get("segment"))
@@ -128,6 +134,19 @@ class Stepper:
                                  f"this run's T = {grid.T:.10g}; give a later T")  # fmt: skip
         self.grid = grid
         sch = make_scheme(scheme, scheme_options)
+        self.control: EnergyControl | None = None
+        if control_name == "energy":
+            if not getattr(sch, "variable_step", True):
+                raise InputError(f"control 'energy' needs a scheme that can change its step; scheme {sch.name} "
+                                 f"cannot ({sch.variable_step_refusal}): use control 'fixed'")  # fmt: skip
+            if not energy:
+                raise InputError("control 'energy' judges each step by the energy identity: it needs energy=True")
+            self.control = EnergyControl(**control_options)
+            smallest = min(piece[2] for piece in grid.plan)
+            self.control.dt_min_used = self.control.dt_min or smallest / 2 ** self.control.k_max(smallest)
+            if self.control.dt_min > min(seg.dt for seg in grid.segments):
+                raise InputError(f"control 'energy': dt_min = {self.control.dt_min:g} is above the step "
+                                 f"{min(seg.dt for seg in grid.segments):g}; give dt_min <= dt")  # fmt: skip
         steps = {s.dt for s in grid.segments} | ({float(saved["attrs"]["dt"])} if saved is not None else set())
         if len(steps) > 1 and not getattr(sch, "variable_step", True):
             raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
@@ -157,7 +176,6 @@ class Stepper:
             self.watch = EventWatch(events)
             obs.append(self.watch)  # last: the level is recorded before a terminal event ends the run
         self.observers = obs
-        self.n_steps = run.n_steps
         self.n, self.state = 0, run.initial
         self._first = 0  # the level the loop starts from (a resumed run: the checkpoint's)
         self.status, self.message = "running", ""
@@ -168,6 +186,10 @@ class Stepper:
         self._meta = dict(checkpoint_meta or {})
         self.log = ckpt.CheckpointLog(checkpoint_every, checkpoint) if checkpoint is not None else None
         self._identity = ckpt.identity(run, case_hash)
+        self._capacity = run.n_steps + 1  # levels the observers have room for
+        #: factor bytes an adaptive control keeps for the steps it left (a quarter of the budget)
+        self._ladder_bytes = 0.25 * float(run.ctx.solver_options.get("memory_budget") or total_memory())
+        self._verdict: tuple = ()
         self._loop_seconds = 0.0
         self._threads = run.ctx.solver_options.get("loop_blas_threads", 1)
         self._in_loop = False
@@ -194,6 +216,11 @@ class Stepper:
             self.status = "finished"
 
     # -- where the run is ------------------------------------------------------------
+    @property
+    def n_steps(self) -> int:
+        """The index of the last level (an adaptive control's grid changes it as it refines)."""
+        return self.grid.n_steps
+
     @property
     def t(self) -> float:
         return float(self.state.t)
@@ -233,22 +260,120 @@ class Stepper:
         with blas_threads(self._threads):
             return self._step()
 
+    def _trial(self, n: int) -> tuple[State | None, str]:
+        """Level n computed from the current one: (state, "") or (None, why it failed)."""
+        try:
+            new = self._advance(n)
+        except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
+            return None, f"step {n} (t = {self._time_of(n):.6g}): {exc}"
+        if not new.is_finite():
+            return None, f"step {n} (t = {self._time_of(n):.6g}): non-finite value in the state"
+        if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
+            return None, (f"step {n} (t = {self._time_of(n):.6g}): the contact solve did not reach complementarity "
+                          f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})")  # fmt: skip
+        return new, ""
+
+    def _controlled(self, n: int) -> tuple[State | None, str]:
+        """Level n under the energy control (:mod:`~.step_control`): a step judged above its
+        allowance, or failed, is rejected (the solvers' warm starts put back) and tried again
+        at half the step, down to dt_min."""
+        ctl, grid, run = self.control, self.grid, self.run
+        comm = run.ctx.comm
+        while True:
+            begin, _, dt_piece = grid.piece(self.t)
+            h = grid.segment(n).dt
+            self._use_segment(n)  # the systems of h first: theirs are the warm starts a rejection puts back
+            saved = self._save_point()
+            new, why = self._trial(n)
+            if comm.any(new is None):  # every rank takes the same decision
+                new, why = None, why or f"step {n} failed on another rank"
+            if new is None:
+                verdict = "reject" if ctl.k < ctl.k_max(dt_piece) else "failed"
+                if verdict == "failed":
+                    return None, why
+                ctl.failed_trials += 1
+            else:
+                delta, scale = self.energies.indicator(run, n, new)
+                verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece)
+                if comm.any(verdict == "reject"):
+                    verdict = "reject"
+            if verdict == "unresolved" and self.energies.check == "fail":  # energy_check=fail: levels kept
+                allowed = ctl.allowed(scale, h, dt_piece)
+                return None, (f"step {n} (t = {self._time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
+                              f"creates or destroys {abs(delta):.3g} of energy, above the control's allowance "
+                              f"{allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
+            if verdict in ("accept", "unresolved"):
+                self._verdict = (verdict, delta, scale, h, dt_piece)
+                return new, ""
+            self._restore_point(saved)
+            if verdict == "retry":  # the test hook: the same step again
+                continue
+            ctl.rejected += 1
+            ctl.k += 1
+            ctl.calm = 0
+            grid.continue_with(self.n, self.t, dt_piece / 2**ctl.k)
+
+    def _after_accepted(self, t0: float) -> None:
+        """The control's count of the level just accepted; the step grows by 2 after
+        ``grow_after`` calm steps when the level is on the grid of the doubled step."""
+        ctl, grid = self.control, self.grid
+        verdict, delta, scale, h, dt_piece = self._verdict
+        ctl.note_accepted(t0, self.t, h, dt_piece, verdict)
+        self._grow_step(delta, scale, h, dt_piece)
+        self.run.n_steps = grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
+
+    def _grow_step(self, delta: float, scale: float, h: float, dt_piece: float) -> None:
+        """The step of the next levels: the piece's own at a piece's start; twice h after
+        ``grow_after`` calm steps with a steady contact force, on the grid of 2h."""
+        ctl, grid = self.control, self.grid
+        if self.n >= grid.n_steps:  # T reached
+            return
+        begin, end, dt_piece_next = grid.piece(self.t)
+        if dt_piece_next != dt_piece or begin >= self.t - 1e-12 * max(abs(self.t), h):  # a new piece: its own dt
+            ctl.k, ctl.calm = 0, 0
+            return
+        calm = ctl.calm_step(delta, self.run.scheme.conserving, scale, h, dt_piece)
+        ctl.calm = ctl.calm + 1 if calm and ctl.steady_force(self._force_before, self.state.lam) else 0
+        if ctl.k == 0 or ctl.calm < ctl.grow_after:
+            return
+        r = (self.t - begin) / (2.0 * h)
+        if abs(r - round(r)) > 1e-6:  # not on the grid of 2h yet
+            return
+        ctl.k -= 1
+        ctl.calm = 0
+        grid.continue_with(self.n, self.t, dt_piece / 2**ctl.k)
+
+    def _save_point(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
+        """What a rejected step must put back: the warm starts of the solvers of the current step
+        (the state, the pairing and the observers change only when a level is accepted; the
+        Delassus columns a rejected step solved stay valid for its operator)."""
+        out = []
+        for sys in self.run.ctx._systems:
+            names = getattr(sys.solver, "warm_state", ())
+            out.append((sys, {name: np.array(getattr(sys.solver, name), copy=True) for name in names}))
+        return out
+
+    @staticmethod
+    def _restore_point(saved: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
+        for sys, arrays in saved:
+            for name, a in arrays.items():
+                setattr(sys.solver, name, a.copy())
+
     def _step(self) -> str:
         run, n = self.run, self.n + 1
         t0 = time.perf_counter()
+        if self.log is not None and self._level_warm is None:  # what a checkpoint of this level holds, if
+            self._level_warm = self._warm_starts()  # this step fails or is interrupted midway
+            self._level_grid = self._grid_attrs()
+        if self.log is not None and self._level_counters is None:  # the counters at this level (before a
+            self._level_counters = self.counters  # step's work): what a checkpoint of it holds
         try:
-            try:
-                new = self._advance(n)
-            except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
-                return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): {exc}")
-            if not new.is_finite():
-                return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): non-finite value in the state")
-            if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
-                return self._stop(
-                    "failed",
-                    f"step {n} (t = {self._time_of(n):.6g}): the contact solve did not reach complementarity "
-                    f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})",
-                )
+            t_before, self._force_before = self.t, self.state.lam
+            new, why = self._trial(n) if self.control is None else self._controlled(n)
+            if new is None:
+                return self._stop("failed", why)
+            if self.control is not None and n + 1 > self._capacity:
+                self._grow_observers(max(2 * self._capacity, self.grid.n_steps + 1))
             try:
                 for o in self.observers:
                     o.record(run, n, new)
@@ -256,8 +381,12 @@ class Stepper:
                 return self._stop("failed", f"step {n} (t = {self._time_of(n):.6g}): {exc}")
             except StopRun as exc:  # a terminal event after this level (the last observer): it is kept
                 self._accept(new, n)  # and re-paired as after any level: a resume continues from there
+                if self.control is not None:
+                    self._after_accepted(t_before)
                 return self._stop("finished", str(exc))
             self._accept(new, n)
+            if self.control is not None:
+                self._after_accepted(t_before)
             self._level_counters = None  # the counters of this level: taken when a checkpoint needs them
             if self.n >= self.n_steps:
                 self.status = "finished"
@@ -266,6 +395,14 @@ class Stepper:
             return self.status
         finally:
             self._loop_seconds += time.perf_counter() - t0
+
+    def _grow_observers(self, size: int) -> None:
+        """Room for ``size`` levels in every observer that keeps per-level arrays (``grow``)."""
+        self.run.n_steps = size - 1
+        for o in self.observers:
+            if hasattr(o, "grow"):
+                o.grow(size)
+        self._capacity = size
 
     def _report_energy(self, H: History) -> None:
         """What the energy recorder found (:class:`~.observers.EnergyRecorder`): the warning of an
@@ -311,22 +448,26 @@ class Stepper:
     def _warm_starts(self) -> list[tuple]:
         """The solvers' warm starts (copies: a few vectors) and the lengths of their Delassus
         logs now, per factorized operator: what a checkpoint of this level holds of them."""
-        systems = self.run.ctx._systems if self.run.ctx.comm.size == 1 else []  # a rank's are its own rows
+        ctx = self.run.ctx
+        # a rank's are its own rows; an adaptive control's kept steps too (least recently used first)
+        systems = (ctx.systems_by_step() if self.control is not None else [(ctx.dt, s) for s in ctx._systems]) if (
+            ctx.comm.size == 1) else []  # fmt: skip
         out = []
-        for sys in systems:  # each factorized operator's solver, in order of creation
+        for dt, sys in systems:  # each factorized operator's solver, in order of creation
             warm = {
                 name: np.array(getattr(sys.solver, name), copy=True) for name in getattr(sys.solver, "warm_state", ())
             }
             delassus = getattr(sys.solver, "delassus", None)
-            out.append((sys, warm, len(delassus._log) if hasattr(delassus, "_log") else None))
+            out.append((sys, warm, len(delassus._log) if hasattr(delassus, "_log") else None, dt))
         return out
 
     @staticmethod
     def _warm_arrays(warm: list[tuple]) -> dict[str, np.ndarray]:
         """``solvers/k/...`` arrays of :meth:`_warm_starts`."""
         out: dict[str, np.ndarray] = {}
-        for k, (sys, arrays, blocks) in enumerate(warm):
+        for k, (sys, arrays, blocks, dt) in enumerate(warm):
             out[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
+            out[f"solvers/{k}/dt"] = np.array(dt)
             out.update({f"solvers/{k}/{name}": a for name, a in arrays.items()})
             log = sys.solver.delassus.history(blocks) if blocks is not None else None
             if log is not None:  # the Delassus columns solved, to solve them again alike on resume
@@ -335,22 +476,26 @@ class Stepper:
 
     def _advance(self, n: int) -> State:
         run = self.run
-        if self.log is not None and self._level_warm is None:  # what a checkpoint of this level holds, if
-            self._level_warm = self._warm_starts()  # this step fails or is interrupted midway
+        self._use_segment(n)
+        if n == 1 and self.starter is not None:
+            return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
+        return run.scheme.step(run.ctx, self.state)
+
+    def _use_segment(self, n: int) -> None:
+        """The step and time origin of level n's segment in the context (a new step factorized)."""
+        run = self.run
         seg = self.grid.segment(n)
         ctx = run.ctx
-        if seg.dt != ctx.dt:  # a new step: its factorization (the old one released)
+        if seg.dt != ctx.dt:  # a new step: its factorization (the old one released, or kept by a control)
             ops = [op for op in (run.scheme.operator(seg.dt),) if op is not None]
-            ctx.change_dt(seg.dt, seg.start, ops)
+            if self.control is not None:
+                ctx.use_step(seg.dt, seg.start, ops, self._ladder_bytes)
+            else:
+                ctx.change_dt(seg.dt, seg.start, ops)
             if ops:
                 run.scheme.check_context(ctx, prepared=True)
         elif seg.start != ctx.t0:
             ctx.t0 = seg.start
-        if self.log is not None and self._level_counters is None:  # the counters at this level (before a
-            self._level_counters = self.counters  # step's work): what a checkpoint of it holds
-        if n == 1 and self.starter is not None:
-            return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
-        return run.scheme.step(run.ctx, self.state)
 
     def _stop(self, status: str, message: str) -> str:
         self.status, self.message = status, message
@@ -362,6 +507,19 @@ class Stepper:
             self._stop("interrupted", message)
 
     # -- checkpoints -----------------------------------------------------------------
+    def _grid_attrs(self) -> dict[str, Any]:
+        """Where the grid goes on from the current level: the segment of the next level and the
+        step of the operators factorized now (a checkpoint's ``segment`` and ``dt``), and an adaptive
+        control's state (``time_control``): taken before a step works, so that a checkpoint of a
+        step interrupted midway (after a rejection) resumes as from the start of the step."""
+        n = self.n
+        if self.control is not None:  # the segment of the next level (a growth or rejection may have changed it)
+            seg = self.grid.segment(n + 1)
+            return {"segment": [seg.start, seg.dt, seg.first], "dt": self.dt, "time_control": self.control.state()}
+        seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
+        segment = [seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n]
+        return {"segment": segment, "dt": self.dt}
+
     def checkpoint_contents(self) -> dict[str, Any]:
         """Everything the next step needs, at the current level (:mod:`~.checkpoint`)."""
         run, n = self.run, self.n
@@ -380,9 +538,9 @@ class Stepper:
                 series.update({f"{key}/{k}": v for k, v in data.pop("series", {}).items()})
                 ckpt._flatten(f"observers/{key}", data, arrays, attrs)
         counters = self._level_counters if self._level_counters is not None else self.counters
-        seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
-        attrs.update(segment=[seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n])
-        attrs.update(level=n, t=float(self.state.t), dt=self.dt,
+        grid_attrs = self._level_grid if self._level_warm is not None else self._grid_attrs()
+        attrs.update(grid_attrs)
+        attrs.update(level=n, t=float(self.state.t),
                      identity=self._identity, counters=counters,
                      n_solvers=sum(1 for k in warm if k.endswith("/operator")), meta=self._meta,
                      scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
@@ -431,10 +589,16 @@ class Stepper:
         self.state = ckpt.restore_state(run, state_arrays, attrs.get("state_flags", {}), t)
         from .context import Operator
 
+        current, restored = run.ctx.dt, {}
         for k in range(int(attrs.get("n_solvers", 0)) if run.ctx.comm.size == 1 else 0):
             op = saved["arrays"].get(f"solvers/{k}/operator")
             if op is None or op.shape != (2,) or not np.all(np.isfinite(op)):
                 raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
+            step = saved["arrays"].get(f"solvers/{k}/dt")
+            if self.control is not None and step is not None:  # a step an adaptive control kept: its own systems
+                if step.shape != () or not np.isfinite(step) or not step > 0:
+                    raise InputError(f"checkpoint {where!r}: solver {k} has no valid step")
+                run.ctx.use_step(float(step), run.ctx.t0, [], self._ladder_bytes)
             sys, _ = run.ctx._system(Operator(float(op[0]), float(op[1])))  # made now if the loop made it
             for name in getattr(sys.solver, "warm_state", ()):
                 a = saved["arrays"].get(f"solvers/{k}/{name}")
@@ -443,6 +607,7 @@ class Stepper:
                     raise InputError(f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
                                      f"has another shape (another backend?)")  # fmt: skip
                 setattr(sys.solver, name, a.astype(old.dtype, copy=True))
+                restored.setdefault(id(sys), {})[name] = getattr(sys.solver, name).copy()
             prefix = f"solvers/{k}/delassus/"
             log = {name[len(prefix) :]: a for name, a in saved["arrays"].items() if name.startswith(prefix)}
             delassus = getattr(sys.solver, "delassus", None)
@@ -451,6 +616,13 @@ class Stepper:
                     delassus.replay(log)
                 except ValueError as exc:
                     raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
+        if self.control is not None:
+            run.ctx.use_step(current, run.ctx.t0, [], self._ladder_bytes)  # back to the checkpoint's step
+            for sys in run.ctx._systems:  # its warm starts, not those use_step passed from the last restored
+                for name, a in restored.get(id(sys), {}).items():
+                    setattr(sys.solver, name, a.copy())
+            if "time_control" in attrs:
+                self.control.restore(dict(attrs["time_control"]))
         run.ctx.restore_pairing(ckpt.unflatten("pairing", saved), t)
         info = attrs.get("series", {})
         series = ckpt.read_series(Path(where), info.get("layout", []), info.get("records", -1), info.get("digest", ""),
@@ -522,12 +694,44 @@ class Stepper:
                                           f"{self.log.error}); {last}")  # fmt: skip
         if self.resumed_from is not None:
             H.meta["resumed_from"] = dict(self.resumed_from)
+        if self.control is not None:
+            H.meta["time_control"] = self.control.summary(int(self.counters.get("factorizations", 0)))
+            if self.control.unresolved and self.status != "failed":
+                H.meta["warnings"].append(self.control.unresolved_message())
+        else:
+            steps = [seg.dt for seg in self.grid.segments]
+            H.meta["time_control"] = {"control": "fixed", "dt_smallest_used": min(steps), "dt_largest_used": max(steps),
+                                      "steps_accepted": self.n - self._first, "steps_rejected": 0}  # fmt: skip
         steps = schedule_of(H.t)
         if len(steps) > 1:
             H.meta["dt_schedule"] = steps
         H.meta["T"] = float(self.grid.T)
         H.status, H.message = self.status, self.message
         return H
+
+
+def adaptive_grid(dt: Any, T: float, attrs: dict[str, Any], where: str) -> TimeGrid:
+    """The grid of an adaptive run resumed from a checkpoint: the plan of ``dt`` (or its
+    schedule) up to T, continued from the checkpoint's level on the segment it was on (its
+    step dt_piece / 2^k and its origin: the levels' times are those of the uninterrupted run)."""
+    grid = TimeGrid.build(dt, T)
+    try:
+        level, t = int(attrs["level"]), float(attrs["t"])
+        start, step, first = (float(attrs["segment"][0]), float(attrs["segment"][1]), int(attrs["segment"][2]))
+    except (KeyError, TypeError, ValueError, IndexError):
+        raise InputError(f"checkpoint {where!r}: its level, time or segment is malformed") from None
+    if not (np.isfinite([t, start, step]).all() and step > 0 and 0 <= first <= level and 0.0 <= start <= t):
+        raise InputError(f"checkpoint {where!r}: its segment {attrs['segment']!r} does not hold level {level}")
+    if t >= grid.T * (1 - 1e-12):
+        raise InputError(f"checkpoint {where!r} is at t = {t:.10g}, at or after this run's T = {grid.T:.10g}; give a "
+                         "later T")  # fmt: skip
+    _, _, dt_piece = grid.piece(t)
+    k = np.log2(dt_piece / step)
+    if not (0 <= round(k) <= 64 and abs(k - round(k)) < 1e-9):
+        raise InputError(f"checkpoint {where!r}: its step {step:g} is not dt / 2^k of this run's dt {dt_piece:g}; "
+                         "resume with the run's own dt")  # fmt: skip
+    grid.continue_with(level, t, step, start=start, first=first)
+    return grid
 
 
 def schedule_of(t: np.ndarray) -> list[dict[str, float]]:

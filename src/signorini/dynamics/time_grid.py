@@ -90,6 +90,44 @@ class TimeGrid:
         last = self.segments[-1]
         self.n_steps = last.last
         self.T = last.end
+        #: the pieces (begin, end, dt) of the steps asked for: an adaptive control
+        #: (:mod:`~.step_control`) takes dt / 2^k inside each, never across its end
+        self.plan = [(s.start, s.end, s.dt) for s in self.segments]
+
+    def piece(self, t: float) -> tuple[float, float, float]:
+        """The (begin, end, dt) of :attr:`plan` whose steps follow time t (the next one when t
+        is at its end)."""
+        for begin, end, dt in self.plan:
+            if t < end - GRID_RTOL * max(abs(end), dt):
+                return begin, end, dt
+        return self.plan[-1]
+
+    def continue_with(self, n: int, t: float, dt: float, start: float | None = None, first: int | None = None) -> None:
+        """From level n (at time t) on, the step ``dt`` up to the end of the plan's piece that
+        follows t, then the plan's own steps (an adaptive control that refines or coarsens;
+        ``start`` and ``first``: the new segment's origin when it continues one begun before
+        level n, so that its levels' times are start + (m - first) dt, without round-off).
+
+        ``dt`` must divide the piece's remaining length (a step dt_piece / 2^k on its dyadic grid)."""
+        begin, end, _ = self.piece(t)
+        start = t if start is None else float(start)
+        first = n if first is None else int(first)
+        kept = []
+        for seg in self.segments:
+            if seg.last <= n:
+                kept.append(seg)
+            elif seg.first < n:
+                kept.append(Segment(seg.start, seg.dt, seg.first, n))
+        m = _steps(end - start, dt, f"the steps of dt = {dt:g} from t = {start:.10g} to {end:.10g}")
+        kept.append(Segment(start, float(dt), first, first + m))
+        level = first + m
+        for b, e, step in self.plan:
+            if b >= end - GRID_RTOL * max(abs(end), step):
+                k = _steps(e - b, step, f"the segment [{b:.10g}, {e:.10g}] of the time steps")
+                kept.append(Segment(b, step, level, level + k))
+                level += k
+        self.segments = kept
+        self.n_steps = kept[-1].last
 
     @property
     def variable(self) -> bool:

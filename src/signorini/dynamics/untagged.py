@@ -121,6 +121,11 @@ class UntaggedContact(Observer):
         self.series = np.zeros(run.n_steps + 1)
         self._put(0, run.initial)
 
+    def grow(self, size: int) -> None:
+        """Room for levels 0 .. size - 1 (an adaptive run's levels are not known in advance)."""
+        if self.series.size < size:
+            self.series = np.concatenate([self.series, np.zeros(size - self.series.size)])
+
     def _put(self, n: int, s: State) -> None:
         if self.nodes.size == 0 and self.pair_watch is None:
             return

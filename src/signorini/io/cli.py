@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from ..errors import ConvergenceError, InputError, is_memory_failure
-from ..parallel import UNSHARED_END, deferring, is_root, launched, mark_unshared
+from ..parallel import UNSHARED_END, AgreedInterrupt, deferring, is_root, launched, mark_unshared
 from .exit_codes import EXIT_CODES, EXIT_ENVIRONMENT
 from .messages import one_line
 from .parser import build_parser
@@ -116,8 +116,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     except InputError as exc:
         _print(f"signorini: error: {one_line(exc)}")
         return 2
-    except KeyboardInterrupt:
-        mark_unshared()  # a Ctrl-C during the set-up reaches each rank inside or outside a collective
+    except KeyboardInterrupt as exc:
+        if not isinstance(exc, AgreedInterrupt):  # an agreed one: every rank is here, none waits
+            mark_unshared()
         _print("signorini: interrupted before the time loop; nothing written")
         return 130
     except ResultConflict as exc:

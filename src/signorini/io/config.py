@@ -90,7 +90,7 @@ from ..registry import FilePath, Motion, RotationTable, Vector
 from .expressions import Expression, _short, check_finite, vector_field
 from .schema import REQUIRED, section_keys
 
-TIME_KEYS = {"scheme", "dt", "T", "stop_at"}
+TIME_KEYS = {"scheme", "dt", "T", "stop_at", "control", "dt_min", "tolerance"}
 SECTIONS = section_keys()  # the fixed keys; [time] and [solver] also take registry-defined ones
 
 
@@ -114,6 +114,8 @@ class Case:
     checkpoint_every: int = 0
     #: the other files the case reads (a mesh file, a surface obstacle), part of its identity
     files: list[Path] = field(default_factory=list)
+    #: the time-step control ([time] control, dt_min, tolerance); None: the key is absent
+    control: dict[str, Any] | None = None
 
 
 def _keys(section: str, table: dict, allowed: set[str]) -> None:
@@ -624,8 +626,27 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     from ..dynamics.events import parse_stop_at
 
     stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
+    control = _control(data["time"], dt)
     return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at,
-                checkpoint_every, files)  # fmt: skip
+                checkpoint_every, files, control)  # fmt: skip
+
+
+def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
+    """[time] control, dt_min and tolerance as ``{"control": ..., options}``; None when none is given."""
+    from ..dynamics.step_control import control_spec
+
+    given = {k: tm[k] for k in ("control", "dt_min", "tolerance") if k in tm}
+    if not given:
+        return None
+    name = given.pop("control", "energy")
+    if name == "fixed" and given:
+        raise InputError(f'\'time.{sorted(given)[0]}\' applies to control = "energy", not "fixed"')
+    name, options = control_spec({"control": name, **given}, "time.control", "time")
+    if "dt_min" in given:
+        smallest = min(s["dt"] for s in dt) if isinstance(dt, list) else dt
+        if not 0.0 < options["dt_min"] <= smallest:
+            raise InputError(f"'time.dt_min' must satisfy 0 < dt_min <= dt = {smallest:g}, got {options['dt_min']!r}")
+    return {"control": name, **{k: v for k, v in options.items() if k in given}}
 
 
 def case_problem(path: str | Path) -> Problem:

@@ -8,6 +8,7 @@ from .. import __version__
 from ..contact.friction import CONTACT_LAWS
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
+from ..dynamics.step_control import TIME_CONTROLS
 from ..linalg import BACKENDS, SOLVER_OPTIONS
 from ..studies.benchmarks import BENCHMARKS
 from .commands import cmd_compare, cmd_reproduce, cmd_study, cmd_template
@@ -24,6 +25,8 @@ EXAMPLES_RUN = """  signorini run bar1d --scheme cn --mass seed --n 40 --T 6 --o
   signorini run bar2d --scheme my_schemes:MyScheme --out out/mine   # ./my_schemes.py (import path)
   signorini run bar2d --scheme path/to/my_schemes.py:MyScheme --out out/mine   # a scheme file
 """
+
+TIME_CONTROL_NAMES = TIME_CONTROLS.names(aliases=False)
 
 
 def add_output_arguments(p, default: str | None, out_help: str, quiet_help: str) -> None:
@@ -158,6 +161,14 @@ def _add_run(sub) -> None:
         default=None,
         help="final time (default 6 in 1D, 1 in 2D/3D; hertz: 1.5 t_c; a case file's [time] T otherwise, which this "
         "overrides: the summary says so)",
+    )
+    both.add_argument(
+        "--dt-control",
+        default=None,
+        choices=TIME_CONTROL_NAMES,
+        help="time-step control: energy (dt is the largest step; steps that create or destroy energy no physical "
+        "work explains are rejected and halved, down to dt/1024: impacts resolved in time; the default for a case "
+        "file) or fixed (the steps asked for; the default for a benchmark); case file: [time] control",
     )
     both.add_argument(
         "--stop-at",

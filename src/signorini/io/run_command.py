@@ -54,6 +54,8 @@ class RunSpec:
     resume: Path | None = None
     #: hash of the case file's text (a resumed case must be the same file)
     case_hash: str | None = None
+    #: the time-step control (:mod:`~signorini.dynamics.step_control`): a name or {"control": ..., options}
+    control: Any = None
 
 
 #: the JSON type of each kept argument: an edited checkpoint's invocation is checked against
@@ -62,7 +64,7 @@ INVOCATION_TYPES: dict[str, tuple[type, ...]] = {
     "target": (str,), "scheme": (str,), "scheme_option": (list,), "mass": (str,), "friction": (str,),
     "backend": (str,), "solver_option": (list,), "n": (int,), "dt": (int, float), "T": (int, float),
     "set": (list,), "stop_at": (str,), "snapshot_every": (int,), "checkpoint_every": (int,), "max_steps": (int,),
-    "max_memory": (int, float), "yes": (bool,),
+    "max_memory": (int, float), "yes": (bool,), "dt_control": (str,),
 }  # fmt: skip
 
 
@@ -218,10 +220,41 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
         raise InputError(f"--snapshot-every must be >= 0, got {args.snapshot_every}")
     scheme = load_scheme(args.scheme or "cn")
     measure = bench.measure(params) if bench.measure is not None else None
+    control = getattr(args, "dt_control", None) or "fixed"  # the paper's benchmarks keep their fixed grids
+    meta["time_control_chosen_by"] = "command line" if getattr(args, "dt_control", None) else "default (a benchmark)"
     return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
                    sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure,
                    events=parse_stop_at(args.stop_at), checkpoint_every=_checkpoint_every(args, 0),
-                   invocation=invocation(args))  # fmt: skip
+                   invocation=invocation(args), control=control)  # fmt: skip
+
+
+def case_control(args: argparse.Namespace, case_control: dict | None, scheme: Any, meta: dict) -> Any:
+    """The control of a case file's run: ``--dt-control``, else the file's ``[time] control``,
+    else ``energy`` (the default of a user's run; docs/schemes.md), which a scheme that cannot
+    change its step (paoli-schatzman) turns into ``fixed``, said in the summary."""
+    from ..dynamics.schemes import SCHEMES
+
+    given = getattr(args, "dt_control", None)
+    if given:
+        meta["time_control_chosen_by"] = "command line"
+        if case_control is not None and case_control.get("control") != given:
+            meta.setdefault("overrides", {})["control"] = {"case_file": case_control.get("control"),
+                                                            "command_line": given}  # fmt: skip
+        if given == "energy" and case_control is not None and case_control.get("control") == "energy":
+            return case_control
+        return given
+    if case_control is not None:
+        meta["time_control_chosen_by"] = "case file"
+        return case_control
+    cls = SCHEMES.get(scheme).obj if isinstance(scheme, str) and scheme in SCHEMES else scheme
+    if not getattr(cls, "variable_step", True):
+        meta["time_control_chosen_by"] = "default"
+        meta["time_control_note"] = (f"control 'energy' (the default for case files) needs a scheme that can "
+                                     f"change its step; {getattr(cls, 'name', cls)} cannot: the steps asked for "
+                                     "were taken ([time] control = \"fixed\" says so in the file)")  # fmt: skip
+        return "fixed"
+    meta["time_control_chosen_by"] = "default"
+    return "energy"
 
 
 def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float, dict]:
@@ -272,10 +305,11 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         meta["overrides"] = overrides
     problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
+    control = case_control(args, case.control, scheme, meta)
     return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits, events=events,
                    checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
-                   case_hash=case_text_hash(Path(args.target), case.files))  # fmt: skip
+                   case_hash=case_text_hash(Path(args.target), case.files), control=control)  # fmt: skip
 
 
 class LazyFieldWriter:
@@ -377,6 +411,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 solver_options=spec.solver_options,
                 observers=observers,
                 events=spec.events,
+                control=spec.control,
                 **_checkpoint_arguments(spec, lambda: rd.create() / "checkpoint.h5"),
                 on_checkpoint=lambda c: rd.checkpointed(killed_summary(spec, c)),
             )
@@ -386,6 +421,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
             return EXIT_CODES["failed"]
         with deferred_signals() as late:  # a signal now would lose every computed step: record it
             H.meta.update(spec.meta)
+            fold_time_control(H.meta)
             H.meta["warnings"] += [o.warning for o in observers if getattr(o, "warning", "")]
             if spec.measure is not None:
                 H.meta.update(spec.measure.summary(H))
@@ -406,6 +442,15 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
     if late_signal:
         print(f"signorini: {late_signal} received after the results were written; nothing lost", file=sys.stderr)
     return EXIT_CODES[H.status]
+
+
+def fold_time_control(meta: dict) -> None:
+    """The run's ``time_control_chosen_by`` and ``time_control_note`` into ``time_control``."""
+    tc = meta.get("time_control")
+    for k in ("chosen_by", "note"):
+        v = meta.pop(f"time_control_{k}", None)
+        if v and isinstance(tc, dict):
+            tc[k] = v
 
 
 def keep_after_write_failure(rd: ResultDirectory, tmp: Path, H, spec: RunSpec, exc: OSError) -> OSError:
@@ -446,7 +491,7 @@ def execute_follower(spec: RunSpec, comm) -> int:
     try:
         H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
                      solver_options=spec.solver_options, observers=observers, events=spec.events,
-                     **_checkpoint_arguments(spec, None))  # fmt: skip
+                     control=spec.control, **_checkpoint_arguments(spec, None))  # fmt: skip
     except ConvergenceError:
         return EXIT_CODES["failed"]
     # the loop's stop is agreed: a signal from now on must not end this rank on its own

@@ -182,6 +182,14 @@ SECTIONS: tuple[Section, ...] = (
             Key("stop_at", "string or list of strings", "none", "",
                 "end the run (status finished) at the first level where an event occurs: first-contact, "
                 "separation, rest[:FRACTION] (summary.json events)"),
+            Key("control", "string", "energy", "",
+                "time-step control: energy (dt is the largest step; a step that creates or destroys energy no "
+                "physical work explains is rejected and halved, down to dt_min; docs/schemes.md) or fixed (the "
+                "steps asked for); a scheme that cannot change its step (paoli-schatzman) runs fixed, and says so"),
+            Key("dt_min", "number > 0", "dt / 1024", "time", "smallest step of control = energy"),
+            Key("tolerance", "number in (0, 1]", "1e-3", "",
+                "control = energy: the energy a contact episode may create or destroy, relative to the run's "
+                "energy scale (summary.json spurious_energy.scale)"),
         ),
         required=True,
         open_keys="the parameters of the chosen scheme",

@@ -180,15 +180,22 @@ def time_lines(s: dict) -> str:
     if over:
         out += (
             "  over the case file: "
-            + ", ".join(f"{k} {v['command_line']:.6g} (the file's {_value(v['case_file'])})" for k, v in over.items())
+            + ", ".join(
+                f"{k} {_value(v['command_line'])} (the file's {_value(v['case_file'])})" for k, v in over.items()
+            )
             + "\n"
         )
     r = s.get("resumed_from")
     if r:
         out += f"  resumed from level {r['level']} (t = {r['t']:.6g}) of {r['checkpoint']}\n"
+    tc = s.get("time_control") or {}
     steps = s.get("dt_schedule")
-    if steps:
+    if tc.get("control") == "energy":
+        out += time_control_line(tc)
+    elif steps:
         out += "  time steps " + ", ".join(f"{x['dt']:.4g} to t = {x['until']:.6g}" for x in steps) + "\n"
+    if tc.get("note"):
+        out += f"  note: {tc['note']}\n"
     c = s.get("checkpoints")
     if c and c.get("written"):
         out += f"  checkpoint of level {c['level']} ({c['written']} written, {c['seconds']:.3g} s)"
@@ -197,8 +204,26 @@ def time_lines(s: dict) -> str:
     return out
 
 
+def time_control_line(tc: dict) -> str:
+    """The energy control's line: the steps used, accepted and rejected, where it refined."""
+    if not tc.get("steps_accepted"):
+        return "  time steps: energy control, no step taken\n"
+    refined = tc.get("refined") or []
+    where = ""
+    if refined:
+        shown = ", ".join(f"[{a:.4g}, {b:.4g}]" for a, b, _ in refined[:3])
+        where = f"; refined over t in {shown}" + (f" and {len(refined) - 3} more" if len(refined) > 3 else "")
+    return (f"  time steps: energy control, {tc['dt_largest_used']:.4g} s largest used, {tc['dt_smallest_used']:.4g} s "
+            f"smallest; {tc['steps_accepted']} accepted, {tc['steps_rejected']} rejected, {tc['factorizations']} "
+            f"factorization(s){where}\n")  # fmt: skip
+
+
 def _value(x) -> str:
-    """A number as %.6g, a step schedule as 'a schedule'."""
+    """A number as %.6g, a name as itself (a control), a step schedule as 'schedule', none as 'none'."""
+    if isinstance(x, str):
+        return x
+    if x is None:
+        return "none"
     return f"{x:.6g}" if isinstance(x, (int, float)) else "schedule"
 
 

@@ -142,6 +142,14 @@ class Scheme:
     variable_step: ClassVar[bool] = True
     variable_step_refusal: ClassVar[str] = ""
 
+    @property
+    def conserving(self) -> bool:
+        """Whether the scheme conserves energy by design, so that its numerical part of the energy
+        identity is an error of either sign (crank-nicolson); False: its losses are intended
+        damping (backward-euler), only a gain is an error (the adaptive control,
+        :mod:`~signorini.dynamics.step_control`, and docs/schemes.md)."""
+        return False
+
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
         self.options = entry.options(options, where=f"scheme {self.name}")

@@ -59,6 +59,11 @@ class GeneralizedAlpha(Newmark):
     )
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (a_f - a_m)^2/4 A.MA"
 
+    @property
+    def conserving(self) -> bool:
+        a_m, a_f = self.alphas()
+        return a_m == a_f  # gamma = 1/2 + a_f - a_m = 1/2: no numerical damping
+
     def check_context(self, ctx, prepared: bool = False) -> None:
         if self.alphas()[1] != 0.0:
             self._refuse_massless_directions(ctx)

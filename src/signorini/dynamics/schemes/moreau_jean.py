@@ -141,5 +141,6 @@ class EnergyConserving(MoreauJean):
     name = "energy-conserving"
     description = "midpoint rule + persistency (Laursen-Chawla): energy exactly conserved through impacts"
     parameters = ()
+    conserving = True  # type: ignore[assignment]
     theta, restitution = 0.5, 1.0
     friction_refusal = "its persistency condition conserves energy and is derived for frictionless contact"

@@ -56,6 +56,10 @@ class Newmark(Scheme):
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
 
+    @property
+    def conserving(self) -> bool:
+        return self.gamma == 0.5  # no numerical damping (any beta >= 1/4)
+
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)

@@ -39,6 +39,10 @@ class Theta(Scheme):
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
 
+    @property
+    def conserving(self) -> bool:
+        return self.theta == 0.5
+
     def step(self, ctx, s: State) -> State:
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)

@@ -40,7 +40,9 @@ def setup_text(result: dict) -> str:
     if given:
         friction += "  Solver: " + ", ".join(f"{k} = {v}" for k, v in sorted(given.items())) + " in every run."
     if result["kind"] != "benchmark":
-        return f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}.{friction}"
+        return (f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}, fixed steps in "
+                f"every run (a comparison is on one grid; `signorini run` takes dt as the largest step of its energy "
+                f"control).{friction}")  # fmt: skip
     levels = ", ".join(str(n) for n in result["levels"])
     return (
         f"Benchmark `{result['target']}`, levels n = {levels} (h = {result['h'][0]:.4g} .. {result['h'][-1]:.4g}, "

@@ -1,0 +1,242 @@
+"""Time-step control: the steps asked for, or steps that resolve each impact (issue 40).
+
+``control = "fixed"`` takes the steps asked for (``dt`` or its schedule) at every level.
+
+``control = "energy"`` takes them as the *largest* steps: inside each piece of the schedule
+(one piece for one ``dt``) the step is dt / 2^k, k = 0 .. k_max, and a step is judged by the
+part of its energy increment that no physical work explains (the energy identity of the
+scheme, :meth:`~signorini.dynamics.schemes.Scheme.energy_increment`):
+
+    delta = W_contact + D_numerical
+
+* ``W_contact``: the work of the contact forces of the step, against a fixed obstacle (it
+  never works on a body: zero for an impact resolved in time) and between the bodies of a
+  contact pair (the relative work, zero as well); left out when the obstacle moves (its work
+  is then physical).
+* ``D_numerical``: the scheme's own part.  For an energy-conserving scheme (crank-nicolson,
+  newmark with gamma = 1/2, theta = 1/2, hht alpha = 0, generalized-alpha rho_inf = 1,
+  energy-conserving, penalty: :attr:`~signorini.dynamics.schemes.Scheme.conserving`) it is
+  the error of the step, of either sign; for a dissipative one (backward-euler, theta > 1/2,
+  hht, generalized-alpha, moreau-jean, contact-stabilized-newmark) its losses are the
+  scheme's intended damping and only a gain counts.
+
+A step whose |delta| (conserving) or delta (dissipative) exceeds
+
+    allowed(h) = tolerance * E_scale * h / dt_piece
+
+is **rejected**: the solvers' warm starts go back to the level before it (the state, the
+pairing and the observers are only changed by an accepted step) and it is tried again at
+h / 2.  E_scale is the run's energy scale (the largest of |E0|, the kinetic energy so far,
+the new level's included, and the loads' work: ``summary.json`` ``spurious_energy.scale``),
+so that the energy a contact episode shorter than dt may create is about ``tolerance *
+E_scale`` (the allowance per step is proportional to the step).  A step that fails (a
+contact solve that does not converge, a non-finite state) is rejected the same way.  After
+``grow_after`` accepted steps with delta below a quarter of the allowance, the step grows
+by 2 when the level is on the grid of 2h (never above the piece's dt, never across its end:
+every level is on the piece's dyadic grid, its time start + j h without accumulated round-off).
+At h = dt_min a step above the allowance is accepted, counted (``unresolved_steps``) and
+warned of; nothing loops.
+
+The factorizations of the steps used are kept (:meth:`~signorini.dynamics.context.Context.use_step`)
+within a share of the memory budget, so that a second impact at the same step factorizes
+nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..registry import Parameter, Registry
+
+#: the largest refinement by default: dt_min = dt / 2^DEFAULT_LEVELS
+DEFAULT_LEVELS = 10
+
+TIME_CONTROLS = Registry("time control")
+TIME_CONTROLS.register("fixed", None, "the steps asked for (dt or its schedule) at every level")
+TIME_CONTROLS.register(
+    "energy",
+    None,
+    "dt (each schedule piece's) as the largest step; a step whose energy indicator (contact work of a fixed "
+    "obstacle or between bodies, and the scheme's numerical part beyond its intended damping) exceeds "
+    "tolerance x E_scale x h / dt is rejected and tried again at h / 2, down to dt_min; the step grows back by 2",
+    parameters=(
+        Parameter(
+            "tolerance",
+            1e-3,
+            "energy a contact episode may create, relative to the energy scale",
+            float,
+            0.0,
+            1.0,
+            open_low=True,
+        ),  # fmt: skip
+        Parameter("dt_min", 0.0, "smallest step [s] (0: dt / 2^10)", float, 0.0),
+        Parameter("grow_after", 4, "accepted calm steps before the step grows by 2", int, 1, 10**6),
+    ),
+)
+
+
+def control_spec(control: Any, key: str = "control", prefix: str = "control") -> tuple[str, dict[str, Any]]:
+    """(name, options) of ``control``: ``"fixed"``, ``"energy"``, or a mapping ``{"control":
+    "energy", "tolerance": ..., "dt_min": ..., "grow_after": ...}``; an InputError naming the
+    key (``key``; its options as ``prefix.option``) and the allowed names and options otherwise."""
+    names = ", ".join(TIME_CONTROLS.names())
+    if control is None:
+        return "fixed", {}
+    if isinstance(control, str):
+        name, options = control, {}
+    elif isinstance(control, dict):
+        options = dict(control)
+        name = options.pop("control", "energy")
+    else:
+        raise InputError(f"'{key}' must be one of {names} (or a table with its options), got {control!r}")
+    if not isinstance(name, str):
+        raise InputError(f"'{key}' must be one of {names}, got {name!r}")
+    try:
+        entry = TIME_CONTROLS.get(name)
+    except InputError:
+        raise InputError(f"unknown {key} {name!r}; allowed: {names}") from None
+    if options and not entry.parameters:
+        raise InputError(f"'{key}' = {entry.name!r} takes no options, got {', '.join(sorted(options))}")
+    return entry.name, entry.options(options, where=prefix)
+
+
+@dataclass
+class EnergyControl:
+    """The adaptive control of ``control = "energy"`` (module docstring): where it is on the
+    ladder, its decisions, and what the summary says of them."""
+
+    tolerance: float = 1e-3
+    dt_min: float = 0.0
+    grow_after: int = 4
+    #: refinement of the current step: h = dt_piece / 2^k
+    k: int = 0
+    #: accepted calm steps since the step last changed
+    calm: int = 0
+    accepted: int = 0
+    rejected: int = 0
+    failed_trials: int = 0
+    unresolved: int = 0
+    first_unresolved_t: float | None = None
+    smallest: float = math.inf
+    largest: float = 0.0
+    #: [t_start, t_end, smallest step] of each stretch where the step was below the piece's dt
+    refined: list[list[float]] = field(default_factory=list)
+    #: relative change of the total contact force over a step below which it is steady
+    force_change: float = 0.01
+    #: the smallest step allowed: dt_min, or the smallest piece's dt / 2^DEFAULT_LEVELS (the Stepper sets it)
+    dt_min_used: float = 0.0
+    #: a test hook: every step is rejected once and tried again at the same step
+    force_reject_once: bool = False
+    _forced: bool = False
+
+    def k_max(self, dt_piece: float) -> int:
+        """The deepest refinement of a piece of step dt_piece: dt_piece / 2^k >= dt_min."""
+        if self.dt_min <= 0.0:
+            return DEFAULT_LEVELS
+        return max(0, int(math.floor(math.log2(dt_piece / self.dt_min) + 1e-9)))
+
+    def allowed(self, scale: float, h: float, dt_piece: float) -> float:
+        """The energy a step may create or destroy beyond its scheme's intent [energy]:
+        tolerance E_scale / 2 (a contact episode resolved in time errs at its onset and at its
+        release, each O(h^2): about tolerance E_scale per episode)."""
+        return 0.5 * self.tolerance * scale
+
+    def judge(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float) -> str:
+        """``accept``, ``reject`` (try h / 2), ``retry`` (the test hook: the same h again) or
+        ``unresolved`` (above the allowance at dt_min: accepted and counted)."""
+        if self.force_reject_once and not self._forced:
+            self._forced = True
+            return "retry"
+        self._forced = False
+        excess = abs(delta) if conserving else delta
+        if excess <= self.allowed(scale, h, dt_piece):
+            return "accept"
+        if self.k >= self.k_max(dt_piece):
+            return "unresolved"
+        return "reject"
+
+    def calm_step(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float) -> bool:
+        excess = abs(delta) if conserving else delta
+        return excess <= 0.25 * self.allowed(scale, h, dt_piece)
+
+    def steady_force(self, before, after) -> bool:
+        """Whether the contact forces are steady over the step (none, or a resting contact):
+        |sum lambda^{n+1} - sum lambda^n| <= force_change max(|sum lambda^n|, |sum lambda^{n+1}|).
+        The step grows only then: inside an impact the force follows the waves of the body and
+        its history must stay resolved (the step that resolved the onset is kept to the release)."""
+        a, b = float(np.sum(before)), float(np.sum(after))
+        return abs(b - a) <= self.force_change * max(abs(a), abs(b))
+
+    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str) -> None:
+        self.accepted += 1
+        self.smallest, self.largest = min(self.smallest, h), max(self.largest, h)
+        if verdict == "unresolved":
+            self.unresolved += 1
+            if self.first_unresolved_t is None:
+                self.first_unresolved_t = t1
+        if h < dt_piece * (1 - 1e-12):
+            if self.refined and abs(self.refined[-1][1] - t0) <= 1e-12 * max(abs(t0), h):
+                self.refined[-1][1] = t1
+                self.refined[-1][2] = min(self.refined[-1][2], h)
+            else:
+                self.refined.append([t0, t1, h])
+
+    def summary(self, factorizations: int) -> dict[str, Any]:
+        """``summary.json`` ``time_control`` of an adaptive run."""
+        return {
+            "control": "energy",
+            "tolerance": self.tolerance,
+            "dt_min": self.dt_min_used,
+            "dt_smallest_used": None if self.accepted == 0 else self.smallest,
+            "dt_largest_used": None if self.accepted == 0 else self.largest,
+            "steps_accepted": self.accepted,
+            "steps_rejected": self.rejected,
+            "failed_trials": self.failed_trials,
+            "unresolved_steps": self.unresolved,
+            "factorizations": factorizations,
+            "refined": [[float(a), float(b), float(h)] for a, b, h in self.refined],
+        }
+
+    def unresolved_message(self) -> str:
+        """The warning of a run whose steps at dt_min still exceeded their allowance."""
+        at = "" if self.first_unresolved_t is None else f", the first at t = {self.first_unresolved_t:.6g}"
+        return (f"the energy control accepted {self.unresolved} step(s) at its smallest step {self.smallest:.3g} s "
+                f"above its tolerance{at}: the impact is not resolved there; give a smaller dt_min "
+                "(or dt)")  # fmt: skip
+
+    def state(self) -> dict[str, Any]:
+        """What a checkpoint keeps of the control (a resume continues on the same ladder)."""
+        return {"k": self.k, "calm": self.calm, "accepted": self.accepted, "rejected": self.rejected,
+                "failed_trials": self.failed_trials, "unresolved": self.unresolved,
+                "first_unresolved_t": -1.0 if self.first_unresolved_t is None else self.first_unresolved_t,
+                "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
+                "refined": [list(map(float, r)) for r in self.refined]}  # fmt: skip
+
+    def restore(self, data: dict[str, Any]) -> None:
+        """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
+        ints = ("k", "calm", "accepted", "rejected", "failed_trials", "unresolved")
+        for key in ints:
+            v = data.get(key)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise InputError(f"checkpoint: time control {key!r} must be a non-negative integer, got {v!r}")
+            setattr(self, key, v)
+        for key in ("first_unresolved_t", "smallest", "largest"):
+            v = data.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"checkpoint: time control {key!r} must be a finite number, got {v!r}")
+        self.first_unresolved_t = None if data["first_unresolved_t"] < 0 else float(data["first_unresolved_t"])
+        self.smallest = math.inf if data["smallest"] < 0 else float(data["smallest"])
+        self.largest = float(data["largest"])
+        refined = data.get("refined", [])
+        if not isinstance(refined, list) or any(
+            not isinstance(r, list) or len(r) != 3 or not all(isinstance(x, (int, float)) for x in r) for r in refined
+        ):
+            raise InputError("checkpoint: time control 'refined' must be a list of [t_start, t_end, dt]")
+        self.refined = [[float(x) for x in r] for r in refined]
+        if self.k > 64:
+            raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond any ladder")
