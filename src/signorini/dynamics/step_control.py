@@ -146,22 +146,24 @@ class EnergyControl:
         release, each O(h^2): about tolerance E_scale per episode)."""
         return 0.5 * self.tolerance * scale
 
-    def judge(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float) -> str:
+    def judge(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float, eta: float = 0.0) -> str:
         """``accept``, ``reject`` (try h / 2), ``retry`` (the test hook: the same h again) or
         ``unresolved`` (above the allowance at dt_min: accepted and counted)."""
         if self.force_reject_once and not self._forced:
             self._forced = True
             return "retry"
         self._forced = False
-        excess = abs(delta) if conserving else delta
+        excess = max(abs(delta) if conserving else delta, eta)
         if excess <= self.allowed(scale, h, dt_piece):
             return "accept"
         if self.k >= self.k_max(dt_piece):
             return "unresolved"
         return "reject"
 
-    def calm_step(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float) -> bool:
-        excess = abs(delta) if conserving else delta
+    def calm_step(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float,
+                  eta: float = 0.0) -> bool:  # fmt: skip
+        """Whether the step was well inside its allowance (a quarter of it), energy and error alike."""
+        excess = max(abs(delta) if conserving else delta, eta)
         return excess <= 0.25 * self.allowed(scale, h, dt_piece)
 
     def steady_force(self, before, after) -> bool:

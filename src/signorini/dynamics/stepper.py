@@ -293,17 +293,17 @@ class Stepper:
                     return None, why
                 ctl.failed_trials += 1
             else:
-                delta, scale = self.energies.indicator(run, n, new)
-                verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece)
+                delta, scale, eta = self.energies.indicator(run, n, new)
+                verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece, eta)
                 if comm.any(verdict == "reject"):
                     verdict = "reject"
             if verdict == "unresolved" and self.energies.check == "fail":  # energy_check=fail: levels kept
                 allowed = ctl.allowed(scale, h, dt_piece)
                 return None, (f"step {n} (t = {self._time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
-                              f"creates or destroys {abs(delta):.3g} of energy, above the control's allowance "
-                              f"{allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
+                              f"creates or destroys {abs(delta):.3g} of energy (its error estimate: {eta:.3g}), above "
+                              f"the allowance {allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
             if verdict in ("accept", "unresolved"):
-                self._verdict = (verdict, delta, scale, h, dt_piece)
+                self._verdict = (verdict, delta, scale, h, dt_piece, eta)
                 return new, ""
             self._restore_point(saved)
             if verdict == "retry":  # the test hook: the same step again
@@ -317,12 +317,12 @@ class Stepper:
         """The control's count of the level just accepted; the step grows by 2 after
         ``grow_after`` calm steps when the level is on the grid of the doubled step."""
         ctl, grid = self.control, self.grid
-        verdict, delta, scale, h, dt_piece = self._verdict
+        verdict, delta, scale, h, dt_piece, eta = self._verdict
         ctl.note_accepted(t0, self.t, h, dt_piece, verdict)
-        self._grow_step(delta, scale, h, dt_piece)
+        self._grow_step(delta, scale, h, dt_piece, eta)
         self.run.n_steps = grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
 
-    def _grow_step(self, delta: float, scale: float, h: float, dt_piece: float) -> None:
+    def _grow_step(self, delta: float, scale: float, h: float, dt_piece: float, eta: float) -> None:
         """The step of the next levels: the piece's own at a piece's start; twice h after
         ``grow_after`` calm steps with a steady contact force, on the grid of 2h."""
         ctl, grid = self.control, self.grid
@@ -332,7 +332,7 @@ class Stepper:
         if dt_piece_next != dt_piece or begin >= self.t - 1e-12 * max(abs(self.t), h):  # a new piece: its own dt
             ctl.k, ctl.calm = 0, 0
             return
-        calm = ctl.calm_step(delta, self.run.scheme.conserving, scale, h, dt_piece)
+        calm = ctl.calm_step(delta, self.run.scheme.conserving, scale, h, dt_piece, eta)
         ctl.calm = ctl.calm + 1 if calm and ctl.steady_force(self._force_before, self.state.lam) else 0
         if ctl.k == 0 or ctl.calm < ctl.grow_after:
             return

@@ -215,6 +215,11 @@ class Scheme:
         starting from U^n)."""
         return state.U + ctx.dt * state.V + (0.5 * ctx.dt * ctx.dt) * state.A
 
+    def local_error(self, ctx: Context, old: State, new: State) -> np.ndarray | None:
+        """An estimate of the step's local error in the displacement (n,), or None when the
+        scheme has none (the energy control then judges the step by its energy alone)."""
+        return None
+
     def energy(self, ctx: Context, state: State) -> tuple[float, float]:
         """(kinetic, potential): 1/2 V.MV and 1/2 U.SU - U.F(t) by default."""
         return mechanical_energy(ctx, state)

@@ -60,6 +60,14 @@ class Newmark(Scheme):
     def conserving(self) -> bool:
         return self.gamma == 0.5  # no numerical damping (any beta >= 1/4)
 
+    def local_error(self, ctx, old: State, new: State) -> np.ndarray:
+        """Zienkiewicz and Xie's estimate (beta - 1/6) dt^2 (A^{n+1} - A^n), computed as
+        (beta - 1/6) / beta (U^{n+1} - U^n - dt V^n - dt^2/2 A^n) (Newmark's own update: that
+        difference is beta dt^2 (A^{n+1} - A^n); on massless dofs, where A = 0, it is the
+        second difference of U)."""
+        beta = float(self.beta)
+        return (beta - 1.0 / 6.0) / beta * (new.U - self.taylor_guess(ctx, old))
+
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
