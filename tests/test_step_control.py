@@ -252,3 +252,18 @@ def test_a_bar_of_nu_0_rebounds_with_its_velocity_reversed_as_mesh_and_tolerance
     assert np.all(rates > 0.5), rates
     overall = np.log2(errors[0] / errors[-1]) / 4
     assert 1.0 <= overall <= 2.0 and errors[-1] <= 3e-3, (overall, errors)
+
+
+def test_a_terminal_event_is_located_within_dt_min(steel):
+    """stop_at first-contact under the control: the step that crosses it is rejected and halved
+    down to dt_min, so the run ends at the first level in contact, at most dt_min after the
+    exact first contact (t = 1 us: the gap 1 um closed at 1 m/s); with fixed steps it ends at
+    the level of dt = 5 us that crosses it."""
+    H = simulate(steel, "cn", 5e-6, 5e-5, control="energy", events="first-contact")
+    tc = H.meta["time_control"]
+    assert H.status == "finished" and "first-contact" in H.message and tc["event_refinements"] > 0
+    assert np.any(H.lam[-1] < 0) and not np.any(H.lam[-2] < 0)
+    assert 0 <= H.t[-1] - 1e-6 <= tc["dt_min"]
+    assert H.t[-1] - H.t[-2] == pytest.approx(tc["dt_min"], rel=1e-6, abs=0)  # times: round-off of start + j h
+    F = simulate(steel, "cn", 5e-6, 5e-5, events="first-contact")
+    assert F.t[-1] == 5e-6

@@ -172,6 +172,20 @@ class EventWatch(Observer):
             if hasattr(e.function, "memory"):
                 e.function.memory[:] = [float(x) for x in mem]
 
+    def would_stop(self, state: State) -> bool:
+        """Whether a terminal event not met yet would end the run at ``state`` (nothing changed:
+        the events' memories are put back), for a step control that locates it."""
+        for k, e in enumerate(self.events):
+            if not e.terminal or self.done[k]:
+                continue
+            memory = list(getattr(e.function, "memory", []))
+            g0, g1 = self.previous[k], float(e.function(state.t, state))
+            if memory:
+                e.function.memory[:] = memory
+            if (g0 * g1 < 0 or (g1 == 0 and g0 != 0)) and (e.direction == 0 or (g1 - g0) * e.direction > 0):
+                return True
+        return False
+
     def record(self, run: Run, n: int, state: State) -> None:
         stop = None
         for k, e in enumerate(self.events):

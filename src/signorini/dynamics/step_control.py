@@ -121,6 +121,8 @@ class EnergyControl:
     rejected: int = 0
     failed_trials: int = 0
     unresolved: int = 0
+    #: steps rejected because a terminal event fell inside them (located within dt_min)
+    event_refinements: int = 0
     first_unresolved_t: float | None = None
     smallest: float = math.inf
     largest: float = 0.0
@@ -200,6 +202,7 @@ class EnergyControl:
             "steps_rejected": self.rejected,
             "failed_trials": self.failed_trials,
             "unresolved_steps": self.unresolved,
+            "event_refinements": self.event_refinements,
             "factorizations": factorizations,
             "refined": [[float(a), float(b), float(h)] for a, b, h in self.refined],
         }
@@ -215,15 +218,16 @@ class EnergyControl:
         """What a checkpoint keeps of the control (a resume continues on the same ladder)."""
         return {"k": self.k, "calm": self.calm, "accepted": self.accepted, "rejected": self.rejected,
                 "failed_trials": self.failed_trials, "unresolved": self.unresolved,
+                "event_refinements": self.event_refinements,
                 "first_unresolved_t": -1.0 if self.first_unresolved_t is None else self.first_unresolved_t,
                 "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
                 "refined": [list(map(float, r)) for r in self.refined]}  # fmt: skip
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
-        ints = ("k", "calm", "accepted", "rejected", "failed_trials", "unresolved")
+        ints = ("k", "calm", "accepted", "rejected", "failed_trials", "unresolved", "event_refinements")
         for key in ints:
-            v = data.get(key)
+            v = data.get(key, 0 if key == "event_refinements" else None)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise InputError(f"checkpoint: time control {key!r} must be a non-negative integer, got {v!r}")
             setattr(self, key, v)

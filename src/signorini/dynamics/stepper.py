@@ -297,6 +297,10 @@ class Stepper:
                 verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece, eta)
                 if comm.any(verdict == "reject"):
                     verdict = "reject"
+            if verdict == "accept" and self.watch is not None and ctl.k < ctl.k_max(dt_piece) and comm.any(
+                    self.watch.would_stop(new)):  # a terminal event inside the step: located within dt_min  # fmt: skip
+                verdict = "reject"
+                ctl.event_refinements += 1
             if verdict == "unresolved" and self.energies.check == "fail":  # energy_check=fail: levels kept
                 allowed = ctl.allowed(scale, h, dt_piece)
                 return None, (f"step {n} (t = {self._time_of(n):.6g}): at the smallest step {h:.3g} s the step still "

@@ -549,7 +549,8 @@ def table_markdown(result: dict) -> str:
     ref = result["reference"]
     lines = [
         f"{result['benchmark']}: {result['scheme']} / {result['mass']} mass, T = {result['T']:g}, "
-        f"dt = {result.get('ratio', 0.5):g} h",
+        f"dt = {result.get('ratio', 0.5):g} h (fixed steps at every level: a convergence study is on its grids, not "
+        "under the energy control of `signorini run`)",
         "",
         f"Reference: {ref['description']}.",
         "",
