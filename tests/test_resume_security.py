@@ -155,7 +155,7 @@ def test_resume_without_T_finishes_the_interrupted_run(tmp_path):
 
 def test_dt_and_T_override_a_case_file_and_the_summary_says_so(tmp_path):
     case = ROOT / "examples" / "bar2d.toml"
-    r = _cli("run", str(case), "--dt", "0.025", "--T", "0.5", "--out", "a", cwd=tmp_path)
+    r = _cli("run", str(case), "--dt", "0.025", "--T", "0.5", "--dt-control", "fixed", "--out", "a", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     s = json.loads((tmp_path / "a/summary.json").read_text())
     assert s["steps"] == 20 and s["dt"] == 0.025 and s["T"] == 0.5

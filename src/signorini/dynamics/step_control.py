@@ -128,6 +128,8 @@ class EnergyControl:
     largest: float = 0.0
     #: [t_start, t_end, smallest step] of each stretch where the step was below the piece's dt
     refined: list[list[float]] = field(default_factory=list)
+    #: [first, last] level of each of those stretches
+    refined_levels: list[list[int]] = field(default_factory=list)
     #: relative change of the total contact force over a step below which it is steady
     force_change: float = 0.01
     #: the smallest step allowed: dt_min, or the smallest piece's dt / 2^DEFAULT_LEVELS (the Stepper sets it)
@@ -176,7 +178,8 @@ class EnergyControl:
         a, b = float(np.sum(before)), float(np.sum(after))
         return abs(b - a) <= self.force_change * max(abs(a), abs(b))
 
-    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str) -> None:
+    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0) -> None:
+        """Count the level n (t0 -> t1, step h) just accepted, and the stretch of refined levels it extends."""
         self.accepted += 1
         self.smallest, self.largest = min(self.smallest, h), max(self.largest, h)
         if verdict == "unresolved":
@@ -187,8 +190,11 @@ class EnergyControl:
             if self.refined and abs(self.refined[-1][1] - t0) <= 1e-12 * max(abs(t0), h):
                 self.refined[-1][1] = t1
                 self.refined[-1][2] = min(self.refined[-1][2], h)
+                if self.refined_levels:
+                    self.refined_levels[-1][1] = n
             else:
                 self.refined.append([t0, t1, h])
+                self.refined_levels.append([n, n])
 
     def summary(self, factorizations: int) -> dict[str, Any]:
         """``summary.json`` ``time_control`` of an adaptive run."""
@@ -205,6 +211,7 @@ class EnergyControl:
             "event_refinements": self.event_refinements,
             "factorizations": factorizations,
             "refined": [[float(a), float(b), float(h)] for a, b, h in self.refined],
+            "refined_levels": [[int(a), int(b)] for a, b in self.refined_levels],
         }
 
     def unresolved_message(self) -> str:
@@ -221,7 +228,8 @@ class EnergyControl:
                 "event_refinements": self.event_refinements,
                 "first_unresolved_t": -1.0 if self.first_unresolved_t is None else self.first_unresolved_t,
                 "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
-                "refined": [list(map(float, r)) for r in self.refined]}  # fmt: skip
+                "refined": [list(map(float, r)) for r in self.refined],
+                "refined_levels": [list(map(int, r)) for r in self.refined_levels]}  # fmt: skip
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
@@ -244,5 +252,12 @@ class EnergyControl:
         ):
             raise InputError("checkpoint: time control 'refined' must be a list of [t_start, t_end, dt]")
         self.refined = [[float(x) for x in r] for r in refined]
+        levels = data.get("refined_levels", [])
+        if not isinstance(levels, list) or any(
+            not isinstance(r, list) or len(r) != 2 or not all(isinstance(x, int) and not isinstance(x, bool) for x in r)
+            for r in levels
+        ):
+            raise InputError("checkpoint: time control 'refined_levels' must be a list of [first, last] levels")
+        self.refined_levels = [[int(x) for x in r] for r in levels]
         if self.k > 64:
             raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond any ladder")

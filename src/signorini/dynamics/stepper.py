@@ -322,7 +322,7 @@ class Stepper:
         ``grow_after`` calm steps when the level is on the grid of the doubled step."""
         ctl, grid = self.control, self.grid
         verdict, delta, scale, h, dt_piece, eta = self._verdict
-        ctl.note_accepted(t0, self.t, h, dt_piece, verdict)
+        ctl.note_accepted(t0, self.t, h, dt_piece, verdict, self.n)
         self._grow_step(delta, scale, h, dt_piece, eta)
         self.run.n_steps = grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
 
