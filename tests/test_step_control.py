@@ -267,3 +267,26 @@ def test_a_terminal_event_is_located_within_dt_min(steel):
     assert H.t[-1] - H.t[-2] == pytest.approx(tc["dt_min"], rel=1e-6, abs=0)  # times: round-off of start + j h
     F = simulate(steel, "cn", 5e-6, 5e-5, events="first-contact")
     assert F.t[-1] == 5e-6
+
+
+@pytest.mark.slow
+def test_a_steel_cube_of_10k_dofs_keeps_its_energy_under_the_default_control(tmp_path, capsys):
+    """The 3D variant through the command line: a steel cube 10 mm (15^3 hexahedra, 12,288 dofs)
+    at 1 m/s onto a rigid plane, dt = 5 us, no control key: every level within 0.1% of E0
+    (measured 0.03%, 210 levels, 8 rejections; CHOLMOD where installed), no warning, no
+    penetration; with --dt-control fixed it gains x2.9 and warns."""
+    case = tmp_path / "cube.toml"
+    case.write_text(STEEL.replace('generator = "rectangle"\ncells = [20, 10]\nsize = [0.02, 0.01]\ncell = "quad"',
+                                  'generator = "box"\ncells = [15, 15, 15]\nsize = [0.01, 0.01, 0.01]')
+                    .replace('tag = "ymin"', 'tag = "zmin"')
+                    .replace("point = [0.0, -1e-6], normal = [0.0, 1.0]",
+                             "point = [0.0, 0.0, -1e-6], normal = [0.0, 0.0, 1.0]")
+                    .replace("velocity = [0.0, -1.0]", "velocity = [0.0, 0.0, -1.0]"))  # fmt: skip
+    assert main(["run", str(case), "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["dofs"] == 12288 and s["time_control"]["control"] == "energy" and s["warnings"] == []
+    assert s["energy_max_relative_drift"] < 1e-3 and s["min_gap"] >= -1e-15
+    assert main(["run", str(case), "--out", str(tmp_path / "b"), "--quiet", "--dt-control", "fixed"]) == 0
+    f = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert f["energy_final"] > 2 * f["energy_initial"] and any("the scheme created" in w for w in f["warnings"])
+    capsys.readouterr()
