@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 
 import numpy as np
+
+from benchmarks import median_step, per_call
 
 
 def level_costs(n: int, steps: int) -> dict:
@@ -34,22 +35,11 @@ def level_costs(n: int, steps: int) -> dict:
     p = b.problem(n, {})
     dt, _ = b.run_times(n, {})
     s = Stepper(p, "cn", dt, steps * dt)
-    times = []
-    while s.status == "running":
-        t0 = time.perf_counter()
-        s.step()
-        times.append(time.perf_counter() - t0)
-    step = float(np.median(times))
-
-    def per_call(f) -> float:
-        t0 = time.perf_counter()
-        for _ in range(200):
-            f()
-        return (time.perf_counter() - t0) / 200
+    step = median_step(s)
 
     run, state = s.run, s.state
-    reactions = per_call(lambda: s.recorder.reactions(run.ctx, state))
-    check = per_call(lambda: s.energies._check(run, s.n, check=False))
+    reactions = per_call(lambda: s.recorder.reactions(run.ctx, state), 200)
+    check = per_call(lambda: s.energies._check(run, s.n, check=False), 200)
     s.finish()
     return {"case": f"bar2d n = {n}", "dofs": int(run.ctx.disc.space.n_dofs), "step_s": step,
             "reactions_over_step": reactions / step, "energy_check_over_step": check / step}  # fmt: skip

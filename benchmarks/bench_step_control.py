@@ -19,10 +19,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import time
 from pathlib import Path
 
 import numpy as np
+
+from benchmarks import median_step, per_call
 
 ROOT = Path(__file__).parents[1]
 
@@ -101,21 +102,9 @@ def overhead(n: int) -> dict:
     p = b.problem(n, {})
     dt, T = b.run_times(n, {})
     s = Stepper(p, "cn", dt, T, control="energy")
-    times = []
-    while s.status == "running" and not (np.any(s.state.lam) and len(times) >= 20):
-        t0 = time.perf_counter()
-        s.step()
-        times.append(time.perf_counter() - t0)
-    step = float(np.median(times))
-
-    def per_call(f) -> float:
-        t0 = time.perf_counter()
-        for _ in range(50):
-            f()
-        return (time.perf_counter() - t0) / 50
-
+    step = median_step(s, lambda s, k: bool(np.any(s.state.lam)) and k >= 20)  # a level in contact
     in_contact = bool(np.any(s.state.lam))
-    cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s._save_point()))
+    cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s._save_point()), 50)
     s.finish()
     return {"case": f"bar3d n = {n}", "dofs": int(s.run.ctx.disc.space.n_dofs), "step_s": step,
             "in_contact": in_contact, "control_over_step": cost / step}  # fmt: skip

@@ -4,30 +4,13 @@ numerical part) is reported in summary.json ``spurious_energy`` and warned about
 the run's energy scale; ``energy_check=fail`` makes it a failure (exit 3, levels kept)."""
 
 import json
+from pathlib import Path
 
 from signorini.io.cli import main
 
 #: a steel block 20 mm x 10 mm falling at 1 m/s onto a rigid plane (SI units): its contact
-#: lasts 2 H / c_p = 3.3 us
-STEEL = """[mesh]
-generator = "rectangle"
-cells = [20, 10]
-size = [0.02, 0.01]
-cell = "quad"
-[material]
-E = 210e9
-nu = 0.3
-rho = 7850.0
-[contact]
-tag = "ymin"
-obstacle = { type = "plane", point = [0.0, -1e-6], normal = [0.0, 1.0] }
-[initial]
-velocity = [0.0, -1.0]
-[time]
-scheme = "crank-nicolson"
-dt = DT
-T = 5e-5
-"""
+#: lasts 2 H / c_p = 3.3 us (examples/steel_block_drop.toml, dt = 5e-6 given here as DT)
+STEEL = (Path(__file__).parents[1] / "examples" / "steel_block_drop.toml").read_text().replace("dt = 5e-6", "dt = DT")
 
 
 def _run(tmp_path, capsys, dt, *extra):

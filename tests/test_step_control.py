@@ -10,6 +10,7 @@ fixed 5 us run ends with 3.09 E0; the controlled one stays within 0.03% of E0 (1
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,25 +21,8 @@ from signorini.errors import InputError
 from signorini.io.cli import main
 from signorini.io.config import load_case
 
-STEEL = """[mesh]
-generator = "rectangle"
-cells = [20, 10]
-size = [0.02, 0.01]
-cell = "quad"
-[material]
-E = 210e9
-nu = 0.3
-rho = 7850.0
-[contact]
-tag = "ymin"
-obstacle = { type = "plane", point = [0.0, -1e-6], normal = [0.0, 1.0] }
-[initial]
-velocity = [0.0, -1.0]
-[time]
-scheme = "crank-nicolson"
-dt = 5e-6
-T = 5e-5
-"""
+#: examples/steel_block_drop.toml: the block, dt = 5e-6, T = 5e-5
+STEEL = (Path(__file__).parents[1] / "examples" / "steel_block_drop.toml").read_text()
 
 
 @pytest.fixture(scope="module")
