@@ -51,7 +51,7 @@ from .setup import (
     run_options,
     set_up,
 )
-from .step_control import EnergyControl, control_spec
+from .step_control import MAX_LEVELS, EnergyControl, control_spec
 from .time_grid import TimeGrid
 from .untagged import UntaggedContact
 
@@ -144,9 +144,13 @@ class Stepper:
             self.control = EnergyControl(**control_options)
             smallest = min(piece[2] for piece in grid.plan)
             self.control.dt_min_used = self.control.dt_min or smallest / 2 ** self.control.k_max(smallest)
-            if self.control.dt_min > min(seg.dt for seg in grid.segments):
+            if self.control.dt_min > smallest:
                 raise InputError(f"control 'energy': dt_min = {self.control.dt_min:g} is above the step "
-                                 f"{min(seg.dt for seg in grid.segments):g}; give dt_min <= dt")  # fmt: skip
+                                 f"{smallest:g}; give dt_min <= dt")  # fmt: skip
+            if 0 < self.control.dt_min < smallest / 2**MAX_LEVELS:
+                raise InputError(f"control 'energy': dt_min = {self.control.dt_min:g} is below dt / 2^{MAX_LEVELS} = "
+                                 f"{smallest / 2**MAX_LEVELS:.4g} (the energy identity is lost to round-off at such "
+                                 "steps); give a larger dt_min")  # fmt: skip
         steps = {s.dt for s in grid.segments} | ({float(saved["attrs"]["dt"])} if saved is not None else set())
         if len(steps) > 1 and not getattr(sch, "variable_step", True):
             raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
@@ -377,7 +381,7 @@ class Stepper:
             if new is None:
                 return self._stop("failed", why)
             if self.control is not None and n + 1 > self._capacity:
-                self._grow_observers(max(2 * self._capacity, self.grid.n_steps + 1))
+                self._grow_observers(2 * self._capacity)  # geometric: not the levels a refined step would take to T
             try:
                 for o in self.observers:
                     o.record(run, n, new)
@@ -425,7 +429,11 @@ class Stepper:
             first = e.spurious_first
             t_first = float(H.t[first]) if 0 <= first < H.t.size else None
             duration = contact_duration_estimate(self.run.ctx.disc.problem)
-            H.meta["warnings"].append(e.spurious_message(single, t_first, duration, self.run.dt))
+            H.meta["warnings"].append(
+                e.spurious_message(
+                    single, t_first, duration, self.run.dt, self.control is not None, self.run.ctx.disc.mass_name
+                )
+            )
 
     def _time_of(self, n: int) -> float:
         """The time of level n on the run's grid (for messages)."""
@@ -519,7 +527,8 @@ class Stepper:
         n = self.n
         if self.control is not None:  # the segment of the next level (a growth or rejection may have changed it)
             seg = self.grid.segment(n + 1)
-            return {"segment": [seg.start, seg.dt, seg.first], "dt": self.dt, "time_control": self.control.state()}
+            state = {**self.control.state(), "plan_dt": self.grid.piece(self.t)[2]}  # the largest step (a resume's dt)
+            return {"segment": [seg.start, seg.dt, seg.first], "dt": self.dt, "time_control": state}
         seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
         segment = [seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n]
         return {"segment": segment, "dt": self.dt}

@@ -642,10 +642,17 @@ def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
     if name == "fixed" and given:
         raise InputError(f'\'time.{sorted(given)[0]}\' applies to control = "energy", not "fixed"')
     name, options = control_spec({"control": name, **given}, "time.control", "time")
+    for key in ("dt_min", "tolerance"):  # numbers in a file (a command line's strings are converted)
+        if key in given and (isinstance(given[key], bool) or not isinstance(given[key], (int, float))):
+            raise InputError(f"'time.{key}' must be a number, got {given[key]!r}")
     if "dt_min" in given:
+        from ..dynamics.step_control import MAX_LEVELS
+
         smallest = min(s["dt"] for s in dt) if isinstance(dt, list) else dt
-        if not 0.0 < options["dt_min"] <= smallest:
-            raise InputError(f"'time.dt_min' must satisfy 0 < dt_min <= dt = {smallest:g}, got {options['dt_min']!r}")
+        low = smallest / 2**MAX_LEVELS
+        if not low <= options["dt_min"] <= smallest:
+            raise InputError(f"'time.dt_min' must satisfy dt / 2^{MAX_LEVELS} = {low:.4g} <= dt_min <= dt = "
+                             f"{smallest:g}, got {options['dt_min']!r}")  # fmt: skip
     return {"control": name, **{k: v for k, v in options.items() if k in given}}
 
 

@@ -228,10 +228,25 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
                    invocation=invocation(args), control=control)  # fmt: skip
 
 
-def case_control(args: argparse.Namespace, case_control: dict | None, scheme: Any, meta: dict) -> Any:
+def _control_name(control: Any) -> str:
+    """The name of a run's control (``fixed`` for None)."""
+    from ..dynamics.step_control import control_spec
+
+    return control_spec(control)[0]
+
+
+#: masses that keep the inertia of the contact nodes: their contact chatters at every step size,
+#: so the default control leaves them at the steps asked for (the energy control, asked for by
+#: name, runs and reports it: docs/schemes.md)
+CONTACT_INERTIA_MASSES = ("standard", "lumped")
+
+
+def case_control(args: argparse.Namespace, case_control: dict | None, scheme: Any, meta: dict,
+                 mass: str = "") -> Any:  # fmt: skip
     """The control of a case file's run: ``--dt-control``, else the file's ``[time] control``,
     else ``energy`` (the default of a user's run; docs/schemes.md), which a scheme that cannot
-    change its step (paoli-schatzman) turns into ``fixed``, said in the summary."""
+    change its step (paoli-schatzman) or a mass with contact inertia (standard, lumped) turns
+    into ``fixed``, said in the summary."""
     from ..dynamics.schemes import SCHEMES
 
     given = getattr(args, "dt_control", None)
@@ -254,6 +269,12 @@ def case_control(args: argparse.Namespace, case_control: dict | None, scheme: An
                                      "were taken ([time] control = \"fixed\" says so in the file)")  # fmt: skip
         return "fixed"
     meta["time_control_chosen_by"] = "default"
+    if mass in CONTACT_INERTIA_MASSES:
+        meta["time_control_note"] = (f"control 'energy' (the default for case files) is not used with the {mass!r} "
+                                     "mass: its contact nodes keep their inertia and its contact chatters at every "
+                                     "step, which halving cannot resolve (docs/schemes.md); the steps asked for were "
+                                     "taken ([time] control = \"energy\" runs it anyway and reports it)")  # fmt: skip
+        return "fixed"
     return "energy"
 
 
@@ -305,7 +326,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         meta["overrides"] = overrides
     problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
-    control = case_control(args, case.control, scheme, meta)
+    control = case_control(args, case.control, scheme, meta, args.mass or case.mass)
     return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits, events=events,
                    checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
@@ -614,7 +635,9 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
 
         spec.dt = check_positive("--dt", args.dt)
     elif not isinstance(spec.dt, (list, tuple)):  # one step: the checkpoint's (a resume --dt goes on with its own)
-        spec.dt = float(meta["dt"])
+        # an adaptive run's: its largest step (the checkpoint's dt is the refined step it was on)
+        plan = meta.get("time_control", {}).get("plan_dt") if isinstance(meta.get("time_control"), dict) else None
+        spec.dt = float(plan) if isinstance(plan, (int, float)) and not isinstance(plan, bool) else float(meta["dt"])
     if not spec.T > t_ckpt:
         if args.T is None:
             raise InputError(f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
@@ -622,7 +645,12 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
         raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {t_ckpt:.10g}")
     from ..dynamics.time_grid import TimeGrid
 
-    grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
+    if "time_control" in meta and _control_name(spec.control) == "energy":  # an adaptive run's grid goes on
+        from ..dynamics.stepper import adaptive_grid
+
+        grid = adaptive_grid(spec.dt, spec.T, meta, str(where))
+    else:
+        grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
     check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
     fields = result / "fields.xdmf"
     if spec.snapshot_every and fields.is_file():  # copied into the new result: readable, or refused now

@@ -43,10 +43,12 @@ class Theta(Scheme):
     def conserving(self) -> bool:
         return self.theta == 0.5
 
-    def local_error(self, ctx, old: State, new: State) -> np.ndarray:
-        """(U^{n+1} - U^n - dt V^n - dt^2/2 A^n) / 3: Zienkiewicz and Xie's estimate of
-        CN (theta = 1/2, where it is dt^2/12 (A^{n+1} - A^n)), used for every theta (for
-        theta > 1/2 it also holds the scheme's O(dt^2) first-order error)."""
+    def local_error(self, ctx, old: State, new: State) -> np.ndarray | None:
+        """theta = 1/2 (CN): (U^{n+1} - U^n - dt V^n - dt^2/2 A^n) / 3, Zienkiewicz and Xie's
+        dt^2/12 (A^{n+1} - A^n).  None for theta > 1/2: its first-order error is the scheme's
+        choice (backward Euler's), not a step to refine (the control judges it by energy)."""
+        if self.theta != 0.5:
+            return None
         return (new.U - self.taylor_guess(ctx, old)) / 3.0
 
     def step(self, ctx, s: State) -> State:
