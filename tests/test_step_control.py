@@ -274,3 +274,17 @@ def test_a_steel_cube_of_10k_dofs_keeps_its_energy_under_the_default_control(tmp
     f = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert f["energy_final"] > 2 * f["energy_initial"] and any("the scheme created" in w for w in f["warnings"])
     capsys.readouterr()
+
+
+def test_signorini_resume_of_an_adaptive_run_to_a_later_t_equals_the_run_to_that_t(tmp_path):
+    """`signorini resume DIR --T 5e-5` of the steel block run to 2e-5 (inside the refined impact)
+    writes the history.csv of the run to 5e-5 byte for byte: the resume takes the run's
+    largest step (not the refined one its checkpoint was on) and the step a growth at the
+    first run's T chose."""
+    case = Path(__file__).parents[1] / "examples" / "steel_block_drop.toml"
+    assert main(["run", str(case), "--T", "2e-5", "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    assert main(["resume", str(tmp_path / "a"), "--T", "5e-5", "--out", str(tmp_path / "b"), "--quiet"]) == 0
+    assert main(["run", str(case), "--out", str(tmp_path / "c"), "--quiet"]) == 0
+    assert (tmp_path / "b" / "history.csv").read_text() == (tmp_path / "c" / "history.csv").read_text()
+    b, c = (json.loads((tmp_path / d / "summary.json").read_text())["time_control"] for d in "bc")
+    assert b["dt_largest_used"] == c["dt_largest_used"] == 5e-6 and b["steps_accepted"] == c["steps_accepted"]

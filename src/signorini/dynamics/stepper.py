@@ -194,6 +194,7 @@ class Stepper:
         #: factor bytes an adaptive control keeps for the steps it left (a quarter of the budget)
         self._ladder_bytes = 0.25 * float(run.ctx.solver_options.get("memory_budget") or total_memory())
         self._verdict: tuple = ()
+        self._next_segment: list | None = None  # an adaptive run's step grown at T (:meth:`_grow_step`)
         self._loop_seconds = 0.0
         self._threads = run.ctx.solver_options.get("loop_blas_threads", 1)
         self._in_loop = False
@@ -334,21 +335,23 @@ class Stepper:
         """The step of the next levels: the piece's own at a piece's start; twice h after
         ``grow_after`` calm steps with a steady contact force, on the grid of 2h."""
         ctl, grid = self.control, self.grid
-        if self.n >= grid.n_steps:  # T reached
-            return
+        at_T = self.n >= grid.n_steps
         begin, end, dt_piece_next = grid.piece(self.t)
-        if dt_piece_next != dt_piece or begin >= self.t - 1e-12 * max(abs(self.t), h):  # a new piece: its own dt
-            ctl.k, ctl.calm = 0, 0
+        if not at_T and (dt_piece_next != dt_piece or begin >= self.t - 1e-12 * max(abs(self.t), h)):  # a new piece
+            ctl.k, ctl.calm = 0, 0  # its own dt
             return
         calm = ctl.calm_step(delta, self.run.scheme.conserving, scale, h, dt_piece, eta)
         ctl.calm = ctl.calm + 1 if calm and ctl.steady_force(self._force_before, self.state.lam) else 0
         if ctl.k == 0 or ctl.calm < ctl.grow_after:
             return
         r = (self.t - begin) / (2.0 * h)
-        if abs(r - round(r)) > 1e-6:  # not on the grid of 2h yet
+        if abs(r - round(r)) > 1e-6 * max(1.0, abs(r)):  # not on the grid of 2h yet
             return
         ctl.k -= 1
         ctl.calm = 0
+        if at_T:  # T reached: the grown step is where a resume to a later T goes on (:meth:`_grid_attrs`)
+            self._next_segment = [float(self.t), dt_piece / 2**ctl.k, self.n]
+            return
         grid.continue_with(self.n, self.t, dt_piece / 2**ctl.k)
 
     def _save_point(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
@@ -526,9 +529,14 @@ class Stepper:
         step interrupted midway (after a rejection) resumes as from the start of the step."""
         n = self.n
         if self.control is not None:  # the segment of the next level (a growth or rejection may have changed it)
-            seg = self.grid.segment(n + 1)
+            if n < self.grid.n_steps:
+                seg = self.grid.segment(n + 1)
+                segment = [seg.start, seg.dt, seg.first]
+            else:  # at T: the segment a resume to a later T goes on with (grown at T, or the last one)
+                seg = self.grid.segment(n)
+                segment = self._next_segment or [seg.start, seg.dt, seg.first]
             state = {**self.control.state(), "plan_dt": self.grid.piece(self.t)[2]}  # the largest step (a resume's dt)
-            return {"segment": [seg.start, seg.dt, seg.first], "dt": self.dt, "time_control": state}
+            return {"segment": segment, "dt": self.dt, "time_control": state}
         seg = self.grid.segment(max(n, self.grid.segments[0].first + 1))
         segment = [seg.start, seg.dt, seg.first] if seg.dt == self.dt else [float(self.state.t), self.dt, n]
         return {"segment": segment, "dt": self.dt}
