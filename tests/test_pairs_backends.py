@@ -234,6 +234,7 @@ velocity = [0.0, "-min(1, max(0, (y - 0.1) * 1e6))"]
 scheme = "cn"
 dt = 0.004
 T = 0.4
+control = "fixed"  # the grid of the runs compared (under the energy control, tests/test_petsc_run.py)
 """
 
 

@@ -168,7 +168,8 @@ def _add_run(sub) -> None:
         choices=TIME_CONTROL_NAMES,
         help="time-step control: energy (dt is the largest step; steps that create or destroy energy no physical "
         "work explains are rejected and halved, down to dt/1024: impacts resolved in time; the default for a case "
-        "file) or fixed (the steps asked for; the default for a benchmark); case file: [time] control",
+        "file, except with a mass that keeps the contact inertia or a scheme that cannot change its step) or fixed "
+        "(the steps asked for; the default for a benchmark); case file: [time] control",
     )
     both.add_argument(
         "--stop-at",
