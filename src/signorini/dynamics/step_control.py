@@ -125,6 +125,10 @@ class EnergyControl:
     rejected: int = 0
     failed_trials: int = 0
     unresolved: int = 0
+    #: [t, excess] of each step accepted at dt_min above its allowance, judged again at the end
+    #: against the run's final energy scale (:meth:`settle`: a run starting from E0 = 0 has no
+    #: scale at its first steps)
+    unresolved_excess: list[list[float]] = field(default_factory=list)
     #: steps rejected because a terminal event fell inside them (located within dt_min)
     event_refinements: int = 0
     first_unresolved_t: float | None = None
@@ -185,12 +189,14 @@ class EnergyControl:
         a, b = float(np.sum(before)), float(np.sum(after))
         return abs(b - a) <= self.force_change * max(abs(a), abs(b))
 
-    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0) -> None:
+    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0,
+                      excess: float = 0.0) -> None:  # fmt: skip
         """Count the level n (t0 -> t1, step h) just accepted, and the stretch of refined levels it extends."""
         self.accepted += 1
         self.smallest, self.largest = min(self.smallest, h), max(self.largest, h)
         if verdict == "unresolved":
             self.unresolved += 1
+            self.unresolved_excess.append([float(t1), float(excess)])
             if self.first_unresolved_t is None:
                 self.first_unresolved_t = t1
         if h < dt_piece * (1 - 1e-12):
@@ -221,6 +227,13 @@ class EnergyControl:
             "refined_levels": [[int(a), int(b)] for a, b in self.refined_levels],
         }
 
+    def settle(self, scale: float) -> None:
+        """The steps accepted at dt_min that exceed the allowance of the run's final energy scale
+        (those judged against the small scale of a run's start may not)."""
+        kept = [r for r in self.unresolved_excess if r[1] > self.allowed(scale, 0.0, 1.0)]
+        self.unresolved = len(kept)
+        self.first_unresolved_t = kept[0][0] if kept else None
+
     def unresolved_message(self) -> str:
         """The warning of a run whose steps at dt_min still exceeded their allowance."""
         at = "" if self.first_unresolved_t is None else f", the first at t = {self.first_unresolved_t:.6g}"
@@ -236,7 +249,8 @@ class EnergyControl:
                 "first_unresolved_t": -1.0 if self.first_unresolved_t is None else self.first_unresolved_t,
                 "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
                 "refined": [list(map(float, r)) for r in self.refined],
-                "refined_levels": [list(map(int, r)) for r in self.refined_levels]}  # fmt: skip
+                "refined_levels": [list(map(int, r)) for r in self.refined_levels],
+                "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess]}  # fmt: skip
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
@@ -269,5 +283,14 @@ class EnergyControl:
         ):
             raise InputError("checkpoint: time control 'refined_levels' must be a list of [first, last] levels")
         self.refined_levels = [[int(x) for x in r] for r in levels]
+        excess = data.get("unresolved_excess", [])
+        if not isinstance(excess, list) or any(
+            not isinstance(r, list)
+            or len(r) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in r)
+            for r in excess
+        ):
+            raise InputError("checkpoint: time control 'unresolved_excess' must be a list of [t, excess]")
+        self.unresolved_excess = [[float(x) for x in r] for r in excess]
         if self.k > MAX_LEVELS:
             raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond the ladder (at most {MAX_LEVELS})")

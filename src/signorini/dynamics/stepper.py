@@ -327,7 +327,8 @@ class Stepper:
         ``grow_after`` calm steps when the level is on the grid of the doubled step."""
         ctl, grid = self.control, self.grid
         verdict, delta, scale, h, dt_piece, eta = self._verdict
-        ctl.note_accepted(t0, self.t, h, dt_piece, verdict, self.n)
+        excess = max(abs(delta) if self.run.scheme.conserving else delta, eta)
+        ctl.note_accepted(t0, self.t, h, dt_piece, verdict, self.n, excess)
         self._grow_step(delta, scale, h, dt_piece, eta)
         self.run.n_steps = grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
 
@@ -716,6 +717,7 @@ class Stepper:
         if self.resumed_from is not None:
             H.meta["resumed_from"] = dict(self.resumed_from)
         if self.control is not None:
+            self.control.settle(self.energies.energy_scale)
             H.meta["time_control"] = self.control.summary(int(self.counters.get("factorizations", 0)))
             if self.control.unresolved and self.status != "failed":
                 H.meta["warnings"].append(self.control.unresolved_message())

@@ -215,6 +215,11 @@ class Scheme:
         starting from U^n)."""
         return state.U + ctx.dt * state.V + (0.5 * ctx.dt * ctx.dt) * state.A
 
+    def contact_energy(self, ctx: Context, state: State) -> float:
+        """Energy stored in the contact law at ``state``, outside E (a penalty's springs) [energy];
+        0 for exact contact.  The energy control counts the contact work net of its change."""
+        return 0.0
+
     def local_error(self, ctx: Context, old: State, new: State) -> np.ndarray | None:
         """An estimate of the step's local error in the displacement (n,), or None when the
         scheme has none (the energy control then judges the step by its energy alone)."""
