@@ -136,9 +136,9 @@ class Stepper:
         sch = make_scheme(scheme, scheme_options)
         self.control: EnergyControl | None = None
         if control_name == "energy":
-            if not getattr(sch, "variable_step", True):
-                raise InputError(f"control 'energy' needs a scheme that can change its step; scheme {sch.name} "
-                                 f"cannot ({sch.variable_step_refusal}): use control 'fixed'")  # fmt: skip
+            why = sch.step_control_refusal() if hasattr(sch, "step_control_refusal") else ""
+            if why:
+                raise InputError(f"control 'energy' cannot run scheme {sch.label}: {why}; use control 'fixed'")
             if not energy:
                 raise InputError("control 'energy' judges each step by the energy identity: it needs energy=True")
             self.control = EnergyControl(**control_options)

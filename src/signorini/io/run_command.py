@@ -242,13 +242,11 @@ CONTACT_INERTIA_MASSES = ("standard", "lumped")
 
 
 def case_control(args: argparse.Namespace, case_control: dict | None, scheme: Any, meta: dict,
-                 mass: str = "") -> Any:  # fmt: skip
+                 mass: str = "", scheme_options: dict | None = None) -> Any:  # fmt: skip
     """The control of a case file's run: ``--dt-control``, else the file's ``[time] control``,
     else ``energy`` (the default of a user's run; docs/schemes.md), which a scheme that cannot
     change its step (paoli-schatzman) or a mass with contact inertia (standard, lumped) turns
     into ``fixed``, said in the summary."""
-    from ..dynamics.schemes import SCHEMES
-
     given = getattr(args, "dt_control", None)
     if given:
         meta["time_control_chosen_by"] = "command line"
@@ -261,12 +259,17 @@ def case_control(args: argparse.Namespace, case_control: dict | None, scheme: An
     if case_control is not None:
         meta["time_control_chosen_by"] = "case file"
         return case_control
-    cls = SCHEMES.get(scheme).obj if isinstance(scheme, str) and scheme in SCHEMES else scheme
-    if not getattr(cls, "variable_step", True):
+    from ..dynamics.schemes import make_scheme
+
+    try:
+        why = make_scheme(scheme, scheme_options).step_control_refusal()
+    except (InputError, TypeError, AttributeError):  # refused later, by name, where the scheme is built
+        why = ""
+    if why:
         meta["time_control_chosen_by"] = "default"
-        meta["time_control_note"] = (f"control 'energy' (the default for case files) needs a scheme that can "
-                                     f"change its step; {getattr(cls, 'name', cls)} cannot: the steps asked for "
-                                     "were taken ([time] control = \"fixed\" says so in the file)")  # fmt: skip
+        meta["time_control_note"] = (f"control 'energy' (the default for case files) cannot run this scheme: {why}; "
+                                     "the steps asked for were taken ([time] control = \"fixed\" says so in the "
+                                     "file)")  # fmt: skip
         return "fixed"
     meta["time_control_chosen_by"] = "default"
     if mass in CONTACT_INERTIA_MASSES:
@@ -326,7 +329,7 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         meta["overrides"] = overrides
     problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
-    control = case_control(args, case.control, scheme, meta, args.mass or case.mass)
+    control = case_control(args, case.control, scheme, meta, args.mass or case.mass, sch)
     return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
                    sch, sol, every, meta, Path(args.target), limits, events=events,
                    checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),

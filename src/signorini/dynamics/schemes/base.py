@@ -215,6 +215,14 @@ class Scheme:
         starting from U^n)."""
         return state.U + ctx.dt * state.V + (0.5 * ctx.dt * ctx.dt) * state.A
 
+    def step_control_refusal(self) -> str:
+        """Why this scheme (with its options) cannot run under the energy control ("" when it can):
+        it cannot change its step, or it is only conditionally stable (a changing step may cross
+        its stability limit)."""
+        if not self.variable_step:
+            return f"it cannot change its step ({self.variable_step_refusal})"
+        return ""
+
     def contact_energy(self, ctx: Context, state: State) -> float:
         """Energy stored in the contact law at ``state``, outside E (a penalty's springs) [energy];
         0 for exact contact.  The energy control counts the contact work net of its change."""

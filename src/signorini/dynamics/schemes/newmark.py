@@ -60,6 +60,14 @@ class Newmark(Scheme):
     def conserving(self) -> bool:
         return self.gamma == 0.5  # no numerical damping (any beta >= 1/4)
 
+    def step_control_refusal(self) -> str:
+        """Newmark is unconditionally stable for 2 beta >= gamma >= 1/2 only; below, a step the
+        control changes may cross its stability limit (beta = 0.01 blew up at level 88)."""
+        if 2.0 * float(self.beta) < float(self.gamma):
+            return (f"it is only conditionally stable with beta = {float(self.beta):g} < gamma / 2 = "
+                    f"{float(self.gamma) / 2:g} (a changing step may cross its stability limit)")  # fmt: skip
+        return super().step_control_refusal()
+
     def local_error(self, ctx, old: State, new: State) -> np.ndarray:
         """Zienkiewicz and Xie's estimate (beta - 1/6) dt^2 (A^{n+1} - A^n), computed as
         (beta - 1/6) / beta (U^{n+1} - U^n - dt V^n - dt^2/2 A^n) (Newmark's own update: that
