@@ -124,14 +124,12 @@ class EnergyControl:
     accepted: int = 0
     rejected: int = 0
     failed_trials: int = 0
-    unresolved: int = 0
     #: [t, excess] of each step accepted at dt_min above its allowance, judged again at the end
     #: against the run's final energy scale (:meth:`settle`: a run starting from E0 = 0 has no
     #: scale at its first steps)
     unresolved_excess: list[list[float]] = field(default_factory=list)
     #: steps rejected because a terminal event fell inside them (located within dt_min)
     event_refinements: int = 0
-    first_unresolved_t: float | None = None
     smallest: float = math.inf
     largest: float = 0.0
     #: [t_start, t_end, smallest step] of each stretch where the step was below the piece's dt
@@ -195,10 +193,7 @@ class EnergyControl:
         self.accepted += 1
         self.smallest, self.largest = min(self.smallest, h), max(self.largest, h)
         if verdict == "unresolved":
-            self.unresolved += 1
             self.unresolved_excess.append([float(t1), float(excess)])
-            if self.first_unresolved_t is None:
-                self.first_unresolved_t = t1
         if h < dt_piece * (1 - 1e-12):
             if self.refined and abs(self.refined[-1][1] - t0) <= 1e-12 * max(abs(t0), h):
                 self.refined[-1][1] = t1
@@ -230,9 +225,16 @@ class EnergyControl:
     def settle(self, scale: float) -> None:
         """The steps accepted at dt_min that exceed the allowance of the run's final energy scale
         (those judged against the small scale of a run's start may not)."""
-        kept = [r for r in self.unresolved_excess if r[1] > self.allowed(scale, 0.0, 1.0)]
-        self.unresolved = len(kept)
-        self.first_unresolved_t = kept[0][0] if kept else None
+        self.unresolved_excess = [r for r in self.unresolved_excess if r[1] > self.allowed(scale, 0.0, 1.0)]
+
+    @property
+    def unresolved(self) -> int:
+        """The steps accepted at dt_min above their allowance (``unresolved_steps``)."""
+        return len(self.unresolved_excess)
+
+    @property
+    def first_unresolved_t(self) -> float | None:
+        return self.unresolved_excess[0][0] if self.unresolved_excess else None
 
     def unresolved_message(self) -> str:
         """The warning of a run whose steps at dt_min still exceeded their allowance."""
@@ -244,9 +246,8 @@ class EnergyControl:
     def state(self) -> dict[str, Any]:
         """What a checkpoint keeps of the control (a resume continues on the same ladder)."""
         return {"k": self.k, "calm": self.calm, "accepted": self.accepted, "rejected": self.rejected,
-                "failed_trials": self.failed_trials, "unresolved": self.unresolved,
+                "failed_trials": self.failed_trials,
                 "event_refinements": self.event_refinements,
-                "first_unresolved_t": -1.0 if self.first_unresolved_t is None else self.first_unresolved_t,
                 "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
                 "refined": [list(map(float, r)) for r in self.refined],
                 "refined_levels": [list(map(int, r)) for r in self.refined_levels],
@@ -254,43 +255,36 @@ class EnergyControl:
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
-        ints = ("k", "calm", "accepted", "rejected", "failed_trials", "unresolved", "event_refinements")
+        ints = ("k", "calm", "accepted", "rejected", "failed_trials", "event_refinements")
         for key in ints:
             v = data.get(key, 0 if key == "event_refinements" else None)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise InputError(f"checkpoint: time control {key!r} must be a non-negative integer, got {v!r}")
             setattr(self, key, v)
-        for key in ("first_unresolved_t", "smallest", "largest"):
+        for key in ("smallest", "largest"):
             v = data.get(key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InputError(f"checkpoint: time control {key!r} must be a finite number, got {v!r}")
-        self.first_unresolved_t = None if data["first_unresolved_t"] < 0 else float(data["first_unresolved_t"])
         self.smallest = math.inf if data["smallest"] < 0 else float(data["smallest"])
         self.largest = float(data["largest"])
-        refined = data.get("refined", [])
-        if not isinstance(refined, list) or any(
-            not isinstance(r, list)
-            or len(r) != 3
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in r)
-            for r in refined
-        ):
-            raise InputError("checkpoint: time control 'refined' must be a list of [t_start, t_end, dt]")
-        self.refined = [[float(x) for x in r] for r in refined]
-        levels = data.get("refined_levels", [])
-        if not isinstance(levels, list) or any(
-            not isinstance(r, list) or len(r) != 2 or not all(isinstance(x, int) and not isinstance(x, bool) for x in r)
-            for r in levels
-        ):
-            raise InputError("checkpoint: time control 'refined_levels' must be a list of [first, last] levels")
-        self.refined_levels = [[int(x) for x in r] for r in levels]
-        excess = data.get("unresolved_excess", [])
-        if not isinstance(excess, list) or any(
-            not isinstance(r, list)
-            or len(r) != 2
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in r)
-            for r in excess
-        ):
-            raise InputError("checkpoint: time control 'unresolved_excess' must be a list of [t, excess]")
-        self.unresolved_excess = [[float(x) for x in r] for r in excess]
+        self.refined = _rows(data, "refined", 3, float, "[t_start, t_end, dt]")
+        self.refined_levels = _rows(data, "refined_levels", 2, int, "[first, last] levels")
+        self.unresolved_excess = _rows(data, "unresolved_excess", 2, float, "[t, excess]")
         if self.k > MAX_LEVELS:
             raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond the ladder (at most {MAX_LEVELS})")
+
+
+def _rows(data: dict[str, Any], key: str, width: int, kind: type, what: str) -> list[list]:
+    """``data[key]`` (default empty) as a list of rows of ``width`` finite numbers of ``kind``
+    (int: integers only); an InputError naming the key otherwise (a checkpoint is data from outside)."""
+    rows = data.get(key, [])
+
+    def ok(x: Any) -> bool:
+        if isinstance(x, bool) or not isinstance(x, (int, float) if kind is float else int):
+            return False
+        return math.isfinite(x)
+
+    if not isinstance(rows, list) or any(not isinstance(r, list) or len(r) != width or not all(map(ok, r))
+                                         for r in rows):  # fmt: skip
+        raise InputError(f"checkpoint: time control {key!r} must be a list of {what}")
+    return [[kind(x) for x in r] for r in rows]
