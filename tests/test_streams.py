@@ -68,6 +68,26 @@ def test_signal_while_results_are_written_keeps_every_step(tmp_path, monkeypatch
     assert "interrupted" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_right_after_the_commit_keeps_a_finished_run_finished(tmp_path, monkeypatch, capsys, sig):
+    """A signal once the result directory is published (the slow suite's random signal hit that
+    moment once): the result stays finished, exit 0, and stderr says nothing was lost."""
+    from signorini.io.results_dir import ResultDirectory
+
+    real_exit = ResultDirectory.__exit__
+
+    def exit_(self, *exc):
+        real_exit(self, *exc)
+        os.kill(os.getpid(), sig)
+
+    monkeypatch.setattr(ResultDirectory, "__exit__", exit_)
+    rc = main(["run", "bar1d", "--n", "8", "--T", "1", "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["status"] == "finished"
+    assert f"{sig.name} received after the results were written; nothing lost" in capsys.readouterr().err
+
+
 def test_signal_while_the_history_is_assembled_keeps_every_step(tmp_path, monkeypatch):
     import signorini.dynamics.setup as sim  # the History of the levels is assembled there
 

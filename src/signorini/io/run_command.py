@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 import signal
@@ -418,32 +419,35 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
         comm.bcast(False)  # the other ranks stop too, silently (rank 0 says why)
         raise
     comm.bcast(True)
-    with rd:
-        source = spec.resume.parent / "fields.xdmf" if spec.resume is not None else None
-        observers = [LazyFieldWriter(rd, spec.snapshot_every, source)] if spec.snapshot_every else []
-        if spec.measure is not None:
-            observers += spec.measure.observers()
-        try:
-            H = simulate(
-                spec.problem,
-                spec.scheme,
-                spec.dt,
-                spec.T,
-                mass=spec.mass,
-                progress=Progress(args.quiet, spec.label),
-                scheme_options=spec.scheme_options,
-                solver_options=spec.solver_options,
-                observers=observers,
-                events=spec.events,
-                control=spec.control,
-                **_checkpoint_arguments(spec, lambda: rd.create() / "checkpoint.h5"),
-                on_checkpoint=lambda c: rd.checkpointed(killed_summary(spec, c)),
-            )
-        except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
-            write_setup_failure(rd, spec, exc)
-            print(f"signorini: failed: {one_line(exc)} (summary in {spec.out})", file=sys.stderr)
-            return EXIT_CODES["failed"]
-        with deferred_signals() as late:  # a signal now would lose every computed step: record it
+    # from the end of the time loop to the end of the report, one block records SIGINT/SIGTERM
+    # (a gap between two blocks let a signal after the commit say "nothing written", exit 130)
+    with contextlib.ExitStack() as after_loop:
+        with rd:
+            source = spec.resume.parent / "fields.xdmf" if spec.resume is not None else None
+            observers = [LazyFieldWriter(rd, spec.snapshot_every, source)] if spec.snapshot_every else []
+            if spec.measure is not None:
+                observers += spec.measure.observers()
+            try:
+                H = simulate(
+                    spec.problem,
+                    spec.scheme,
+                    spec.dt,
+                    spec.T,
+                    mass=spec.mass,
+                    progress=Progress(args.quiet, spec.label),
+                    scheme_options=spec.scheme_options,
+                    solver_options=spec.solver_options,
+                    observers=observers,
+                    events=spec.events,
+                    control=spec.control,
+                    **_checkpoint_arguments(spec, lambda: rd.create() / "checkpoint.h5"),
+                    on_checkpoint=lambda c: rd.checkpointed(killed_summary(spec, c)),
+                )
+            except ConvergenceError as exc:  # before the first step (non-finite operators, ...)
+                write_setup_failure(rd, spec, exc)
+                print(f"signorini: failed: {one_line(exc)} (summary in {spec.out})", file=sys.stderr)
+                return EXIT_CODES["failed"]
+            late = after_loop.enter_context(deferred_signals())  # a signal now would lose every step: record it
             H.meta.update(spec.meta)
             fold_time_control(H.meta)
             H.meta["warnings"] += [o.warning for o in observers if getattr(o, "warning", "")]
@@ -460,9 +464,8 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                 H.status, H.message = "interrupted", f"{late.name} while the results were written (all steps kept)"
                 H.save(tmp)
             rd.commit()
-    with deferred_signals() as after:  # the results are in place: a signal only shortens the report
-        report_run(H, spec, args)
-    late_signal = after.name or (late.name if H.status == "finished" else None)
+        report_run(H, spec, args)  # the results are in place: a signal now only shortens the report
+    late_signal = late.name if H.status == "finished" else None
     if late_signal:
         print(f"signorini: {late_signal} received after the results were written; nothing lost", file=sys.stderr)
     return EXIT_CODES[H.status]
