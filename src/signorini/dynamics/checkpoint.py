@@ -86,6 +86,8 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
         "node_order": "mesh" if mesh.node_ids is None else _figures(mesh.node_ids.astype(float)),
         "friction": json.dumps(friction_summary(disc.problem), sort_keys=True, default=str),
     }
+    if ctx.damping is not None:  # (an undamped run's identity is the one before damping existed)
+        out["damping"] = json.dumps(ctx.damping.describe(), sort_keys=True)
     if case_hash is not None:
         out["case_file"] = case_hash
     source = _scheme_source_hash(run.scheme)
@@ -121,6 +123,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
              "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
              "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
              "friction": "the friction law or its coefficients",
+             "damping": "the damping ([material] damping: absent on one side, or other coefficients)",
              "scheme_source": "the source file of the scheme of your own (its code changed since the checkpoint)",
              "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
                            "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
@@ -132,6 +135,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
         "mass",
         "node_order",
         "friction",
+        "damping",
         "dofs",
         "mesh",
         "contact_rows",
@@ -144,7 +148,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
     )  # the most telling difference first
     for key in sorted(set(saved) | set(mine), key=lambda k: (order.index(k) if k in order else len(order), k)):
         a, b = saved.get(key), mine.get(key)
-        if a is None or b is None:
+        if (a is None or b is None) and key != "damping":  # (an undamped run has no damping item)
             if key in ("case_file", "scheme_source"):
                 continue  # a checkpoint of the Python API resumed from a case file, or the reverse
             raise InputError(f"{where}: the checkpoint does not match this run: {key} is missing on one side")

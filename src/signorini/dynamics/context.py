@@ -201,6 +201,8 @@ class Context:
         self._systems: list[_System] = []
         self._lookup: dict[Operator, tuple[_System, float]] = {}
         self.massless = massless_dofs(disc.M)
+        #: Rayleigh damping C = alpha M + beta S (None: undamped), :mod:`~signorini.dynamics.damping`
+        self.damping = disc.problem.damping
         #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
         #: tilted or curved contact): schemes that balance massless rows apart refuse it
         n = disc.contact.normals

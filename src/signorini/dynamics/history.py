@@ -45,12 +45,14 @@ MOMENTUM_COLUMNS = ("momentum_x", "momentum_y", "momentum_z")
 #: after the momentum: the step that ended at each level (nan at level 0; an adaptive control's
 #: levels are not evenly spaced)
 STEP_COLUMNS = ("dt",)
+#: after the step: minus the cumulative work of the damping forces (0 undamped; then the reactions)
+DAMPING_COLUMNS = ("damping_dissipation",)
 
 
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
     return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
-            + STEP_COLUMNS)  # fmt: skip
+            + STEP_COLUMNS + DAMPING_COLUMNS)  # fmt: skip
 
 
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
@@ -128,6 +130,8 @@ class History:
     slip: np.ndarray | None = None
     contact_status: np.ndarray | None = None
     friction_work: np.ndarray | None = None
+    #: (N+1,) cumulative work of the damping forces C V (<= 0); ``damping_dissipation`` = minus it
+    damping_work: np.ndarray | None = None
     load_potential: np.ndarray | None = None
     momentum: np.ndarray | None = None
     #: (N+1, m, d) the reaction of each Dirichlet tag (:mod:`~signorini.dynamics.reactions`)
@@ -207,6 +211,7 @@ class History:
             **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
             "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
+            "damping_dissipation": -_or_nan(self.damping_work, self.t.size),
             **self._reaction_columns(),
         }  # fmt: skip
 

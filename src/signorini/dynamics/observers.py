@@ -222,12 +222,15 @@ class EnergyRecorder(Observer):
     obstacle_moves = False
 
     KEYS = ("kinetic_energy", "elastic_energy", "load_potential", "predicted_increment", "external", "contact",
-            "numerical", "friction")  # fmt: skip
-    PARTS = ("external", "contact", "numerical", "friction")
+            "numerical", "friction", "damping")  # fmt: skip
+    PARTS = ("external", "contact", "numerical", "friction", "damping")
     checkpoint_key = "energy"
 
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
-        _restore_series(self.series, data.get("series", {}), n, "energy")
+        saved = dict(data.get("series", {}))
+        if "damping" not in saved and "friction" in saved:  # a checkpoint of a version without damping
+            saved["damping"] = np.zeros(n + 1)  # (whose runs were undamped)
+        _restore_series(self.series, saved, n, "energy")
         self._scale, self.worst = 0.0, (0.0, -1)
         self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
         for k in range(n + 1):  # the check's running figures, from the levels restored
@@ -326,6 +329,7 @@ class EnergyRecorder(Observer):
             S["contact"][n] = S["contact"][n - 1] + parts.contact
             S["numerical"][n] = S["numerical"][n - 1] + parts.numerical
             S["friction"][n] = S["friction"][n - 1] + parts.friction
+            S["damping"][n] = S["damping"][n - 1] + parts.damping
         else:
             for k in self.PARTS:
                 S[k][n] = S[k][n - 1]

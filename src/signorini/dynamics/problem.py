@@ -30,6 +30,7 @@ from ..fem.material import IsotropicElastic, Material, cell_material
 from ..fem.mesh import Mesh
 from ..fem.node_order import in_order
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
+from .damping import Rayleigh, make_damping
 from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
 from .mass_effect import mass_effect
 from .owned_rows import mass_rows, stiffness_rows
@@ -110,6 +111,8 @@ class Problem:
     gravity : an acceleration g (d,) [length / time^2], a constant vector or a function of t:
         the load M_used g (``follow_mass``) or int rho g phi (``follow_mass=False``), each cell
         with its own density [``[loads] gravity``].
+    damping : Rayleigh damping C = alpha M + beta S, a :class:`~signorini.dynamics.damping.Rayleigh`
+        or ``{"alpha": ..., "beta": ...}`` (None, or both zero: undamped) [``[material] damping``].
     """
 
     mesh: Mesh
@@ -130,11 +133,13 @@ class Problem:
     materials: dict[str, IsotropicElastic] = field(default_factory=dict)
     initial_regions: Sequence[RegionInitial] = ()
     gravity: Value | Callable | None = None
+    damping: Rayleigh | dict | None = None
 
     def __post_init__(self) -> None:
         from .validate import check_problem
 
         check_problem(self)
+        self.damping = make_damping(self.damping)
         self.friction = make_friction(self.friction)
         law = run_friction(self)  # refuses a mix of Coulomb and Tresca rows
         if law.frictional and self.mesh.dim == 1:

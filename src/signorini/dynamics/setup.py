@@ -30,7 +30,7 @@ from .mass_effect import effect_warning
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
 from .problem import Discretization, Problem, discretize, friction_summary, in_node_order
-from .schemes import Scheme, State, friction_schemes, make_scheme
+from .schemes import Scheme, State, damping_schemes, friction_schemes, make_scheme
 
 DT_RANGE = (1e-150, 1e150)
 MAX_CONTACT_RESIDUAL = 1e-6  # scaled complementarity residual above which a step has failed
@@ -87,7 +87,8 @@ def check_history_fits(steps: int) -> None:
 
 
 def initial_state(ctx: Context) -> State:
-    """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 (lambda_0 = 0).
+    """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 - C V0 (lambda_0 = 0; C the
+    damping, when given, whose force C V0 the level keeps in ``extra['damping_force']``).
 
     On Dirichlet dofs V and A are the prescribed motion's rates at t = 0; A0 = 0 on
     massless dofs.  The free block is solved by Jacobi-preconditioned CG on the massive
@@ -104,6 +105,9 @@ def initial_state(ctx: Context) -> State:
         V[ctx.fixed], A[ctx.fixed] = vD, aD
     F = ctx.load(0.0)
     r = F - ctx.S @ U - ctx.M @ A
+    Fd = ctx.damping.force(ctx, V) if ctx.damping is not None else None
+    if Fd is not None:  # damped: M A0 = F(0) - S U0 - C V0
+        r -= Fd
     keep = np.ones(n, dtype=bool)
     keep[ctx.massless] = False
     keep[ctx.fixed] = False
@@ -143,6 +147,8 @@ def initial_state(ctx: Context) -> State:
         R0[idx] = -r[idx]
     if np.any(R0 != 0.0):
         state.extra["R0"] = R0
+    if Fd is not None:
+        state.extra["damping_force"] = Fd
     return state
 
 
@@ -178,6 +184,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "mass": disc.mass_name,
         "mass_effect": dict(disc.mass_effect),
         "friction": friction_summary(disc.problem),
+        # Rayleigh damping C = alpha M + beta S, or None (undamped)
+        "damping": ctx.damping.describe() if ctx.damping is not None else None,
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
@@ -260,8 +268,15 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
                 )
     for s in schemes:
         s.check_context(ctx)
+    if ctx.damping is not None:
+        for s in schemes:
+            if s.damping_refusal:
+                raise InputError(
+                    f"scheme {s.name} cannot carry damping ([material] damping): {s.damping_refusal}; "
+                    f"schemes that do: {', '.join(damping_schemes())}"
+                )
     for s in schemes:
-        op = s.operator(dt)
+        op = s.step_operator(ctx, dt)
         if op is not None:
             ctx.prepare(op)
             s.check_context(ctx, prepared=True)
@@ -411,6 +426,7 @@ def assemble_history(
         series["predicted_increment"] = E["predicted_increment"]
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
         work["friction_work"] = E["friction"]  # zeros without friction
+        work["damping_work"] = E["damping"]  # zeros without damping
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())

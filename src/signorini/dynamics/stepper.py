@@ -503,7 +503,7 @@ class Stepper:
         seg = self.grid.segment(n)
         ctx = run.ctx
         if seg.dt != ctx.dt:  # a new step: its factorization (the old one released, or kept by a control)
-            ops = [op for op in (run.scheme.operator(seg.dt),) if op is not None]
+            ops = [op for op in (run.scheme.step_operator(ctx, seg.dt),) if op is not None]
             if self.control is not None:
                 ctx.use_step(seg.dt, seg.start, ops, self._ladder_bytes)
             else:

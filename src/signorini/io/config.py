@@ -77,6 +77,7 @@ from typing import Any
 
 from ..contact.friction import make_friction
 from ..contact.obstacles import OBSTACLES, ROTATION_KEYS, RigidObstacle, Rotation, read_surface
+from ..dynamics.damping import Rayleigh, make_damping
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
@@ -298,6 +299,22 @@ def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
             raise InputError(f"'{key}.tag': region {tag!r} is listed twice in material.regions")
         out[tag] = _material({a: v for a, v in entry.items() if a != "tag"}, key, allowed)
     return out
+
+
+def _damping(t: dict) -> Rayleigh | None:
+    """``[material] damping = { alpha = ..., beta = ... }``: Rayleigh damping of the whole mesh.
+
+    A ``regions`` entry may repeat it but not change it: C = alpha M + beta S is folded into the
+    step operator as a combination of M and S, which needs one (alpha, beta) for the whole mesh
+    (docs/schemes.md, "Damping")."""
+    damping = make_damping(t.get("damping"), "material.damping")
+    for k, entry in enumerate(t.get("regions", [])):
+        if isinstance(entry, dict) and "damping" in entry:
+            key = f"material.regions[{k}].damping"
+            if make_damping(entry["damping"], key) != damping:
+                raise InputError(f"'{key}': damping per region is not supported; one [material] damping = "
+                                 "{ alpha = ..., beta = ... } applies to the whole mesh (docs/schemes.md)")  # fmt: skip
+    return damping
 
 
 def _initial_regions(init: dict, mesh: Mesh) -> list:
@@ -579,6 +596,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     dim = mesh.dim
     material = _material(data["material"])
     materials = _material_regions(data["material"], mesh)
+    damping = _damping(data["material"])
     dirichlet = _dirichlet(data.get("dirichlet", []), mesh)
     tractions = _tractions(data.get("traction", []), mesh)
     c = data["contact"]
@@ -620,7 +638,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     problem = Problem(
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
         friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
-        materials=materials, initial_regions=initial_regions, gravity=gravity,
+        materials=materials, initial_regions=initial_regions, gravity=gravity, damping=damping,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
     from ..dynamics.events import parse_stop_at

@@ -83,6 +83,11 @@ SECTIONS: tuple[Section, ...] = (
             Key("mu", "number > 0", "", "stress", "shear modulus", _ex("", "0.5", "0.5")),
             Key("E", "number > 0", "", "stress", "Young's modulus (instead of lam, mu)", _ex("1.0", "", "")),
             Key("nu", "number in (-1, 0.5)", "0", "", "Poisson ratio (with E)"),
+            Key("damping", "inline table", "none", "alpha: 1/time, beta: time",
+                "Rayleigh damping C = alpha M + beta S, { alpha = ..., beta = ... } (each >= 0, 0 by default; M the "
+                "mass in use): a mode of angular frequency w decays with the ratio alpha/(2w) + beta w/2; its work "
+                "is the damping_dissipation column.  One value for the whole mesh (a regions entry may repeat it)",
+                _same("")),
             Key("regions", "array of inline tables", "none", "",
                 "materials per region of cells: [{ tag = \"plate\", E = ..., nu = ..., rho = ... }, ...] (or lam, "
                 "mu; rho required); the section's own keys are the default for cells in no listed region.  Regions "

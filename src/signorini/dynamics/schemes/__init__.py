@@ -47,6 +47,11 @@ def friction_schemes() -> list[str]:
     return [e.name for e in SCHEMES if e.obj.friction_refusal is None]
 
 
+def damping_schemes() -> list[str]:
+    """The registered schemes that carry Rayleigh damping."""
+    return [e.name for e in SCHEMES if e.obj.damping_refusal is None]
+
+
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
     """A scheme instance from a registry name/alias, a Scheme subclass or an instance."""
     if isinstance(scheme, Scheme):
@@ -75,6 +80,7 @@ __all__ = [
     "Scheme",
     "State",
     "Theta",
+    "damping_schemes",
     "friction_schemes",
     "make_scheme",
     "register_scheme",

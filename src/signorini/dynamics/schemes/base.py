@@ -95,8 +95,9 @@ class State:
 #: and a flag (bool)
 STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
 #: state data of every scheme: ``R0``, the residual of the massless free dofs at t = 0
-#: (:func:`~signorini.dynamics.setup.initial_state`)
-COMMON_STATE_FIELDS = {"R0": "dofs"}
+#: (:func:`~signorini.dynamics.setup.initial_state`), and ``damping_force``, the force C V the
+#: level's balance used (a damped run, :mod:`~signorini.dynamics.damping`)
+COMMON_STATE_FIELDS = {"R0": "dofs", "damping_force": "dofs"}
 
 
 @dataclass
@@ -107,10 +108,11 @@ class EnergyParts:
     contact: float = 0.0  # contact term (normal forces)
     numerical: float = 0.0  # the scheme's own dissipation / start-up relaxation
     friction: float = 0.0  # work of the tangential contact forces (<= 0 when it dissipates)
+    damping: float = 0.0  # work of the damping forces C V (<= 0: Rayleigh damping dissipates)
 
     @property
     def total(self) -> float:
-        return self.external + self.contact + self.numerical + self.friction
+        return self.external + self.contact + self.numerical + self.friction + self.damping
 
 
 class Scheme:
@@ -141,6 +143,9 @@ class Scheme:
     #: state holds earlier levels of a fixed spacing
     variable_step: ClassVar[bool] = True
     variable_step_refusal: ClassVar[str] = ""
+    #: why the scheme refuses Rayleigh damping (None: it carries it, with the damping forces'
+    #: work in its energy identity, :meth:`damping_coefficient` and ``extra['damping_force']``)
+    damping_refusal: ClassVar[str | None] = "its balance has no damping term"
 
     @property
     def conserving(self) -> bool:
@@ -200,6 +205,19 @@ class Scheme:
     # -- the contract ---------------------------------------------------------------
     def operator(self, dt: float) -> Operator | None:
         raise NotImplementedError
+
+    def damping_coefficient(self, dt: float) -> float:
+        """c such that the step operator with damping is ``operator(dt) + c C``: the factor of C
+        times the step's unknown in its balance (Newmark: gamma / (beta dt)) [1/time for a
+        displacement unknown]."""
+        raise NotImplementedError(f"scheme {self.name} does not carry damping")
+
+    def step_operator(self, ctx: Context, dt: float) -> Operator | None:
+        """The operator the step solves with: :meth:`operator`, plus ``c C`` when the run is damped."""
+        op = self.operator(dt)
+        if op is None or ctx.damping is None:
+            return op
+        return ctx.damping.fold(op, self.damping_coefficient(dt))
 
     def start(self, ctx: Context, first: State, second: State) -> State:
         """Turn the starter's state at t_1 into this scheme's state (two-step schemes)."""
@@ -299,7 +317,7 @@ def residual(ctx: Context, s: State) -> np.ndarray | None:
 
 
 def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndarray:
-    """R_D = (M A + S U - F - B^T lambda - T^T lambda_t)_D (|D|,) [force]: the reactions of the
+    """R_D = (M A + C V + S U - F - B^T lambda - T^T lambda_t)_D (|D|,) [force]: the reactions of the
     Dirichlet dofs D at level ``s``, computed once per level (the state's products); ``rows``:
     (M_D, S_D) taken once by a caller that needs them at every level
     (:class:`~signorini.dynamics.reactions.Reactions`)."""
@@ -307,7 +325,9 @@ def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndar
     def compute():
         D = ctx.fixed
         MD, SD = rows if rows is not None else (ctx.M[D], ctx.S[D])
-        return MD @ s.A + SD @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
+        R = MD @ s.A + SD @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
+        Fd = s.extra.get("damping_force")
+        return R if Fd is None else R + Fd[D]
 
     return s.product("RD", compute)
 
@@ -370,3 +390,18 @@ def reaction_work(ctx: Context, old: State, new: State, w_new: float) -> tuple[f
     dU = new.U - old.U
     fixed = float(dU[ctx.fixed] @ Rw[ctx.fixed]) if ctx.has_fixed else 0.0
     return fixed, float(dU @ Rw) - fixed
+
+
+def damping_work(ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float) -> float:
+    """-dU . (w C V^{n+1} + (1 - w) C V^n): the work of the damping forces each level's balance used
+    (``extra['damping_force']``) over dU, weighted as the scheme weighs its levels [energy]; 0 undamped.
+
+    C V uses the velocity the balance was solved with: on massless dofs, Newmark's V before
+    :meth:`~signorini.dynamics.context.Context.massless_update` replaced it by dU/dt."""
+    F0, F1 = old.extra.get("damping_force"), new.extra.get("damping_force")
+    if F0 is None and F1 is None:
+        return 0.0
+    zero = np.zeros_like(dU)
+    F0 = zero if F0 is None else F0
+    F1 = zero if F1 is None else F1
+    return -float(dU @ (w_new * F1 + (1 - w_new) * F0))

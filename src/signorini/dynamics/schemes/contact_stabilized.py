@@ -40,6 +40,7 @@ class ContactStabilizedNewmark(Scheme):
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     friction_refusal = "its contact-stabilizing L2 projection is defined for the normal component only"
     massless_dofs_allowed = False
+    damping_refusal = "its contact-stabilizing projection of the predictor is derived without damping"
     #: the predictor's correction Up - (U + dt V) and the multiplier mu of the new level
     state_fields = {"delta": "dofs", "mu": "contact"}
 

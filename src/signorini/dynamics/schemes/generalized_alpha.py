@@ -32,6 +32,7 @@ x_w = (1 - w) x^{n+1} + w x^n and <x> = (x^n + x^{n+1})/2:
         + (B dU).lambda_{a_f}                               (contact)
         - (1/2 - a_f) (dt <V>.M dA + dU.S dU)
         - dt^2 (beta - gamma/2) (1/2 - a_m) dA.M dA         (numerical)
+        - dU.(C V)_{a_f}                                    (damping, when given)
 
 where beta - gamma/2 = (a_f - a_m)^2 / 4 >= 0 and R_D = M A_{a_m} + S U_{a_f} - F_{a_f}
 - B^T lambda_{a_f} on the Dirichlet dofs (the weighted reactions).  For
@@ -47,7 +48,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, contact_works, load_work, reaction_work, weighted
+from .base import EnergyParts, State, contact_works, damping_work, load_work, reaction_work, weighted
 from .newmark import Newmark
 
 
@@ -104,17 +105,22 @@ class GeneralizedAlpha(Newmark):
         t = ctx.next_time(s.t)
         pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
+        Fd0 = s.extra.get("damping_force")
         if af:
             lagged = af * (
                 ctx.load(s.t) - s.product("SU", lambda: ctx.Sop @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
             )
+            if Fd0 is not None:  # the damping force weighs as the elastic one: a_f C V^n lagged
+                lagged -= af * Fd0
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
             rhs += lagged
         rhs = rhs / (1 - af) + ctx.load(t)
+        if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
+            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s, pred))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(ctx.dt),
+            self.step_operator(ctx, ctx.dt),
             rhs,
             ctx.gaps(t),
             fixed,
@@ -135,7 +141,8 @@ class GeneralizedAlpha(Newmark):
         lam_w = (1 - af) * new.lam + af * old.lam
         lam_t_w = weighted(new.lam_t, old.lam_t, 1 - af)
         normal, tangential = contact_works(ctx, dU, old, new, 1 - af, af)
-        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential)
+        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential,
+                            damping=damping_work(ctx, dU, old, new, 1 - af))  # fmt: skip
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
@@ -149,6 +156,9 @@ class GeneralizedAlpha(Newmark):
                 on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
                     old.lam, old.lam_t, old.t)  # fmt: skip
             RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - on_fixed
+            Fd0, Fd1 = old.extra.get("damping_force"), new.extra.get("damping_force")
+            if Fd0 is not None or Fd1 is not None:  # the weighted damping force on the Dirichlet dofs
+                RD = RD + (0.0 if Fd1 is None else (1 - af) * Fd1[D]) + (0.0 if Fd0 is None else af * Fd0[D])
             parts.external += float(dU[D] @ RD)
         if af != 0.5 or am != 0.5:
             dA = new.A - old.A

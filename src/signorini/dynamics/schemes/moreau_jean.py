@@ -29,6 +29,7 @@ V_theta = theta V^{n+1} + (1 - theta) V^n, so that dU = dt V_theta:
     Delta E = dU.F_theta - Delta(U.F) + V_theta[D].r[D]                   (loads, clamp)
             + (B V_theta).P                                              (impacts)
             - (theta - 1/2)(dV.M dV + dU.S dU)                           (numerical)
+            - dU.(C V)_theta                                             (damping, when given)
 
 With e = 0 and theta = 1/2, (B V_theta).P = 1/2 (B V^n).P <= 0 at every active node: the
 impacts dissipate and the energy never increases (constant loads, fixed clamp).
@@ -43,7 +44,7 @@ import numpy as np
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, friction_work, load_work
+from .base import EnergyParts, Scheme, State, damping_work, friction_work, load_work
 
 
 class MoreauJean(Scheme):
@@ -60,6 +61,7 @@ class MoreauJean(Scheme):
     needs_condensed_solve = True
     massless_dofs_allowed = False  # with the default theta = 1/2 (theta > 1/2 accepts them)
     friction_refusal = None  # Coulomb on the slip rate T V^{n+1} of the index set (as Siconos)
+    damping_refusal = None
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._needs_condensed_solve(ctx, prepared, "index sets")
@@ -74,6 +76,10 @@ class MoreauJean(Scheme):
     def operator(self, dt: float) -> Operator:
         return Operator(1.0, (self.theta * dt) ** 2)
 
+    def damping_coefficient(self, dt: float) -> float:
+        """theta dt: the balance holds dt theta C V^{n+1}, V^{n+1} the unknown [time]."""
+        return self.theta * dt
+
     def step(self, ctx, s: State) -> State:
         dt, th, e = ctx.dt, self.theta, self.restitution
         t0, t1 = s.t, ctx.next_time(s.t)
@@ -82,6 +88,8 @@ class MoreauJean(Scheme):
         rhs = ctx.M @ s.V + dt * (Fth - SU)
         if th != 1.0:
             rhs -= th * (1 - th) * dt * dt * (ctx.S @ s.V)
+            if ctx.damping is not None:
+                rhs -= (1 - th) * dt * s.extra["damping_force"]
         BV0 = ctx.B @ s.V
         index = ctx.gaps(t0 + 0.5 * dt) - ctx.B @ (s.U + 0.5 * dt * s.V) <= ctx.touch_tolerance
         gdot = (ctx.gaps(t1) - ctx.gaps(t0)) / dt if ctx.disc.contact.moving else 0.0
@@ -92,11 +100,14 @@ class MoreauJean(Scheme):
             fixed = (ctx.dirichlet(t1) - s.U[D]) / (th * dt) - (1 - th) / th * s.V[D]
         bound = np.broadcast_to(bound, BV0.shape).copy()
         law = ctx.friction_rate_law(t0, t1, ContactLaw(subset=index))
-        V, P, info = ctx.solve(self.operator(dt), rhs, bound, fixed, law)
+        V, P, info = ctx.solve(self.step_operator(ctx, dt), rhs, bound, fixed, law)
         U = s.U + dt * (th * V + (1 - th) * s.V)
         P_t = info.lam_t  # tangential impulses (friction), or None
         lam_t = None if P_t is None else P_t / dt
-        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P, "impulse_t": P_t}, lam_t=lam_t)
+        extra = {"impulse": P, "impulse_t": P_t}
+        if ctx.damping is not None:
+            extra["damping_force"] = ctx.damping.force(ctx, V)
+        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra=extra, lam_t=lam_t)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """The impulse P of the step, unknown of the velocity-level solve."""
@@ -112,12 +123,15 @@ class MoreauJean(Scheme):
             external=load_work(ctx, old, new, th),
             contact=float((ctx.B @ Vth) @ P),
             friction=friction_work(ctx, Vth, P_t),
+            damping=damping_work(ctx, dU, old, new, th),
         )
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             Fth = th * ctx.load(new.t) + (1 - th) * ctx.load(old.t)
             SUth = th * (ctx.S[D] @ new.U) + (1 - th) * (ctx.S[D] @ old.U)
             r = ctx.M[D] @ dV + dt * (SUth - Fth[D]) - ctx.contact_on_fixed(P, P_t)
+            if ctx.damping is not None:
+                r += dt * (th * new.extra["damping_force"][D] + (1 - th) * old.extra["damping_force"][D])
             parts.external += float(Vth[D] @ r)
         if th != 0.5:
             parts.numerical = -(th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))

@@ -19,6 +19,11 @@ out of equilibrium) and <x> = (x^n + x^{n+1})/2:
         + 1/2 (B dU).(lambda^n + lambda^{n+1})        (contact)
         + 1/2 (T dU).(lambda_t^n + lambda_t^{n+1})    (friction)
         + dt (gamma - 1/2) <V>.M dA + dU_f.<R_f>      (numerical)
+        - dU.<C V>                                    (damping)
+
+With Rayleigh damping C the balance is M A + C V + S U = ..., C V^{n+1} = c C U^{n+1} + C q
+(c = gamma/(beta dt)): the operator gains c C and the right-hand side -C q; <C V> is the
+mean of the damping forces the two levels' balances used (``extra['damping_force']``).
 
 For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
 """
@@ -37,6 +42,7 @@ from .base import (
     Scheme,
     State,
     contact_works,
+    damping_work,
     load_work,
     mechanical_energy,
     reaction_work,
@@ -52,9 +58,20 @@ class Newmark(Scheme):
     )
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (beta - gamma/2) A.MA"
     friction_refusal = None
+    damping_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
+
+    def damping_coefficient(self, dt: float) -> float:
+        """gamma / (beta dt): V^{n+1} = gamma / (beta dt) U^{n+1} + q (:meth:`damping_offset`)."""
+        return self.gamma / (self.beta * dt)
+
+    def damping_offset(self, ctx, s: State, p: np.ndarray) -> np.ndarray:
+        """q = V^n + dt (1 - gamma) A^n - gamma dt p, the part of Newmark's V^{n+1} that does not
+        depend on U^{n+1}."""
+        dt, g = ctx.dt, self.gamma
+        return s.V + (dt * (1 - g)) * s.A - (g * dt) * p
 
     @property
     def conserving(self) -> bool:
@@ -80,9 +97,11 @@ class Newmark(Scheme):
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
         rhs = ctx.Mop @ p + ctx.load(t)
+        if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
+            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s, p))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(ctx.dt),
+            self.step_operator(ctx, ctx.dt),
             rhs,
             ctx.gaps(t),
             fixed,
@@ -101,8 +120,9 @@ class Newmark(Scheme):
         dt, g = ctx.dt, self.gamma
         A = U / (self.beta * dt * dt) - p
         V = s.V + dt * ((1 - g) * s.A + g * A)
+        extra = {} if ctx.damping is None else {"damping_force": ctx.damping.force(ctx, V)}  # before the update
         ctx.massless_update(V, A, U, s.U)
-        return State(t, U, V, A, lam, info)
+        return State(t, U, V, A, lam, info, extra=extra)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """dt ((1 - gamma) lambda^n + gamma lambda^{n+1}): M dV = dt ((1 - gamma) M A^n + gamma M A^{n+1})."""
@@ -127,7 +147,11 @@ class Newmark(Scheme):
         dR_fixed, dR_free = reaction_work(ctx, old, new, 0.5)
         normal, tangential = contact_works(ctx, dU, old, new, 0.5)
         parts = EnergyParts(
-            external=load_work(ctx, old, new, 0.5) + dR_fixed, contact=normal, numerical=dR_free, friction=tangential
+            external=load_work(ctx, old, new, 0.5) + dR_fixed,
+            contact=normal,
+            numerical=dR_free,
+            friction=tangential,
+            damping=damping_work(ctx, dU, old, new, 0.5),
         )
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)

@@ -61,6 +61,7 @@ class PaoliSchatzman(Scheme):
     )
 
     massless_dofs_allowed = False
+    damping_refusal = "its two-step balance has no velocity at the levels for a damping force C V"
 
     def check_context(self, ctx, prepared: bool = False) -> None:
         self._refuse_massless(

@@ -13,6 +13,7 @@ Energy identity (exact; docs/schemes.md), with x_theta = theta x^{n+1} + (1-thet
     Delta [1/2 V.MV + 1/2 U.SU - U.F] = dU.F_theta - Delta(U.F) + dU_D.R_D,theta
         + (B dU).lambda_theta + (T dU).lambda_t,theta        (contact, friction)
         - (theta - 1/2) (|dV|_M^2 + |dU|_S^2) + dU_f.R_f,theta
+        - dU.(C V)_theta                                     (damping, when given)
 
 so the scheme dissipates for theta > 1/2 (BE: -1/2|dV|_M^2 - 1/2|dU|_S^2 + dU.B^T lambda^{n+1},
 the seed's identity with a plus sign on the contact term).
@@ -26,7 +27,7 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work
+from .base import EnergyParts, Scheme, State, contact_works, damping_work, load_work, products, reaction_work
 
 
 class Theta(Scheme):
@@ -35,9 +36,14 @@ class Theta(Scheme):
     parameters = (Parameter("theta", 1.0, "implicitness", float, 0.5, 1.0),)
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     friction_refusal = None
+    damping_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
+
+    def damping_coefficient(self, dt: float) -> float:
+        """1 / (theta dt): V^{n+1} = (U^{n+1} - U^n - dt (1 - theta) V^n) / (theta dt)."""
+        return 1.0 / (self.theta * dt)
 
     @property
     def conserving(self) -> bool:
@@ -56,9 +62,11 @@ class Theta(Scheme):
         t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
         rhs = ctx.Mop @ p + ctx.load(t)
+        if ctx.damping is not None:  # C V^{n+1} = C U^{n+1} / (theta dt) + C q
+            rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * s.V) / (th * dt))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
-            self.operator(dt),
+            self.step_operator(ctx, dt),
             rhs,
             ctx.gaps(t),
             fixed,
@@ -67,8 +75,9 @@ class Theta(Scheme):
         )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
+        extra = {} if ctx.damping is None else {"damping_force": ctx.damping.force(ctx, V)}  # before the update
         ctx.massless_update(V, A, U, s.U)
-        return State(t, U, V, A, lam, info)
+        return State(t, U, V, A, lam, info, extra=extra)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """dt lambda_theta: M dV = dt (theta M A^{n+1} + (1 - theta) M A^n)."""
@@ -85,7 +94,11 @@ class Theta(Scheme):
             numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
         normal, tangential = contact_works(ctx, dU, old, new, th)
         return EnergyParts(
-            external=load_work(ctx, old, new, th) + dR_fixed, contact=normal, numerical=numerical, friction=tangential
+            external=load_work(ctx, old, new, th) + dR_fixed,
+            contact=normal,
+            numerical=numerical,
+            friction=tangential,
+            damping=damping_work(ctx, dU, old, new, th),
         )
 
 
