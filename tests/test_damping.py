@@ -176,7 +176,7 @@ T = 1.0
         ("damping = { alpha = -1.0 }", "'material.damping.alpha': damping alpha must be a finite number >= 0"),
         ("damping = { gamma = 1.0 }", "'material.damping': unknown key 'gamma'; allowed: alpha, beta"),
         ("damping = 0.1", "'material.damping' must be a table"),
-        ("damping = { beta = \"x\" }", "'material.damping.beta': damping beta must be a number >= 0"),
+        ('damping = { beta = "x" }', "'material.damping.beta': damping beta must be a number >= 0"),
     ],
 )
 def test_bad_damping_in_a_case_file_exits_2_naming_the_field(tmp_path, capsys, damping, message):
