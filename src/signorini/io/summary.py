@@ -112,6 +112,21 @@ def energy_line(H, s: dict) -> str:
     return f"  energy {s['energy_initial']:.6g} -> {s['energy_final']:.6g} ({drift_text})\n"
 
 
+def damping_line(H, s: dict) -> str:
+    """With Rayleigh damping: its coefficients and what it dissipated (the energy line's drift
+    includes it: a damped run loses energy by design)."""
+    d = s.get("damping")
+    if not d:
+        return ""
+    diss = float(H.columns()["damping_dissipation"][-1]) + 0.0  # no "-0"
+    work = f"{diss:.6g}" if np.isfinite(diss) else "n/a"
+    res = s.get("energy_identity_residual")
+    res_text = f" (energy identity residual {res:.2e} with it)" if res is not None else ""
+    e0 = abs(float(s["energy_initial"]))
+    share = f", {100 * diss / e0:.3g}% of E0" if e0 > 0 and np.isfinite(diss) else ""
+    return f"  damping rayleigh alpha {d['alpha']:g}, beta {d['beta']:g}: damping_dissipation {work}{share}{res_text}\n"
+
+
 def friction_line(H, s: dict) -> str:
     """With friction: the law, what it dissipated, the last level's stick/slip nodes and the solver."""
     f = s.get("friction") or {}
@@ -165,6 +180,7 @@ def one_screen_summary(H) -> str:
         f"{time_lines(s)}"
         f"{energy_line(H, s)}"
         f"{friction_line(H, s)}"
+        f"{damping_line(H, s)}"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
         f"{mass_effect_line(s)}"
         f"{bodies_lines(s)}"
