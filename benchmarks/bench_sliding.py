@@ -15,6 +15,9 @@
    cached dof columns (``DelassusColumns.replace_rows``), whose solves are front-loaded, so the
    long slide shows the steady cost.  Issue 38 asks this ratio down to 1.3 (not reached:
    docs/performance.md).
+3. Rayleigh damping's cost: the median step of bar2d at level n (CN, the default mass) with
+   ``damping = {alpha: 0.1, beta: 1e-3}`` against the undamped one, alternated twice in one
+   process, the best of each (two more products with M and S per step, none when undamped).
 """
 
 from __future__ import annotations
@@ -43,6 +46,26 @@ def level_costs(n: int, steps: int) -> dict:
     s.finish()
     return {"case": f"bar2d n = {n}", "dofs": int(run.ctx.disc.space.n_dofs), "step_s": step,
             "reactions_over_step": reactions / step, "energy_check_over_step": check / step}  # fmt: skip
+
+
+def damping_cost(n: int, steps: int) -> dict:
+    """The damped step against the undamped one (module docstring, item 3)."""
+    import dataclasses
+
+    from signorini.dynamics.simulate import Stepper
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark("bar2d")
+    p = b.problem(n, {})
+    dt, _ = b.run_times(n, {})
+    best: dict[str, float] = {}
+    for damping in (None, {"alpha": 0.1, "beta": 1e-3}) * 2:
+        s = Stepper(dataclasses.replace(p, damping=damping), "cn", dt, steps * dt)
+        key = "damped" if damping else "undamped"
+        best[key] = min(best.get(key, np.inf), median_step(s))
+        s.finish()
+    return {"case": f"bar2d n = {n}", "steps": steps, "damped_step_s": best["damped"],
+            "undamped_step_s": best["undamped"], "damped_over_undamped": best["damped"] / best["undamped"]}  # fmt: skip
 
 
 def sliding_block():
@@ -93,7 +116,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     c = level_costs(args.n, 4 * args.steps)
     slides = [sliding(k) for k in (args.steps, args.long) if k]
-    print(json.dumps({"level": c, "sliding": slides}, indent=1))
+    d = damping_cost(args.n, 4 * args.steps)
+    print(json.dumps({"level": c, "sliding": slides, "damping": d}, indent=1))
+    print(f"{d['case']}, {d['steps']} steps: a damped step is x{d['damped_over_undamped']:.3f} of an undamped one")
     print(f"{c['case']} ({c['dofs']} dofs): reactions {100 * c['reactions_over_step']:.1f}% and energy check "
           f"{100 * c['energy_check_over_step']:.2f}% of a step")  # fmt: skip
     for s in slides:
