@@ -21,6 +21,7 @@ _PUBLIC = {
     # problems and runs
     "Problem": "dynamics.problem",
     "RegionInitial": "dynamics.problem",
+    "Rayleigh": "dynamics.damping",
     "simulate": "dynamics.simulate",
     "Stepper": "dynamics.stepper",
     "History": "dynamics.history",

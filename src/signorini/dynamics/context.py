@@ -32,6 +32,7 @@ from ..linalg.row_block import RowBlock, node_row_bounds, row_bounds
 from ..linalg.sparse import linear_combination, principal_combination, principal_rows
 from ..linalg.spmv import sparse_product
 from ..parallel import DISTRIBUTED_BACKENDS, run_comm
+from .factorizations import Factorizations
 from .mass import massless_dofs
 from .problem import Discretization
 
@@ -198,8 +199,8 @@ class Context:
         #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it;
         #: never with friction)
         self.iterative_ok = self.components == 1
-        self._systems: list[_System] = []
-        self._lookup: dict[Operator, tuple[_System, float]] = {}
+        #: the factorized step operators, per step size (their only owner)
+        self.factors = Factorizations(lambda op: _System(op, self, self.solver_options), self.dt)
         self.massless = massless_dofs(disc.M)
         #: Rayleigh damping C = alpha M + beta S (None: undamped), :mod:`~signorini.dynamics.damping`
         self.damping = disc.problem.damping
@@ -250,68 +251,16 @@ class Context:
     def change_dt(self, dt: float, t0: float, operators: list[Operator]) -> None:
         """Continue with the step ``dt`` from ``t0``: the factorizations of the old step are
         released (their counters kept) and ``operators`` (the scheme's for the new dt) are
-        factorized."""
-        retired = dict(self._retired)
-        for sys in self._systems:
-            for k, v in sys.solver.counters.items():
-                retired[k] = retired.get(k, 0) + int(v)
-        self._retired = retired
-        self._systems, self._lookup = [], {}
+        factorized (:meth:`Factorizations.replace`)."""
         self.dt, self.t0 = float(dt), float(t0)
-        for op in operators:
-            self.prepare(op)
-
-    #: the counters of the solvers released by :meth:`change_dt`
-    _retired: dict[str, int] = {}
+        self.factors.replace(dt, operators)
 
     def use_step(self, dt: float, t0: float, operators: list[Operator], keep_bytes: float) -> None:
         """Continue with the step ``dt`` from ``t0`` keeping the factorizations of the steps used
-        before (an adaptive control's ladder dt / 2^k, :mod:`~.step_control`): those of ``dt``
-        are taken back when kept, else ``operators`` are factorized; the steps used least
-        recently are released while the kept factors exceed ``keep_bytes``.  The contact
-        solvers' warm starts (active set, previous multipliers) pass from the systems of the
-        step left to those of ``dt``, position by position, so that a step starts from the
-        last accepted level whatever operator computed it."""
-        dt = float(dt)
-        if dt == self.dt:
-            self.t0 = float(t0)
-            return
-        before = self._systems
-        self._ladder[self.dt] = (self._systems, self._lookup)
-        self._systems, self._lookup = self._ladder.pop(dt, ([], {}))
-        self.dt, self.t0 = dt, float(t0)
-        for op in operators:
-            self.prepare(op)
-        for old, new in zip(before, self._systems, strict=False):
-            for name in getattr(new.solver, "warm_state", ()):
-                a, b = getattr(old.solver, name, None), getattr(new.solver, name)
-                if a is not None and np.shape(a) == np.shape(b):
-                    setattr(new.solver, name, np.array(a, copy=True))
-        kept = sum(sys.solver.factor_bytes for systems, _ in self._ladder.values() for sys in systems)
-        while self._ladder and kept > keep_bytes:  # least recently used first
-            step = next(iter(self._ladder))
-            systems, _ = self._ladder.pop(step)
-            self._retired = dict(self._retired)  # the instance's own (not the class's empty one)
-            for sys in systems:
-                kept -= sys.solver.factor_bytes
-                for k, v in sys.solver.counters.items():
-                    self._retired[k] = self._retired.get(k, 0) + int(v)
-
-    @functools.cached_property
-    def _ladder(self) -> dict[float, tuple[list[_System], dict]]:
-        """The systems of the steps an adaptive control used before, least recently used first."""
-        return {}
-
-    def systems_by_step(self) -> list[tuple[float, _System]]:
-        """(dt, system) of the steps kept by :meth:`use_step`, least recently used first, then
-        the current step's."""
-        kept = self._ladder.items() if "_ladder" in self.__dict__ else []
-        return [(dt, sys) for dt, (systems, _) in kept for sys in systems] + [(self.dt, s) for s in self._systems]
-
-    def _all_systems(self) -> list[_System]:
-        """The systems of the current step, then those kept for other steps."""
-        kept = [sys for systems, _ in self._ladder.values() for sys in systems] if "_ladder" in self.__dict__ else []
-        return self._systems + kept
+        before (an adaptive control's ladder dt / 2^k, :mod:`~.step_control`;
+        :meth:`Factorizations.use`)."""
+        self.factors.use(dt, operators, keep_bytes)
+        self.dt, self.t0 = float(dt), float(t0)
 
     def load(self, t: float) -> np.ndarray:
         """F(t) (n,), full space [force]."""
@@ -335,27 +284,6 @@ class Context:
         return TOUCH * max(float(np.linalg.norm(np.ptp(X, axis=0))), float(np.max(np.abs(X), initial=0.0)), 1e-300)
 
     # -- linear algebra ------------------------------------------------------------
-    def prepare(self, op: Operator) -> None:
-        """Factorize ``op`` now unless an existing factorization can serve it."""
-        self._system(op)
-
-    def _system(self, op: Operator) -> tuple[_System, float]:
-        found = self._lookup.get(op)
-        if found is None:
-            found = self._lookup[op] = self._find_or_factorize(op)
-        return found
-
-    def _find_or_factorize(self, op: Operator) -> tuple[_System, float]:
-        if op.mass < 0 or op.stiffness < 0 or (op.mass == 0 and op.stiffness == 0):
-            raise InputError(f"a scheme operator needs non-negative coefficients, not both zero; got {op}")
-        for sys in self._systems:
-            s = op.ratio_to(sys.op)
-            if s is not None:
-                return sys, s
-        sys = _System(op, self, self.solver_options)
-        self._systems.append(sys)
-        return sys, 1.0
-
     def solve(
         self,
         op: Operator,
@@ -371,7 +299,7 @@ class Context:
         ``guess`` (n,): an estimate of x (a scheme's predictor) that an iterative solve
         starts from, or a function returning it (called only by such a solve); direct
         solves ignore it.  The answer does not depend on it beyond the solver's tolerance."""
-        sys, s = self._system(op)
+        sys, s = self.factors.system(op)
         if guess is not None and sys.solver.uses_guess:
             x0 = guess() if callable(guess) else guess
             sys.solver.set_guess(x0[self.free] if self.has_fixed else x0)
@@ -476,7 +404,7 @@ class Context:
         self.BD = BD if BD is not None and BD.nnz else None
         if self.components > 1:
             self._frame_rows()
-        for sys in self._all_systems():  # the kept steps' too: they must use the current pairing
+        for sys in self.factors.every():  # the kept steps' too: they must use the current pairing
             sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
         self.repaired += int(rows.size)
 
@@ -579,7 +507,7 @@ class Context:
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = rhs`` on the free rows without contact."""
-        sys, s = self._system(op)
+        sys, s = self.factors.system(op)
         b, _ = self._reduce(sys, s, rhs, None, fixed_values)
         return self._expand(sys.solver.solve_linear(b / s), fixed_values)
 
@@ -604,14 +532,12 @@ class Context:
     # -- bookkeeping ---------------------------------------------------------------
     @property
     def solvers(self) -> list[ContactSolver]:
-        return [s.solver for s in self._systems]
+        """The contact solvers of the current step's factorized operators."""
+        return self.factors.solvers
 
     def counters(self) -> dict[str, int]:
-        """Sum of the solvers' counters (factorizations, linear_solves, ...)."""
-        out: dict[str, int] = dict(self._retired)
-        for solver in (sys.solver for sys in self._all_systems()):
-            for k, v in solver.counters.items():
-                out[k] = out.get(k, 0) + int(v)
+        """Sum of the solvers' counters (factorizations, linear_solves, ...), with the pairs' re-paired rows."""
+        out = self.factors.counters()
         if self.disc.problem.pairs:
             out["pair_rows_repaired"] = self.repaired
         return out

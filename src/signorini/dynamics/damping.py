@@ -77,9 +77,13 @@ class Rayleigh:
 
         return Operator(op.mass + c * self.alpha, op.stiffness + c * self.beta)
 
-    def describe(self) -> dict[str, float]:
-        """``summary.json`` ``damping``."""
-        return {"model": "rayleigh", "alpha": float(self.alpha), "beta": float(self.beta)}
+    def describe(self) -> dict[str, Any]:
+        """``summary.json`` ``damping``: model ``rayleigh``, or ``none`` when C = 0."""
+        return {"model": "rayleigh" if self.active else "none", "alpha": float(self.alpha), "beta": float(self.beta)}
+
+
+#: no damping (what ``summary.json`` describes for an undamped run)
+UNDAMPED = Rayleigh()
 
 
 def make_damping(spec: Rayleigh | Mapping[str, Any] | None, where: str = "damping") -> Rayleigh | None:

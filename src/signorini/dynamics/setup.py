@@ -24,6 +24,7 @@ from ..linalg.row_block import RowBlock
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
 from .context import Context
+from .damping import UNDAMPED
 from .history import COUNTER_KEYS, History
 from .mass import GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
@@ -184,8 +185,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "mass": disc.mass_name,
         "mass_effect": dict(disc.mass_effect),
         "friction": friction_summary(disc.problem),
-        # Rayleigh damping C = alpha M + beta S, or None (undamped)
-        "damping": ctx.damping.describe() if ctx.damping is not None else None,
+        # Rayleigh damping C = alpha M + beta S (model "none", zeros: undamped)
+        "damping": (ctx.damping or UNDAMPED).describe(),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
@@ -278,7 +279,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     for s in schemes:
         op = s.step_operator(ctx, dt)
         if op is not None:
-            ctx.prepare(op)
+            ctx.factors.system(op)
             s.check_context(ctx, prepared=True)
     ctx.Mop, ctx.Sop  # noqa: B018 - built now (set-up), after the factors: a lower peak of memory
     return ctx

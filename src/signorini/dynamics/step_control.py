@@ -37,7 +37,7 @@ every level is on the piece's dyadic grid, its time start + j h without accumula
 At h = dt_min a step above the allowance is accepted, counted (``unresolved_steps``) and
 warned of; nothing loops.
 
-The factorizations of the steps used are kept (:meth:`~signorini.dynamics.context.Context.use_step`)
+The factorizations of the steps used are kept (:meth:`~signorini.dynamics.factorizations.Factorizations.use`)
 within a share of the memory budget, so that a second impact at the same step factorizes
 nothing.
 """

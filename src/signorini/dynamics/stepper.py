@@ -360,7 +360,7 @@ class Stepper:
         (the state, the pairing and the observers change only when a level is accepted; the
         Delassus columns a rejected step solved stay valid for its operator)."""
         out = []
-        for sys in self.run.ctx._systems:
+        for sys in self.run.ctx.factors.current:
             names = getattr(sys.solver, "warm_state", ())
             out.append((sys, {name: np.array(getattr(sys.solver, name), copy=True) for name in names}))
         return out
@@ -466,8 +466,9 @@ class Stepper:
         logs now, per factorized operator: what a checkpoint of this level holds of them."""
         ctx = self.run.ctx
         # a rank's are its own rows; an adaptive control's kept steps too (least recently used first)
-        systems = (ctx.systems_by_step() if self.control is not None else [(ctx.dt, s) for s in ctx._systems]) if (
-            ctx.comm.size == 1) else []  # fmt: skip
+        systems = []
+        if ctx.comm.size == 1:
+            systems = ctx.factors.by_step() if self.control is not None else [(ctx.dt, s) for s in ctx.factors.current]
         out = []
         for dt, sys in systems:  # each factorized operator's solver, in order of creation
             warm = {
@@ -621,7 +622,7 @@ class Stepper:
                 if step.shape != () or not np.isfinite(step) or not step > 0:
                     raise InputError(f"checkpoint {where!r}: solver {k} has no valid step")
                 run.ctx.use_step(float(step), run.ctx.t0, [], self._ladder_bytes)
-            sys, _ = run.ctx._system(Operator(float(op[0]), float(op[1])))  # made now if the loop made it
+            sys, _ = run.ctx.factors.system(Operator(float(op[0]), float(op[1])))  # made now if the loop made it
             for name in getattr(sys.solver, "warm_state", ()):
                 a = saved["arrays"].get(f"solvers/{k}/{name}")
                 old = np.asarray(getattr(sys.solver, name))
@@ -640,7 +641,7 @@ class Stepper:
                     raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
         if self.control is not None:
             run.ctx.use_step(current, run.ctx.t0, [], self._ladder_bytes)  # back to the checkpoint's step
-            for sys in run.ctx._systems:  # its warm starts, not those use_step passed from the last restored
+            for sys in run.ctx.factors.current:  # its warm starts, not those use_step passed from the last restored
                 for name, a in restored.get(id(sys), {}).items():
                     setattr(sys.solver, name, a.copy())
             if "time_control" in attrs:

@@ -115,8 +115,8 @@ def energy_line(H, s: dict) -> str:
 def damping_line(H, s: dict) -> str:
     """With Rayleigh damping: its coefficients and what it dissipated (the energy line's drift
     includes it: a damped run loses energy by design)."""
-    d = s.get("damping")
-    if not d:
+    d = s.get("damping") or {}
+    if d.get("model", "none") == "none":
         return ""
     diss = float(H.columns()["damping_dissipation"][-1]) + 0.0  # no "-0"
     work = f"{diss:.6g}" if np.isfinite(diss) else "n/a"
