@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,6 +32,7 @@ from ..linalg.row_block import RowBlock, node_row_bounds, row_bounds
 from ..linalg.sparse import linear_combination, principal_combination, principal_rows
 from ..linalg.spmv import sparse_product
 from ..parallel import DISTRIBUTED_BACKENDS, run_comm
+from .contact_rows import ContactRows
 from .factorizations import Factorizations
 from .mass import massless_dofs
 from .problem import Discretization
@@ -161,6 +162,42 @@ class _System:
         return self._lift
 
 
+class DirichletElimination:
+    """The prescribed dofs D taken out of a solve on the free dofs f and put back in its answer."""
+
+    def __init__(self, free: np.ndarray, fixed: np.ndarray, n: int):
+        self.free, self.fixed, self.n = free, fixed, n
+
+    def reduce(self, lift: Callable[[np.ndarray], Any], s: float, rhs: np.ndarray, bound: np.ndarray | None,
+               fixed_values: np.ndarray | None, rows: ContactRows) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+        """(rhs_f - s K_fD x_D, bound - (rows on D) x_D): a solve of K x = rhs with x_D = ``fixed_values``
+        (0 when None) on the free dofs; ``lift`` is the system's K_fD x_D, ``rows`` the contact rows."""
+        if not self.fixed.size:
+            return rhs, bound
+        xD = np.zeros(self.fixed.size) if fixed_values is None else fixed_values
+        b = rhs[self.free] - s * lift(xD)
+        on_fixed = rows.HD if rows.components > 1 else rows.BD
+        if bound is not None and on_fixed is not None:
+            bound = bound - on_fixed @ xD
+        return b, bound
+
+    def expand(self, x: np.ndarray, fixed_values: np.ndarray | None) -> np.ndarray:
+        """The full vector (n,): x on the free dofs, ``fixed_values`` (0 when None) on D."""
+        if not self.fixed.size:
+            return x
+        out = np.empty(self.n)
+        out[self.free] = x
+        out[self.fixed] = 0.0 if fixed_values is None else fixed_values
+        return out
+
+
+#: what the Context forwards to its :class:`~signorini.dynamics.contact_rows.ContactRows`: the rows,
+#: their blocks and frames, the friction data of a step's solve and the pairing
+ROW_ATTRIBUTES = frozenset({
+    "B", "Bf", "BD", "T", "H", "Hf", "HD", "friction", "components", "friction_rows", "sliding", "repaired",
+    "friction_law", "friction_rate_law", "rows_of", "contact_force", "contact_on_fixed", "pairing_state",
+})  # fmt: skip
+
 #: relative size of a gap that is contact (:attr:`Context.touch_tolerance`): 1e4 times the
 #: round-off of a coordinate, 1e-12 of the body
 TOUCH = 1e-12
@@ -172,7 +209,7 @@ class Context:
     def __init__(self, disc: Discretization, dt: float, solver_options: dict[str, Any] | None = None):
         self.disc = disc
         self.dt = float(dt)
-        self.M, self.S, self.B = disc.M, disc.S, disc.B
+        self.M, self.S = disc.M, disc.S
         self.free, self.fixed = disc.free, disc.fixed
         self.solver_options = dict(solver_options or {})
         #: the ranks of the run (:mod:`signorini.parallel`): one process, or mpiexec's for ``petsc``
@@ -181,21 +218,11 @@ class Context:
         #: (:class:`~signorini.linalg.row_block.RowBlock`): backends ``petsc`` and ``petsc-cg``
         self.distributed = self.solver_options.get("backend") in DISTRIBUTED_BACKENDS
         self.has_fixed = self.fixed.size > 0
-        self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
-        BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
-        self.BD = BD if BD is not None and BD.nnz else None
-        #: the contact law; with friction, T (nc (d - 1), n) the tangential rows of the nodal
-        #: frames and H (nc d, n) all of them, node-major (:meth:`ContactSet.frame_matrix`; a
-        #: contact pair's rows: the slave node relative to the master point it faces)
-        self.friction = disc.friction
-        self.components = self.friction.components(disc.space.dim)
-        self.T = self.H = self.Hf = self.HD = None
-        #: the coefficient (Coulomb) or threshold (Tresca) of each contact row (nc,): the run's
-        #: law's, or a contact pair's own (:func:`~signorini.dynamics.problem.row_friction`)
-        self.friction_rows: np.ndarray | None = None
-        if self.components > 1:
-            self.friction_rows = disc.friction_rows
-            self._frame_rows()
+        #: the Dirichlet dofs eliminated from a solve and put back in its answer
+        self.elimination = DirichletElimination(self.free, self.fixed, disc.space.n_dofs)
+        #: the contact rows B, T, H, their blocks, friction data and pairing (their only owner);
+        #: ``ctx.B``, ``ctx.friction_law(...)`` and the like read them (:data:`ROW_ATTRIBUTES`)
+        self.rows = ContactRows(disc, self.solver_options)
         #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it;
         #: never with friction)
         self.iterative_ok = self.components == 1
@@ -217,6 +244,29 @@ class Context:
                 f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "
                 "boundary): refine the mesh across the contact layer or use the 'standard' mass"
             )
+
+    def __getattr__(self, name: str) -> Any:
+        """The contact rows' attributes and methods of :data:`ROW_ATTRIBUTES`, read from their owner."""
+        if name in ROW_ATTRIBUTES:
+            return getattr(self.__dict__["rows"], name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def slide(self, U: np.ndarray, t: float) -> int:
+        """Small sliding after a level (:meth:`ContactRows.slide`); every factorized system, the
+        kept steps' too, takes the re-paired rows (their Delassus columns follow).  Returns the
+        number of rows re-paired."""
+        return self._replace_rows(self.rows.slide(U, t))
+
+    def restore_pairing(self, data: dict[str, Any], t: float) -> None:
+        """Put back a checkpoint's pairing (:meth:`ContactRows.restore_pairing`) in the rows and
+        the solvers (a resumed run, before its first step)."""
+        self._replace_rows(self.rows.restore_pairing(data, t))
+
+    def _replace_rows(self, rows: np.ndarray) -> int:
+        if rows.size:
+            for sys in self.factors.every():  # the kept steps' too: they must use the current pairing
+                sys.solver.replace_rows(rows, self.rows.solve_rows)
+        return int(rows.size)
 
     # -- products of a step's right-hand side and energy ------------------------------
     @functools.cached_property
@@ -310,166 +360,11 @@ class Context:
                     "(a scheme that carries friction passes Context.friction_law)"
                 )
             bound = np.column_stack([bound, law.reference]).ravel()
-        b, bnd = self._reduce(sys, s, rhs, bound, fixed_values)
+        b, bnd = self.elimination.reduce(sys.lift, s, rhs, bound, fixed_values, self.rows)
         x, mu, info = sys.solver.solve(b / s if s != 1.0 else b, bnd, law.scaled(s))
         if s != 1.0 and info.lam_t is not None:
             info.lam_t = s * info.lam_t
-        return self._expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
-
-    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
-        """``base`` with the run's friction for a position-level step t0 -> t1 from U = U^n:
-        the slip of the step is v_t = T U^{n+1} - c_t with c_t = T U^n + T (obstacle
-        translation), the tangential part of U^{n+1} - U^n relative to the obstacle.
-        ``base`` itself when the run is frictionless."""
-        if self.components == 1:
-            return base
-        ref = (self.T @ U).reshape(self.disc.contact.size, -1) + self.disc.contact.obstacle_slip(t0, t1)
-        return replace(
-            base, friction=self.friction, reference=ref, radius=self._radius(), coefficient=self._coefficients()
-        )
-
-    def friction_rate_law(self, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
-        """``base`` with the run's friction for a velocity-level step: the slip rate is
-        v_t = T V^{n+1} - c_t with c_t the obstacle's tangential velocity over the step.
-        The multipliers are impulses: the Tresca bound of a step is (t1 - t0) s w_i."""
-        if self.components == 1:
-            return base
-        ref = self.disc.contact.obstacle_slip(t0, t1) / (t1 - t0)
-        radius = self._radius()
-        radius = None if radius is None else (t1 - t0) * radius
-        return replace(base, friction=self.friction, reference=ref, radius=radius, coefficient=self._coefficients())
-
-    def _radius(self) -> np.ndarray | None:
-        """Tresca thresholds s_i w_i (nc,) [force] (s_i: the row's threshold); None for Coulomb."""
-        if self.friction.law != "tresca":
-            return None
-        if self._uniform:
-            return self.friction.threshold * self.disc.contact.weights
-        return self.friction_rows * self.disc.contact.weights
-
-    def _coefficients(self) -> np.ndarray | None:
-        """Coulomb coefficients mu_i (nc,) when the rows' differ (contact pairs with their own
-        laws); None: the run's ``friction.coefficient`` on every row."""
-        if self.friction.law != "coulomb" or self._uniform:
-            return None
-        return self.friction_rows
-
-    @functools.cached_property
-    def _uniform(self) -> bool:
-        """Every row has the run's law's coefficient or threshold (always without pairs)."""
-        value = self.friction.coefficient if self.friction.law == "coulomb" else self.friction.threshold
-        return self.friction_rows is None or bool(np.all(self.friction_rows == value))
-
-    @functools.cached_property
-    def sliding(self) -> bool:
-        """Whether contact pairs are re-paired as their slave nodes slide (solver option
-        ``pairing``: small-sliding, the default, or frozen)."""
-        if not self.disc.problem.pairs or self.disc.space.dim == 1:
-            return False
-        return self.solver_options.get("pairing", "small-sliding") == "small-sliding"
-
-    def _frame_rows(self) -> None:
-        """T, H and H's free and fixed blocks from the contact set's frames (friction)."""
-        n = self.disc.space.n_dofs
-        self.T = self.disc.contact.tangential_matrix(n)
-        self.H = self.disc.contact.frame_matrix(n)
-        self.Hf = self.H[:, self.free].tocsr() if self.has_fixed else self.H
-        HD = self.H[:, self.fixed].tocsr() if self.has_fixed else None
-        self.HD = HD if HD is not None and HD.nnz else None
-
-    def slide(self, U: np.ndarray, t: float) -> int:
-        """Small sliding after a level (:meth:`ContactSet.slide`): the pair rows whose slave node
-        left its master facet in X + U are re-paired; B, its free and fixed blocks, the friction
-        frames and every contact solver's rows (their Delassus columns) follow.  Returns the
-        number of rows re-paired (counted in ``pair_rows_repaired``)."""
-        if not self.sliding:
-            return 0
-        disc = self.disc
-        B_before, T_before = self.B, self.T
-        rows = disc.contact.slide(disc.space, disc.problem.pairs, U)
-        if rows.size == 0:
-            return 0
-        # the multipliers of the level just computed acted through the rows of before (in the
-        # next step's balance and energy identity: :meth:`rows_of`)
-        self._level_rows = (t, B_before, T_before)
-        self._use_rows(rows)
-        return int(rows.size)
-
-    def _use_rows(self, rows: np.ndarray) -> None:
-        """B, its blocks, the frames and the solvers' rows after the contact set changed ``rows``."""
-        disc = self.disc
-        self.B = disc.B = disc.contact.B
-        self.Bf = self.B[:, self.free].tocsr() if self.has_fixed else self.B
-        BD = self.B[:, self.fixed].tocsr() if self.has_fixed else None
-        self.BD = BD if BD is not None and BD.nnz else None
-        if self.components > 1:
-            self._frame_rows()
-        for sys in self.factors.every():  # the kept steps' too: they must use the current pairing
-            sys.solver.replace_rows(rows, self.Hf if self.components > 1 else self.Bf)
-        self.repaired += int(rows.size)
-
-    #: the contact set's arrays that small sliding changes (:meth:`ContactSet.slide`)
-    PAIRING_ARRAYS = ("normals", "gaps", "master_facet", "master_shape", "master_dofs")
-
-    def pairing_state(self, t: float) -> dict[str, Any]:
-        """The pairing after small sliding, for a checkpoint at time t: the contact set's
-        changed arrays, the rows the level at t acted through (when a re-pairing followed it)
-        and the counts of re-paired rows.  Empty without sliding pairs."""
-        if not self.sliding:
-            return {}
-        c = self.disc.contact
-        out: dict[str, Any] = {k: np.asarray(getattr(c, k)) for k in self.PAIRING_ARRAYS}
-        out["repaired"] = int(self.repaired)
-        out["pair_repaired"] = [int(p["repaired_rows"]) for p in (c.pair_info or [])]
-        if self._level_rows is not None and self._level_rows[0] == t:
-            for name, M in (("level_B", self._level_rows[1]), ("level_T", self._level_rows[2])):
-                if M is not None:
-                    M = M.tocsr()
-                    out.update({f"{name}_data": M.data, f"{name}_indices": M.indices, f"{name}_indptr": M.indptr})
-        return out
-
-    def restore_pairing(self, data: dict[str, Any], t: float) -> None:
-        """Put back the pairing of :meth:`pairing_state` (a resumed run, before its first step)."""
-        if not self.sliding or not data:
-            return
-        c, n = self.disc.contact, self.disc.space.n_dofs
-        changed = np.zeros(c.size, dtype=bool)
-        for k in self.PAIRING_ARRAYS:
-            new, old = np.asarray(data[k]), np.asarray(getattr(c, k))
-            if new.shape != old.shape:
-                raise InputError(f"checkpoint: pairing field {k!r} has shape {new.shape}, expected {old.shape}")
-            changed |= (new != old).reshape(c.size, -1).any(axis=1)
-            getattr(c, k)[...] = new
-        rows = np.flatnonzero(changed)
-        if rows.size:
-            if hasattr(c, "_tangents"):
-                del c._tangents
-            c.B = c._row_frame(c.normals[:, None, :], n).tocsr()
-            self._use_rows(rows)
-        self.repaired = int(data["repaired"])
-        for p, r in zip(c.pair_info or [], data["pair_repaired"], strict=False):
-            p["repaired_rows"] = int(r)
-        level = []
-        for name in ("level_B", "level_T"):
-            if f"{name}_data" in data:
-                shape = (c.size * (1 if name == "level_B" else self.components - 1), n)
-                level.append(sp.csr_matrix((data[f"{name}_data"], data[f"{name}_indices"], data[f"{name}_indptr"]),
-                                           shape=shape))  # fmt: skip
-            else:
-                level.append(None)
-        if level[0] is not None:
-            self._level_rows = (t, level[0], level[1])
-
-    #: contact pair rows re-paired by small sliding over the run
-    repaired = 0
-    _level_rows: tuple | None = None
-
-    def rows_of(self, t: float) -> tuple[Any, Any]:
-        """(B, T): the contact rows the multipliers of the level at time t act through: the
-        current ones, or those before a re-pairing (:meth:`slide`) that followed that level."""
-        if self._level_rows is not None and self._level_rows[0] == t:
-            return self._level_rows[1], self._level_rows[2]
-        return self.B, self.T
+        return self.elimination.expand(x, fixed_values), (s * mu if s != 1.0 else mu), info
 
     def massless_update(self, V: np.ndarray, A: np.ndarray, U: np.ndarray, U_old: np.ndarray) -> None:
         """On the massless directions, in place: V = (U - U_old)/dt and A = 0.
@@ -487,47 +382,11 @@ class Context:
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)
 
-    def contact_on_fixed(self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None
-                         ) -> np.ndarray | float:  # fmt: skip
-        """(B^T lambda + T^T lambda_t) on the Dirichlet dofs (the contact part of their reactions),
-        0.0 when no contact row touches a fixed dof; ``t``: the multipliers of that level
-        (:meth:`rows_of`)."""
-        if self.BD is None and self.HD is None and self._level_rows is None:
-            return 0.0
-        return self.contact_force(lam, lam_t, t)[self.fixed]
-
-    def contact_force(self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None) -> np.ndarray:
-        """B^T lambda + T^T lambda_t (n,): the contact forces on the dofs [force]; ``t``: the
-        multipliers of that level, through its rows (:meth:`rows_of`)."""
-        B, T = (self.B, self.T) if t is None else self.rows_of(t)
-        f = B.T @ lam
-        if lam_t is not None and T is not None:
-            f = f + T.T @ lam_t.ravel()
-        return f
-
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = rhs`` on the free rows without contact."""
         sys, s = self.factors.system(op)
-        b, _ = self._reduce(sys, s, rhs, None, fixed_values)
-        return self._expand(sys.solver.solve_linear(b / s), fixed_values)
-
-    def _reduce(self, sys: _System, s: float, rhs, bound, fixed_values):
-        if not self.has_fixed:
-            return rhs, bound
-        xD = np.zeros(self.fixed.size) if fixed_values is None else fixed_values
-        b = rhs[self.free] - s * sys.lift(xD)
-        rows = self.HD if self.components > 1 else self.BD
-        if bound is not None and rows is not None:
-            bound = bound - rows @ xD
-        return b, bound
-
-    def _expand(self, x: np.ndarray, fixed_values) -> np.ndarray:
-        if not self.has_fixed:
-            return x
-        out = np.empty(self.M.shape[0])
-        out[self.free] = x
-        out[self.fixed] = 0.0 if fixed_values is None else fixed_values
-        return out
+        b, _ = self.elimination.reduce(sys.lift, s, rhs, None, fixed_values, self.rows)
+        return self.elimination.expand(sys.solver.solve_linear(b / s), fixed_values)
 
     # -- bookkeeping ---------------------------------------------------------------
     @property
