@@ -1,0 +1,231 @@
+"""Finite strain (Total Lagrangian): hyperelastic laws and their internal force and tangent (spec 12).
+
+Kinematics at a quadrature point: F = I + grad_X u (d x d; plane strain in 2D, F_33 = 1),
+C = F^T F, E = (C - I)/2, J = det F.  A law gives the stored energy density W, the second
+Piola-Kirchhoff stress S = dW/dE and its tangent CC = dS/dE (:class:`SaintVenantKirchhoff`,
+:class:`NeoHookean`).  Over a mesh (every cell type, mixed meshes as the sum of their one-type
+parts, no Python loop over cells):
+
+    energy        Pi(U) = sum_e sum_q w_q |det J_e| W(F)                    [energy]
+    internal force f_a,i = sum_q w_q |det J| (F S)_iJ dN_a/dX_J              [force]
+    tangent       K_ai,bk = sum_q w_q |det J| [dN_a/dX_I S_IJ dN_b/dX_J delta_ik
+                                             + F_iI dN_a/dX_J CC_IJKL F_kK dN_b/dX_L]
+
+with f = dPi/dU and K = df/dU.  Both laws reduce to linear elasticity for small strains (their
+tangent at U = 0 is the linear stiffness matrix) and are invariant under rigid rotations:
+f((R - I) X) = 0, sum_a f_a = 0 and sum_a x_a x f_a = 0 (x = X + U), so that a mass acting
+alike on every component keeps the linear and angular momentum.
+
+The laws take the Lamé constants as numbers or one value per cell (regions: a
+:class:`~signorini.fem.material.CellMaterial`'s ``lam``, ``mu``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError, NonFiniteError
+from .assembly import assemble_vector, geometry, sum_of
+from .mesh import Mesh
+
+
+def _lame(value, shape: tuple[int, ...]) -> np.ndarray | float:
+    """A Lamé constant as a factor of arrays of ``shape`` (cells first): a number as it is, one
+    value per cell broadcast over the remaining axes."""
+    if np.ndim(value) == 0:
+        return float(value)
+    return np.asarray(value, dtype=float).reshape((-1,) + (1,) * (len(shape) - 1))
+
+
+@dataclass(frozen=True)
+class HyperelasticLaw:
+    """A stored energy W(E) of the Green-Lagrange strain; ``lam``, ``mu`` the Lamé constants [stress]
+    (numbers, or arrays of one value per cell of the mesh they are used on)."""
+
+    lam: float | np.ndarray
+    mu: float | np.ndarray
+    name: ClassVar[str] = ""
+
+    def energy(self, F: np.ndarray) -> np.ndarray:
+        """W (...) at the deformation gradients F (..., d, d) [energy / volume]."""
+        raise NotImplementedError
+
+    def stress(self, F: np.ndarray) -> np.ndarray:
+        """S = dW/dE (..., d, d) [stress]."""
+        raise NotImplementedError
+
+    def tangent(self, F: np.ndarray) -> np.ndarray:
+        """CC = dS/dE (..., d, d, d, d) [stress], with the minor and major symmetries."""
+        raise NotImplementedError
+
+
+def _green(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C, E): the right Cauchy-Green tensor F^T F and the Green-Lagrange strain (C - I)/2."""
+    C = np.einsum("...kI,...kJ->...IJ", F, F)
+    return C, 0.5 * (C - np.eye(F.shape[-1]))
+
+
+def _symmetric_identity(d: int) -> np.ndarray:
+    """(delta_IK delta_JL + delta_IL delta_JK) (d, d, d, d)."""
+    eye = np.eye(d)
+    return np.einsum("IK,JL->IJKL", eye, eye) + np.einsum("IL,JK->IJKL", eye, eye)
+
+
+@dataclass(frozen=True)
+class SaintVenantKirchhoff(HyperelasticLaw):
+    """W = lam/2 (tr E)^2 + mu E:E; S = lam tr(E) I + 2 mu E; CC = lam I x I + mu (I (x) I)_sym.
+
+    Exact under large rotations; not polyconvex (it softens in strong compression and can invert
+    an element): meant for moderate strains with large rotations.
+    """
+
+    name: ClassVar[str] = "saint-venant-kirchhoff"
+
+    def energy(self, F: np.ndarray) -> np.ndarray:
+        _, E = _green(F)
+        trE = np.trace(E, axis1=-2, axis2=-1)
+        lam, mu = _lame(self.lam, trE.shape), _lame(self.mu, trE.shape)
+        return 0.5 * lam * trE**2 + mu * np.einsum("...IJ,...IJ->...", E, E)
+
+    def stress(self, F: np.ndarray) -> np.ndarray:
+        _, E = _green(F)
+        trE = np.trace(E, axis1=-2, axis2=-1)
+        lam, mu = _lame(self.lam, E.shape), _lame(self.mu, E.shape)
+        return lam * trE[..., None, None] * np.eye(F.shape[-1]) + 2.0 * mu * E
+
+    def tangent(self, F: np.ndarray) -> np.ndarray:
+        d = F.shape[-1]
+        shape = F.shape[:-2] + (d, d, d, d)
+        lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
+        eye = np.eye(d)
+        base = lam * np.einsum("IJ,KL->IJKL", eye, eye) + mu * _symmetric_identity(d)
+        return np.broadcast_to(base, shape)
+
+
+@dataclass(frozen=True)
+class NeoHookean(HyperelasticLaw):
+    """Compressible Neo-Hookean: W = mu/2 (I1 - 3 - 2 ln J) + lam/2 (ln J)^2 (I1 = tr C, with
+    C_33 = 1 in plane strain); S = mu (I - C^-1) + lam ln(J) C^-1;
+    CC = lam Ci x Ci + (mu - lam ln J)(Ci_IK Ci_JL + Ci_IL Ci_JK), Ci = C^-1.
+
+    Polyconvex; W grows without bound as J -> 0: a state with J <= 0 (an inverted element) has
+    no energy and is refused (:func:`check_orientation`).
+    """
+
+    name: ClassVar[str] = "neo-hookean"
+
+    def energy(self, F: np.ndarray) -> np.ndarray:
+        C, _ = _green(F)
+        d = F.shape[-1]
+        lnJ = np.log(np.linalg.det(F))
+        I1 = np.trace(C, axis1=-2, axis2=-1) + (3 - d)  # plane strain: C_33 = 1
+        lam, mu = _lame(self.lam, lnJ.shape), _lame(self.mu, lnJ.shape)
+        return 0.5 * mu * (I1 - 3.0 - 2.0 * lnJ) + 0.5 * lam * lnJ**2
+
+    def stress(self, F: np.ndarray) -> np.ndarray:
+        C, _ = _green(F)
+        Ci = np.linalg.inv(C)
+        lnJ = np.log(np.linalg.det(F))[..., None, None]
+        lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
+        return mu * (np.eye(F.shape[-1]) - Ci) + lam * lnJ * Ci
+
+    def tangent(self, F: np.ndarray) -> np.ndarray:
+        C, _ = _green(F)
+        Ci = np.linalg.inv(C)
+        d = F.shape[-1]
+        shape = F.shape[:-2] + (d, d, d, d)
+        lnJ = np.log(np.linalg.det(F))[..., None, None, None, None]
+        lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
+        outer = np.einsum("...IJ,...KL->...IJKL", Ci, Ci)
+        sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
+        return lam * outer + (mu - lam * lnJ) * sym
+
+
+#: the finite-strain laws by name (``[material] model``; ``linear`` is today's small strain)
+HYPERELASTIC_LAWS: dict[str, type[HyperelasticLaw]] = {
+    SaintVenantKirchhoff.name: SaintVenantKirchhoff,
+    NeoHookean.name: NeoHookean,
+}
+
+
+def _parts(mesh: Mesh, law: HyperelasticLaw) -> list[tuple[Mesh, HyperelasticLaw, slice]]:
+    """The one-type parts of ``mesh`` with the law restricted to their cells."""
+    if mesh.dim == 1:
+        raise InputError(f"finite strain ({law.name}) needs a 2D (plane strain) or 3D mesh, not a 1D bar")
+    out = []
+    for part, cut in mesh.parts():
+        lam = law.lam if np.ndim(law.lam) == 0 else np.asarray(law.lam)[cut]
+        mu = law.mu if np.ndim(law.mu) == 0 else np.asarray(law.mu)[cut]
+        out.append((part, type(law)(lam, mu), cut))
+    return out
+
+
+def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(F, wdet, G) of a one-type mesh: F = I + grad_X u at every quadrature point (e, q, d, d),
+    the weights w_q |det J| (e, q) and the reference shape gradients G (e, q, nv, d).  ``U`` (n_nodes d,)
+    node-major."""
+    wdet, G = geometry(mesh)
+    d = mesh.dim
+    u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
+    F = np.einsum("eai,eqaJ->eqiJ", u, G) + np.eye(d)
+    return F, wdet, G
+
+
+def check_orientation(mesh: Mesh, F: np.ndarray, cut: slice) -> None:
+    """:class:`NonFiniteError` naming the first cell where det F <= 0 (an inverted element)."""
+    J = np.linalg.det(F)
+    bad = ~(J > 0)
+    if bad.any():
+        e, q = np.argwhere(bad)[0]
+        cell = int(np.arange(cut.start, cut.stop)[e])
+        raise NonFiniteError(f"cell {cell} is inverted (det F = {J[e, q]:.3g} <= 0 at quadrature point {q}): the "
+                             "deformation is beyond what the mesh can carry; reduce the step")  # fmt: skip
+
+
+def strain_energy(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> float:
+    """Pi(U) = int W(F) dX over the reference configuration [energy]."""
+    total = 0.0
+    for part, part_law, cut in _parts(mesh, law):
+        F, wdet, _ = deformation_gradients(part, U)
+        check_orientation(part, F, cut)
+        total += float(np.sum(wdet * part_law.energy(F)))
+    return total
+
+
+def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> np.ndarray:
+    """f(U) (n_nodes d,) node-major: f_a,i = int (F S)_iJ dN_a/dX_J dX [force]."""
+    d = mesh.dim
+    f = np.zeros(mesh.n_nodes * d)
+    for part, part_law, cut in _parts(mesh, law):
+        F, wdet, G = deformation_gradients(part, U)
+        check_orientation(part, F, cut)
+        P = np.einsum("eqiI,eqIJ->eqiJ", F, part_law.stress(F))  # first Piola-Kirchhoff
+        fe = np.einsum("eq,eqiJ,eqaJ->eai", wdet, P, G)  # (e, nv, d)
+        np.add.at(f.reshape(-1, d), part.cells, fe)
+    return f
+
+
+def tangent_stiffness(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> sp.csr_matrix:
+    """K(U) = df/dU (n_nodes d)^2, symmetric: the geometric part (grad N_a . S grad N_b) I plus the
+    material part F grad N_a : CC : F grad N_b [force / length]."""
+    mats = []
+    for part, part_law, cut in _parts(mesh, law):
+        F, wdet, G = deformation_gradients(part, U)
+        check_orientation(part, F, cut)
+        S, CC = part_law.stress(F), part_law.tangent(F)
+        d = mesh.dim
+        e, q, nv, _ = G.shape
+        geo = np.einsum("eq,eqaI,eqIJ,eqbJ->eab", wdet, G, S, G, optimize=True)
+        # the material part as batched matrix products: FG[(I J), (a i)] = F_iI dN_a/dX_J, then
+        # sum_q w FG^T CC FG over the quadrature points of each cell
+        FG = np.einsum("eqiI,eqaJ->eqIJai", F, G).reshape(e, q, d * d, nv * d)
+        CFG = np.matmul(CC.reshape(e, q, d * d, d * d), FG)
+        mat = np.matmul((FG * wdet[:, :, None, None]).reshape(e, q * d * d, nv * d).transpose(0, 2, 1),
+                        CFG.reshape(e, q * d * d, nv * d))  # fmt: skip
+        Ke = mat.reshape(e, nv, d, nv, d).transpose(0, 1, 3, 2, 4) + geo[..., None, None] * np.eye(d)
+        mats.append(assemble_vector(part, Ke))
+    return sum_of(mats) if len(mats) > 1 else mats[0]
