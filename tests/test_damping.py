@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,26 +149,11 @@ def test_schemes_without_damping_refuse_it_by_name(scheme):
         simulate(p, scheme, dt, T, mass="standard")
 
 
-CASE = """
-[mesh]
-generator = "rectangle"
-cells = [2, 10]
-size = [0.1, 1.0]
-[material]
-E = 1.0
-nu = 0.3
-rho = 1.0
-{damping}
-[contact]
-tag = "ymin"
-obstacle = {{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }}
-[initial]
-velocity = [0.0, -0.2]
-displacement = [0.0, 0.05]
-[time]
-dt = 0.02
-T = 1.0
-"""
+def _case(damping: str) -> str:
+    """examples/bar2d.toml with ``damping`` as the first line of its [material] section."""
+    text = (Path(__file__).parents[1] / "examples" / "bar2d.toml").read_text()
+    assert "[material]\n" in text
+    return text.replace("[material]\n", f"[material]\n{damping}\n", 1)
 
 
 @pytest.mark.parametrize(
@@ -181,7 +167,7 @@ T = 1.0
 )
 def test_bad_damping_in_a_case_file_exits_2_naming_the_field(tmp_path, capsys, damping, message):
     case = tmp_path / "c.toml"
-    case.write_text(CASE.format(damping=damping))
+    case.write_text(_case(damping))
     assert main(["run", str(case), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
@@ -189,7 +175,7 @@ def test_bad_damping_in_a_case_file_exits_2_naming_the_field(tmp_path, capsys, d
 
 def test_damping_in_a_case_file_reaches_the_summary_and_history(tmp_path, capsys):
     case = tmp_path / "c.toml"
-    case.write_text(CASE.format(damping="damping = { alpha = 0.5, beta = 0.01 }"))
+    case.write_text(_case("damping = { alpha = 0.5, beta = 0.01 }"))
     assert main(["run", str(case), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["damping"] == {"model": "rayleigh", "alpha": 0.5, "beta": 0.01}
