@@ -12,6 +12,8 @@ from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.hyperelastic import (
     NeoHookean,
     SaintVenantKirchhoff,
+    algorithmic_force,
+    algorithmic_stress,
     internal_force,
     strain_energy,
     tangent_stiffness,
@@ -138,3 +140,47 @@ def test_an_inverted_cell_is_named_and_1d_is_refused():
         internal_force(mesh, NeoHookean(MATERIAL.lam, MATERIAL.mu), U.ravel())
     with pytest.raises(InputError, match="needs a 2D .* or 3D mesh"):
         internal_force(interval(4, 1.0), SaintVenantKirchhoff(1.0, 1.0), np.zeros(5))
+
+
+@pytest.mark.parametrize("cells", list(MESHES))
+@pytest.mark.parametrize("law", LAWS)
+def test_the_algorithmic_force_keeps_energy_and_both_momenta(cells, law):
+    """Gonzalez's discrete gradient between two states 5% of a cell apart: f . dU = Pi(U1) - Pi(U0)
+    to round-off of the energies, sum f_a = 0, sum x_mid x f_a = 0 (spec 12)."""
+    mesh, lw = MESHES[cells], law(MATERIAL.lam, MATERIAL.mu)
+    d = mesh.dim
+    U0, dU = _state(mesh, seed=5, size=0.03)
+    U1 = U0 + 0.03 * dU
+    f = algorithmic_force(mesh, lw, U0, U1)
+    e0, e1 = strain_energy(mesh, lw, U0), strain_energy(mesh, lw, U1)
+    assert abs(f @ (U1 - U0) - (e1 - e0)) <= 1e-13 * max(e0, e1)
+    assert abs(f @ (U1 - U0)) > 1e-6 * max(e0, e1)  # not trivially zero
+    fa = f.reshape(-1, d)
+    x = mesh.points + 0.5 * (U0 + U1).reshape(-1, d)
+    size = np.abs(fa).max() * np.abs(x).max()
+    assert np.abs(fa.sum(axis=0)).max() <= 1e-13 * np.abs(fa).max()
+    moment = np.sum(x[:, 0] * fa[:, 1] - x[:, 1] * fa[:, 0]) if d == 2 else np.cross(x, fa).sum(axis=0)
+    assert np.abs(moment).max() <= 1e-13 * size
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_the_discrete_gradient_is_the_midpoint_stress_to_second_order(law):
+    """S_alg(C0, C1) - S((C0 + C1)/2) = O(|dC|^2) (rate 2 as dC halves); for Saint Venant-Kirchhoff
+    it is the mean of the two stresses exactly; equal states give the stress itself."""
+    rng = np.random.default_rng(7)
+    F = np.eye(3) + 0.1 * rng.standard_normal((4, 3, 3))
+    dF = rng.standard_normal((4, 3, 3))
+    lw = law(MATERIAL.lam, MATERIAL.mu)
+    C0 = np.einsum("...kI,...kJ->...IJ", F, F)
+    err = []
+    for h in (1e-2, 5e-3):
+        F1 = F + h * dF
+        C1 = np.einsum("...kI,...kJ->...IJ", F1, F1)
+        S_alg = algorithmic_stress(lw, C0, C1)
+        err.append(np.abs(S_alg - lw.stress_C(0.5 * (C0 + C1))).max())
+        if law is SaintVenantKirchhoff:
+            mean = 0.5 * (lw.stress_C(C0) + lw.stress_C(C1))
+            assert np.abs(S_alg - mean).max() <= 1e-14 * np.abs(mean).max()
+    if law is NeoHookean:
+        assert 1.8 < np.log2(err[0] / err[1]) < 2.2 and err[1] < 1e-4, err
+    assert np.array_equal(algorithmic_stress(lw, C0, C0), lw.stress_C(C0))

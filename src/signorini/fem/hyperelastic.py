@@ -52,14 +52,26 @@ class HyperelasticLaw:
 
     def energy(self, F: np.ndarray) -> np.ndarray:
         """W (...) at the deformation gradients F (..., d, d) [energy / volume]."""
-        raise NotImplementedError
+        return self.energy_C(_green(F)[0])
 
     def stress(self, F: np.ndarray) -> np.ndarray:
         """S = dW/dE (..., d, d) [stress]."""
-        raise NotImplementedError
+        return self.stress_C(_green(F)[0])
 
     def tangent(self, F: np.ndarray) -> np.ndarray:
         """CC = dS/dE (..., d, d, d, d) [stress], with the minor and major symmetries."""
+        return self.tangent_C(_green(F)[0])
+
+    def energy_C(self, C: np.ndarray) -> np.ndarray:
+        """W as a function of the right Cauchy-Green tensor C (..., d, d)."""
+        raise NotImplementedError
+
+    def stress_C(self, C: np.ndarray) -> np.ndarray:
+        """S = 2 dW/dC (..., d, d)."""
+        raise NotImplementedError
+
+    def tangent_C(self, C: np.ndarray) -> np.ndarray:
+        """CC = 4 d^2W/dC^2 (..., d, d, d, d)."""
         raise NotImplementedError
 
 
@@ -85,21 +97,21 @@ class SaintVenantKirchhoff(HyperelasticLaw):
 
     name: ClassVar[str] = "saint-venant-kirchhoff"
 
-    def energy(self, F: np.ndarray) -> np.ndarray:
-        _, E = _green(F)
+    def energy_C(self, C: np.ndarray) -> np.ndarray:
+        E = 0.5 * (C - np.eye(C.shape[-1]))
         trE = np.trace(E, axis1=-2, axis2=-1)
         lam, mu = _lame(self.lam, trE.shape), _lame(self.mu, trE.shape)
         return 0.5 * lam * trE**2 + mu * np.einsum("...IJ,...IJ->...", E, E)
 
-    def stress(self, F: np.ndarray) -> np.ndarray:
-        _, E = _green(F)
+    def stress_C(self, C: np.ndarray) -> np.ndarray:
+        E = 0.5 * (C - np.eye(C.shape[-1]))
         trE = np.trace(E, axis1=-2, axis2=-1)
         lam, mu = _lame(self.lam, E.shape), _lame(self.mu, E.shape)
-        return lam * trE[..., None, None] * np.eye(F.shape[-1]) + 2.0 * mu * E
+        return lam * trE[..., None, None] * np.eye(C.shape[-1]) + 2.0 * mu * E
 
-    def tangent(self, F: np.ndarray) -> np.ndarray:
-        d = F.shape[-1]
-        shape = F.shape[:-2] + (d, d, d, d)
+    def tangent_C(self, C: np.ndarray) -> np.ndarray:
+        d = C.shape[-1]
+        shape = C.shape[:-2] + (d, d, d, d)
         lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
         eye = np.eye(d)
         base = lam * np.einsum("IJ,KL->IJKL", eye, eye) + mu * _symmetric_identity(d)
@@ -118,27 +130,24 @@ class NeoHookean(HyperelasticLaw):
 
     name: ClassVar[str] = "neo-hookean"
 
-    def energy(self, F: np.ndarray) -> np.ndarray:
-        C, _ = _green(F)
-        d = F.shape[-1]
-        lnJ = np.log(np.linalg.det(F))
+    def energy_C(self, C: np.ndarray) -> np.ndarray:
+        d = C.shape[-1]
+        lnJ = 0.5 * np.log(np.linalg.det(C))
         I1 = np.trace(C, axis1=-2, axis2=-1) + (3 - d)  # plane strain: C_33 = 1
         lam, mu = _lame(self.lam, lnJ.shape), _lame(self.mu, lnJ.shape)
         return 0.5 * mu * (I1 - 3.0 - 2.0 * lnJ) + 0.5 * lam * lnJ**2
 
-    def stress(self, F: np.ndarray) -> np.ndarray:
-        C, _ = _green(F)
+    def stress_C(self, C: np.ndarray) -> np.ndarray:
         Ci = np.linalg.inv(C)
-        lnJ = np.log(np.linalg.det(F))[..., None, None]
+        lnJ = 0.5 * np.log(np.linalg.det(C))[..., None, None]
         lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
-        return mu * (np.eye(F.shape[-1]) - Ci) + lam * lnJ * Ci
+        return mu * (np.eye(C.shape[-1]) - Ci) + lam * lnJ * Ci
 
-    def tangent(self, F: np.ndarray) -> np.ndarray:
-        C, _ = _green(F)
+    def tangent_C(self, C: np.ndarray) -> np.ndarray:
         Ci = np.linalg.inv(C)
-        d = F.shape[-1]
-        shape = F.shape[:-2] + (d, d, d, d)
-        lnJ = np.log(np.linalg.det(F))[..., None, None, None, None]
+        d = C.shape[-1]
+        shape = C.shape[:-2] + (d, d, d, d)
+        lnJ = 0.5 * np.log(np.linalg.det(C))[..., None, None, None, None]
         lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
         outer = np.einsum("...IJ,...KL->...IJKL", Ci, Ci)
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
@@ -229,3 +238,44 @@ def tangent_stiffness(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> sp.csr
         Ke = mat.reshape(e, nv, d, nv, d).transpose(0, 1, 3, 2, 4) + geo[..., None, None] * np.eye(d)
         mats.append(assemble_vector(part, Ke))
     return sum_of(mats) if len(mats) > 1 else mats[0]
+
+
+#: |dC|^2 relative to |C_mid|^2 below which the discrete gradient is the midpoint stress (its
+#: correction is then round-off divided by round-off)
+GONZALEZ_FLOOR = 1e-24
+
+
+def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> np.ndarray:
+    """Gonzalez's discrete gradient S_alg (..., d, d) between C0 and C1 (spec 12):
+
+        S_alg = S(C_mid) + 2 [W(C1) - W(C0) - S(C_mid) : dC / 2] dC / (dC : dC),
+
+    C_mid = (C0 + C1)/2, dC = C1 - C0, so that S_alg : dC / 2 = W(C1) - W(C0) exactly.  For Saint
+    Venant-Kirchhoff (W quadratic in C) the correction vanishes: S_alg = S(C_mid) = (S(C0) + S(C1))/2."""
+    Cm, dC = 0.5 * (C0 + C1), C1 - C0
+    S = law.stress_C(Cm)
+    if isinstance(law, SaintVenantKirchhoff):
+        return S
+    dd = np.einsum("...IJ,...IJ->...", dC, dC)
+    gap = law.energy_C(C1) - law.energy_C(C0) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC)
+    small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
+    factor = np.where(small, 0.0, 2.0 * gap / np.where(small, 1.0, dd))
+    return S + factor[..., None, None] * dC
+
+
+def algorithmic_force(mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:
+    """The energy-momentum step's internal force (n_nodes d,): f_a = int F_mid S_alg grad N_a dX,
+    F_mid = I + grad (U0 + U1)/2 (spec 12).  f . (U1 - U0) = Pi(U1) - Pi(U0) to round-off, and
+    sum f_a = 0, sum x_mid,a x f_a = 0 (x_mid = X + (U0 + U1)/2): a free body keeps its energy and
+    its linear and angular momentum."""
+    d = mesh.dim
+    f = np.zeros(mesh.n_nodes * d)
+    for part, part_law, cut in _parts(mesh, law):
+        F0, wdet, G = deformation_gradients(part, U0)
+        F1, _, _ = deformation_gradients(part, U1)
+        check_orientation(part, F0, cut)
+        check_orientation(part, F1, cut)
+        S = algorithmic_stress(part_law, _green(F0)[0], _green(F1)[0])
+        P = np.einsum("eqiI,eqIJ->eqiJ", 0.5 * (F0 + F1), S)
+        np.add.at(f.reshape(-1, d), part.cells, np.einsum("eq,eqiJ,eqaJ->eai", wdet, P, G))
+    return f
