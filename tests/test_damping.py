@@ -163,6 +163,12 @@ def _case(damping: str) -> str:
         ("damping = { gamma = 1.0 }", "'material.damping': unknown key 'gamma'; allowed: alpha, beta"),
         ("damping = 0.1", "'material.damping' must be a table"),
         ('damping = { beta = "x" }', "'material.damping.beta': damping beta must be a number >= 0"),
+        ("damping = { alpha = 1e300 }", "'material.damping.alpha': damping alpha = 1e+300 is outside 1e-100"),
+        ("damping = { beta = 1e-320 }", "'material.damping.beta': damping beta = 9.99989e-321 is outside"),
+        ("damping = { alpha = 99999999999999999999999999999999999999999999999999999999999999999999999999999999999"
+         "999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999"
+         "999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999999"
+         "99999999999999999999999999999999999999999 }", "'material.damping.alpha': damping alpha must be a finite"),
     ],
 )
 def test_bad_damping_in_a_case_file_exits_2_naming_the_field(tmp_path, capsys, damping, message):
@@ -183,3 +189,23 @@ def test_damping_in_a_case_file_reaches_the_summary_and_history(tmp_path, capsys
     assert header[header.index("dt") + 1] == "damping_dissipation"
     assert main(["run", str(case), "--scheme", "ps", "--mass", "standard", "--out", str(tmp_path / "p")]) == 2
     assert "scheme paoli-schatzman cannot carry damping" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("scheme", ["crank-nicolson", "hht", "newmark"])
+def test_stiffness_damping_never_creates_energy_with_massless_contact_nodes(tmp_path, scheme):
+    """examples/damped_block_drop.toml with beta = 1e-2 (100 times its own) at fixed steps, the
+    default mass (massless contact nodes): the damping column never decreases and the energy never
+    rises above E0.  Before the damping velocity kept its own update on the massless dofs (their V
+    is replaced by dU/dt after each step), this run doubled its energy with a negative damping
+    dissipation (an adversarial test's find, 2026-12-04)."""
+    text = (Path(__file__).parents[1] / "examples" / "damped_block_drop.toml").read_text()
+    case = tmp_path / "c.toml"
+    case.write_text(text.replace("damping = { alpha = 5.0, beta = 5.0e-5 }", "damping = { alpha = 0.0, beta = 1e-2 }"))
+    out = tmp_path / "o"
+    assert main(["run", str(case), "--scheme", scheme, "--dt-control", "fixed", "--out", str(out), "--quiet"]) == 0
+    rows = (out / "history.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    cols = {k: np.array([float(r.split(",")[i]) for r in rows[1:]]) for i, k in enumerate(head)}
+    dd, E = cols["damping_dissipation"], cols["energy"]
+    assert dd[-1] > 0.02 * E[0] and np.all(np.diff(dd) >= -1e-12 * dd[-1]), np.diff(dd).min()
+    assert E.max() <= E[0] * (1 + 1e-6), E.max() / E[0]

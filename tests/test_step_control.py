@@ -289,3 +289,20 @@ def test_signorini_resume_of_an_adaptive_run_to_a_later_t_equals_the_run_to_that
     assert (tmp_path / "b" / "history.csv").read_text() == (tmp_path / "c" / "history.csv").read_text()
     b, c = (json.loads((tmp_path / d / "summary.json").read_text())["time_control"] for d in "bc")
     assert b["dt_largest_used"] == c["dt_largest_used"] == 5e-6 and b["steps_accepted"] == c["steps_accepted"]
+
+
+def test_resume_inside_an_impact_sizes_the_run_at_its_largest_step(tmp_path):
+    """A run stopped inside its first impact (stop_at first-contact, the step refined to dt/1024) and
+    resumed to a later T: the size check counts the steps at the plan's dt (about 1,000), not at the
+    refined step it stopped on (1.02 million: refused as over --max-steps before)."""
+    from signorini.io.cli import main
+
+    case = tmp_path / "c.toml"
+    text = (Path(__file__).parents[1] / "examples" / "steel_block_drop.toml").read_text()
+    case.write_text(text.replace("T = 5e-5\n", 'T = 5e-5\nstop_at = "first-contact"\n'))
+    assert main(["run", str(case), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["time_control"]["dt_smallest_used"] < 1e-8 and "first-contact" in s["message"]
+    assert main(["resume", str(tmp_path / "o"), "--T", "0.005", "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    r = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert r["status"] == "finished" and r["steps"] < 5000

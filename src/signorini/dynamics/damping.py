@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InputError
+from ..fem.material import RANGE
 
 if TYPE_CHECKING:
     from .context import Context, Operator
@@ -50,8 +51,16 @@ class Rayleigh:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
                 raise InputError(f"damping {name} must be a number >= 0, got {v!r}")
-            if not np.isfinite(v) or v < 0:
+            try:
+                x = float(v)
+            except OverflowError:
+                x = float("inf")
+            if not np.isfinite(x) or x < 0:
                 raise InputError(f"damping {name} must be a finite number >= 0, got {v!r}")
+            if x != 0 and not RANGE[0] <= x <= RANGE[1]:
+                raise InputError(f"damping {name} = {x:g} is outside {RANGE[0]:g} <= {name} <= {RANGE[1]:g} (or 0): "
+                                 "products of such values leave double precision; change units")  # fmt: skip
+            object.__setattr__(self, name, x)
 
     @property
     def active(self) -> bool:

@@ -211,7 +211,7 @@ class History:
             **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
             "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
-            "damping_dissipation": -_or_nan(self.damping_work, self.t.size),
+            "damping_dissipation": 0.0 - _or_nan(self.damping_work, self.t.size),  # 0.0 - x: no "-0" when undamped
             **self._reaction_columns(),
         }  # fmt: skip
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import shutil
 import signal
 import sys
@@ -655,9 +656,13 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
         from ..dynamics.stepper import adaptive_grid
 
         grid = adaptive_grid(spec.dt, spec.T, meta, str(where))
+        # its size at its largest step (the grid's own count continues the refined step it was on:
+        # a resume inside an impact was refused as 1.5 million steps)
+        steps = int(meta["level"]) + math.ceil((spec.T - t_ckpt) / spec.dt - 1e-9)
     else:
         grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
-    check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=grid.n_steps)
+        steps = grid.n_steps
+    check_size(mesh_counts(spec.problem), spec.dt, spec.T, spec.limits, spec.solver_options, steps=steps)
     fields = result / "fields.xdmf"
     if spec.snapshot_every and fields.is_file():  # copied into the new result: readable, or refused now
         from .output import check_fields

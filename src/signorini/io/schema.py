@@ -87,7 +87,7 @@ SECTIONS: tuple[Section, ...] = (
                 "Rayleigh damping C = alpha M + beta S, { alpha = ..., beta = ... } (each >= 0, 0 by default; M the "
                 "mass in use): a mode of angular frequency w decays with the ratio alpha/(2w) + beta w/2; its work "
                 "is the damping_dissipation column.  One value for the whole mesh (a regions entry may repeat it)",
-                _same("")),
+                _same("{ alpha = 0.0, beta = 0.0 }")),
             Key("regions", "array of inline tables", "none", "",
                 "materials per region of cells: [{ tag = \"plate\", E = ..., nu = ..., rho = ... }, ...] (or lam, "
                 "mu; rho required); the section's own keys are the default for cells in no listed region.  Regions "

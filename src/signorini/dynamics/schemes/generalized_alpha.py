@@ -48,7 +48,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, contact_works, damping_work, load_work, reaction_work, weighted
+from .base import EnergyParts, State, contact_works, damping_split, load_work, reaction_work, weighted
 from .newmark import Newmark
 
 
@@ -117,7 +117,7 @@ class GeneralizedAlpha(Newmark):
             rhs += lagged
         rhs = rhs / (1 - af) + ctx.load(t)
         if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
-            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s, pred))
+            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
             self.step_operator(ctx, ctx.dt),
@@ -141,8 +141,9 @@ class GeneralizedAlpha(Newmark):
         lam_w = (1 - af) * new.lam + af * old.lam
         lam_t_w = weighted(new.lam_t, old.lam_t, 1 - af)
         normal, tangential = contact_works(ctx, dU, old, new, 1 - af, af)
+        damping, rest = damping_split(ctx, dU, old, new, 1 - af)
         parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential,
-                            damping=damping_work(ctx, dU, old, new, 1 - af))  # fmt: skip
+                            damping=damping, numerical=rest)  # fmt: skip
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:

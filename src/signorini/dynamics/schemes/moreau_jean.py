@@ -44,7 +44,7 @@ import numpy as np
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, damping_work, friction_work, load_work
+from .base import EnergyParts, Scheme, State, damping_split, friction_work, load_work
 
 
 class MoreauJean(Scheme):
@@ -123,8 +123,8 @@ class MoreauJean(Scheme):
             external=load_work(ctx, old, new, th),
             contact=float((ctx.B @ Vth) @ P),
             friction=friction_work(ctx, Vth, P_t),
-            damping=damping_work(ctx, dU, old, new, th),
         )
+        parts.damping, parts.numerical = damping_split(ctx, dU, old, new, th)
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             Fth = th * ctx.load(new.t) + (1 - th) * ctx.load(old.t)
@@ -134,7 +134,7 @@ class MoreauJean(Scheme):
                 r += dt * (th * new.extra["damping_force"][D] + (1 - th) * old.extra["damping_force"][D])
             parts.external += float(Vth[D] @ r)
         if th != 0.5:
-            parts.numerical = -(th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))
+            parts.numerical -= (th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))
         return parts
 
 

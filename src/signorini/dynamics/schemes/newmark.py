@@ -19,11 +19,12 @@ out of equilibrium) and <x> = (x^n + x^{n+1})/2:
         + 1/2 (B dU).(lambda^n + lambda^{n+1})        (contact)
         + 1/2 (T dU).(lambda_t^n + lambda_t^{n+1})    (friction)
         + dt (gamma - 1/2) <V>.M dA + dU_f.<R_f>      (numerical)
-        - dU.<C V>                                    (damping)
+        - dU.<C V_d>                                  (damping, and numerical for gamma != 1/2)
 
-With Rayleigh damping C the balance is M A + C V + S U = ..., C V^{n+1} = c C U^{n+1} + C q
-(c = gamma/(beta dt)): the operator gains c C and the right-hand side -C q; <C V> is the
-mean of the damping forces the two levels' balances used (``extra['damping_force']``).
+With Rayleigh damping C the balance is M A + C V_d + S U = ..., C V_d^{n+1} = c C U^{n+1} + C q
+(c = gamma/(beta dt)): the operator gains c C and the right-hand side -C q; V_d is Newmark's
+velocity on every dof (:func:`~.base.damping_velocity`: V itself where there is mass).  For CN
+<V_d> = dU/dt, so the damping term is -dU.C dU/dt <= 0 (``damping_split``).
 
 For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
 """
@@ -42,7 +43,8 @@ from .base import (
     Scheme,
     State,
     contact_works,
-    damping_work,
+    damping_split,
+    damping_velocity,
     load_work,
     mechanical_energy,
     reaction_work,
@@ -67,11 +69,20 @@ class Newmark(Scheme):
         """gamma / (beta dt): V^{n+1} = gamma / (beta dt) U^{n+1} + q (:meth:`damping_offset`)."""
         return self.gamma / (self.beta * dt)
 
-    def damping_offset(self, ctx, s: State, p: np.ndarray) -> np.ndarray:
-        """q = V^n + dt (1 - gamma) A^n - gamma dt p, the part of Newmark's V^{n+1} that does not
-        depend on U^{n+1}."""
+    def damping_offset(self, ctx, s: State) -> np.ndarray:
+        """q = V_d^n + dt (1 - gamma) A_d^n - gamma dt p_d, the part of Newmark's V_d^{n+1} that does
+        not depend on U^{n+1} (:func:`~.base.damping_velocity`: p_d is the predictor of (U^n, V_d^n, A_d^n))."""
         dt, g = ctx.dt, self.gamma
-        return s.V + (dt * (1 - g)) * s.A - (g * dt) * p
+        Vd, Ad = damping_velocity(s)
+        return Vd + (dt * (1 - g)) * Ad - (g * dt) * self._predictor(ctx, s.U, Vd, Ad)
+
+    def _damping_level(self, ctx, s: State, U: np.ndarray) -> dict[str, np.ndarray]:
+        """The new level's damping data: Newmark's update of (V_d, A_d) on every dof and C V_d."""
+        dt, g = ctx.dt, self.gamma
+        Vd0, Ad0 = damping_velocity(s)
+        Ad = U / (self.beta * dt * dt) - self._predictor(ctx, s.U, Vd0, Ad0)
+        Vd = Vd0 + dt * ((1 - g) * Ad0 + g * Ad)
+        return {"damping_velocity": Vd, "damping_acceleration": Ad, "damping_force": ctx.damping.force(ctx, Vd)}
 
     @property
     def conserving(self) -> bool:
@@ -98,7 +109,7 @@ class Newmark(Scheme):
         p = self.predictor(ctx, s)
         rhs = ctx.Mop @ p + ctx.load(t)
         if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
-            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s, p))
+            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
             self.step_operator(ctx, ctx.dt),
@@ -112,15 +123,18 @@ class Newmark(Scheme):
 
     def predictor(self, ctx, s: State) -> np.ndarray:
         """p with A^{n+1} = U^{n+1}/(beta dt^2) - p: (U + dt V)/(beta dt^2) + (1/(2 beta) - 1) A."""
+        return self._predictor(ctx, s.U, s.V, s.A)
+
+    def _predictor(self, ctx, U: np.ndarray, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         b, dt = self.beta, ctx.dt
-        return (s.U + dt * s.V) / (b * dt * dt) + (0.5 / b - 1.0) * s.A
+        return (U + dt * V) / (b * dt * dt) + (0.5 / b - 1.0) * A
 
     def update(self, ctx, s: State, t: float, U: np.ndarray, lam: np.ndarray, info, p: np.ndarray) -> State:
         """The new level from U^{n+1}: Newmark's A and V; V = dU/dt and A = 0 on massless dofs."""
         dt, g = ctx.dt, self.gamma
         A = U / (self.beta * dt * dt) - p
         V = s.V + dt * ((1 - g) * s.A + g * A)
-        extra = {} if ctx.damping is None else {"damping_force": ctx.damping.force(ctx, V)}  # before the update
+        extra = {} if ctx.damping is None else self._damping_level(ctx, s, U)
         ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info, extra=extra)
 
@@ -146,12 +160,13 @@ class Newmark(Scheme):
         dU = new.U - old.U
         dR_fixed, dR_free = reaction_work(ctx, old, new, 0.5)
         normal, tangential = contact_works(ctx, dU, old, new, 0.5)
+        damping, rest = damping_split(ctx, dU, old, new, 0.5)
         parts = EnergyParts(
             external=load_work(ctx, old, new, 0.5) + dR_fixed,
             contact=normal,
-            numerical=dR_free,
+            numerical=dR_free + rest,
             friction=tangential,
-            damping=damping_work(ctx, dU, old, new, 0.5),
+            damping=damping,
         )
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)

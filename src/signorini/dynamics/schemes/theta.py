@@ -27,7 +27,17 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, contact_works, damping_work, load_work, products, reaction_work
+from .base import (
+    EnergyParts,
+    Scheme,
+    State,
+    contact_works,
+    damping_split,
+    damping_velocity,
+    load_work,
+    products,
+    reaction_work,
+)
 
 
 class Theta(Scheme):
@@ -62,8 +72,9 @@ class Theta(Scheme):
         t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
         rhs = ctx.Mop @ p + ctx.load(t)
-        if ctx.damping is not None:  # C V^{n+1} = C U^{n+1} / (theta dt) + C q
-            rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * s.V) / (th * dt))
+        Vd0 = damping_velocity(s)[0]
+        if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
+            rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(
             self.step_operator(ctx, dt),
@@ -75,7 +86,10 @@ class Theta(Scheme):
         )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
-        extra = {} if ctx.damping is None else {"damping_force": ctx.damping.force(ctx, V)}  # before the update
+        extra = {}
+        if ctx.damping is not None:  # the theta update of V_d on every dof (massless ones included)
+            Vd = (U - s.U - dt * (1 - th) * Vd0) / (th * dt)
+            extra = {"damping_velocity": Vd, "damping_force": ctx.damping.force(ctx, Vd)}
         ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info, extra=extra)
 
@@ -93,12 +107,13 @@ class Theta(Scheme):
         if th != 0.5:
             numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
         normal, tangential = contact_works(ctx, dU, old, new, th)
+        damping, rest = damping_split(ctx, dU, old, new, th)
         return EnergyParts(
             external=load_work(ctx, old, new, th) + dR_fixed,
             contact=normal,
-            numerical=numerical,
+            numerical=numerical + rest,
             friction=tangential,
-            damping=damping_work(ctx, dU, old, new, th),
+            damping=damping,
         )
 
 
