@@ -281,6 +281,9 @@ class RigidObstacle:
 
     moving = False
     motion: RigidMotion | None = None
+    #: a node inside the obstacle at t = 0 is first explained by the body's side of it (a flipped
+    #: surface puts most of the body "inside"): :meth:`body_inside_message` before the node's own
+    side_first = False
 
     def __init__(self, phi: Callable[[np.ndarray], np.ndarray], grad: Callable[[np.ndarray], np.ndarray]):
         self.phi = phi
@@ -323,6 +326,16 @@ class RigidObstacle:
             return np.zeros_like(X)
         return self.motion.displacement(X, t0, t1)
 
+    # -- what a user reads when the body starts inside (the set-up's refusals) ------------------
+    def body_inside_message(self, share: float) -> str:
+        """Why a body with the fraction ``share`` (> 1/2) of its nodes inside the obstacle is refused."""
+        return f"{100 * share:.0f}% of the body's nodes start inside the obstacle"
+
+    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
+        """Why the contact node ``where`` (at ``point``, of a body with nodes ``points``) starting at
+        the negative gap ``gap`` is refused."""
+        return f"{where} starts inside the obstacle (gap {gap:.3g} < 0)"
+
 
 class PlaneObstacle(RigidObstacle):
     """Half-space obstacle {x : (x - point(t)) . normal < 0}; ``normal`` points out of
@@ -360,6 +373,26 @@ class PlaneObstacle(RigidObstacle):
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         p, n = self._at(t)
         return (x - p) @ n
+
+    def body_inside_message(self, share: float) -> str:
+        return (
+            f"the body lies on the obstacle's side of the plane ({100 * share:.0f}% of its nodes): the plane's "
+            f"normal must point out of the obstacle, towards the body; flip 'normal' (now "
+            f"{np.round(self.normal, 6).tolist()}) or move 'point'"
+        )
+
+    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
+        inside = np.mean(self.gaps(points, 0.0) < 0)
+        if inside > 0.5:
+            return (
+                f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes, "
+                f"e.g. {where}, gap {gap:.3g} < 0): the plane's normal must point out of the obstacle, "
+                f"towards the body; flip 'normal' (now {np.round(self.normal, 6).tolist()}) or move 'point'"
+            )
+        return (
+            f"{where} starts inside the obstacle (gap {gap:.3g} < 0): move the plane's 'point' so that the "
+            "body starts on the side its 'normal' points to"
+        )
 
 
 class SphereObstacle(RigidObstacle):
@@ -546,6 +579,19 @@ def _facet_normals(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         return n / np.linalg.norm(n, axis=1)[:, None], measure
 
+    def body_inside_message(self, share: float) -> str:
+        return (
+            f"{100 * share:.0f}% of the body's nodes lie inside the ball (radius {self.radius:.6g}): the body must "
+            "start outside the sphere obstacle; move 'center' or reduce 'radius'"
+        )
+
+    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
+        d = float(np.linalg.norm(point - self.center))
+        return (
+            f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {self.radius:.6g}): "
+            "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
+        )
+
 
 class SurfaceObstacle(RigidObstacle):
     """A rigid triangulated (3D) or polygonal (2D) surface, moving rigidly.
@@ -589,6 +635,8 @@ class SurfaceObstacle(RigidObstacle):
     ``summary.json`` ``obstacle``); a row whose node the moving surface leaves (its gap
     becomes infinite) stops the run (``ConvergenceError``: extend the surface).
     """
+
+    side_first = True
 
     def __init__(
         self,
@@ -765,6 +813,20 @@ class SurfaceObstacle(RigidObstacle):
 
     def material_points(self, x: np.ndarray) -> np.ndarray:
         return self._signed(self.motion.to_data(np.asarray(x, dtype=float), 0.0))[2]
+
+    def body_inside_message(self, share: float) -> str:
+        return (
+            f"the body lies on the obstacle's side of the surface ({100 * share:.0f}% of the nodes that face it): "
+            "the facets' normals must point out of the obstacle, towards the body (3D: triangles counterclockwise "
+            "seen from the body; 2D: segments a -> b with the body on their right); set "
+            f"flip = {'false' if self.flipped else 'true'} or move the surface"
+        )
+
+    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
+        return (
+            f"{where} starts inside the surface obstacle (gap {gap:.3g} < 0): the body must start on the side "
+            "its facets' normals point to; move the surface ('translation') or the body"
+        )
 
 
 OBSTACLES = Registry("obstacle type")

@@ -401,40 +401,16 @@ def _gravity_vector(g, mesh: Mesh) -> np.ndarray:
 
 
 def _penetration_message(problem: Problem, contact, Bu0: np.ndarray, i: int) -> str:
-    """Why the initial state violates contact at contact node ``i``: say what is really wrong."""
-    from ..contact.obstacles import PlaneObstacle, SphereObstacle, SurfaceObstacle
-
+    """Why the initial state violates contact at contact node ``i``: say what is really wrong
+    (the obstacle's own words, :meth:`~signorini.contact.obstacles.RigidObstacle.node_inside_message`)."""
     ob, mesh = problem.obstacle, problem.mesh
     node = int(contact.nodes[i])
     g = float(contact.gaps[i])
     where = f"contact node {mesh.node_id(node)} at {np.round(mesh.points[node], 6).tolist()}"
-    if isinstance(ob, SurfaceObstacle) and (side := _side_message(problem)):  # most likely a flipped surface
+    if ob.side_first and (side := _side_message(problem)):  # most likely a flipped surface
         return side
     if g < 0:  # the reference configuration itself is inside the obstacle
-        if isinstance(ob, PlaneObstacle):
-            inside = np.mean(ob.gaps(mesh.points, 0.0) < 0)
-            if inside > 0.5:
-                return (
-                    f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes, "
-                    f"e.g. {where}, gap {g:.3g} < 0): the plane's normal must point out of the obstacle, "
-                    f"towards the body; flip 'normal' (now {np.round(ob.normal, 6).tolist()}) or move 'point'"
-                )
-            return (
-                f"{where} starts inside the obstacle (gap {g:.3g} < 0): move the plane's 'point' so that the "
-                "body starts on the side its 'normal' points to"
-            )
-        if isinstance(ob, SphereObstacle):
-            d = float(np.linalg.norm(mesh.points[node] - ob.center))
-            return (
-                f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {ob.radius:.6g}): "
-                "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
-            )
-        if isinstance(ob, SurfaceObstacle):
-            return (
-                f"{where} starts inside the surface obstacle (gap {g:.3g} < 0): the body must start on the side "
-                "its facets' normals point to; move the surface ('translation') or the body"
-            )
-        return f"{where} starts inside the obstacle (gap {g:.3g} < 0)"
+        return ob.node_inside_message(where, g, mesh.points, mesh.points[node])
     return (
         f"the initial displacement pushes {where} into the obstacle "
         f"(nu.u0 = {Bu0[i]:.3g} > gap {g:.3g}); choose u0 with nu.u0 <= gap"
@@ -462,9 +438,8 @@ def _check_body_side(problem: Problem) -> None:
 def _side_message(problem: Problem) -> str | None:
     """Why the body is refused when more than half of its nodes start inside the obstacle (of a
     surface obstacle, more than half of the nodes that face it: those beyond its edge have an
-    infinite gap), else None."""
-    from ..contact.obstacles import PlaneObstacle, SphereObstacle, SurfaceObstacle
-
+    infinite gap; the obstacle's own words, :meth:`~signorini.contact.obstacles.RigidObstacle.body_inside_message`),
+    else None."""
     ob, pts = problem.obstacle, problem.mesh.points
     phi = ob.gaps(pts, 0.0)
     phi = phi[np.isfinite(phi)]
@@ -472,25 +447,7 @@ def _side_message(problem: Problem) -> str | None:
     inside = float(np.mean(phi < -1e-9 * diam)) if phi.size else 0.0
     if inside <= 0.5:
         return None
-    if isinstance(ob, PlaneObstacle):
-        return (
-            f"the body lies on the obstacle's side of the plane ({100 * inside:.0f}% of its nodes): the plane's "
-            f"normal must point out of the obstacle, towards the body; flip 'normal' (now "
-            f"{np.round(ob.normal, 6).tolist()}) or move 'point'"
-        )
-    if isinstance(ob, SphereObstacle):
-        return (
-            f"{100 * inside:.0f}% of the body's nodes lie inside the ball (radius {ob.radius:.6g}): the body must "
-            "start outside the sphere obstacle; move 'center' or reduce 'radius'"
-        )
-    if isinstance(ob, SurfaceObstacle):
-        return (
-            f"the body lies on the obstacle's side of the surface ({100 * inside:.0f}% of the nodes that face it): "
-            "the facets' normals must point out of the obstacle, towards the body (3D: triangles counterclockwise "
-            "seen from the body; 2D: segments a -> b with the body on their right); set "
-            f"flip = {'false' if ob.flipped else 'true'} or move the surface"
-        )
-    return f"{100 * inside:.0f}% of the body's nodes start inside the obstacle"
+    return ob.body_inside_message(inside)
 
 
 def check_finite_data(**arrays: np.ndarray) -> None:
