@@ -247,8 +247,9 @@ class Context:
 
     def __getattr__(self, name: str) -> Any:
         """The contact rows' attributes and methods of :data:`ROW_ATTRIBUTES`, read from their owner."""
-        if name in ROW_ATTRIBUTES:
-            return getattr(self.__dict__["rows"], name)
+        rows = self.__dict__.get("rows")  # (not yet there while __init__ runs: AttributeError below)
+        if rows is not None and name in ROW_ATTRIBUTES:
+            return getattr(rows, name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def slide(self, U: np.ndarray, t: float) -> int:
