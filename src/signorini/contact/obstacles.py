@@ -435,6 +435,19 @@ class SphereObstacle(RigidObstacle):
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         return np.linalg.norm(x - self._at(t), axis=1) - self.radius
 
+    def body_inside_message(self, share: float) -> str:
+        return (
+            f"{100 * share:.0f}% of the body's nodes lie inside the ball (radius {self.radius:.6g}): the body must "
+            "start outside the sphere obstacle; move 'center' or reduce 'radius'"
+        )
+
+    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
+        d = float(np.linalg.norm(point - self.center))
+        return (
+            f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {self.radius:.6g}): "
+            "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
+        )
+
 
 # ----------------------------------------------------------------------------- surfaces
 #: nearest facet centres tried first per point and size class; then x4 per round up to
@@ -578,19 +591,6 @@ def _facet_normals(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         measure = 0.5 * np.linalg.norm(n, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return n / np.linalg.norm(n, axis=1)[:, None], measure
-
-    def body_inside_message(self, share: float) -> str:
-        return (
-            f"{100 * share:.0f}% of the body's nodes lie inside the ball (radius {self.radius:.6g}): the body must "
-            "start outside the sphere obstacle; move 'center' or reduce 'radius'"
-        )
-
-    def node_inside_message(self, where: str, gap: float, points: np.ndarray, point: np.ndarray) -> str:
-        d = float(np.linalg.norm(point - self.center))
-        return (
-            f"{where} starts inside the ball (distance {d:.6g} from the centre < radius {self.radius:.6g}): "
-            "the body must start outside the sphere obstacle; move 'center' or reduce 'radius'"
-        )
 
 
 class SurfaceObstacle(RigidObstacle):
