@@ -10,9 +10,10 @@ ones: a mode of angular frequency omega decays with the damping ratio
 A scheme that carries damping solves its step with ``K + c C`` (``c`` its
 :meth:`~signorini.dynamics.schemes.base.Scheme.damping_coefficient`), which for a Rayleigh C
 is again a combination of M and S: one factorization per step size, as without damping, on
-every backend.  The force ``C V`` that each level's balance used is kept on the level
-(``extra['damping_force']``) so that the energy identity closes exactly: its work over a step
-is the ``damping_dissipation`` column of ``history.csv``.
+every backend.  The velocity V_d of each level's damping force C V_d is the scheme's own
+(``extra['damping_velocity']``, :func:`~signorini.dynamics.schemes.base.damping_force`) so that
+the energy identity closes exactly: its work over a step is the ``damping_dissipation`` column
+of ``history.csv``.
 """
 
 from __future__ import annotations

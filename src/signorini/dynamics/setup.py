@@ -89,7 +89,7 @@ def check_history_fits(steps: int) -> None:
 
 def initial_state(ctx: Context) -> State:
     """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 - C V0 (lambda_0 = 0; C the
-    damping, when given, whose force C V0 the level keeps in ``extra['damping_force']``).
+    damping, when given, whose force C V0 is the level's damping force).
 
     On Dirichlet dofs V and A are the prescribed motion's rates at t = 0; A0 = 0 on
     massless dofs.  The free block is solved by Jacobi-preconditioned CG on the massive
@@ -149,7 +149,7 @@ def initial_state(ctx: Context) -> State:
     if np.any(R0 != 0.0):
         state.extra["R0"] = R0
     if Fd is not None:
-        state.extra["damping_force"] = Fd
+        state.cache["CVd"] = Fd  # (:func:`~.schemes.base.damping_force` of level 0: C V0)
     return state
 
 

@@ -96,14 +96,9 @@ class State:
 STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
 #: state data of every scheme: ``R0``, the residual of the massless free dofs at t = 0
 #: (:func:`~signorini.dynamics.setup.initial_state`); in a damped run (:mod:`~signorini.dynamics.damping`)
-#: ``damping_force``, the force C V the level's balance used, and ``damping_velocity`` and
-#: ``damping_acceleration``, the scheme's own V and A that force is made of (:func:`damping_velocity`)
-COMMON_STATE_FIELDS = {
-    "R0": "dofs",
-    "damping_force": "dofs",
-    "damping_velocity": "dofs",
-    "damping_acceleration": "dofs",
-}
+#: ``damping_velocity`` and ``damping_acceleration``, the scheme's own V and A that the level's
+#: damping force C V_d is made of (:func:`damping_velocity`, :func:`damping_force`)
+COMMON_STATE_FIELDS = {"R0": "dofs", "damping_velocity": "dofs", "damping_acceleration": "dofs"}
 
 
 @dataclass
@@ -150,7 +145,7 @@ class Scheme:
     variable_step: ClassVar[bool] = True
     variable_step_refusal: ClassVar[str] = ""
     #: why the scheme refuses Rayleigh damping (None: it carries it, with the damping forces'
-    #: work in its energy identity, :meth:`damping_coefficient` and ``extra['damping_force']``)
+    #: work in its energy identity, :meth:`damping_coefficient` and :func:`damping_force`)
     damping_refusal: ClassVar[str | None] = "its balance has no damping term"
 
     @property
@@ -332,7 +327,7 @@ def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndar
         D = ctx.fixed
         MD, SD = rows if rows is not None else (ctx.M[D], ctx.S[D])
         R = MD @ s.A + SD @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
-        Fd = s.extra.get("damping_force")
+        Fd = damping_force(ctx, s)
         return R if Fd is None else R + Fd[D]
 
     return s.product("RD", compute)
@@ -409,19 +404,24 @@ def damping_velocity(s: State) -> tuple[np.ndarray, np.ndarray]:
     return s.extra.get("damping_velocity", s.V), s.extra.get("damping_acceleration", s.A)
 
 
+def damping_force(ctx: Context, s: State) -> np.ndarray | None:
+    """C V_d (n,), the damping force of level ``s``'s balance [force], computed once per level (the
+    state's products); None undamped."""
+    if ctx.damping is None:
+        return None
+    return s.product("CVd", lambda: ctx.damping.force(ctx, damping_velocity(s)[0]))
+
+
 def damping_split(ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float) -> tuple[float, float]:
     """(damping, rest): the work of the damping forces of the step, -dU . (w C V_d^{n+1} + (1 - w)
-    C V_d^n) (each level's ``damping_force``), split into the dissipation of the step's mean velocity
+    C V_d^n) (:func:`damping_force`), split into the dissipation of the step's mean velocity
     dU/dt, -dU . C dU / dt <= 0 (the ``damping_dissipation`` column), and the rest, the scheme's
     numerical part (zero for Crank-Nicolson, theta and Moreau-Jean, whose mean velocity is dU/dt;
     O(dt^2) for Newmark with gamma != 1/2 and generalized-alpha) [energy]; (0, 0) undamped."""
-    F0, F1 = old.extra.get("damping_force"), new.extra.get("damping_force")
-    if F0 is None and F1 is None:
+    if ctx.damping is None:
         return 0.0, 0.0
-    zero = np.zeros_like(dU)
-    F0 = zero if F0 is None else F0
-    F1 = zero if F1 is None else F1
+    F0, F1 = damping_force(ctx, old), damping_force(ctx, new)
     exact = -float(dU @ (w_new * F1 + (1 - w_new) * F0))
     h = new.t - old.t
-    mean = -float(dU @ ctx.damping.force(ctx, dU)) / h if ctx.damping is not None and h > 0 else exact
+    mean = -float(dU @ ctx.damping.force(ctx, dU)) / h if h > 0 else exact
     return mean, exact - mean

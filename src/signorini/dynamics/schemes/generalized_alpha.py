@@ -48,7 +48,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, contact_works, damping_split, load_work, reaction_work, weighted
+from .base import EnergyParts, State, contact_works, damping_force, damping_split, load_work, reaction_work, weighted
 from .newmark import Newmark
 
 
@@ -105,7 +105,7 @@ class GeneralizedAlpha(Newmark):
         t = ctx.next_time(s.t)
         pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
-        Fd0 = s.extra.get("damping_force")
+        Fd0 = damping_force(ctx, s)
         if af:
             lagged = af * (
                 ctx.load(s.t) - s.product("SU", lambda: ctx.Sop @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
@@ -157,7 +157,7 @@ class GeneralizedAlpha(Newmark):
                 on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
                     old.lam, old.lam_t, old.t)  # fmt: skip
             RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - on_fixed
-            Fd0, Fd1 = old.extra.get("damping_force"), new.extra.get("damping_force")
+            Fd0, Fd1 = damping_force(ctx, old), damping_force(ctx, new)
             if Fd0 is not None or Fd1 is not None:  # the weighted damping force on the Dirichlet dofs
                 RD = RD + (0.0 if Fd1 is None else (1 - af) * Fd1[D]) + (0.0 if Fd0 is None else af * Fd0[D])
             parts.external += float(dU[D] @ RD)

@@ -44,7 +44,7 @@ import numpy as np
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, Scheme, State, damping_split, friction_work, load_work
+from .base import EnergyParts, Scheme, State, damping_force, damping_split, friction_work, load_work
 
 
 class MoreauJean(Scheme):
@@ -89,7 +89,7 @@ class MoreauJean(Scheme):
         if th != 1.0:
             rhs -= th * (1 - th) * dt * dt * (ctx.S @ s.V)
             if ctx.damping is not None:
-                rhs -= (1 - th) * dt * s.extra["damping_force"]
+                rhs -= (1 - th) * dt * damping_force(ctx, s)
         BV0 = ctx.B @ s.V
         index = ctx.gaps(t0 + 0.5 * dt) - ctx.B @ (s.U + 0.5 * dt * s.V) <= ctx.touch_tolerance
         gdot = (ctx.gaps(t1) - ctx.gaps(t0)) / dt if ctx.disc.contact.moving else 0.0
@@ -104,10 +104,7 @@ class MoreauJean(Scheme):
         U = s.U + dt * (th * V + (1 - th) * s.V)
         P_t = info.lam_t  # tangential impulses (friction), or None
         lam_t = None if P_t is None else P_t / dt
-        extra = {"impulse": P, "impulse_t": P_t}
-        if ctx.damping is not None:
-            extra["damping_force"] = ctx.damping.force(ctx, V)
-        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra=extra, lam_t=lam_t)
+        return State(t1, U, V, np.zeros_like(U), P / dt, info, extra={"impulse": P, "impulse_t": P_t}, lam_t=lam_t)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """The impulse P of the step, unknown of the velocity-level solve."""
@@ -131,7 +128,7 @@ class MoreauJean(Scheme):
             SUth = th * (ctx.S[D] @ new.U) + (1 - th) * (ctx.S[D] @ old.U)
             r = ctx.M[D] @ dV + dt * (SUth - Fth[D]) - ctx.contact_on_fixed(P, P_t)
             if ctx.damping is not None:
-                r += dt * (th * new.extra["damping_force"][D] + (1 - th) * old.extra["damping_force"][D])
+                r += dt * (th * damping_force(ctx, new)[D] + (1 - th) * damping_force(ctx, old)[D])
             parts.external += float(Vth[D] @ r)
         if th != 0.5:
             parts.numerical -= (th - 0.5) * (float(dV @ (ctx.M @ dV)) + float(dU @ (ctx.S @ dU)))

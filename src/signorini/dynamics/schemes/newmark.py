@@ -77,12 +77,12 @@ class Newmark(Scheme):
         return Vd + (dt * (1 - g)) * Ad - (g * dt) * self._predictor(ctx, s.U, Vd, Ad)
 
     def _damping_level(self, ctx, s: State, U: np.ndarray) -> dict[str, np.ndarray]:
-        """The new level's damping data: Newmark's update of (V_d, A_d) on every dof and C V_d."""
+        """The new level's damping data: Newmark's update of (V_d, A_d) on every dof."""
         dt, g = ctx.dt, self.gamma
         Vd0, Ad0 = damping_velocity(s)
         Ad = U / (self.beta * dt * dt) - self._predictor(ctx, s.U, Vd0, Ad0)
         Vd = Vd0 + dt * ((1 - g) * Ad0 + g * Ad)
-        return {"damping_velocity": Vd, "damping_acceleration": Ad, "damping_force": ctx.damping.force(ctx, Vd)}
+        return {"damping_velocity": Vd, "damping_acceleration": Ad}
 
     @property
     def conserving(self) -> bool:

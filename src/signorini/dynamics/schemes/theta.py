@@ -89,7 +89,7 @@ class Theta(Scheme):
         extra = {}
         if ctx.damping is not None:  # the theta update of V_d on every dof (massless ones included)
             Vd = (U - s.U - dt * (1 - th) * Vd0) / (th * dt)
-            extra = {"damping_velocity": Vd, "damping_force": ctx.damping.force(ctx, Vd)}
+            extra = {"damping_velocity": Vd}
         ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info, extra=extra)
 
