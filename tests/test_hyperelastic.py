@@ -10,8 +10,8 @@ from scipy.spatial.transform import Rotation
 from signorini.errors import InputError, NonFiniteError
 from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.hyperelastic import (
-    NeoHookean,
-    SaintVenantKirchhoff,
+    NeoHookeanLaw,
+    SaintVenantKirchhoffLaw,
     algorithmic_force,
     algorithmic_stress,
     internal_force,
@@ -22,7 +22,7 @@ from signorini.fem.material import IsotropicElastic, cell_material
 from signorini.fem.mesh import box, interval, join, rectangle
 
 MATERIAL = IsotropicElastic.from_young(2.0, 0.3, 1.0)
-LAWS = (SaintVenantKirchhoff, NeoHookean)
+LAWS = (SaintVenantKirchhoffLaw, NeoHookeanLaw)
 
 
 def _meshes():
@@ -137,9 +137,9 @@ def test_an_inverted_cell_is_named_and_1d_is_refused():
     U = np.zeros_like(X)
     U[:, 0] = -2.0 * X[:, 0]  # x -> -x: every cell turned inside out (J = -1)
     with pytest.raises(NonFiniteError, match=r"cell 0 is inverted \(det F = -1"):
-        internal_force(mesh, NeoHookean(MATERIAL.lam, MATERIAL.mu), U.ravel())
+        internal_force(mesh, NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu), U.ravel())
     with pytest.raises(InputError, match="needs a 2D .* or 3D mesh"):
-        internal_force(interval(4, 1.0), SaintVenantKirchhoff(1.0, 1.0), np.zeros(5))
+        internal_force(interval(4, 1.0), SaintVenantKirchhoffLaw(1.0, 1.0), np.zeros(5))
 
 
 @pytest.mark.parametrize("cells", list(MESHES))
@@ -178,9 +178,9 @@ def test_the_discrete_gradient_is_the_midpoint_stress_to_second_order(law):
         C1 = np.einsum("...kI,...kJ->...IJ", F1, F1)
         S_alg = algorithmic_stress(lw, C0, C1)
         err.append(np.abs(S_alg - lw.stress_C(0.5 * (C0 + C1))).max())
-        if law is SaintVenantKirchhoff:
+        if law is SaintVenantKirchhoffLaw:
             mean = 0.5 * (lw.stress_C(C0) + lw.stress_C(C1))
             assert np.abs(S_alg - mean).max() <= 1e-14 * np.abs(mean).max()
-    if law is NeoHookean:
+    if law is NeoHookeanLaw:
         assert 1.8 < np.log2(err[0] / err[1]) < 2.2 and err[1] < 1e-4, err
     assert np.array_equal(algorithmic_stress(lw, C0, C0), lw.stress_C(C0))

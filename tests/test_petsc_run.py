@@ -80,8 +80,9 @@ def scale(key: str, col: np.ndarray, h: dict) -> float:
         return float(np.abs(h["gap_mean"]).max())
     if key.startswith("reaction_"):  # a component that is round-off: the largest reaction
         return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("reaction_"))
-    if key.startswith("momentum"):  # a component that is round-off: the momentum's scale
-        return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith("momentum"))
+    for family in ("momentum", "angular_momentum"):  # a component that is round-off: the family's scale
+        if key.startswith(family):
+            return max(float(np.abs(v).max()) for k, v in h.items() if k.startswith(family))
     if "energy" in key or "work" in key or "dissipation" in key or "increment" in key or "potential" in key:
         return float(np.abs(h["energy"]).max())
     return float(np.nanmax(np.abs(col), initial=0.0))

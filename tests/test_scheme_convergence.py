@@ -48,5 +48,9 @@ def test_every_scheme_on_the_exact_1d_bar(scheme, mass):
     assert err[-1, 1] < 0.26  # finest H1 error, measured 0.13 - 0.25
     if scheme == "energy-conserving":
         assert err[-1, 2] > 0.9  # the stress does not converge (measured 0.99)
+    elif scheme == "energy-momentum" and mass == "standard":
+        # the midpoint rule with the contact nodes' inertia: the displacement converges (H1 0.25 -> 0.16),
+        # the stress chatters (measured 0.65, 0.54, 0.61); with a massless contact it is Crank-Nicolson's
+        assert err[-1, 2] > 0.5
     else:
         assert err[-1, 2] < 0.3 and err[-1, 2] < err[0, 2]  # measured 0.088 - 0.29

@@ -135,6 +135,8 @@ class StepInfo:
     lam_t: np.ndarray | None = None
     slip: np.ndarray | None = None
     status: np.ndarray | None = None
+    #: Newton iterations of a finite-strain step (:mod:`~signorini.dynamics.newton`), 0 for a linear one
+    nonlinear_iterations: int = 0
 
 
 class ContactSolver:

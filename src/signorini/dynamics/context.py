@@ -33,6 +33,7 @@ from ..linalg.sparse import linear_combination, principal_combination, principal
 from ..linalg.spmv import sparse_product
 from ..parallel import DISTRIBUTED_BACKENDS, run_comm
 from .contact_rows import ContactRows
+from .elasticity import elasticity
 from .factorizations import Factorizations
 from .mass import massless_dofs
 from .problem import Discretization
@@ -42,18 +43,38 @@ from .problem import Discretization
 FACTORIZATION_ERRORS = (RuntimeError, np.linalg.LinAlgError, ArithmeticError)
 
 
+class Tangent:
+    """A tangent stiffness K(U) (n, n) of one Newton iterate (finite strain, :mod:`~.elasticity`): an
+    operator ``c_M M + c_S K(U)`` holds it in place of S.  Two tangents are the same only when they
+    are the same object (each iterate's is factorized on its own)."""
+
+    def __init__(self, matrix: sp.spmatrix):
+        self.matrix = matrix
+
+    def __repr__(self) -> str:
+        return f"Tangent(id={id(self):#x})"
+
+
 @dataclass(frozen=True)
 class Operator:
-    """The linear operator K = mass * M + stiffness * S of a scheme for a given dt."""
+    """The linear operator K = mass * M + stiffness * S of a scheme for a given dt; with a ``tangent``
+    (finite strain), mass * M + stiffness * K(U) of that iterate."""
 
     mass: float
     stiffness: float
+    tangent: Tangent | None = None
 
     def matrix(self, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
-        return linear_combination(self.mass, M, self.stiffness, S)
+        return linear_combination(self.mass, M, self.stiffness, self.stiffness_matrix(S))
+
+    def stiffness_matrix(self, S: Any) -> Any:
+        """The stiffness this operator combines: the tangent's, or ``S``."""
+        return S if self.tangent is None else self.tangent.matrix
 
     def ratio_to(self, other: Operator) -> float | None:
         """s with self = s * other, or None when they are not proportional."""
+        if self.tangent is not other.tangent:
+            return None
         for a, b in ((self.stiffness, other.stiffness), (self.mass, other.mass)):
             if b != 0.0:
                 s = a / b
@@ -116,7 +137,7 @@ class _System:
             local = (Kff.local, KfD.local)
             self.KfD = KfD if D.size else None
         elif D.size:
-            Kff, self.KfD = principal_combination(op.mass, ctx.M, op.stiffness, ctx.S, f, D)
+            Kff, self.KfD = principal_combination(op.mass, ctx.M, op.stiffness, op.stiffness_matrix(ctx.S), f, D)
             local = (Kff, self.KfD)
         else:
             Kff, self.KfD = op.matrix(ctx.M, ctx.S), None
@@ -229,6 +250,8 @@ class Context:
         #: the factorized step operators, per step size (their only owner)
         self.factors = Factorizations(lambda op: _System(op, self, self.solver_options), self.dt)
         self.massless = massless_dofs(disc.M)
+        #: the internal force, its energy and tangent: linear (S U) or finite strain (:mod:`~.elasticity`)
+        self.elastic = elasticity(self)
         #: Rayleigh damping C = alpha M + beta S (None: undamped), :mod:`~signorini.dynamics.damping`
         self.damping = disc.problem.damping
         #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
@@ -400,4 +423,5 @@ class Context:
         out = self.factors.counters()
         if self.disc.problem.pairs:
             out["pair_rows_repaired"] = self.repaired
+        out.update(self.elastic.counters())
         return out

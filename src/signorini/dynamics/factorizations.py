@@ -73,6 +73,18 @@ class Factorizations:
                 retired[k] = retired.get(k, 0) + int(v)
         self.retired = retired
 
+    def release(self, op: Operator) -> None:
+        """Drop the system made for ``op`` (a Newton iterate's tangent, no longer of use), its
+        counters kept; nothing when there is none."""
+        found = self._lookup.pop(op, None)
+        if found is None:
+            return
+        sys = found[0]
+        if any(o is sys for o, _ in self._lookup.values()):
+            return
+        self.current = [s for s in self.current if s is not sys]
+        self._retire([sys])
+
     def replace(self, dt: float, operators: list[Operator]) -> None:
         """Continue with the step ``dt``: the current systems are released (their counters kept)
         and ``operators`` factorized."""

@@ -45,14 +45,36 @@ MOMENTUM_COLUMNS = ("momentum_x", "momentum_y", "momentum_z")
 #: after the momentum: the step that ended at each level (nan at level 0; an adaptive control's
 #: levels are not evenly spaced)
 STEP_COLUMNS = ("dt",)
-#: after the step: minus the cumulative work of the damping forces (0 undamped; then the reactions)
+#: after the step: minus the cumulative work of the damping forces (0 undamped)
 DAMPING_COLUMNS = ("damping_dissipation",)
+#: after the damping: the angular momentum sum_a x_a x (M V)_a about the origin, x = X + U (3D: x, y, z;
+#: 2D: z only; none in 1D), then the Newton iterations of the step (finite strain; 0 when linear), then
+#: the reactions
+ANGULAR_COLUMNS = ("angular_momentum_x", "angular_momentum_y", "angular_momentum_z")
+NONLINEAR_COLUMNS = ("nonlinear_iterations",)
+
+
+def angular_columns(dim: int) -> tuple[str, ...]:
+    """The angular momentum's columns in ``dim`` space dimensions."""
+    return {1: (), 2: ANGULAR_COLUMNS[2:]}.get(dim, ANGULAR_COLUMNS)
 
 
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
     return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
-            + STEP_COLUMNS + DAMPING_COLUMNS)  # fmt: skip
+            + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS)  # fmt: skip
+
+
+def angular_momentum(points: np.ndarray, U: np.ndarray, MV: np.ndarray) -> np.ndarray:
+    """sum_a x_a x p_a with x = X + U, p = M V per node (3,) in 3D, (1,) (z) in 2D, (0,) in 1D
+    [mass x length^2 / time]."""
+    d = points.shape[1]
+    if d == 1:
+        return np.zeros(0)
+    x, p = points + U.reshape(-1, d), MV.reshape(-1, d)
+    if d == 2:
+        return np.array([float(x[:, 0] @ p[:, 1] - x[:, 1] @ p[:, 0])])
+    return np.cross(x, p).sum(axis=0)
 
 
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)
@@ -134,6 +156,10 @@ class History:
     damping_work: np.ndarray | None = None
     load_potential: np.ndarray | None = None
     momentum: np.ndarray | None = None
+    #: (N+1, 3 | 1 | 0) the angular momentum about the origin (:func:`angular_momentum`)
+    angular_momentum: np.ndarray | None = None
+    #: (N+1,) the Newton iterations of each step (finite strain; 0 when linear)
+    nonlinear_iterations: np.ndarray | None = None
     #: (N+1, m, d) the reaction of each Dirichlet tag (:mod:`~signorini.dynamics.reactions`)
     reaction: np.ndarray | None = None
     #: the names of its history.csv columns, ``reaction_<tag>_<axis>`` (m x d of them)
@@ -212,6 +238,10 @@ class History:
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
             "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
             "damping_dissipation": 0.0 - _or_nan(self.damping_work, self.t.size),  # 0.0 - x: no "-0" when undamped
+            **{name: (self.angular_momentum[:, k] if self.angular_momentum is not None else np.full(self.t.size, np.nan))
+               for k, name in enumerate(angular_columns(self.dim))},
+            "nonlinear_iterations": (self.nonlinear_iterations if self.nonlinear_iterations is not None
+                                     else np.zeros(self.t.size, dtype=np.int64)),
             **self._reaction_columns(),
         }  # fmt: skip
 
@@ -389,6 +419,8 @@ def empty_series(levels: int, n_contact: int, dim: int = 1, tangential: int = 0)
         **friction,
         "contact_force": np.zeros((levels, dim)),
         "momentum": np.zeros((levels, dim)),
+        "angular_momentum": np.zeros((levels, len(angular_columns(dim)))),
+        "nonlinear_iterations": np.zeros(levels, dtype=np.int64),
         "gap": np.empty((levels, n_contact)),
         "lam": np.zeros((levels, n_contact)),
         "kinetic_energy": np.empty(levels),

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from .context import Context
-from .history import empty_series
+from .history import angular_momentum, empty_series
 from .schemes import Scheme, State
 from .schemes.base import EnergyParts
 
@@ -100,6 +100,10 @@ class HistoryRecorder(Observer):
         series = data.get("series", {})
         if "reaction" in self.series and "reaction" not in series:  # a checkpoint of before the reactions
             series = {**series, "reaction": np.full((n + 1,) + self.series["reaction"].shape[1:], np.nan)}
+        for k in ("angular_momentum", "nonlinear_iterations"):  # a checkpoint of before these series
+            if k not in series:
+                v = self.series[k]
+                series = {**series, k: np.full((n + 1,) + v.shape[1:], np.nan if v.dtype.kind == "f" else 0, v.dtype)}
         _restore_series(self.series, series, n, "history")
         times = np.asarray(series.get("times", []), dtype=float)
         if times.shape != (n + 1,) or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (
@@ -113,7 +117,9 @@ class HistoryRecorder(Observer):
         self.times[n] = s.t
         S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
         # total linear momentum 1_k^T M V per component (the product the energy uses, computed once)
-        S["momentum"][n] = s.product("MV", lambda: run.ctx.Mop @ s.V).reshape(-1, S["momentum"].shape[1]).sum(axis=0)
+        MV = s.product("MV", lambda: run.ctx.Mop @ s.V)
+        S["momentum"][n] = MV.reshape(-1, S["momentum"].shape[1]).sum(axis=0)
+        S["angular_momentum"][n] = angular_momentum(run.ctx.disc.problem.mesh.points, s.U, MV)
         self.last = s
         S["lam"][n] = s.lam
         S["active"][n] = int(np.count_nonzero(s.lam))
@@ -126,6 +132,7 @@ class HistoryRecorder(Observer):
                 S["slip"][n] = s.info.slip
                 S["contact_status"][n] = s.info.status
         if s.info is not None:
+            S["nonlinear_iterations"][n] = s.info.nonlinear_iterations
             S["iterations"][n] = s.info.iterations
             S["fallbacks"][n] = s.info.fallback
             S["residual"][n] = s.info.residual

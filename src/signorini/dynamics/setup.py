@@ -23,6 +23,7 @@ from ..linalg.base import BACKENDS, IMPORT_FAILURES, backend_traits, memory_info
 from ..linalg.row_block import RowBlock
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
+from .elasticity import check_finite_strain
 from .context import Context
 from .damping import UNDAMPED
 from .history import COUNTER_KEYS, History
@@ -105,7 +106,7 @@ def initial_state(ctx: Context) -> State:
         vD, aD = disc.dirichlet_rates(ctx.dt / 4)
         V[ctx.fixed], A[ctx.fixed] = vD, aD
     F = ctx.load(0.0)
-    r = F - ctx.S @ U - ctx.M @ A
+    r = F - (ctx.elastic.force(U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
     Fd = ctx.damping.force(ctx, V) if ctx.damping is not None else None
     if Fd is not None:  # damped: M A0 = F(0) - S U0 - C V0
         r -= Fd
@@ -187,6 +188,9 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "friction": friction_summary(disc.problem),
         # Rayleigh damping C = alpha M + beta S (model "none", zeros: undamped)
         "damping": (ctx.damping or UNDAMPED).describe(),
+        # the material models of the cells: linear, or finite strain (Newton in every step)
+        "material_model": list(ctx.elastic.models),
+        "finite_strain": bool(ctx.elastic.finite),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,
@@ -267,6 +271,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
                     f"scheme {s.name} cannot carry friction ({ctx.friction.label}): {s.friction_refusal}; "
                     f"schemes that do: {', '.join(friction_schemes())}"
                 )
+    check_finite_strain(ctx, schemes)
     for s in schemes:
         s.check_context(ctx)
     if ctx.damping is not None:

@@ -2,8 +2,8 @@
 
 Kinematics at a quadrature point: F = I + grad_X u (d x d; plane strain in 2D, F_33 = 1),
 C = F^T F, E = (C - I)/2, J = det F.  A law gives the stored energy density W, the second
-Piola-Kirchhoff stress S = dW/dE and its tangent CC = dS/dE (:class:`SaintVenantKirchhoff`,
-:class:`NeoHookean`).  Over a mesh (every cell type, mixed meshes as the sum of their one-type
+Piola-Kirchhoff stress S = dW/dE and its tangent CC = dS/dE (:class:`SaintVenantKirchhoffLaw`,
+:class:`NeoHookeanLaw`).  Over a mesh (every cell type, mixed meshes as the sum of their one-type
 parts, no Python loop over cells):
 
     energy        Pi(U) = sum_e sum_q w_q |det J_e| W(F)                    [energy]
@@ -39,6 +39,11 @@ def _lame(value, shape: tuple[int, ...]) -> np.ndarray | float:
     if np.ndim(value) == 0:
         return float(value)
     return np.asarray(value, dtype=float).reshape((-1,) + (1,) * (len(shape) - 1))
+
+
+class InvertedCellError(NonFiniteError):
+    """A state that inverts a cell (det F <= 0): no energy, no stress; a numerical failure of the step
+    that reached it (exit 3, or a rejected step under the adaptive control)."""
 
 
 @dataclass(frozen=True)
@@ -88,7 +93,7 @@ def _symmetric_identity(d: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class SaintVenantKirchhoff(HyperelasticLaw):
+class SaintVenantKirchhoffLaw(HyperelasticLaw):
     """W = lam/2 (tr E)^2 + mu E:E; S = lam tr(E) I + 2 mu E; CC = lam I x I + mu (I (x) I)_sym.
 
     Exact under large rotations; not polyconvex (it softens in strong compression and can invert
@@ -119,7 +124,7 @@ class SaintVenantKirchhoff(HyperelasticLaw):
 
 
 @dataclass(frozen=True)
-class NeoHookean(HyperelasticLaw):
+class NeoHookeanLaw(HyperelasticLaw):
     """Compressible Neo-Hookean: W = mu/2 (I1 - 3 - 2 ln J) + lam/2 (ln J)^2 (I1 = tr C, with
     C_33 = 1 in plane strain); S = mu (I - C^-1) + lam ln(J) C^-1;
     CC = lam Ci x Ci + (mu - lam ln J)(Ci_IK Ci_JL + Ci_IL Ci_JK), Ci = C^-1.
@@ -156,20 +161,29 @@ class NeoHookean(HyperelasticLaw):
 
 #: the finite-strain laws by name (``[material] model``; ``linear`` is today's small strain)
 HYPERELASTIC_LAWS: dict[str, type[HyperelasticLaw]] = {
-    SaintVenantKirchhoff.name: SaintVenantKirchhoff,
-    NeoHookean.name: NeoHookean,
+    SaintVenantKirchhoffLaw.name: SaintVenantKirchhoffLaw,
+    NeoHookeanLaw.name: NeoHookeanLaw,
 }
 
 
-def _parts(mesh: Mesh, law: HyperelasticLaw) -> list[tuple[Mesh, HyperelasticLaw, slice]]:
-    """The one-type parts of ``mesh`` with the law restricted to their cells."""
+def _parts(mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
+           ) -> list[tuple[Mesh, HyperelasticLaw, np.ndarray]]:  # fmt: skip
+    """The one-type parts of ``mesh`` (only its cells ``cells``, sorted indices; None: all) with the law
+    restricted to their cells, and the mesh's numbers of those cells."""
     if mesh.dim == 1:
         raise InputError(f"finite strain ({law.name}) needs a 2D (plane strain) or 3D mesh, not a 1D bar")
     out = []
     for part, cut in mesh.parts():
-        lam = law.lam if np.ndim(law.lam) == 0 else np.asarray(law.lam)[cut]
-        mu = law.mu if np.ndim(law.mu) == 0 else np.asarray(law.mu)[cut]
-        out.append((part, type(law)(lam, mu), cut))
+        ids = np.arange(cut.start, cut.stop)
+        if cells is not None:
+            keep = np.isin(ids, cells)
+            if not keep.any():
+                continue
+            if not keep.all():
+                part, ids = Mesh(part.points, part.cells[keep], part.cell_type), ids[keep]
+        lam = law.lam if np.ndim(law.lam) == 0 else np.asarray(law.lam)[ids]
+        mu = law.mu if np.ndim(law.mu) == 0 else np.asarray(law.mu)[ids]
+        out.append((part, type(law)(lam, mu), ids))
     return out
 
 
@@ -184,32 +198,34 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
     return F, wdet, G
 
 
-def check_orientation(mesh: Mesh, F: np.ndarray, cut: slice) -> None:
-    """:class:`NonFiniteError` naming the first cell where det F <= 0 (an inverted element)."""
+def check_orientation(mesh: Mesh, F: np.ndarray, ids: np.ndarray | slice) -> None:
+    """:class:`InvertedCellError` naming the first cell where det F <= 0 (an inverted element); ``ids``: the
+    mesh's numbers of the cells of F (or their slice)."""
     J = np.linalg.det(F)
     bad = ~(J > 0)
     if bad.any():
         e, q = np.argwhere(bad)[0]
-        cell = int(np.arange(cut.start, cut.stop)[e])
-        raise NonFiniteError(f"cell {cell} is inverted (det F = {J[e, q]:.3g} <= 0 at quadrature point {q}): the "
+        ids = np.arange(ids.start, ids.stop) if isinstance(ids, slice) else ids
+        cell = int(ids[e])
+        raise InvertedCellError(f"cell {cell} is inverted (det F = {J[e, q]:.3g} <= 0 at quadrature point {q}): the "
                              "deformation is beyond what the mesh can carry; reduce the step")  # fmt: skip
 
 
-def strain_energy(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> float:
+def strain_energy(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None) -> float:
     """Pi(U) = int W(F) dX over the reference configuration [energy]."""
     total = 0.0
-    for part, part_law, cut in _parts(mesh, law):
+    for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, _ = deformation_gradients(part, U)
         check_orientation(part, F, cut)
         total += float(np.sum(wdet * part_law.energy(F)))
     return total
 
 
-def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> np.ndarray:
+def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None) -> np.ndarray:
     """f(U) (n_nodes d,) node-major: f_a,i = int (F S)_iJ dN_a/dX_J dX [force]."""
     d = mesh.dim
     f = np.zeros(mesh.n_nodes * d)
-    for part, part_law, cut in _parts(mesh, law):
+    for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
         P = np.einsum("eqiI,eqIJ->eqiJ", F, part_law.stress(F))  # first Piola-Kirchhoff
@@ -218,11 +234,11 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> np.ndarra
     return f
 
 
-def tangent_stiffness(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray) -> sp.csr_matrix:
+def tangent_stiffness(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None) -> sp.csr_matrix:
     """K(U) = df/dU (n_nodes d)^2, symmetric: the geometric part (grad N_a . S grad N_b) I plus the
     material part F grad N_a : CC : F grad N_b [force / length]."""
     mats = []
-    for part, part_law, cut in _parts(mesh, law):
+    for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
         S, CC = part_law.stress(F), part_law.tangent(F)
@@ -254,7 +270,7 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
     Venant-Kirchhoff (W quadratic in C) the correction vanishes: S_alg = S(C_mid) = (S(C0) + S(C1))/2."""
     Cm, dC = 0.5 * (C0 + C1), C1 - C0
     S = law.stress_C(Cm)
-    if isinstance(law, SaintVenantKirchhoff):
+    if isinstance(law, SaintVenantKirchhoffLaw):
         return S
     dd = np.einsum("...IJ,...IJ->...", dC, dC)
     gap = law.energy_C(C1) - law.energy_C(C0) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC)
@@ -263,14 +279,14 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
     return S + factor[..., None, None] * dC
 
 
-def algorithmic_force(mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:
+def algorithmic_force(mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray, cells: np.ndarray | None = None) -> np.ndarray:
     """The energy-momentum step's internal force (n_nodes d,): f_a = int F_mid S_alg grad N_a dX,
     F_mid = I + grad (U0 + U1)/2 (spec 12).  f . (U1 - U0) = Pi(U1) - Pi(U0) to round-off, and
     sum f_a = 0, sum x_mid,a x f_a = 0 (x_mid = X + (U0 + U1)/2): a free body keeps its energy and
     its linear and angular momentum."""
     d = mesh.dim
     f = np.zeros(mesh.n_nodes * d)
-    for part, part_law, cut in _parts(mesh, law):
+    for part, part_law, cut in _parts(mesh, law, cells):
         F0, wdet, G = deformation_gradients(part, U0)
         F1, _, _ = deformation_gradients(part, U1)
         check_orientation(part, F0, cut)

@@ -1,8 +1,15 @@
-"""Isotropic linear elasticity: Lamé constants, density, stress and von Mises."""
+"""Isotropic materials: Lamé constants, density, stress and von Mises; the material model.
+
+A material's ``model`` says how its body deforms: ``linear`` (small strains, :class:`IsotropicElastic`,
+the default) or a hyperelastic law of finite strain (:class:`SaintVenantKirchhoff`,
+:class:`NeoHookean`; :mod:`signorini.fem.hyperelastic`), each with the same Lamé constants and
+density, whose tangent at rest is the linear stiffness.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -28,6 +35,8 @@ class IsotropicElastic:
     lam: float
     mu: float
     rho: float = 1.0
+    #: the material model (:data:`MATERIAL_MODELS`): ``linear`` for this class
+    model: ClassVar[str] = "linear"
 
     def __post_init__(self) -> None:
         for name in ("lam", "mu", "rho"):
@@ -87,6 +96,40 @@ class IsotropicElastic:
         return _von_mises(self.lam, self.mu, self.young, eps)
 
 
+@dataclass(frozen=True)
+class SaintVenantKirchhoff(IsotropicElastic):
+    """Saint Venant-Kirchhoff finite strain: W = lam/2 (tr E)^2 + mu E:E, E = (F^T F - I)/2 (spec 12).
+
+    The Lamé constants and density of :class:`IsotropicElastic` (``from_young`` too); the body's
+    internal force is the Total Lagrangian one of :mod:`signorini.fem.hyperelastic`, invariant under
+    rigid rotations, whose tangent at rest is the linear stiffness.  Softens in strong compression
+    (its stress vanishes as a cell is squeezed flat): for large compressions use :class:`NeoHookean`."""
+
+    model: ClassVar[str] = "saint-venant-kirchhoff"
+
+
+@dataclass(frozen=True)
+class NeoHookean(IsotropicElastic):
+    """Compressible Neo-Hookean finite strain: W = mu/2 (I1 - d - 2 ln J) + lam/2 (ln J)^2, I1 = tr F^T F,
+    J = det F (spec 12; plane strain in 2D, d = 2).  Its energy grows without bound as J -> 0."""
+
+    model: ClassVar[str] = "neo-hookean"
+
+
+#: the material models by name (``[material] model``): the class of each
+MATERIAL_MODELS: dict[str, type[IsotropicElastic]] = {
+    cls.model: cls for cls in (IsotropicElastic, SaintVenantKirchhoff, NeoHookean)
+}
+
+
+def with_model(material: IsotropicElastic, model: str) -> IsotropicElastic:
+    """``material``'s constants under the model ``model`` (:data:`MATERIAL_MODELS`; InputError naming
+    the allowed values)."""
+    if model not in MATERIAL_MODELS:
+        raise InputError(f"material model {model!r} is not known; allowed: {', '.join(MATERIAL_MODELS)}")
+    return MATERIAL_MODELS[model](material.lam, material.mu, material.rho)
+
+
 def _stress(lam, mu, young, eps: np.ndarray) -> np.ndarray:
     """sigma = lam tr(eps) I + 2 mu eps (E eps in 1D) for eps (..., d, d); lam, mu, young
     numbers or arrays broadcasting against eps's leading axes."""
@@ -131,6 +174,8 @@ class CellMaterial:
     lam: np.ndarray
     mu: np.ndarray
     rho: np.ndarray
+    #: (n_cells,) the material model of every cell (:data:`MATERIAL_MODELS`); None: every cell linear
+    models: np.ndarray | None = None
 
     @property
     def young(self) -> np.ndarray:
@@ -139,7 +184,8 @@ class CellMaterial:
 
     def take(self, cells: np.ndarray) -> CellMaterial:
         """The materials of the cells ``cells`` (indices or mask): a sub-mesh's."""
-        return CellMaterial(self.lam[cells], self.mu[cells], self.rho[cells])
+        models = None if self.models is None else self.models[cells]
+        return CellMaterial(self.lam[cells], self.mu[cells], self.rho[cells], models)
 
     def wave_speed(self, dim: int) -> float:
         """The largest compression wave speed of the cells [m/s] (as :meth:`IsotropicElastic.wave_speed`)."""
@@ -191,5 +237,17 @@ def cell_material(n_cells: int, regions: dict[str, np.ndarray], default: Isotrop
                     "materials; list each cell's region once"
                 )
         owner[cells] = k
-    lam, mu, rho = (np.array([getattr(m, a) for m in [*materials.values(), default]]) for a in ("lam", "mu", "rho"))
-    return CellMaterial(lam[owner], mu[owner], rho[owner])  # owner -1: the default, last
+    every = [*materials.values(), default]
+    lam, mu, rho = (np.array([getattr(m, a) for m in every]) for a in ("lam", "mu", "rho"))
+    models = np.array([m.model for m in every], dtype=object)
+    linear = all(m.model == "linear" for m in every)
+    return CellMaterial(lam[owner], mu[owner], rho[owner], None if linear else models[owner])  # owner -1: the default
+
+
+def cell_models(material: Material, n_cells: int) -> np.ndarray:
+    """(n_cells,) the material model of every cell (object array of :data:`MATERIAL_MODELS` names)."""
+    if isinstance(material, CellMaterial):
+        if material.models is None:
+            return np.full(n_cells, "linear", dtype=object)
+        return np.asarray(material.models, dtype=object)
+    return np.full(n_cells, material.model, dtype=object)

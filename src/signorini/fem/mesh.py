@@ -393,6 +393,21 @@ def _join_blocks(parts: dict[str, Mesh]) -> Mesh:
     return Mesh(np.vstack([m.points for m in meshes]), arrays, types, facets, regions=regions)
 
 
+def sub_mesh(mesh: Mesh, cells: np.ndarray) -> Mesh:
+    """The cells ``cells`` (sorted indices) of ``mesh`` on all its points (same node numbering, no tags):
+    what an operator of those cells only is assembled on (a region of another material model)."""
+    cells = np.asarray(cells)
+    types, arrays = [], []
+    for b in mesh.blocks:
+        mine = cells[(cells >= b.start) & (cells < b.stop)] - b.start
+        if mine.size:
+            types.append(b.cell_type)
+            arrays.append(b.cells[mine])
+    if not arrays:
+        raise MeshError("a sub-mesh needs at least one cell")
+    return Mesh(mesh.points, arrays, types)
+
+
 def bodies(mesh: Mesh) -> np.ndarray:
     """The body (connected component of the cells) of every node, (n_nodes,) int, numbered in
     the order of their first node; a node of no cell is a body of its own."""

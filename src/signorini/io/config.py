@@ -83,7 +83,7 @@ from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
 from ..dynamics.validate import INITIAL_ACCELERATIONS
 from ..errors import InputError, check_choice, check_positive, not_a_file
-from ..fem.material import IsotropicElastic
+from ..fem.material import MATERIAL_MODELS, IsotropicElastic, with_model
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
@@ -250,11 +250,21 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
     return box(*cells, *size, cell=cell)
 
 
-def _material(t: dict, key: str = "material", allowed: set[str] | None = None) -> IsotropicElastic:
-    """``[material]`` (or one of its ``regions`` entries, ``key`` naming it in messages)."""
+def _material(t: dict, key: str = "material", allowed: set[str] | None = None, model: str = "linear"
+              ) -> IsotropicElastic:  # fmt: skip
+    """``[material]`` (or one of its ``regions`` entries, ``key`` naming it in messages; ``model``: the
+    model when the table gives none)."""
     _keys(key, t, SECTIONS["material"] if allowed is None else allowed)
     if "rho" not in t:
         raise InputError(f"missing key '{key}.rho'")
+    model = t.get("model", model)
+    if not isinstance(model, str) or model not in MATERIAL_MODELS:
+        raise InputError(f"'{key}.model' must be one of {', '.join(MATERIAL_MODELS)}; got {_short(model)}")
+    return with_model(_linear_material(t, key), model)
+
+
+def _linear_material(t: dict, key: str) -> IsotropicElastic:
+    """The constants of a ``[material]`` table."""
     try:
         rho = _number(f"{key}.rho", t["rho"])
         if {"lam", "mu"} <= set(t) and not ({"E", "nu"} & set(t)):
@@ -297,7 +307,7 @@ def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
         tag = _region_tag(mesh, key, entry)
         if tag in out:
             raise InputError(f"'{key}.tag': region {tag!r} is listed twice in material.regions")
-        out[tag] = _material({a: v for a, v in entry.items() if a != "tag"}, key, allowed)
+        out[tag] = _material({a: v for a, v in entry.items() if a != "tag"}, key, allowed, t.get("model", "linear"))
     return out
 
 

@@ -74,8 +74,8 @@ SECTIONS: tuple[Section, ...] = (
     ),
     Section(
         "material",
-        "Isotropic linear elasticity (plane strain in 2D; Young's modulus in 1D): `lam` and `mu`, or `E` "
-        "and optionally `nu`; `rho` always.  Magnitudes must lie within 1e-100 .. 1e100 (their products must "
+        "Isotropic elasticity (plane strain in 2D; Young's modulus in 1D), linear or of finite strain (`model`): "
+        "`lam` and `mu`, or `E` and optionally `nu`; `rho` always.  Magnitudes must lie within 1e-100 .. 1e100 (their products must "
         "stay normal doubles: change units otherwise).",
         (
             Key("rho", "number > 0", "required", "mass / length^d", "density", _same("1.0")),
@@ -83,6 +83,11 @@ SECTIONS: tuple[Section, ...] = (
             Key("mu", "number > 0", "", "stress", "shear modulus", _ex("", "0.5", "0.5")),
             Key("E", "number > 0", "", "stress", "Young's modulus (instead of lam, mu)", _ex("1.0", "", "")),
             Key("nu", "number in (-1, 0.5)", "0", "", "Poisson ratio (with E)"),
+            Key("model", "string", "linear", "",
+                "linear (small strains) | saint-venant-kirchhoff | neo-hookean (finite strain, Total Lagrangian, "
+                "the same lam, mu: each step solved by Newton, solver options newton_tol, newton_max, tangent; "
+                "docs/finite_strain.md).  A regions entry without its own model takes this one",
+                _ex("", '"neo-hookean"', '"saint-venant-kirchhoff"')),
             Key("damping", "inline table", "none", "alpha: 1/time, beta: time",
                 "Rayleigh damping C = alpha M + beta S, { alpha = ..., beta = ... } (each >= 0, 0 by default; M the "
                 "mass in use): a mode of angular frequency w decays with the ratio alpha/(2w) + beta w/2; its work "

@@ -127,6 +127,17 @@ def damping_line(H, s: dict) -> str:
     return f"  damping rayleigh alpha {d['alpha']:g}, beta {d['beta']:g}: damping_dissipation {work}{share}{res_text}\n"
 
 
+def material_line(H, s: dict) -> str:
+    """With finite strain: the models and the Newton iterations and tangent factorizations it took."""
+    if not s.get("finite_strain"):
+        return ""
+    c = s["counters"]
+    it = H.columns()["nonlinear_iterations"][1:]
+    mean = f", {float(np.mean(it)):.3g} per step (max {int(np.max(it))})" if it.size else ""
+    return (f"  finite strain ({', '.join(s.get('material_model') or [])}): Newton {int(np.sum(it))} iterations{mean}, "
+            f"{c.get('tangent_factorizations', 0)} tangent factorizations\n")  # fmt: skip
+
+
 def friction_line(H, s: dict) -> str:
     """With friction: the law, what it dissipated, the last level's stick/slip nodes and the solver."""
     f = s.get("friction") or {}
@@ -181,6 +192,7 @@ def one_screen_summary(H) -> str:
         f"{energy_line(H, s)}"
         f"{friction_line(H, s)}"
         f"{damping_line(H, s)}"
+        f"{material_line(H, s)}"
         f"  max complementarity residual {s['max_complementarity_residual']:.2e}\n"
         f"{mass_effect_line(s)}"
         f"{bodies_lines(s)}"

@@ -305,6 +305,33 @@ SOLVER_OPTIONS = (
         choices=("small-sliding", "frozen"),
     ),
     Parameter(
+        "newton_tol",
+        1e-10,
+        "finite strain ([material] model not linear): a step's Newton iterations stop when the force residual on "
+        "the free dofs is below newton_tol times the largest of its terms (inertia, internal force, loads)",
+        float,
+        1e-15,
+        1e-2,
+    ),
+    Parameter(
+        "newton_max",
+        25,
+        "finite strain: the most Newton iterations of a step; a step that has not converged then fails (or is "
+        "rejected and halved under the energy control)",
+        int,
+        1,
+        1000,
+    ),
+    Parameter(
+        "tangent",
+        "full",
+        "finite strain: full (the tangent K(U) of every Newton iterate, factorized each time) or modified (the "
+        "step's first tangent kept while the residual falls at least tenfold per iteration, refactorized when "
+        "it does not)",
+        str,
+        choices=("full", "modified"),
+    ),
+    Parameter(
         "loop_blas_threads",
         1,
         "threads of the dense BLAS inside the time loop (0: the library's default); one is fastest for the "

@@ -13,6 +13,7 @@ from ...errors import InputError
 from ...registry import Registry
 from .base import EnergyParts, Scheme, State
 from .contact_stabilized import ContactStabilizedNewmark
+from .energy_momentum import EnergyMomentum
 from .generalized_alpha import HHT, GeneralizedAlpha
 from .moreau_jean import EnergyConserving, MoreauJean
 from .newmark import CrankNicolson, Newmark
@@ -40,6 +41,7 @@ register_scheme(MoreauJean)
 register_scheme(PenaltyCN)
 register_scheme(ContactStabilizedNewmark, ("csn",))
 register_scheme(EnergyConserving)
+register_scheme(EnergyMomentum)
 
 
 def friction_schemes() -> list[str]:
@@ -50,6 +52,11 @@ def friction_schemes() -> list[str]:
 def damping_schemes() -> list[str]:
     """The registered schemes that carry Rayleigh damping."""
     return [e.name for e in SCHEMES if e.obj.damping_refusal is None]
+
+
+def finite_strain_schemes() -> list[str]:
+    """The registered schemes that run finite strain (a Newton step)."""
+    return [e.name for e in SCHEMES if e.obj.finite_strain_refusal is None]
 
 
 def make_scheme(scheme: str | type[Scheme] | Scheme, options: Mapping[str, Any] | None = None) -> Scheme:
@@ -70,6 +77,7 @@ __all__ = [
     "ContactStabilizedNewmark",
     "CrankNicolson",
     "EnergyConserving",
+    "EnergyMomentum",
     "EnergyParts",
     "GeneralizedAlpha",
     "HHT",

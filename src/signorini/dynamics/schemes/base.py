@@ -147,6 +147,9 @@ class Scheme:
     #: why the scheme refuses Rayleigh damping (None: it carries it, with the damping forces'
     #: work in its energy identity, :meth:`damping_coefficient` and :func:`damping_force`)
     damping_refusal: ClassVar[str | None] = "its balance has no damping term"
+    #: why the scheme refuses finite strain (a material model other than ``linear``); None: its step
+    #: solves the nonlinear balance by Newton (:mod:`~signorini.dynamics.newton`)
+    finite_strain_refusal: ClassVar[str | None] = "its step has no Newton iteration for a nonlinear internal force yet"
 
     @property
     def conserving(self) -> bool:
@@ -282,15 +285,16 @@ class Scheme:
 
 # ----------------------------------------------------------------------------- helpers
 def products(ctx: Context, s: State) -> tuple[np.ndarray, np.ndarray]:
-    """(M V, S U) of a state, computed once."""
-    return s.product("MV", lambda: ctx.Mop @ s.V), s.product("SU", lambda: ctx.Sop @ s.U)
+    """(M V, f(U)) of a state, computed once: f(U) = S U in linear elasticity, the internal force of
+    finite strain otherwise (``ctx.elastic``, :mod:`~signorini.dynamics.elasticity`)."""
+    return s.product("MV", lambda: ctx.Mop @ s.V), s.product("SU", lambda: ctx.elastic.force(s.U))
 
 
 def mechanical_energy(ctx: Context, s: State) -> tuple[float, float]:
-    """(1/2 V.MV, 1/2 U.SU - U.F(t)) [energy]."""
+    """(1/2 V.MV, Pi(U) - U.F(t)) [energy]; Pi(U) = 1/2 U.SU in linear elasticity."""
     MV, SU = products(ctx, s)
     F = ctx.load(s.t)
-    return 0.5 * float(s.V @ MV), 0.5 * float(s.U @ SU) - float(s.U @ F)
+    return 0.5 * float(s.V @ MV), ctx.elastic.energy(s.U, SU) - float(s.U @ F)
 
 
 def residual(ctx: Context, s: State) -> np.ndarray | None:
@@ -326,7 +330,7 @@ def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndar
     def compute():
         D = ctx.fixed
         MD, SD = rows if rows is not None else (ctx.M[D], ctx.S[D])
-        R = MD @ s.A + SD @ s.U - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
+        R = MD @ s.A + ctx.elastic.force_rows(s.U, D, SD) - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
         Fd = damping_force(ctx, s)
         return R if Fd is None else R + Fd[D]
 

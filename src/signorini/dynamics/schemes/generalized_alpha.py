@@ -54,6 +54,7 @@ from .newmark import Newmark
 
 class GeneralizedAlpha(Newmark):
     name = "generalized-alpha"
+    finite_strain_refusal = "its step has no Newton iteration for a nonlinear internal force yet"
     description = "Chung-Hulbert generalized-alpha, exact contact at t_{n+1}; rho_inf = 1 is CN"
     parameters = (
         Parameter("rho_inf", 1.0, "spectral radius at infinite frequency (1: no dissipation)", float, 0.0, 1.0),

@@ -38,6 +38,7 @@ import numpy as np
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
+from ..newton import newton_solve
 from .base import (
     EnergyParts,
     Scheme,
@@ -47,6 +48,7 @@ from .base import (
     damping_velocity,
     load_work,
     mechanical_energy,
+    products,
     reaction_work,
 )
 
@@ -61,6 +63,7 @@ class Newmark(Scheme):
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) + 1/2 dt^2 (beta - gamma/2) A.MA"
     friction_refusal = None
     damping_refusal = None
+    finite_strain_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
@@ -111,14 +114,15 @@ class Newmark(Scheme):
         if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
             rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(
-            self.step_operator(ctx, ctx.dt),
-            rhs,
-            ctx.gaps(t),
-            fixed,
-            ctx.friction_law(s.U, s.t, t, self.contact_law(ctx)),
-            functools.partial(self.taylor_guess, ctx, s),
-        )
+        law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
+        if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
+            el = ctx.elastic
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U,
+                                        ctx.gaps(t), fixed, law)  # fmt: skip
+        else:
+            U, lam, info = ctx.solve(
+                self.step_operator(ctx, ctx.dt), rhs, ctx.gaps(t), fixed, law, functools.partial(self.taylor_guess, ctx, s)
+            )
         return self.update(ctx, s, t, U, lam, info, p)
 
     def predictor(self, ctx, s: State) -> np.ndarray:
@@ -168,6 +172,10 @@ class Newmark(Scheme):
             friction=tangential,
             damping=damping,
         )
+        if ctx.elastic.finite:  # Delta Pi - dU.(f^n + f^{n+1})/2: the trapezoid's error on f (0 when linear)
+            (_, f0), (_, f1) = products(ctx, old), products(ctx, new)
+            dPi = ctx.elastic.energy(new.U, f1) - ctx.elastic.energy(old.U, f0)
+            parts.numerical += dPi - 0.5 * float(dU @ (f0 + f1))
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)
             MA1 = new.product("MA", lambda: ctx.M @ new.A)

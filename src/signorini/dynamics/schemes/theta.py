@@ -15,6 +15,11 @@ Energy identity (exact; docs/schemes.md), with x_theta = theta x^{n+1} + (1-thet
         - (theta - 1/2) (|dV|_M^2 + |dU|_S^2) + dU_f.R_f,theta
         - dU.(C V)_theta                                     (damping, when given)
 
+Finite strain (``[material] model``): S U^{n+1} becomes the internal force f(U^{n+1}), solved by Newton
+(:mod:`~signorini.dynamics.newton`), 1/2 U.SU the stored energy Pi(U), and the term in |dU|_S^2
+becomes Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (numerical: for CN the trapezoid's error on f,
+third order in dU; no longer of one sign, so that Crank-Nicolson may gain energy under large rotations).
+
 so the scheme dissipates for theta > 1/2 (BE: -1/2|dV|_M^2 - 1/2|dU|_S^2 + dU.B^T lambda^{n+1},
 the seed's identity with a plus sign on the contact term).
 """
@@ -27,6 +32,7 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
+from ..newton import newton_solve
 from .base import (
     EnergyParts,
     Scheme,
@@ -47,6 +53,7 @@ class Theta(Scheme):
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t)"
     friction_refusal = None
     damping_refusal = None
+    finite_strain_refusal = None
 
     def operator(self, dt: float) -> Operator:
         return Operator(1.0 / (self.theta * dt) ** 2, 1.0)
@@ -76,14 +83,19 @@ class Theta(Scheme):
         if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
             rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(
-            self.step_operator(ctx, dt),
-            rhs,
-            ctx.gaps(t),
-            fixed,
-            ctx.friction_law(s.U, s.t, t),
-            functools.partial(self.taylor_guess, ctx, s),
-        )
+        if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
+            el = ctx.elastic
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U,
+                                        ctx.gaps(t), fixed, ctx.friction_law(s.U, s.t, t))  # fmt: skip
+        else:
+            U, lam, info = ctx.solve(
+                self.step_operator(ctx, dt),
+                rhs,
+                ctx.gaps(t),
+                fixed,
+                ctx.friction_law(s.U, s.t, t),
+                functools.partial(self.taylor_guess, ctx, s),
+            )
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
         extra = {}
@@ -104,7 +116,10 @@ class Theta(Scheme):
         MV1, SU1 = products(ctx, new)
         dR_fixed, dR_free = reaction_work(ctx, old, new, th)
         numerical = dR_free
-        if th != 0.5:
+        if ctx.elastic.finite:  # Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (the trapezoid's error of f)
+            dPi = ctx.elastic.energy(new.U, SU1) - ctx.elastic.energy(old.U, SU0)
+            numerical += dPi - float(dU @ (th * SU1 + (1 - th) * SU0)) - (th - 0.5) * float(dV @ (MV1 - MV0))
+        elif th != 0.5:
             numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
         normal, tangential = contact_works(ctx, dU, old, new, th)
         damping, rest = damping_split(ctx, dU, old, new, th)

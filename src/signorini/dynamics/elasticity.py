@@ -1,0 +1,187 @@
+"""The body's elastic response: the internal force, its energy and its tangent (linear or finite strain).
+
+Every place that needs the elastic force of a level (a step's balance, its energy, the reactions of
+the Dirichlet tags, the residual at t = 0) asks the run's :class:`Elasticity` (``ctx.elastic``):
+
+    linear        f(U) = S U,                 Pi(U) = 1/2 U.SU,  K = S
+    finite strain f(U) = int F S(E) grad N,   Pi(U) = int W(E),  K(U) = df/dU   (Total Lagrangian)
+
+with the hyperelastic laws of :mod:`signorini.fem.hyperelastic` on the cells whose material model
+is not ``linear`` and S U on the others (regions may mix models).  ``linear`` everywhere (the
+default) keeps every product as before: ``f(U)`` is the cached product ``S @ U``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..fem.assembly import stiffness_matrix
+from ..fem.hyperelastic import HYPERELASTIC_LAWS, algorithmic_force, internal_force, strain_energy, tangent_stiffness
+from ..fem.material import CellMaterial, cell_models
+from ..fem.mesh import sub_mesh
+
+if TYPE_CHECKING:
+    from .context import Context
+
+
+class Elasticity:
+    """Linear elasticity: f(U) = S U, Pi = 1/2 U.SU, K = S [force, energy, force / length]."""
+
+    #: whether the internal force is nonlinear (finite strain): the implicit steps then iterate (Newton)
+    finite = False
+    #: the material models of the body, by name (summary.json ``material_model``)
+    models: tuple[str, ...] = ("linear",)
+
+    def __init__(self, ctx: Context):
+        self.ctx = ctx
+
+    def force(self, U: np.ndarray) -> np.ndarray:
+        """f(U) (n,) [force]."""
+        return self.ctx.Sop @ U
+
+    def energy(self, U: np.ndarray, fU: np.ndarray | None = None) -> float:
+        """Pi(U) [energy]; ``fU``: f(U) when already computed (linear: 1/2 U.fU)."""
+        return 0.5 * float(U @ (self.force(U) if fU is None else fU))
+
+    def tangent(self, U: np.ndarray) -> Any:
+        """K(U) = df/dU (n, n) [force / length]."""
+        return self.ctx.S
+
+    def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
+        """f(U) on the dofs ``rows`` (the reactions of the Dirichlet dofs); ``S_rows``: S[rows] taken once."""
+        return (self.ctx.S[rows] if S_rows is None else S_rows) @ U
+
+    def counters(self) -> dict[str, int]:
+        """The run's counters of the nonlinear solve (none when linear)."""
+        return {}
+
+
+class FiniteStrain(Elasticity):
+    """Finite strain on the cells of a hyperelastic model, linear on the others (module docstring).
+
+    Parameters
+    ----------
+    ctx : the run's context (its mesh, materials and linear stiffness S, whose part on the
+        linear cells this response keeps).
+    """
+
+    finite = True
+
+    def __init__(self, ctx: Context):
+        super().__init__(ctx)
+        disc = ctx.disc
+        mesh, material = disc.problem.mesh, disc.material
+        self.mesh = mesh
+        models = cell_models(material, mesh.n_cells)
+        self.models = tuple(sorted(set(models.tolist())))
+        lam = material.lam if isinstance(material, CellMaterial) else float(material.lam)
+        mu = material.mu if isinstance(material, CellMaterial) else float(material.mu)
+        #: (law over the whole mesh's cells, the cells it acts on or None for every cell)
+        self.groups: list[tuple[Any, np.ndarray | None]] = []
+        for name in self.models:
+            if name == "linear":
+                continue
+            cells = np.flatnonzero(models == name)
+            self.groups.append((HYPERELASTIC_LAWS[name](lam, mu), None if cells.size == mesh.n_cells else cells))
+        linear = np.flatnonzero(models == "linear")
+        #: the linear cells' stiffness (None: no linear cell)
+        self.S_linear: sp.csr_matrix | None = None
+        if linear.size:
+            part = material.take(linear) if isinstance(material, CellMaterial) else material
+            self.S_linear = stiffness_matrix(sub_mesh(mesh, linear), part).tocsr()
+        #: counts: force evaluations, tangents assembled, tangents factorized (:mod:`~.newton`), halvings
+        self.evaluations = 0
+        self.tangents = 0
+        self.factorizations = 0
+        self.line_search_steps = 0
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def force(self, U: np.ndarray) -> np.ndarray:
+        last = self._last
+        if last is not None and (last[0] is U or np.array_equal(last[0], U)):
+            return last[1]
+        self.evaluations += 1
+        f = np.zeros(U.size) if self.S_linear is None else self.S_linear @ U
+        for law, cells in self.groups:
+            f += internal_force(self.mesh, law, U, cells)
+        self._last = (np.array(U, copy=True), f)
+        return f
+
+    def energy(self, U: np.ndarray, fU: np.ndarray | None = None) -> float:
+        e = 0.0 if self.S_linear is None else 0.5 * float(U @ (self.S_linear @ U))
+        return e + sum(strain_energy(self.mesh, law, U, cells) for law, cells in self.groups)
+
+    def tangent(self, U: np.ndarray) -> sp.csr_matrix:
+        self.tangents += 1
+        mats = [tangent_stiffness(self.mesh, law, U, cells) for law, cells in self.groups]
+        if self.S_linear is not None:
+            mats.append(self.S_linear)
+        K = mats[0]
+        for A in mats[1:]:
+            K = K + A
+        return K.tocsr()
+
+    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:
+        """The energy-momentum force (n,): Gonzalez's discrete gradient on the hyperelastic cells,
+        S (U0 + U1)/2 on the linear ones, so that f . (U1 - U0) = Pi(U1) - Pi(U0) [force]."""
+        f = np.zeros(U0.size) if self.S_linear is None else self.S_linear @ (0.5 * (U0 + U1))
+        for law, cells in self.groups:
+            f += algorithmic_force(self.mesh, law, U0, U1, cells)
+        return f
+
+    def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
+        return self.force(U)[rows]
+
+    def counters(self) -> dict[str, int]:
+        """``tangent_factorizations`` and ``line_search_steps`` of the run (summary.json ``counters``)."""
+        return {"tangent_factorizations": self.factorizations, "line_search_steps": self.line_search_steps}
+
+
+def elasticity(ctx: Context) -> Elasticity:
+    """The run's elastic response: :class:`FiniteStrain` when a cell's material model is not ``linear``."""
+    models = cell_models(ctx.disc.material, ctx.disc.problem.mesh.n_cells)
+    if np.all(models == "linear"):
+        return Elasticity(ctx)
+    return FiniteStrain(ctx)
+
+
+def check_finite_strain(ctx: Context, schemes: list) -> None:
+    """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
+    a Newton step, a 1D bar, contact pairs, a curved or rotating obstacle, a distributed or iterative
+    backend, stiffness-proportional damping, a mass that treats the normal apart (``seed-normal``)."""
+    if not ctx.elastic.finite:
+        return
+    from ..contact.obstacles import PlaneObstacle
+    from ..errors import InputError
+    from .schemes import finite_strain_schemes
+
+    what = f"finite strain ([material] model {', '.join(m for m in ctx.elastic.models if m != 'linear')})"
+    for s in schemes:
+        if s.finite_strain_refusal:
+            raise InputError(f"scheme {s.name} cannot run {what}: {s.finite_strain_refusal}; schemes that do: "
+                             f"{', '.join(finite_strain_schemes())}")  # fmt: skip
+    problem = ctx.disc.problem
+    if ctx.disc.space.dim == 1:
+        raise InputError(f"{what} needs a 2D (plane strain) or 3D mesh, not a 1D bar; use model 'linear'")
+    if problem.pairs:
+        raise InputError(f"{what} with contact pairs is not done yet (the pairing in the current configuration); "
+                         "use model 'linear' or a rigid plane obstacle")  # fmt: skip
+    ob = problem.obstacle
+    if ob is not None and (not isinstance(ob, PlaneObstacle) or (ob.motion is not None and ob.motion.rotates)):
+        raise InputError(f"{what} against a {type(ob).__name__.removesuffix('Obstacle').lower()} obstacle"
+                         f"{' that rotates' if isinstance(ob, PlaneObstacle) else ''} is not done yet (its gap and "
+                         "normal in the current configuration); a plane, fixed or translating, is exact")  # fmt: skip
+    backend = ctx.solver_options.get("backend", "auto")
+    if ctx.distributed or backend in ("cg", "petsc-cg"):
+        raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
+                         "iterate; use superlu, cholmod, pardiso or auto")  # fmt: skip
+    if ctx.damping is not None and ctx.damping.beta != 0.0:
+        raise InputError(f"{what} with stiffness-proportional damping (beta = {ctx.damping.beta:g}) is refused: "
+                         "beta S V with the reference stiffness S damps rigid rotations; use alpha only")  # fmt: skip
+    if ctx.disc.mass_name == "seed-normal":
+        raise InputError(f"{what} with mass 'seed-normal' is refused: it removes the inertia along the contact "
+                         "normal only, so a rotating body does not keep its angular momentum; use a mass that "
+                         "treats every component alike (moment-preserving, seed, standard, lumped)")  # fmt: skip

@@ -1,0 +1,154 @@
+"""The energy-momentum scheme: the midpoint rule with Gonzalez's discrete gradient (spec 12).
+
+On the dofs with mass (m) and the massless ones (l: the contact nodes whose inertia the mass
+redistribution removed):
+
+    U^{n+1} - U^n = dt/2 (V^n + V^{n+1})
+    M (V^{n+1} - V^n) = dt [F_mid - f_alg(U^n, U^{n+1}) + B^T lambda^{n+1}]      (rows m)
+    0 = F^{n+1} - f(U^{n+1}) + B^T lambda^{n+1}                                   (rows l)
+
+with F_mid = (F^n + F^{n+1})/2 and f_alg the discrete gradient: f_alg . dU = Pi(U^{n+1}) - Pi(U^n)
+exactly, sum_a f_alg,a = 0 and sum_a x_mid,a x f_alg,a = 0 (:func:`~signorini.fem.hyperelastic.algorithmic_force`;
+linear elasticity: f_alg = S (U^n + U^{n+1})/2).  A free body with mass on every node (``standard``,
+``lumped``) keeps its energy and its linear and angular momentum to the Newton tolerance.  The massless
+rows are balanced at t_{n+1}, as Crank-Nicolson does (a midpoint balance there leaves an undamped
+(-1)^n mode: docs/design.md); what that costs is the term below, third order in dU.
+
+Energy identity (E = 1/2 V.MV + Pi(U) - U.F(t); docs/schemes.md):
+
+    Delta E = dU.F_mid - Delta(U.F) + (B dU).lambda_w + dU_l.(f_alg - (f^n + f^{n+1})/2)_l + dU_f.R_f,mid
+
+with lambda_w = lambda^{n+1} on the rows of nodes with mass and (lambda^n + lambda^{n+1})/2 on those of
+massless nodes (the scheme's contact impulse is dt lambda_w), the last but one term its numerical
+part (0 in linear elasticity, where the scheme conserves energy exactly).
+
+The step is solved by Newton (:mod:`~signorini.dynamics.newton`) with the operator 2/dt^2 M + 1/2 K(U_mid)
+(proportional to Crank-Nicolson's: one factorization serves both in linear elasticity), the massless
+rows' equations halved so that the tangent stays symmetric (their multipliers are doubled back).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..context import Operator
+from ..newton import newton_solve
+from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
+
+
+class EnergyMomentum(Scheme):
+    name = "energy-momentum"
+    description = ("midpoint rule with a discrete-gradient stress: a free body keeps its energy, linear and angular "
+                   "momentum (finite strain too); contact at t_{n+1}")  # fmt: skip
+    energy_definition = "E = 1/2 V.MV + Pi(U) - U.F(t)"
+    friction_refusal = "its contact rows carry no tangential forces yet"
+    finite_strain_refusal = None
+
+    def operator(self, dt: float) -> Operator:
+        return Operator(2.0 / (dt * dt), 0.5)
+
+    @property
+    def conserving(self) -> bool:
+        return True
+
+    def check_context(self, ctx, prepared: bool = False) -> None:
+        self.row_weights(ctx)  # refuses rows that mix nodes with and without mass
+        if ctx.rotated_kernel:
+            self._refuse_massless(ctx, "its massless rows are balanced by components")
+
+    def local_error(self, ctx, old: State, new: State) -> np.ndarray:
+        """(U^{n+1} - U^n - dt V^n - dt^2/2 A^n) / 3, as Crank-Nicolson's (a second-order scheme)."""
+        return (new.U - self.taylor_guess(ctx, old)) / 3.0
+
+    def row_weights(self, ctx) -> np.ndarray:
+        """(nc,) the weight of lambda^{n+1} in a row's contact impulse: 1 on rows of nodes with mass,
+        1/2 on those of massless nodes (module docstring)."""
+        cache = ctx.__dict__.setdefault("_energy_momentum_rows", {})
+        key = id(ctx.B)
+        if key not in cache:
+            ml = np.zeros(ctx.M.shape[0])
+            ml[ctx.massless] = 1.0
+            pattern = (ctx.B != 0).astype(float)
+            on_massless, on_all = pattern @ ml, pattern @ np.ones(ml.size)
+            mixed = (on_massless > 0) & (on_massless < on_all)
+            if mixed.any():
+                from ...errors import InputError
+
+                raise InputError(f"scheme {self.name}: contact row {int(np.flatnonzero(mixed)[0])} joins nodes with "
+                                 f"and without mass (mass {ctx.disc.mass_name!r}); its balance needs either; use a "
+                                 "mass that removes the inertia on both sides of a pair, or crank-nicolson")  # fmt: skip
+            cache.clear()
+            cache[key] = np.where(on_massless > 0, 0.5, 1.0)
+        return cache[key]
+
+    def _massless_mask(self, ctx) -> np.ndarray:
+        mask = np.zeros(ctx.M.shape[0], dtype=bool)
+        mask[ctx.massless] = True
+        return mask
+
+    def step(self, ctx, s: State) -> State:
+        dt = ctx.dt
+        t = ctx.next_time(s.t)
+        F0, F1 = ctx.load(s.t), ctx.load(t)
+        ml = self._massless_mask(ctx)
+        Fw = np.where(ml, 0.5 * F1, 0.5 * (F0 + F1))
+        op = self.step_operator(ctx, dt)
+        rhs = (2.0 / (dt * dt)) * (ctx.Mop @ (s.U + dt * s.V)) + Fw
+        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        law = ctx.friction_law(s.U, s.t, t)
+        el = ctx.elastic
+        if el.finite:
+            U0 = s.U
+
+            def force(U):  # g with 1/2 g = f_alg on rows m, 1/2 f on rows l
+                return np.where(ml, el.force(U), 2.0 * el.algorithmic_force(U0, U))
+
+            def tangent(U):
+                return el.tangent(0.5 * (U0 + U))
+
+            U, mu, info = newton_solve(ctx, op, rhs, force, tangent, s.U, ctx.gaps(t), fixed, law)
+        else:  # g(U) = S U + (S U^n on rows m): one solve
+            SU0 = products(ctx, s)[1]
+            U, mu, info = ctx.solve(op, rhs - 0.5 * np.where(ml, 0.0, SU0), ctx.gaps(t), fixed, law,
+                                    functools.partial(self.taylor_guess, ctx, s))  # fmt: skip
+        lam = np.where(self.row_weights(ctx) == 0.5, 2.0 * mu, mu) if mu.size else mu
+        V = 2.0 * (U - s.U) / dt - s.V
+        A = (V - s.V) / dt
+        ctx.massless_update(V, A, U, s.U)
+        return State(t, U, V, A, lam, info)
+
+    def impulse(self, ctx, old: State, new: State) -> np.ndarray:
+        """dt lambda_w (module docstring)."""
+        w = self.row_weights(ctx)
+        return ctx.dt * (w * new.lam + (1.0 - w) * old.lam)
+
+    def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
+        dU = new.U - old.U
+        w = self.row_weights(ctx)
+        _, dR_free = reaction_work(ctx, old, new, 0.5)
+        B0 = ctx.rows_of(old.t)[0]  # the rows the level's multipliers acted through (sliding pairs)
+        contact = float((ctx.B @ dU) @ (w * new.lam) + (B0 @ dU) @ ((1.0 - w) * old.lam)) if new.lam.size else 0.0
+        numerical = dR_free
+        el, ml = ctx.elastic, ctx.massless
+        f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
+        if el.finite:
+            f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
+            numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
+        return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, B0, f0, f1),
+                           contact=contact, numerical=numerical)  # fmt: skip
+
+    def _prescribed_work(self, ctx, old: State, new: State, w, B0, f0, f1) -> float:
+        """dU_D . R_D: the work of the reactions of a prescribed motion, R = M dV/dt + g_w - F_mid - B^T lambda_w
+        on the Dirichlet dofs (g_w = f_alg with mass, (f^n + f^{n+1})/2 without); 0 when it does not move."""
+        if not (ctx.has_fixed and ctx.disc.dirichlet_varies):
+            return 0.0
+        D, dt = ctx.fixed, new.t - old.t
+        g = 0.5 * (f0 + f1)
+        if ctx.elastic.finite:
+            f_alg = new.product("f_alg", lambda: ctx.elastic.algorithmic_force(old.U, new.U))
+            g = np.where(self._massless_mask(ctx), g, f_alg)
+        contact = ctx.B.T @ (w * new.lam) + B0.T @ ((1.0 - w) * old.lam) if new.lam.size else 0.0
+        R = (ctx.M @ (new.V - old.V)) / dt + g - 0.5 * (ctx.load(old.t) + ctx.load(new.t)) - contact
+        return float((new.U - old.U)[D] @ R[D])
