@@ -87,4 +87,7 @@ def test_the_run_prints_the_exact_values(tmp_path, capsys):
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert len(s["bodies"]) == 2 and s["bodies"][0]["nodes"] == 21 and abs(s["bodies"][1]["mass"] - 1) < 1e-12
     header = next(csv.reader(open(tmp_path / "o" / "history.csv")))
-    assert header[-4:] == ["momentum_x", "dt", "damping_dissipation", "nonlinear_iterations"] and "load_potential" in header
+    assert (
+        header[-4:] == ["momentum_x", "dt", "damping_dissipation", "nonlinear_iterations"]
+        and "load_potential" in header
+    )

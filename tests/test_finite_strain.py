@@ -125,9 +125,9 @@ def test_energy_momentum_in_linear_elasticity_with_a_massless_contact_is_crank_n
 
 def test_modified_tangent_converges_with_fewer_factorizations():
     full = simulate(spinning("neo-hookean", 2), "energy-momentum", 0.01, 0.3, mass="standard",
-                    solver_options={"newton_tol": 1e-11})  # fmt: skip
+                    solver_options={"newton_tol": 1e-11, "tangent": "full"})  # fmt: skip
     mod = simulate(spinning("neo-hookean", 2), "energy-momentum", 0.01, 0.3, mass="standard",
-                   solver_options={"newton_tol": 1e-11, "tangent": "modified"})  # fmt: skip
+                   solver_options={"newton_tol": 1e-11})  # fmt: skip
     assert full.status == mod.status == "finished"
     assert mod.counters["tangent_factorizations"] < full.counters["tangent_factorizations"]
     assert mod.nonlinear_iterations.sum() >= full.nonlinear_iterations.sum()
@@ -202,7 +202,7 @@ def test_the_case_file_model_runs_and_the_summary_says_so(tmp_path):
     case.write_text(
         '[mesh]\ngenerator = "rectangle"\ncells = [4, 2]\nsize = [0.04, 0.02]\n'
         '[material]\nrho = 1100.0\nE = 5.0e6\nnu = 0.45\nmodel = "neo-hookean"\n'
-        'regions = []\n'
+        "regions = []\n"
         '[contact]\ntag = "ymin"\nobstacle = { type = "plane", point = [0.0, -0.001], normal = [0.0, 1.0] }\n'
         '[initial]\nvelocity = ["-30.0 * (y - 0.01)", "30.0 * (x - 0.02) - 1.0"]\n'
         '[time]\nscheme = "energy-momentum"\ndt = 2e-5\nT = 4e-4\n'

@@ -238,8 +238,8 @@ class History:
                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
             "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
             "damping_dissipation": 0.0 - _or_nan(self.damping_work, self.t.size),  # 0.0 - x: no "-0" when undamped
-            **{name: (self.angular_momentum[:, k] if self.angular_momentum is not None else np.full(self.t.size, np.nan))
-               for k, name in enumerate(angular_columns(self.dim))},
+            **{name: (self.angular_momentum[:, k] if self.angular_momentum is not None
+                      else np.full(self.t.size, np.nan)) for k, name in enumerate(angular_columns(self.dim))},
             "nonlinear_iterations": (self.nonlinear_iterations if self.nonlinear_iterations is not None
                                      else np.zeros(self.t.size, dtype=np.int64)),
             **self._reaction_columns(),

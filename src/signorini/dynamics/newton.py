@@ -77,7 +77,7 @@ def newton_solve(
     the last contact solve's info with ``nonlinear_iterations`` (the Newton iterations) set."""
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
-    modified = opts.get("tangent", "full") == "modified"
+    modified = opts.get("tangent", "modified") == "modified"
     U = np.array(start, dtype=float, copy=True)
     gU = force(U)
     lam = lam_t = None

@@ -23,9 +23,9 @@ from ..linalg.base import BACKENDS, IMPORT_FAILURES, backend_traits, memory_info
 from ..linalg.row_block import RowBlock
 from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
-from .elasticity import check_finite_strain
 from .context import Context
 from .damping import UNDAMPED
+from .elasticity import check_finite_strain
 from .history import COUNTER_KEYS, History
 from .mass import GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning

@@ -234,7 +234,9 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
     return f
 
 
-def tangent_stiffness(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None) -> sp.csr_matrix:
+def tangent_stiffness(
+    mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
+) -> sp.csr_matrix:
     """K(U) = df/dU (n_nodes d)^2, symmetric: the geometric part (grad N_a . S grad N_b) I plus the
     material part F grad N_a : CC : F grad N_b [force / length]."""
     mats = []
@@ -279,7 +281,9 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
     return S + factor[..., None, None] * dC
 
 
-def algorithmic_force(mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray, cells: np.ndarray | None = None) -> np.ndarray:
+def algorithmic_force(
+    mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray, cells: np.ndarray | None = None
+) -> np.ndarray:
     """The energy-momentum step's internal force (n_nodes d,): f_a = int F_mid S_alg grad N_a dX,
     F_mid = I + grad (U0 + U1)/2 (spec 12).  f . (U1 - U0) = Pi(U1) - Pi(U0) to round-off, and
     sum f_a = 0, sum x_mid,a x f_a = 0 (x_mid = X + (U0 + U1)/2): a free body keeps its energy and

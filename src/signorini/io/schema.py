@@ -75,8 +75,8 @@ SECTIONS: tuple[Section, ...] = (
     Section(
         "material",
         "Isotropic elasticity (plane strain in 2D; Young's modulus in 1D), linear or of finite strain (`model`): "
-        "`lam` and `mu`, or `E` and optionally `nu`; `rho` always.  Magnitudes must lie within 1e-100 .. 1e100 (their products must "
-        "stay normal doubles: change units otherwise).",
+        "`lam` and `mu`, or `E` and optionally `nu`; `rho` always.  Magnitudes must lie within 1e-100 .. 1e100 "
+        "(their products must stay normal doubles: change units otherwise).",
         (
             Key("rho", "number > 0", "required", "mass / length^d", "density", _same("1.0")),
             Key("lam", "number", "", "stress", "first Lamé constant (3 lam + 2 mu > 0)", _ex("", "0.25", "0.25")),

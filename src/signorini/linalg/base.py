@@ -324,10 +324,10 @@ SOLVER_OPTIONS = (
     ),
     Parameter(
         "tangent",
-        "full",
-        "finite strain: full (the tangent K(U) of every Newton iterate, factorized each time) or modified (the "
-        "step's first tangent kept while the residual falls at least tenfold per iteration, refactorized when "
-        "it does not)",
+        "modified",
+        "finite strain: modified (the default: the step's first tangent kept while the residual falls at least "
+        "tenfold per iteration, refactorized where it does not; 0.6-0.7 of full's time, docs/finite_strain.md) "
+        "or full (the tangent K(U) of every Newton iterate, factorized each time)",
         str,
         choices=("full", "modified"),
     ),

@@ -76,7 +76,8 @@ class EnergyMomentum(Scheme):
             if mixed.any():
                 from ...errors import InputError
 
-                raise InputError(f"scheme {self.name}: contact row {int(np.flatnonzero(mixed)[0])} joins nodes with "
+                row = int(np.flatnonzero(mixed)[0])
+                raise InputError(f"scheme {self.name}: contact row {row} joins nodes with "
                                  f"and without mass (mass {ctx.disc.mass_name!r}); its balance needs either; use a "
                                  "mass that removes the inertia on both sides of a pair, or crank-nicolson")  # fmt: skip
             cache.clear()

@@ -121,7 +121,12 @@ class Newmark(Scheme):
                                         ctx.gaps(t), fixed, law)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
-                self.step_operator(ctx, ctx.dt), rhs, ctx.gaps(t), fixed, law, functools.partial(self.taylor_guess, ctx, s)
+                self.step_operator(ctx, ctx.dt),
+                rhs,
+                ctx.gaps(t),
+                fixed,
+                law,
+                functools.partial(self.taylor_guess, ctx, s),
             )
         return self.update(ctx, s, t, U, lam, info, p)
 
