@@ -77,9 +77,11 @@ class EnergyMomentum(Scheme):
                 from ...errors import InputError
 
                 row = int(np.flatnonzero(mixed)[0])
-                raise InputError(f"scheme {self.name}: contact row {row} joins nodes with "
-                                 f"and without mass (mass {ctx.disc.mass_name!r}); its balance needs either; use a "
-                                 "mass that removes the inertia on both sides of a pair, or crank-nicolson")  # fmt: skip
+                raise InputError(
+                    f"scheme {self.name}: contact row {row} joins nodes with and without mass (mass "
+                    f"{ctx.disc.mass_name!r}); its balance needs either; use a mass that removes the inertia on "
+                    "both sides of a pair, or crank-nicolson"
+                )
             cache.clear()
             cache[key] = np.where(on_massless > 0, 0.5, 1.0)
         return cache[key]
