@@ -19,11 +19,11 @@ block = Problem(
     contact_tag="ymin",
     obstacle=PlaneObstacle([0.0, 0.0], [0.0, 1.0]),
     body_force=[np.sin(a), -np.cos(a)],
-    friction="coulomb:0.3",  # or "tresca:0.1", or {"law": ..., ...}
+    friction="coulomb:0.3",                       # or "tresca:0.1", or {"law": ..., ...}
 )
 com = CentreOfMassRecorder([1.0, 0.0])
 H = simulate(block, "backward-euler", dt=0.01, T=2.0, observers=[com])
 late = H.t >= 0.5
-print("x_G'' =", 2 * np.polyfit(H.t[late], com.position[late], 2)[0])  # 0.2402
+print("x_G'' =", 2 * np.polyfit(H.t[late], com.position[late], 2)[0])        # 0.2402
 print("stick / slip nodes at the end:", H.friction_counts()[0][-1], H.friction_counts()[1][-1])
 print("dissipated by friction:", -H.friction_work[-1])

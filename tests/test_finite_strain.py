@@ -21,7 +21,8 @@ from signorini.fem.material import IsotropicElastic, NeoHookean, SaintVenantKirc
 from signorini.fem.mesh import box, rectangle
 
 MODELS = {"linear": IsotropicElastic, "saint-venant-kirchhoff": SaintVenantKirchhoff, "neo-hookean": NeoHookean}
-STRICT = {"energy_check": "fail", "newton_tol": 1e-12}
+#: a tight Newton (full tangent: quadratic, so its last iterate lands far below the tolerance)
+STRICT = {"energy_check": "fail", "newton_tol": 1e-12, "tangent": "full"}
 
 
 def spinning(model: str, dim: int, omega: float = 3.0, E: float = 100.0) -> Problem:
@@ -54,7 +55,7 @@ def test_energy_momentum_keeps_energy_and_both_momenta_of_a_free_body(model, dim
     assert H.status == "finished", H.message
     e, L, P = drifts(H)
     assert e <= 1e-10 and L <= 1e-10 and P <= 1e-10, (e, L, P)
-    assert np.all(H.nonlinear_iterations[1:] >= 1) and H.counters["tangent_factorizations"] >= 50
+    assert np.all(H.nonlinear_iterations[1:] >= 1) and H.counters["tangent_factorizations"] >= 1
     assert H.elastic_energy.max() > 1e-4 * H.energy[0]  # the spin stretches the block: a real strain energy
 
 
@@ -188,10 +189,10 @@ def test_angular_momentum_of_a_rigid_rotation_is_the_inertia_times_omega():
     """x x (M V) summed: a rigid rotation of a lumped unit square about the origin (L = I omega, I = sum m r^2)."""
     X = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
     V = 2.0 * np.column_stack([-X[:, 1], X[:, 0]])
-    assert np.allclose(angular_momentum(X, np.zeros(8), 0.5 * V.ravel()), [4.0])
+    assert np.allclose(angular_momentum(X, np.zeros(8), 0.5 * V.ravel()), [4.0], rtol=1e-14, atol=0.0)
     X3 = np.column_stack([X, np.zeros(4)])
     V3 = np.cross([0.0, 0.0, 2.0], X3)
-    assert np.allclose(angular_momentum(X3, np.zeros(12), 0.5 * V3.ravel()), [0.0, 0.0, 4.0])
+    assert np.allclose(angular_momentum(X3, np.zeros(12), 0.5 * V3.ravel()), [0.0, 0.0, 4.0], rtol=1e-14, atol=1e-14)
     assert angular_momentum(np.zeros((3, 1)), np.zeros(3), np.ones(3)).shape == (0,)
 
 

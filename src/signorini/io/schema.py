@@ -87,7 +87,7 @@ SECTIONS: tuple[Section, ...] = (
                 "linear (small strains) | saint-venant-kirchhoff | neo-hookean (finite strain, Total Lagrangian, "
                 "the same lam, mu: each step solved by Newton, solver options newton_tol, newton_max, tangent; "
                 "docs/finite_strain.md).  A regions entry without its own model takes this one",
-                _ex("", '"neo-hookean"', '"saint-venant-kirchhoff"')),
+                _ex("", '"neo-hookean"', "")),
             Key("damping", "inline table", "none", "alpha: 1/time, beta: time",
                 "Rayleigh damping C = alpha M + beta S, { alpha = ..., beta = ... } (each >= 0, 0 by default; M the "
                 "mass in use): a mode of angular frequency w decays with the ratio alpha/(2w) + beta w/2; its work "
