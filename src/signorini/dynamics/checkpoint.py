@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fem.material import cell_models
 from .problem import friction_summary
 from .schemes.base import COMMON_STATE_FIELDS, STATE_FIELD_KINDS, State
 
@@ -88,6 +89,9 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
     }
     if ctx.damping is not None:  # (an undamped run's identity is the one before damping existed)
         out["damping"] = json.dumps(ctx.damping.describe(), sort_keys=True)
+    if ctx.elastic.finite:  # (a linear run's identity is the one before finite strain; K(0) = S hides the model)
+        models = cell_models(disc.material, mesh.n_cells)
+        out["material_model"] = [*ctx.elastic.models, *_figures(np.unique(models, return_inverse=True)[1] + 1.0)]
     if case_hash is not None:
         out["case_file"] = case_hash
     source = _scheme_source_hash(run.scheme)
@@ -124,6 +128,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
              "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
              "friction": "the friction law or its coefficients",
              "damping": "the damping ([material] damping: absent on one side, or other coefficients)",
+             "material_model": "the material model ([material] model: linear on one side, or other models)",
              "scheme_source": "the source file of the scheme of your own (its code changed since the checkpoint)",
              "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
                            "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
@@ -136,6 +141,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
         "node_order",
         "friction",
         "damping",
+        "material_model",
         "dofs",
         "mesh",
         "contact_rows",
@@ -148,7 +154,7 @@ def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) ->
     )  # the most telling difference first
     for key in sorted(set(saved) | set(mine), key=lambda k: (order.index(k) if k in order else len(order), k)):
         a, b = saved.get(key), mine.get(key)
-        if (a is None or b is None) and key != "damping":  # (an undamped run has no damping item)
+        if (a is None or b is None) and key not in ("damping", "material_model"):  # (none: undamped, linear)
             if key in ("case_file", "scheme_source"):
                 continue  # a checkpoint of the Python API resumed from a case file, or the reverse
             raise InputError(f"{where}: the checkpoint does not match this run: {key} is missing on one side")
