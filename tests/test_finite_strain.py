@@ -246,3 +246,25 @@ def test_a_resume_is_bit_for_bit_and_refuses_another_material_model(tmp_path):
     with pytest.raises(InputError, match="material model"):
         compare_identity(ids[0], ids[1], "resume")
     compare_identity(ids[1], ids[1], "resume")
+
+
+def test_fields_carry_the_current_configurations_stress(tmp_path):
+    """fields.xdmf of a finite-strain run: von_mises is the Cauchy stress's (nodal average of the cells'), and
+    the cells carry cauchy_stress, green_lagrange (9 components) and strain_energy_density, whose integral
+    over the reference mesh is the run's elastic energy."""
+    import meshio
+
+    from signorini.fem.assembly import cell_volumes
+    from signorini.io.output import FieldWriter
+
+    p = spinning("neo-hookean", 2)
+    writer = FieldWriter(tmp_path / "fields.xdmf", 5)
+    H = simulate(p, "energy-momentum", 0.02, 0.2, mass="standard", observers=[writer])
+    assert H.status == "finished"
+    r = meshio.xdmf.TimeSeriesReader(str(tmp_path / "fields.xdmf"))
+    r.read_points_cells()
+    t, point, cell = r.read_data(r.num_steps - 1)
+    assert {"cauchy_stress", "green_lagrange", "strain_energy_density"} <= set(cell)
+    assert cell["cauchy_stress"][0].shape == (p.mesh.n_cells, 9) and point["von_mises"].max() > 0
+    W = cell["strain_energy_density"][0] @ cell_volumes(p.mesh)
+    assert abs(W - H.elastic_energy[-1]) <= 1e-12 * H.energy[0] + 1e-9 * abs(W)

@@ -184,3 +184,38 @@ def test_the_discrete_gradient_is_the_midpoint_stress_to_second_order(law):
     if law is NeoHookeanLaw:
         assert 1.8 < np.log2(err[0] / err[1]) < 2.2 and err[1] < 1e-4, err
     assert np.array_equal(algorithmic_stress(lw, C0, C0), lw.stress_C(C0))
+
+
+@pytest.mark.parametrize("name", ["quad", "triangle", "hexahedron", "tetra", "mixed"])
+def test_cell_fields_of_a_homogeneous_stretch_are_the_laws_cauchy_stress_and_objective(name):
+    """U = (R A - I) X with A = diag(1.2, 0.9, 1.1): every cell's Cauchy stress is R sigma(A) R^T with
+    sigma = F S F^T / J of the law at F = A (plane strain: sigma_33 = S_33 / J), E = (A^2 - I)/2 whatever R,
+    W the law's; a rigid rotation alone has none of them."""
+    from signorini.fem.hyperelastic import cell_fields, von_mises_of
+
+    mesh = _meshes()[name]
+    d = mesh.dim
+    A = np.diag([1.2, 0.9, 1.1][:d])
+    R = Rotation.from_rotvec([0.3, -0.5, 1.1]).as_matrix()[:d, :d] if d == 3 else np.array(
+        [[np.cos(1.1), -np.sin(1.1)], [np.sin(1.1), np.cos(1.1)]])  # fmt: skip
+    X = mesh.points
+    for law_cls in LAWS:
+        law = law_cls(MATERIAL.lam, MATERIAL.mu)
+        ids, sig, E, W = cell_fields(mesh, law, (X @ (R @ A).T - X).ravel())
+        S = law.stress(A[None])[0]
+        s_ref = np.zeros((3, 3))
+        s_ref[:d, :d] = A @ S @ A.T / np.linalg.det(A)
+        if d == 2:
+            lam = MATERIAL.lam
+            C33 = 0.5 * (np.trace(A.T @ A) - 2) if law_cls is SaintVenantKirchhoffLaw else np.log(np.linalg.det(A))
+            s_ref[2, 2] = lam * C33 / np.linalg.det(A)
+        R3 = np.eye(3)
+        R3[:d, :d] = R
+        assert np.array_equal(ids, np.arange(mesh.n_cells))
+        assert np.abs(sig - R3 @ s_ref @ R3.T).max() <= 1e-12 * np.abs(s_ref).max()
+        E_ref = np.zeros((3, 3))
+        E_ref[:d, :d] = 0.5 * (A.T @ A - np.eye(d))
+        assert np.abs(E - E_ref).max() <= 1e-13 and np.abs(W - law.energy(A[None])[0]).max() <= 1e-12 * W.max()
+        assert np.abs(von_mises_of(sig) - von_mises_of(s_ref)).max() <= 1e-12 * von_mises_of(s_ref)
+        _, sig0, E0, W0 = cell_fields(mesh, law, (X @ R.T - X).ravel())
+        assert max(np.abs(sig0).max(), np.abs(E0).max(), np.abs(W0).max()) <= 1e-13

@@ -19,7 +19,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fem.assembly import stiffness_matrix
-from ..fem.hyperelastic import HYPERELASTIC_LAWS, algorithmic_force, internal_force, strain_energy, tangent_stiffness
+from ..fem.hyperelastic import (
+    HYPERELASTIC_LAWS,
+    algorithmic_force,
+    cell_fields,
+    internal_force,
+    strain_energy,
+    tangent_stiffness,
+)
 from ..fem.material import CellMaterial, cell_models
 from ..fem.mesh import sub_mesh
 
@@ -134,6 +141,36 @@ class FiniteStrain(Elasticity):
 
     def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
         return self.force(U)[rows]
+
+    def cell_fields(self, U: np.ndarray) -> dict[str, np.ndarray]:
+        """Per cell: ``cauchy_stress`` (n_cells, 3, 3) in the current configuration, ``green_lagrange`` (n_cells,
+        3, 3) and ``strain_energy_density`` W (n_cells,), cell means (:func:`~signorini.fem.hyperelastic.cell_fields`);
+        the linear cells' small-strain stress, strain and 1/2 sigma:eps."""
+        from ..fem.assembly import geometry, strain
+
+        n = self.mesh.n_cells
+        sig, E, W = np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros(n)
+        for law, cells in self.groups:
+            ids, s_, e_, w_ = cell_fields(self.mesh, law, U, cells)
+            sig[ids], E[ids], W[ids] = s_, e_, w_
+        linear = np.setdiff1d(np.arange(n), np.concatenate([np.arange(n) if c is None else c for _, c in self.groups]))
+        if linear.size:
+            from ..fem.assembly import stress as linear_stress
+
+            sub = sub_mesh(self.mesh, linear)
+            material = self.ctx.disc.material
+            part = material.take(linear) if isinstance(material, CellMaterial) else material
+            d = self.mesh.dim
+            s_lin = linear_stress(sub, part, U, nodal=False)
+            eps = None
+            if not sub.mixed:
+                wdet = geometry(sub)[0]
+                eps = np.einsum("eq,eqij->eij", wdet / wdet.sum(axis=1, keepdims=True), strain(sub, U))
+            sig[linear, :d, :d] = s_lin
+            if eps is not None:
+                E[linear, :d, :d] = eps
+                W[linear] = 0.5 * np.einsum("eij,eij->e", s_lin, eps)
+        return {"cauchy_stress": sig, "green_lagrange": E, "strain_energy_density": W}
 
     def counters(self) -> dict[str, int]:
         """``tangent_factorizations`` and ``line_search_steps`` of the run (summary.json ``counters``)."""

@@ -299,3 +299,47 @@ def algorithmic_force(
         P = np.einsum("eqiI,eqIJ->eqiJ", 0.5 * (F0 + F1), S)
         np.add.at(f.reshape(-1, d), part.cells, np.einsum("eq,eqiJ,eqaJ->eai", wdet, P, G))
     return f
+
+
+def _out_of_plane_stress(law: HyperelasticLaw, C: np.ndarray) -> np.ndarray:
+    """S_33 (...) of plane strain (F_33 = 1, E_33 = 0) [stress]: lam tr E (Saint Venant-Kirchhoff),
+    lam ln J (Neo-Hookean)."""
+    shape = C.shape[:-2]
+    lam = _lame(law.lam, shape)
+    if isinstance(law, SaintVenantKirchhoffLaw):
+        return lam * 0.5 * (np.trace(C, axis1=-2, axis2=-1) - C.shape[-1])
+    return lam * 0.5 * np.log(np.linalg.det(C))
+
+
+def cell_fields(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Per cell of ``cells`` (None: every cell), volume-weighted means over its quadrature points:
+    (ids (k,), Cauchy stress sigma = F S F^T / J (k, 3, 3) in the current configuration, Green-Lagrange
+    strain E (k, 3, 3) and stored energy density W (k,) [stress, 1, energy / volume]).  Plane strain: the
+    out-of-plane sigma_33 = S_33 / J, E_33 = 0."""
+    ids_all, sig_all, E_all, W_all = [], [], [], []
+    for part, part_law, ids in _parts(mesh, law, cells):
+        F, wdet, _ = deformation_gradients(part, U)
+        check_orientation(part, F, ids)
+        d = mesh.dim
+        C, E = _green(F)
+        S = part_law.stress_C(C)
+        J = np.linalg.det(F)
+        sig = np.zeros(F.shape[:2] + (3, 3))
+        sig[..., :d, :d] = np.einsum("eqiI,eqIJ,eqjJ->eqij", F, S, F) / J[..., None, None]
+        if d == 2:
+            sig[..., 2, 2] = _out_of_plane_stress(part_law, C) / J
+        E3 = np.zeros_like(sig)
+        E3[..., :d, :d] = E
+        w = wdet / wdet.sum(axis=1, keepdims=True)
+        ids_all.append(ids)
+        sig_all.append(np.einsum("eq,eqij->eij", w, sig))
+        E_all.append(np.einsum("eq,eqij->eij", w, E3))
+        W_all.append(np.einsum("eq,eq->e", w, part_law.energy_C(C)))
+    return tuple(np.concatenate(a) for a in (ids_all, sig_all, E_all, W_all))
+
+
+def von_mises_of(sigma: np.ndarray) -> np.ndarray:
+    """sqrt(3/2 s:s) of 3 x 3 stresses (..., 3, 3), s the deviator [stress]."""
+    dev = sigma - np.trace(sigma, axis1=-2, axis2=-1)[..., None, None] / 3.0 * np.eye(3)
+    return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))

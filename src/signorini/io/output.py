@@ -17,6 +17,11 @@ bodies), and ``contact_status`` (n_nodes,), of the contact and slave nodes:
 contact, nothing holds it tangentially).  Cell data per time: ``region`` (n_cells,): k + 1
 for the k-th region tag in sorted order (``summary.json`` ``regions``), 0 for none, and
 ``body`` (n_cells,): the body of the cell (``summary.json`` ``bodies``, numbered from 0).
+With finite strain (``[material] model`` not linear) ``von_mises`` is the current configuration's
+(of the Cauchy stress), and each time adds the cell data ``cauchy_stress`` and ``green_lagrange``
+(n_cells, 9: xx, xy, xz, yx, ... row by row; plane strain's zz included) and ``strain_energy_density``
+(n_cells,: the stored energy W per unit reference volume), cell means; the fields stay on the reference
+mesh with the ``displacement`` (ParaView's Warp By Vector shows the current shape).
 
 HDF5 runs in a child process (:mod:`signorini.io.field_process`): a crash inside it, which
 a disk filled by another program during a write can cause, ends the run with exit 4 in
@@ -41,7 +46,7 @@ import numpy as np
 
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
-from ..fem.assembly import von_mises
+from ..fem.assembly import nodal_average, von_mises
 from ..fem.mesh import bodies, region_ids
 from ..fem.node_order import to_user_nodes
 
@@ -142,6 +147,7 @@ class FieldWriter(Observer):
         self._cell_data = {"region": [ids[b.start : b.stop] for b in mesh.blocks],
                            "body": [body[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
         self._nodes = run.ctx.disc.contact.nodes
+        self._elastic = getattr(run.ctx, "elastic", None)
         self._weights = run.ctx.disc.contact.weights
         self._contact = run.ctx.disc.contact
         self._dofmap = run.ctx.disc.space.dofmap
@@ -181,7 +187,19 @@ class FieldWriter(Observer):
         v[:, :d] = s.V.reshape(-1, d)
         p = np.zeros(mesh.n_nodes)
         p[self._nodes] = -s.lam / self._weights
-        vm = von_mises(mesh, self._material, s.U)
+        cell_data = self._cell_data
+        elastic = self._elastic
+        if elastic is not None and elastic.finite:  # the current configuration's stress (finite strain)
+            from ..fem.hyperelastic import von_mises_of
+
+            f = elastic.cell_fields(s.U)
+            vm = nodal_average(mesh, von_mises_of(f["cauchy_stress"]))
+            per_block = lambda a: [a[b.start : b.stop] for b in mesh.blocks]  # noqa: E731
+            cell_data = {**cell_data, "cauchy_stress": per_block(f["cauchy_stress"].reshape(-1, 9)),
+                         "green_lagrange": per_block(f["green_lagrange"].reshape(-1, 9)),
+                         "strain_energy_density": per_block(f["strain_energy_density"])}  # fmt: skip
+        else:
+            vm = von_mises(mesh, self._material, s.U)
         c = self._contact
         traction = np.zeros((mesh.n_nodes, 3))
         force = c.normals * s.lam[:, None]
@@ -197,7 +215,7 @@ class FieldWriter(Observer):
                 "contact_traction": traction, "contact_status": status}  # fmt: skip
         data = {k: to_user_nodes(mesh, a) for k, a in data.items()}  # a renumbered mesh: the user's order
         try:
-            self._writer.data(float(s.t), data, self._cell_data)
+            self._writer.data(float(s.t), data, cell_data)
         except OSError:  # the child failed or died: it never touches the file again
             self._writer = None
             self._release_reserve()
