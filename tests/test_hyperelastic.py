@@ -219,3 +219,16 @@ def test_cell_fields_of_a_homogeneous_stretch_are_the_laws_cauchy_stress_and_obj
         assert np.abs(von_mises_of(sig) - von_mises_of(s_ref)).max() <= 1e-12 * von_mises_of(s_ref)
         _, sig0, E0, W0 = cell_fields(mesh, law, (X @ R.T - X).ravel())
         assert max(np.abs(sig0).max(), np.abs(E0).max(), np.abs(W0).max()) <= 1e-13
+
+
+def test_neo_hookeans_energy_difference_is_the_difference_of_its_energies():
+    """energy_difference_C (free of cancellation, for the discrete gradient) equals W(C1) - W(C0) where that
+    difference is well conditioned (|dC| = 1e-2: to 1e-12 of it), in 2D and 3D."""
+    rng = np.random.default_rng(7)
+    for d in (2, 3):
+        F0 = np.eye(d) + 0.2 * rng.standard_normal((5, d, d))
+        F1 = F0 + 1e-2 * rng.standard_normal((5, d, d))
+        C0, C1 = np.swapaxes(F0, 1, 2) @ F0, np.swapaxes(F1, 1, 2) @ F1
+        law = NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu)
+        direct = law.energy_C(C1) - law.energy_C(C0)
+        assert np.abs(law.energy_difference_C(C0, C1) - direct).max() <= 1e-12 * np.abs(direct).max()

@@ -240,6 +240,12 @@ class RigidMotion:
         """d(t) (d,) [length]."""
         return self.position(t) - self._p0 if self.relative else self.position(t)
 
+    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray | None:
+        """The outward body normals nu = -grad phi_t / |grad phi_t| (n, d) at the points x (n, d) of the
+        current configuration at time t (finite strain's contact rows), or None when the obstacle does not
+        give them (its contact in the current configuration is not done yet)."""
+        return None
+
     def translation(self, t0: float, t1: float) -> np.ndarray:
         """d(t1) - d(t0) (d,) [length]."""
         return self.position(t1) - self.position(t0)
@@ -374,6 +380,10 @@ class PlaneObstacle(RigidObstacle):
         p, n = self._at(t)
         return (x - p) @ n
 
+    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray:
+        """-n(t) at every point (the plane's normal, turned with it)."""
+        return np.broadcast_to(-self._at(t)[1], np.shape(x)).copy()
+
     def body_inside_message(self, share: float) -> str:
         return (
             f"the body lies on the obstacle's side of the plane ({100 * share:.0f}% of its nodes): the plane's "
@@ -434,6 +444,11 @@ class SphereObstacle(RigidObstacle):
 
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         return np.linalg.norm(x - self._at(t), axis=1) - self.radius
+
+    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray:
+        """-(x - c(t)) / |x - c(t)|: towards the ball's centre."""
+        r = np.asarray(x, dtype=float) - self._at(t)
+        return -r / np.linalg.norm(r, axis=1)[:, None]
 
     def body_inside_message(self, share: float) -> str:
         return (

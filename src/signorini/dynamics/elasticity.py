@@ -207,10 +207,15 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
         raise InputError(f"{what} with contact pairs is not done yet (the pairing in the current configuration); "
                          "use model 'linear' or a rigid plane obstacle")  # fmt: skip
     ob = problem.obstacle
-    if ob is not None and (not isinstance(ob, PlaneObstacle) or (ob.motion is not None and ob.motion.rotates)):
-        raise InputError(f"{what} against a {type(ob).__name__.removesuffix('Obstacle').lower()} obstacle"
-                         f"{' that rotates' if isinstance(ob, PlaneObstacle) else ''} is not done yet (its gap and "
-                         "normal in the current configuration); a plane, fixed or translating, is exact")  # fmt: skip
+    kind = "" if ob is None else type(ob).__name__.removesuffix("Obstacle").lower()
+    if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:
+        raise InputError(f"{what} against a {kind} obstacle is not done yet (its normals in the current "
+                         "configuration); a plane or a sphere, fixed or moving, is")  # fmt: skip
+    turning = ob is not None and (not isinstance(ob, PlaneObstacle) or (ob.motion is not None and ob.motion.rotates))
+    if turning and ctx.friction.frictional:
+        raise InputError(f"{what} with friction against a {kind} obstacle{' that rotates' if kind == 'plane' else ''} "
+                         "is not done yet (its frames turn in the Newton iterations); friction runs against a "
+                         "plane that does not rotate")  # fmt: skip
     backend = ctx.solver_options.get("backend", "auto")
     if ctx.distributed or backend in ("cg", "petsc-cg"):
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "

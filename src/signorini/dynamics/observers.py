@@ -115,7 +115,7 @@ class HistoryRecorder(Observer):
     def _put(self, run: Run, n: int, s: State) -> None:
         S = self.series
         self.times[n] = s.t
-        S["gap"][n] = run.ctx.gaps(s.t) - run.ctx.B @ s.U
+        S["gap"][n] = run.ctx.level_gaps(s.U, s.t)
         # total linear momentum 1_k^T M V per component (the product the energy uses, computed once)
         MV = s.product("MV", lambda: run.ctx.Mop @ s.V)
         S["momentum"][n] = MV.reshape(-1, S["momentum"].shape[1]).sum(axis=0)

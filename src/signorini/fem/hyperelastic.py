@@ -67,6 +67,11 @@ class HyperelasticLaw:
         """CC = dS/dE (..., d, d, d, d) [stress], with the minor and major symmetries."""
         return self.tangent_C(_green(F)[0])
 
+    def energy_difference_C(self, C0: np.ndarray, C1: np.ndarray) -> np.ndarray:
+        """W(C1) - W(C0) (...) [energy / volume]; laws override it with a form free of cancellation (the
+        discrete gradient divides it, less S:dC/2, by |dC|^2)."""
+        return self.energy_C(C1) - self.energy_C(C0)
+
     def energy_C(self, C: np.ndarray) -> np.ndarray:
         """W as a function of the right Cauchy-Green tensor C (..., d, d)."""
         raise NotImplementedError
@@ -141,6 +146,23 @@ class NeoHookeanLaw(HyperelasticLaw):
         I1 = np.trace(C, axis1=-2, axis2=-1) + (3 - d)  # plane strain: C_33 = 1
         lam, mu = _lame(self.lam, lnJ.shape), _lame(self.mu, lnJ.shape)
         return 0.5 * mu * (I1 - 3.0 - 2.0 * lnJ) + 0.5 * lam * lnJ**2
+
+    def energy_difference_C(self, C0: np.ndarray, C1: np.ndarray) -> np.ndarray:
+        """mu/2 (tr dC - 2 dlnJ) + lam/2 dlnJ (lnJ0 + lnJ1) with dlnJ = 1/2 log det(I + X), X = C0^-1 dC,
+        det(I + X) - 1 from the invariants of X (log1p): no difference of two large energies."""
+        d = C0.shape[-1]
+        X = np.linalg.solve(C0, C1 - C0)
+        trX = np.trace(X, axis1=-2, axis2=-1)
+        detX = np.linalg.det(X)
+        if d == 2:
+            rest = trX + detX
+        else:
+            rest = trX + 0.5 * (trX**2 - np.einsum("...ij,...ji->...", X, X)) + detX
+        dlnJ = 0.5 * np.log1p(rest)
+        lnJ0, lnJ1 = 0.5 * np.log(np.linalg.det(C0)), 0.5 * np.log(np.linalg.det(C1))
+        lam, mu = _lame(self.lam, trX.shape), _lame(self.mu, trX.shape)
+        trdC = np.trace(C1 - C0, axis1=-2, axis2=-1)
+        return 0.5 * mu * (trdC - 2.0 * dlnJ) + 0.5 * lam * dlnJ * (lnJ0 + lnJ1)
 
     def stress_C(self, C: np.ndarray) -> np.ndarray:
         Ci = np.linalg.inv(C)
@@ -275,7 +297,7 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
     if isinstance(law, SaintVenantKirchhoffLaw):
         return S
     dd = np.einsum("...IJ,...IJ->...", dC, dC)
-    gap = law.energy_C(C1) - law.energy_C(C0) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC)
+    gap = law.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC)
     small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
     factor = np.where(small, 0.0, 2.0 * gap / np.where(small, 1.0, dd))
     return S + factor[..., None, None] * dC

@@ -110,7 +110,8 @@ class Newmark(Scheme):
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
-        rhs = ctx.Mop @ p + ctx.load(t)
+        Mp = ctx.Mop @ p
+        rhs = Mp + ctx.load(t)
         if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
             rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
@@ -118,7 +119,7 @@ class Newmark(Scheme):
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U,
-                                        ctx.gaps(t), fixed, law)  # fmt: skip
+                                        ctx.contact_bound(s.U, s.t, t), fixed, law, Mp)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),

@@ -78,7 +78,8 @@ class Theta(Scheme):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
-        rhs = ctx.Mop @ p + ctx.load(t)
+        Mp = ctx.Mop @ p
+        rhs = Mp + ctx.load(t)
         Vd0 = damping_velocity(s)[0]
         if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
             rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
@@ -86,7 +87,7 @@ class Theta(Scheme):
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U,
-                                        ctx.gaps(t), fixed, ctx.friction_law(s.U, s.t, t))  # fmt: skip
+                                        ctx.contact_bound(s.U, s.t, t), fixed, ctx.friction_law(s.U, s.t, t), Mp)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, dt),
