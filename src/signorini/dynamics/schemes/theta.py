@@ -86,8 +86,10 @@ class Theta(Scheme):
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U,
-                                        ctx.contact_bound(s.U, s.t, t), fixed, ctx.friction_law(s.U, s.t, t), Mp)  # fmt: skip
+            bound = ctx.contact_bound(s.U, s.t, t)
+            law = ctx.friction_law(s.U, s.t, t)
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U, bound, fixed,
+                                        law, Mp)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, dt),
