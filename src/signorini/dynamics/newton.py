@@ -18,8 +18,9 @@ force residual
 
 measures the distance to the step's solution; the iterations stop when |r|_inf <= ``newton_tol`` times
 the largest of the step's forces plus the round-off of its own terms (:func:`residual_norm`).  When a
-full step does not reduce |r| (far from the solution), the step is halved along the segment from U^k (a line search, at most :data:`LINE_SEARCH_HALVINGS` times; only a
-full step, which solved the contact problem, may end the iterations).
+full step does not reduce |r| (far from the solution), the step is halved along the segment from U^k
+(a line search, at most :data:`LINE_SEARCH_HALVINGS` times; only a full step, which solved the contact
+problem, may end the iterations).
 
 ``tangent=modified`` keeps G of the step's first iterate while |r| falls at least tenfold per iteration
 (:data:`MODIFIED_CONTRACTION`) and refactorizes at the iterate where it does not; each step starts from
