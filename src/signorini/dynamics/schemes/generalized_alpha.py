@@ -48,13 +48,24 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from .base import EnergyParts, State, contact_works, damping_force, damping_split, load_work, reaction_work, weighted
+from ..newton import newton_solve
+from .base import (
+    EnergyParts,
+    State,
+    contact_works,
+    damping_force,
+    damping_split,
+    load_work,
+    products,
+    reaction_work,
+    weighted,
+)
 from .newmark import Newmark
 
 
 class GeneralizedAlpha(Newmark):
     name = "generalized-alpha"
-    finite_strain_refusal = "its step has no Newton iteration for a nonlinear internal force yet"
+    finite_strain_refusal = None
     description = "Chung-Hulbert generalized-alpha, exact contact at t_{n+1}; rho_inf = 1 is CN"
     parameters = (
         Parameter("rho_inf", 1.0, "spectral radius at infinite frequency (1: no dissipation)", float, 0.0, 1.0),
@@ -108,9 +119,7 @@ class GeneralizedAlpha(Newmark):
         rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         Fd0 = damping_force(ctx, s)
         if af:
-            lagged = af * (
-                ctx.load(s.t) - s.product("SU", lambda: ctx.Sop @ s.U) + ctx.contact_force(s.lam, s.lam_t, s.t)
-            )
+            lagged = af * (ctx.load(s.t) - products(ctx, s)[1] + ctx.contact_force(s.lam, s.lam_t, s.t))
             if Fd0 is not None:  # the damping force weighs as the elastic one: a_f C V^n lagged
                 lagged -= af * Fd0
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
@@ -120,14 +129,22 @@ class GeneralizedAlpha(Newmark):
         if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
             rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        U, lam, info = ctx.solve(
-            self.step_operator(ctx, ctx.dt),
-            rhs,
-            ctx.gaps(t),
-            fixed,
-            ctx.friction_law(s.U, s.t, t),
-            functools.partial(self.taylor_guess, ctx, s),
-        )
+        if ctx.elastic.finite:  # (1 - a_f) f(U^{n+1}) + a_f f(U^n): Newton on f(U^{n+1}) (:mod:`~..newton`)
+            el = ctx.elastic
+            bound = ctx.contact_bound(s.U, s.t, t)
+            law = ctx.friction_law(s.U, s.t, t)
+            Mp = ctx.M @ ((1 - am) * pred - am * s.A) / (1 - af)
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U, bound,
+                                        fixed, law, Mp)  # fmt: skip
+        else:
+            U, lam, info = ctx.solve(
+                self.step_operator(ctx, ctx.dt),
+                rhs,
+                ctx.gaps(t),
+                fixed,
+                ctx.friction_law(s.U, s.t, t),
+                functools.partial(self.taylor_guess, ctx, s),
+            )
         return self.update(ctx, s, t, U, lam, info, pred)
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
@@ -157,7 +174,8 @@ class GeneralizedAlpha(Newmark):
             else:  # a contact pair re-paired between the levels: each level through its own rows
                 on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
                     old.lam, old.lam_t, old.t)  # fmt: skip
-            RD = ctx.M[D] @ A_w + ctx.S[D] @ U_w - F_w[D] - on_fixed
+            f_w = (1 - af) * products(ctx, new)[1] + af * products(ctx, old)[1] if ctx.elastic.finite else None
+            RD = ctx.M[D] @ A_w + (ctx.S[D] @ U_w if f_w is None else f_w[D]) - F_w[D] - on_fixed
             Fd0, Fd1 = damping_force(ctx, old), damping_force(ctx, new)
             if Fd0 is not None or Fd1 is not None:  # the weighted damping force on the Dirichlet dofs
                 RD = RD + (0.0 if Fd1 is None else (1 - af) * Fd1[D]) + (0.0 if Fd0 is None else af * Fd0[D])
@@ -166,8 +184,15 @@ class GeneralizedAlpha(Newmark):
             dA = new.A - old.A
             MdA = new.product("MA", lambda: ctx.M @ new.A) - old.product("MA", lambda: ctx.M @ old.A)
             vbar = 0.5 * (old.V + new.V)
-            parts.numerical -= (0.5 - af) * (dt * float(vbar @ MdA) + float(dU @ (ctx.S @ dU)))
+            if ctx.elastic.finite:  # -(1/2 - a_f)|dU|_S^2 becomes Delta Pi - dU.f_{a_f}
+                parts.numerical -= (0.5 - af) * dt * float(vbar @ MdA)
+            else:
+                parts.numerical -= (0.5 - af) * (dt * float(vbar @ MdA) + float(dU @ (ctx.S @ dU)))
             parts.numerical -= 2 * self._extra(ctx) * (0.5 - am) * float(dA @ MdA)
+        if ctx.elastic.finite:
+            f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
+            dPi = ctx.elastic.energy(new.U, f1) - ctx.elastic.energy(old.U, f0)
+            parts.numerical += dPi - float(dU @ ((1 - af) * f1 + af * f0))
         return parts
 
 
