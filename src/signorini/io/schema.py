@@ -84,7 +84,7 @@ SECTIONS: tuple[Section, ...] = (
             Key("E", "number > 0", "", "stress", "Young's modulus (instead of lam, mu)", _ex("1.0", "", "")),
             Key("nu", "number in (-1, 0.5)", "0", "", "Poisson ratio (with E)"),
             Key("model", "string", "linear", "",
-                "linear (small strains) | saint-venant-kirchhoff | neo-hookean (finite strain, Total Lagrangian, "
+                "linear (small strains), saint-venant-kirchhoff or neo-hookean (finite strain, Total Lagrangian, "
                 "the same lam, mu: each step solved by Newton, solver options newton_tol, newton_max, tangent; "
                 "docs/finite_strain.md).  A regions entry without its own model takes this one",
                 _ex("", '"neo-hookean"', "")),

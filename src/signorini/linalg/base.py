@@ -308,7 +308,8 @@ SOLVER_OPTIONS = (
         "newton_tol",
         1e-10,
         "finite strain ([material] model not linear): a step's Newton iterations stop when the force residual on "
-        "the free dofs is below newton_tol times the largest of its terms (inertia, internal force, loads)",
+        "the free dofs is below newton_tol times the largest of the step's forces (inertia, internal force, loads, "
+        "contact) plus its own round-off",
         float,
         1e-15,
         1e-2,
