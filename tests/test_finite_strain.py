@@ -343,3 +343,25 @@ def test_the_trapezoidal_rule_blows_up_under_large_rotations_where_energy_moment
     em = simulate(p, "energy-momentum", 0.05, 4.5, mass="standard", solver_options={"newton_max": 50})
     assert np.nanmax(cn.energy) > 10 * cn.energy[0]
     assert em.status == "finished" and np.abs(em.energy - em.energy[0]).max() <= 1e-8 * em.energy[0]
+
+
+def test_regions_of_two_models_in_one_body():
+    """The left half linear, the right half Neo-Hookean (``materials`` per region): the tangent at rest is the
+    body's linear stiffness, and energy-momentum keeps the energy of the spinning body (the linear cells'
+    force S U has the exact discrete gradient S U_mid)."""
+    from signorini.dynamics.setup import prepare_context
+    from signorini.dynamics.problem import discretize
+    from signorini.fem.mesh import Mesh
+
+    p = spinning("linear", 2)
+    m = p.mesh
+    centres = m.points[m.cells].mean(axis=1)
+    regions = {"left": np.flatnonzero(centres[:, 0] < 0.5), "right": np.flatnonzero(centres[:, 0] >= 0.5)}
+    p.mesh = Mesh(m.points, m.cells, m.cell_type, m.facets, regions=regions)
+    p.materials = {"right": NeoHookean.from_young(100.0, 0.3, 1.0)}
+    H = simulate(p, "energy-momentum", 0.02, 1.0, mass="standard", solver_options=STRICT)
+    assert H.status == "finished" and H.meta["material_model"] == ["linear", "neo-hookean"]
+    assert np.abs(H.energy - H.energy[0]).max() <= 1e-10 * H.energy[0]
+    ctx = prepare_context(discretize(p, "standard"), 0.02, {}, [])
+    K0 = ctx.elastic.tangent(np.zeros(ctx.S.shape[0]))
+    assert abs(K0 - ctx.S).max() <= 1e-12 * abs(ctx.S).max()
