@@ -349,8 +349,8 @@ def test_regions_of_two_models_in_one_body():
     """The left half linear, the right half Neo-Hookean (``materials`` per region): the tangent at rest is the
     body's linear stiffness, and energy-momentum keeps the energy of the spinning body (the linear cells'
     force S U has the exact discrete gradient S U_mid)."""
-    from signorini.dynamics.setup import prepare_context
     from signorini.dynamics.problem import discretize
+    from signorini.dynamics.setup import prepare_context
     from signorini.fem.mesh import Mesh
 
     p = spinning("linear", 2)
