@@ -365,6 +365,11 @@ def test_regions_of_two_models_in_one_body():
     ctx = prepare_context(discretize(p, "standard"), 0.02, {}, [])
     K0 = ctx.elastic.tangent(np.zeros(ctx.S.shape[0]))
     assert abs(K0 - ctx.S).max() <= 1e-12 * abs(ctx.S).max()
+    from signorini.fem.assembly import cell_volumes
+
+    U = 0.01 * np.sin(7.0 * p.mesh.points).ravel()  # a small, uneven displacement: W per cell sums to Pi(U)
+    W = ctx.elastic.cell_fields(U)["strain_energy_density"]
+    assert abs(W @ cell_volumes(p.mesh) - ctx.elastic.energy(U)) <= 1e-12 * ctx.elastic.energy(U)
 
 
 def test_every_mass_that_runs_finite_strain_acts_alike_on_every_component():

@@ -114,6 +114,12 @@ class ContactSet:
         coef = np.concatenate([np.ones((nc, 1)), -self.master_shape], axis=1)  # (nc, 1 + nfv)
         return frame_rows(dofs, vectors, n_dofs, coef)
 
+    def rebuild_rows(self, n_dofs: int) -> None:
+        """B (nc, n_dofs) and the nodal frames again from the normals (after they changed)."""
+        if hasattr(self, "_tangents"):
+            del self._tangents
+        self.B = self._row_frame(self.normals[:, None, :], n_dofs).tocsr()
+
     def tangential_matrix(self, n_dofs: int) -> sp.csr_matrix:
         """T (nc (d - 1), n_dofs): row i (d - 1) + k = t_ik^T on the dofs of node i; on a pair's
         row, the slip relative to the master: t_ik^T u_i - sum_j N_j(xi_i) t_ik^T u_j."""

@@ -155,67 +155,25 @@ class ContactRows:
 
     def _use_rows(self, rows: np.ndarray) -> None:
         """B, its blocks and the frames after the contact set changed ``rows``."""
-        self._rebuilt()
+        self.rebuilt()
         self.repaired += int(rows.size)
 
-    def _rebuilt(self) -> None:
+    def rebuilt(self) -> None:
+        """B's blocks and the frames again after the contact set rebuilt its rows."""
         disc = self.disc
         disc.B = disc.contact.B
         self._blocks(disc.B)
         if self.components > 1:
             self._frame_rows()
 
-    #: finite strain: the rigid obstacle's rows follow the current configuration (:meth:`follow`)
-    current_configuration = False
+    #: finite strain against a rigid obstacle: the rows of the current configuration
+    #: (:class:`~signorini.dynamics.current_rows.CurrentRows`), None otherwise
+    current: Any = None
 
-    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Finite strain against a rigid obstacle: the rows of the current configuration x = X + u at U.
-
-        Each row becomes nu_i(x_i, t)^T on its node (the obstacle's outward body normal at the node's
-        current position) and its bound phi_t(x_i) + nu_i . u_i, so that ``B U <= bound`` is the
-        signed distance's linearization at U, exact for a plane.  Returns (bound (nc,), the rows whose
-        normal changed), whose solvers' rows the caller replaces (:meth:`Context.follow`)."""
-        c = self.disc.contact
-        u = U[c.dofs]
-        x = c.points + u
-        ob = self.disc.problem.obstacle
-        nu = ob.body_normals(x, t)
-        bound = np.asarray(ob.gaps(x, t), dtype=float) + np.einsum("id,id->i", nu, u)
-        changed = np.flatnonzero(np.any(nu != c.normals, axis=1))
-        if changed.size:
-            self._set_normals(changed, nu[changed])
-        return bound, changed
-
-    def gaps_now(self, U: np.ndarray, t: float) -> np.ndarray:
-        """phi_t(X + U) (nc,) of the contact nodes [length]: the gaps of the current configuration."""
-        c = self.disc.contact
-        return np.asarray(self.disc.problem.obstacle.gaps(c.points + U[c.dofs], t), dtype=float)
-
-    #: (t, normals) of the level a step of the current configuration starts from (:meth:`keep_level_rows`)
-    _kept: tuple[float, np.ndarray] | None = None
-
-    def keep_level_rows(self, t: float) -> np.ndarray:
-        """Before a step from the level at t changes the rows (:meth:`follow`): they are the rows that level's
-        multipliers acted through (:meth:`rows_of`), kept; a step tried again from the same level (a rejected
-        step of the energy control) first gets them back.  Returns the rows put back."""
-        c = self.disc.contact
-        changed = np.zeros(0, dtype=np.int64)
-        if self._kept is not None and self._kept[0] == t:
-            changed = np.flatnonzero(np.any(c.normals != self._kept[1], axis=1))
-            if changed.size:
-                self._set_normals(changed, self._kept[1][changed])
-        else:
-            self._kept = (t, c.normals.copy())
+    def keep_level(self, t: float) -> None:
+        """The rows now are those the multipliers of the level at t acted through (:meth:`rows_of`), kept
+        before a step changes them (the current configuration's rows)."""
         self._level_rows = (t, self.B, self.T)
-        return changed
-
-    def _set_normals(self, rows: np.ndarray, normals: np.ndarray) -> None:
-        c = self.disc.contact
-        c.normals[rows] = normals
-        if hasattr(c, "_tangents"):
-            del c._tangents
-        c.B = c._row_frame(c.normals[:, None, :], self.disc.space.n_dofs).tocsr()
-        self._rebuilt()
 
     def pairing_state(self, t: float) -> dict[str, Any]:
         """The pairing after small sliding, for a checkpoint at time t: the contact set's
@@ -223,8 +181,8 @@ class ContactRows:
         and the counts of re-paired rows.  Empty without sliding pairs.  In the current configuration
         (finite strain against a rigid obstacle) the rows' normals: those the level's multipliers acted
         through."""
-        if self.current_configuration:
-            return {"normals": np.array(self.disc.contact.normals, copy=True)}
+        if self.current is not None:
+            return self.current.saved()
         if not self.sliding:
             return {}
         c = self.disc.contact
@@ -241,15 +199,8 @@ class ContactRows:
     def restore_pairing(self, data: dict[str, Any], t: float) -> np.ndarray:
         """Put back the pairing of :meth:`pairing_state` (a resumed run, before its first step);
         the rows it changed, whose solvers' rows the caller replaces."""
-        if self.current_configuration and data:
-            c = self.disc.contact
-            new = np.asarray(data.get("normals"), dtype=float)
-            if new.shape != c.normals.shape or not np.all(np.isfinite(new)):
-                raise InputError(f"checkpoint: the contact normals have shape {new.shape}, expected {c.normals.shape}")
-            rows = np.flatnonzero(np.any(new != c.normals, axis=1))
-            if rows.size:
-                self._set_normals(rows, new[rows])
-            return rows
+        if self.current is not None and data:
+            return self.current.resume(data)
         if not self.sliding or not data:
             return np.zeros(0, dtype=np.int64)
         c, n = self.disc.contact, self.disc.space.n_dofs
@@ -262,9 +213,7 @@ class ContactRows:
             getattr(c, k)[...] = new
         rows = np.flatnonzero(changed)
         if rows.size:
-            if hasattr(c, "_tangents"):
-                del c._tangents
-            c.B = c._row_frame(c.normals[:, None, :], n).tocsr()
+            c.rebuild_rows(n)
             self._use_rows(rows)
         self.repaired = int(data["repaired"])
         for p, r in zip(c.pair_info or [], data["pair_repaired"], strict=False):

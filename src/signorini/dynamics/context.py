@@ -33,6 +33,7 @@ from ..linalg.sparse import linear_combination, principal_combination, principal
 from ..linalg.spmv import sparse_product
 from ..parallel import DISTRIBUTED_BACKENDS, run_comm
 from .contact_rows import ContactRows
+from .current_rows import current_rows
 from .elasticity import elasticity
 from .factorizations import Factorizations
 from .mass import massless_dofs
@@ -183,26 +184,6 @@ class _System:
         return self._lift
 
 
-class FollowingBound:
-    """The bound of a step's contact rows in the current configuration at time t (:meth:`Context.contact_bound`):
-    called with a Newton iterate U, it moves the rows to U and returns their bound; :meth:`gap_error` is how
-    far the linearized gaps of the last rows are from the true ones at a new iterate."""
-
-    def __init__(self, ctx: Context, t: float):
-        self.ctx, self.t = ctx, t
-        self.bound: np.ndarray | None = None
-
-    def __call__(self, U: np.ndarray) -> np.ndarray:
-        self.bound = self.ctx.follow(U, self.t)
-        return self.bound
-
-    def gap_error(self, U: np.ndarray) -> float:
-        """max_i |phi_t(x_i) - (bound_i - nu_i . u_i)| at U [length]: the linearization's error of the gaps."""
-        if self.bound is None or not self.bound.size:
-            return 0.0
-        return float(np.max(np.abs(self.ctx.rows.gaps_now(U, self.t) - (self.bound - self.ctx.B @ U))))
-
-
 class DirichletElimination:
     """The prescribed dofs D taken out of a solve on the free dofs f and put back in its answer."""
 
@@ -272,9 +253,9 @@ class Context:
         self.massless = massless_dofs(disc.M)
         #: the internal force, its energy and tangent: linear (S U) or finite strain (:mod:`~.elasticity`)
         self.elastic = elasticity(self)
-        if self.elastic.finite and disc.problem.obstacle is not None and disc.contact.size:
-            self.rows.current_configuration = disc.problem.obstacle.body_normals(
-                disc.contact.points[:1], 0.0) is not None  # fmt: skip
+        if self.elastic.finite:  # finite strain: the obstacle's rows in the current configuration, factors only
+            self.rows.current = current_rows(self.rows)
+            self.iterative_ok = False
         #: Rayleigh damping C = alpha M + beta S (None: undamped), :mod:`~signorini.dynamics.damping`
         self.damping = disc.problem.damping
         #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
@@ -302,37 +283,16 @@ class Context:
         """Small sliding after a level (:meth:`ContactRows.slide`); every factorized system, the
         kept steps' too, takes the re-paired rows (their Delassus columns follow).  Returns the
         number of rows re-paired."""
-        return self._replace_rows(self.rows.slide(U, t))
-
-    def contact_bound(self, U0: np.ndarray, t0: float, t: float) -> np.ndarray | Callable[[np.ndarray], np.ndarray]:
-        """What a step from (U0, t0) to t constrains ``B U`` by: the gaps g(t); with finite strain against a
-        rigid obstacle (rows in the current configuration, :meth:`ContactRows.follow`), a function of the
-        Newton iterate that moves the rows to it and returns its bound, the level's rows kept first (those
-        its multipliers acted through: :meth:`ContactRows.keep_level_rows`)."""
-        if not self.rows.current_configuration:
-            return self.gaps(t)
-        self._replace_rows(self.rows.keep_level_rows(t0))
-        return FollowingBound(self, t)
-
-    def follow(self, U: np.ndarray, t: float) -> np.ndarray:
-        """The rows of the current configuration at U (:meth:`ContactRows.follow`), passed to every
-        factorized system; returns their bound."""
-        bound, changed = self.rows.follow(U, t)
-        self._replace_rows(changed)
-        return bound
-
-    def level_gaps(self, U: np.ndarray, t: float) -> np.ndarray:
-        """The gaps (nc,) of a level: g(t) - B U, or phi_t(X + U) in the current configuration."""
-        if self.rows.current_configuration:
-            return self.rows.gaps_now(U, t)
-        return self.gaps(t) - self.B @ U
+        return self.replace_rows(self.rows.slide(U, t))
 
     def restore_pairing(self, data: dict[str, Any], t: float) -> None:
         """Put back a checkpoint's pairing (:meth:`ContactRows.restore_pairing`) in the rows and
         the solvers (a resumed run, before its first step)."""
-        self._replace_rows(self.rows.restore_pairing(data, t))
+        self.replace_rows(self.rows.restore_pairing(data, t))
 
-    def _replace_rows(self, rows: np.ndarray) -> int:
+    def replace_rows(self, rows: np.ndarray) -> int:
+        """Every factorized system, the kept steps' too, takes the contact rows ``rows`` changed in
+        ``ctx.rows`` (their Delassus columns follow); returns their number."""
         if rows.size:
             for sys in self.factors.every():  # the kept steps' too: they must use the current pairing
                 sys.solver.replace_rows(rows, self.rows.solve_rows)

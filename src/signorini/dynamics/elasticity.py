@@ -145,7 +145,8 @@ class FiniteStrain(Elasticity):
     def cell_fields(self, U: np.ndarray) -> dict[str, np.ndarray]:
         """Per cell: ``cauchy_stress`` (n_cells, 3, 3) in the current configuration, ``green_lagrange`` (n_cells,
         3, 3) and ``strain_energy_density`` W (n_cells,), cell means (:func:`~signorini.fem.hyperelastic.cell_fields`);
-        the linear cells' small-strain stress, strain and 1/2 sigma:eps."""
+        the linear cells' small-strain stress and strain (plane strain's sigma_zz = lam tr eps) and 1/2 of their
+        cell means' product (the mean of W where the strain is constant in the cell)."""
         from ..fem.assembly import geometry, strain
 
         n = self.mesh.n_cells
@@ -162,14 +163,17 @@ class FiniteStrain(Elasticity):
             part = material.take(linear) if isinstance(material, CellMaterial) else material
             d = self.mesh.dim
             s_lin = linear_stress(sub, part, U, nodal=False)
-            eps = None
-            if not sub.mixed:
-                wdet = geometry(sub)[0]
-                eps = np.einsum("eq,eqij->eij", wdet / wdet.sum(axis=1, keepdims=True), strain(sub, U))
+            means = []  # the volume-weighted mean small strain of each cell, block by block
+            for block, _ in sub.parts():
+                wdet = geometry(block)[0]
+                means.append(np.einsum("eq,eqij->eij", wdet / wdet.sum(axis=1, keepdims=True), strain(block, U)))
+            eps = np.concatenate(means)
             sig[linear, :d, :d] = s_lin
-            if eps is not None:
-                E[linear, :d, :d] = eps
-                W[linear] = 0.5 * np.einsum("eij,eij->e", s_lin, eps)
+            if d == 2:  # plane strain: sigma_zz = lam tr(eps)
+                lam = np.broadcast_to(np.asarray(part.lam, dtype=float), linear.shape)
+                sig[linear, 2, 2] = lam * np.trace(eps, axis1=1, axis2=2)
+            E[linear, :d, :d] = eps
+            W[linear] = 0.5 * np.einsum("eij,eij->e", s_lin, eps)
         return {"cauchy_stress": sig, "green_lagrange": E, "strain_energy_density": W}
 
     def counters(self) -> dict[str, int]:
@@ -193,6 +197,7 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
         return
     from ..contact.obstacles import PlaneObstacle
     from ..errors import InputError
+    from ..linalg.base import backend_traits
     from .schemes import finite_strain_schemes
 
     what = f"finite strain ([material] model {', '.join(m for m in ctx.elastic.models if m != 'linear')})"
@@ -217,7 +222,7 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
                          "is not done yet (its frames turn in the Newton iterations); friction runs against a "
                          "plane that does not rotate")  # fmt: skip
     backend = ctx.solver_options.get("backend", "auto")
-    if ctx.distributed or backend in ("cg", "petsc-cg"):
+    if not backend_traits(backend).finite_strain:
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
                          "iterate; use superlu, cholmod, pardiso or auto")  # fmt: skip
     if ctx.damping is not None and ctx.damping.beta != 0.0:

@@ -92,7 +92,7 @@ def newton_solve(
 
     ``op``: the step's linear operator (its coefficients c_M, c_S; its S is replaced by each tangent);
     ``force(U)`` g(U) (n,) and ``tangent(U)`` dg/dU (sparse, n x n).  ``bound``: the gaps, or (contact in
-    the current configuration, :class:`~.context.FollowingBound`) a function that moves the rows to the
+    the current configuration, :class:`~.current_rows.FollowingBound`) a function that moves the rows to the
     iterate and returns their bound; then the iterations also wait for the linearized gaps to be the true
     ones to ``GAP_TOLERANCE`` times the context's touch tolerance.  ``inertia``: the inertial part M p of
     ``rhs`` (:func:`residual_norm`'s scale).  Returns U (n,), lambda (nc,) and the

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, InputError, NonFiniteError
 from .context import Context
+from .current_rows import level_gaps
 from .history import angular_momentum, empty_series
 from .schemes import Scheme, State
 from .schemes.base import EnergyParts
@@ -115,7 +116,7 @@ class HistoryRecorder(Observer):
     def _put(self, run: Run, n: int, s: State) -> None:
         S = self.series
         self.times[n] = s.t
-        S["gap"][n] = run.ctx.level_gaps(s.U, s.t)
+        S["gap"][n] = level_gaps(run.ctx, s.U, s.t)
         # total linear momentum 1_k^T M V per component (the product the energy uses, computed once)
         MV = s.product("MV", lambda: run.ctx.Mop @ s.V)
         S["momentum"][n] = MV.reshape(-1, S["momentum"].shape[1]).sum(axis=0)

@@ -166,7 +166,8 @@ class BackendTraits:
     ``iterative``: CG, no factor; ``distributed``: runs on the ranks of mpiexec;
     ``friction``: gives the Delassus matrix that friction needs; ``schur``: can compute the
     Schur complement on the contact dofs; ``mixed_meshes``: several cell types;
-    ``chooses``: picks another backend (``auto``)."""
+    ``chooses``: picks another backend (``auto``); ``finite_strain``: factorizes the tangent of
+    every Newton iterate of a finite-strain step (a serial direct factor)."""
 
     factor: bool = False
     iterative: bool = False
@@ -175,6 +176,7 @@ class BackendTraits:
     schur: bool = False
     mixed_meshes: bool = True
     chooses: bool = False
+    finite_strain: bool = True
 
 
 BACKENDS = Registry("linear solver backend")
@@ -214,7 +216,7 @@ BACKENDS.register(
     "options petsc.NAME=VALUE pass through as -signorini_NAME",
     (),
     (NODE_ORDER,),
-    BackendTraits(factor=True, distributed=True, mixed_meshes=False),
+    BackendTraits(factor=True, distributed=True, mixed_meshes=False, finite_strain=False),
 )
 BACKENDS.register(
     "cg",
@@ -222,7 +224,7 @@ BACKENDS.register(
     "no factor: projected CG with an active-set contact solve",
     (),
     CG_PARAMETERS,
-    BackendTraits(iterative=True, friction=False),
+    BackendTraits(iterative=True, friction=False, finite_strain=False),
 )
 PETSC_CG_PARAMETERS = (
     Parameter(
@@ -243,7 +245,7 @@ BACKENDS.register(
     "scripts/mpi-env.sh); options petsc.NAME=VALUE pass through to its preconditioner as -signorini_NAME",
     (),
     PETSC_CG_PARAMETERS,
-    BackendTraits(iterative=True, distributed=True, friction=False, mixed_meshes=False),
+    BackendTraits(iterative=True, distributed=True, friction=False, mixed_meshes=False, finite_strain=False),
 )
 
 

@@ -34,6 +34,7 @@ import functools
 import numpy as np
 
 from ..context import Operator
+from ..current_rows import contact_bound
 from ..newton import newton_solve
 from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
 
@@ -72,11 +73,11 @@ class EnergyMomentum(Scheme):
             ml[ctx.massless] = 1.0
             pattern = (ctx.B != 0).astype(float)
             on_massless, on_all = pattern @ ml, pattern @ np.ones(ml.size)
-            mixed = (on_massless > 0) & (on_massless < on_all)
-            if mixed.any():
+            joined = (on_massless > 0) & (on_massless < on_all)
+            if joined.any():
                 from ...errors import InputError
 
-                row = int(np.flatnonzero(mixed)[0])
+                row = int(np.flatnonzero(joined)[0])
                 raise InputError(
                     f"scheme {self.name}: contact row {row} joins nodes with and without mass (mass "
                     f"{ctx.disc.mass_name!r}); its balance needs either; use a mass that removes the inertia on "
@@ -112,7 +113,7 @@ class EnergyMomentum(Scheme):
             def tangent(U):
                 return el.tangent(0.5 * (U0 + U))
 
-            bound = ctx.contact_bound(s.U, s.t, t)
+            bound = contact_bound(ctx, s.U, s.t, t)
             U, mu, info = newton_solve(ctx, op, rhs, force, tangent, s.U, bound, fixed, law, Mp)
         else:  # g(U) = S U + (S U^n on rows m): one solve
             SU0 = products(ctx, s)[1]

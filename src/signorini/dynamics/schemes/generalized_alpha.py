@@ -48,6 +48,7 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
+from ..current_rows import contact_bound
 from ..newton import newton_solve
 from .base import (
     EnergyParts,
@@ -131,7 +132,7 @@ class GeneralizedAlpha(Newmark):
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         if ctx.elastic.finite:  # (1 - a_f) f(U^{n+1}) + a_f f(U^n): Newton on f(U^{n+1}) (:mod:`~..newton`)
             el = ctx.elastic
-            bound = ctx.contact_bound(s.U, s.t, t)
+            bound = contact_bound(ctx, s.U, s.t, t)
             law = ctx.friction_law(s.U, s.t, t)
             Mp = ctx.M @ ((1 - am) * pred - am * s.A) / (1 - af)
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U, bound,

@@ -38,6 +38,7 @@ import numpy as np
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
+from ..current_rows import contact_bound
 from ..newton import newton_solve
 from .base import (
     EnergyParts,
@@ -119,7 +120,7 @@ class Newmark(Scheme):
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U,
-                                        ctx.contact_bound(s.U, s.t, t), fixed, law, Mp)  # fmt: skip
+                                        contact_bound(ctx, s.U, s.t, t), fixed, law, Mp)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),

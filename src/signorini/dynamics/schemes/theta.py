@@ -32,6 +32,7 @@ import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
+from ..current_rows import contact_bound
 from ..newton import newton_solve
 from .base import (
     EnergyParts,
@@ -86,7 +87,7 @@ class Theta(Scheme):
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
-            bound = ctx.contact_bound(s.U, s.t, t)
+            bound = contact_bound(ctx, s.U, s.t, t)
             law = ctx.friction_law(s.U, s.t, t)
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U, bound, fixed,
                                         law, Mp)  # fmt: skip

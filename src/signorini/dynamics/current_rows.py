@@ -1,0 +1,143 @@
+"""Contact rows in the current configuration (finite strain against a rigid obstacle).
+
+With finite strain a contact node's gap is the signed distance of its current position x = X + u to the
+obstacle, phi_t(x), and its row the obstacle's outward body normal there, nu(x, t).  A step's Newton
+iterations (:mod:`~signorini.dynamics.newton`) move the rows to every iterate U^k:
+
+    nu_i^T u_i <= phi_t(x_i^k) + nu_i . u_i^k        (the signed distance linearized at U^k)
+
+exact for a plane (nu constant), converging with the iterate for a sphere.  :class:`CurrentRows` owns
+that motion of the rows (the contact set's normals, B and the frames follow; the solvers' rows through
+:meth:`~signorini.dynamics.context.Context.replace_rows`), keeps the rows a level's multipliers acted
+through for its energy identity, puts them back before a rejected step is tried again, and is what a
+checkpoint saves of them.  :func:`contact_bound` is what a scheme's finite-strain step passes as the
+bound of its solve; :func:`level_gaps` the gaps of a level for the history.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import InputError
+
+if TYPE_CHECKING:
+    from .contact_rows import ContactRows
+    from .context import Context
+
+
+class CurrentRows:
+    """The rigid obstacle's rows of the current configuration of one run (module docstring).
+
+    Parameters
+    ----------
+    rows : the run's contact rows (their contact set's normals are moved, their blocks rebuilt).
+    """
+
+    def __init__(self, rows: ContactRows):
+        self.rows = rows
+        self.contact = rows.disc.contact
+        self.obstacle = rows.disc.problem.obstacle
+        self.n_dofs = rows.disc.space.n_dofs
+        #: (t, normals) of the level the step in progress starts from
+        self._kept: tuple[float, np.ndarray] | None = None
+
+    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rows at the iterate U (n,) and time t: (bound (nc,), the rows whose normal changed)."""
+        c = self.contact
+        u = U[c.dofs]
+        x = c.points + u
+        nu = self.obstacle.body_normals(x, t)
+        bound = np.asarray(self.obstacle.gaps(x, t), dtype=float) + np.einsum("id,id->i", nu, u)
+        changed = np.flatnonzero(np.any(nu != c.normals, axis=1))
+        self._set(changed, nu[changed])
+        return bound, changed
+
+    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
+        """phi_t(X + U) (nc,) of the contact nodes [length]."""
+        c = self.contact
+        return np.asarray(self.obstacle.gaps(c.points + U[c.dofs], t), dtype=float)
+
+    def keep_level(self, t: float) -> np.ndarray:
+        """Before a step from the level at t moves the rows: they are that level's (kept for its identity,
+        :meth:`ContactRows.keep_level`); a step tried again from the same level first gets them back.
+        Returns the rows put back."""
+        c = self.contact
+        changed = np.zeros(0, dtype=np.int64)
+        if self._kept is not None and self._kept[0] == t:
+            changed = np.flatnonzero(np.any(c.normals != self._kept[1], axis=1))
+            self._set(changed, self._kept[1][changed])
+        else:
+            self._kept = (t, c.normals.copy())
+        self.rows.keep_level(t)
+        return changed
+
+    def saved(self) -> dict[str, Any]:
+        """What a checkpoint holds of the rows: the normals the last level's multipliers acted through."""
+        return {"normals": np.array(self.contact.normals, copy=True)}
+
+    def resume(self, data: dict[str, Any]) -> np.ndarray:
+        """Put back :meth:`saved` (a resumed run, before its first step); the rows it changed."""
+        c = self.contact
+        new = np.asarray(data.get("normals"), dtype=float)
+        if new.shape != c.normals.shape or not np.all(np.isfinite(new)):
+            raise InputError(f"checkpoint: the contact normals have shape {new.shape}, expected {c.normals.shape}")
+        rows = np.flatnonzero(np.any(new != c.normals, axis=1))
+        self._set(rows, new[rows])
+        return rows
+
+    def _set(self, rows: np.ndarray, normals: np.ndarray) -> None:
+        if rows.size:
+            self.contact.normals[rows] = normals
+            self.contact.rebuild_rows(self.n_dofs)
+            self.rows.rebuilt()
+
+
+def current_rows(rows: ContactRows) -> CurrentRows | None:
+    """The run's :class:`CurrentRows` when its rigid obstacle gives its normals at any point (plane, sphere),
+    else None (no obstacle rows, or an obstacle refused with finite strain)."""
+    disc = rows.disc
+    ob = disc.problem.obstacle
+    if ob is None or not disc.contact.size or ob.body_normals(disc.contact.points[:1], 0.0) is None:
+        return None
+    return CurrentRows(rows)
+
+
+class FollowingBound:
+    """The bound of a step's rows in the current configuration at time t (:func:`contact_bound`): called with a
+    Newton iterate U, it moves the rows to U and returns their bound; :meth:`gap_error` is how far the last
+    rows' linearized gaps are from the true ones at a new iterate."""
+
+    def __init__(self, ctx: Context, t: float):
+        self.ctx, self.t = ctx, t
+        self.bound: np.ndarray | None = None
+
+    def __call__(self, U: np.ndarray) -> np.ndarray:
+        bound, changed = self.ctx.rows.current.follow(U, self.t)
+        self.ctx.replace_rows(changed)
+        self.bound = bound
+        return bound
+
+    def gap_error(self, U: np.ndarray) -> float:
+        """max_i |phi_t(x_i) - (bound_i - nu_i . u_i)| at U [length]: the linearization's error of the gaps."""
+        if self.bound is None or not self.bound.size:
+            return 0.0
+        return float(np.max(np.abs(self.ctx.rows.current.gaps(U, self.t) - (self.bound - self.ctx.B @ U))))
+
+
+def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarray | FollowingBound:
+    """What a finite-strain step from (U0, t0) to t constrains ``B U`` by: the gaps g(t), or with rows in the
+    current configuration a :class:`FollowingBound` (the level's rows kept first, :meth:`CurrentRows.keep_level`)."""
+    current = ctx.rows.current
+    if current is None:
+        return ctx.gaps(t)
+    ctx.replace_rows(current.keep_level(t0))
+    return FollowingBound(ctx, t)
+
+
+def level_gaps(ctx: Context, U: np.ndarray, t: float) -> np.ndarray:
+    """The gaps (nc,) of a level: g(t) - B U, or phi_t(X + U) in the current configuration [length]."""
+    if ctx.rows.current is not None:
+        return ctx.rows.current.gaps(U, t)
+    return ctx.gaps(t) - ctx.B @ U
