@@ -389,3 +389,60 @@ def test_every_mass_that_runs_finite_strain_acts_alike_on_every_component():
                 B = blocks[3 * i + j]
                 ref = blocks[0]
                 assert abs(B - (ref if i == j else 0 * ref)).max() <= 1e-14 * abs(ref).max(), (mass, i, j)
+
+
+def test_a_curved_surface_obstacle_in_the_current_configuration():
+    """A surface (a polyline bowl of 40 segments below the block): the rows take the surface's normal at each
+    node's current position (facet normals, edge directions); no node goes through (gap >= -1e-10 of the
+    body) and the identity closes; with friction it is refused by name (its frames turn)."""
+    from signorini.contact.obstacles import SurfaceObstacle
+
+    a = np.linspace(-0.6, 0.6, 41)
+    pts = np.column_stack([0.02 + 0.1 * np.sin(a), 0.096 - 0.1 * np.cos(a) - 0.0])  # a bowl of radius 0.1
+    seg = np.column_stack([np.arange(40), np.arange(1, 41)])
+    bowl = SurfaceObstacle((pts, seg), flip=True)
+    p = block_on_ball()
+    p.obstacle = bowl
+    p.mesh.points[:, 1] += 0.01  # the block starts above the bowl's bottom
+    H = simulate(p, "crank-nicolson", 2e-5, 0.006, solver_options={"energy_check": "fail"})
+    assert H.status == "finished", H.message
+    assert H.lam.min() < 0 and H.gap.min() >= -1e-10 * 0.04
+    p.friction = "coulomb:0.2"
+    p.__post_init__()
+    with pytest.raises(InputError, match="friction against a surface obstacle"):
+        simulate(p, "crank-nicolson", 2e-5, 0.006)
+
+
+def test_a_free_body_far_from_the_origin_keeps_its_energy():
+    """Newton in increments: a block spinning and drifting at 5 m/s (1 m in 0.2 s, 50 times its size) keeps its
+    energy to 1e-9 under energy-momentum with a mass on every node (in total form it lost 3.5e-7)."""
+    from signorini.fem.mesh import box as make_box
+
+    m = make_box(3, 2, 2, 0.04, 0.02, 0.02)
+    c = np.array([0.02, 0.01, 0.01])
+    v0 = lambda x: np.cross([30.0, -30.0, 100.0], x - c) + [0.0, 5.0, 0.0]  # noqa: E731
+    p = Problem(m, NeoHookean.from_young(5e6, 0.45, 1100.0), "zmin", PlaneObstacle([0.0, 0.0, -10.0], [0.0, 0.0, 1.0]),
+                v0=v0)  # fmt: skip
+    H = simulate(p, "energy-momentum", 1e-4, 0.2, mass="standard")
+    assert H.status == "finished"
+    assert np.abs(H.energy - H.energy[0]).max() <= 1e-9 * H.energy[0]
+
+
+def test_auto_never_picks_cg_for_finite_strain_and_an_inverting_start_is_input(tmp_path):
+    from signorini.io.cli import main
+
+    case = tmp_path / "c.toml"
+    text = (
+        '[mesh]\ngenerator = "box"\ncells = [2, 2, 2]\nsize = [0.04, 0.02, 0.02]\n'
+        '[material]\nrho = 1100.0\nE = 5.0e6\nnu = 0.45\nmodel = "neo-hookean"\n'
+        '[contact]\ntag = "zmin"\nobstacle = { type = "plane", point = [0.0, 0.0, -0.001], normal = [0.0, 0.0, 1.0] }\n'
+        "[initial]\nvelocity = [0.0, 0.0, -1.0]\n[time]\ndt = 2e-5\nT = 1e-4\n"
+    )
+    case.write_text(text)
+    assert (
+        main(["run", str(case), "--out", str(tmp_path / "a"), "--quiet", "--solver-option", "memory_budget=100"]) == 2
+    )
+    assert not (tmp_path / "a").exists()
+    case.write_text(text.replace("[initial]\n", '[initial]\ndisplacement = ["-3.0 * x", "0.0", "0.0"]\n'))
+    assert main(["run", str(case), "--out", str(tmp_path / "b"), "--quiet"]) == 2
+    assert not (tmp_path / "b").exists()

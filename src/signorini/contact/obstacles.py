@@ -240,12 +240,6 @@ class RigidMotion:
         """d(t) (d,) [length]."""
         return self.position(t) - self._p0 if self.relative else self.position(t)
 
-    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray | None:
-        """The outward body normals nu = -grad phi_t / |grad phi_t| (n, d) at the points x (n, d) of the
-        current configuration at time t (finite strain's contact rows), or None when the obstacle does not
-        give them (its contact in the current configuration is not done yet)."""
-        return None
-
     def translation(self, t0: float, t1: float) -> np.ndarray:
         """d(t1) - d(t0) (d,) [length]."""
         return self.position(t1) - self.position(t0)
@@ -294,6 +288,17 @@ class RigidObstacle:
     def __init__(self, phi: Callable[[np.ndarray], np.ndarray], grad: Callable[[np.ndarray], np.ndarray]):
         self.phi = phi
         self.grad = grad
+
+    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray | None:
+        """The outward body normals nu = -grad phi_t / |grad phi_t| (n, d) at the points x (n, d) of the
+        current configuration at time t (finite strain's contact rows), or None when the obstacle does not
+        give them (its contact in the current configuration is not done: refused by name)."""
+        return None
+
+    def distance_scale(self, x: np.ndarray, t: float) -> float:
+        """The size of the numbers phi_t(x) is computed from (its round-off's scale) [length]: the largest
+        coordinate of x by default."""
+        return float(np.max(np.abs(x), initial=0.0))
 
     def gaps_and_normals(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gaps g (n,) at t = 0 and outward body normals nu (n, d) at points x (n, d)."""
@@ -380,6 +385,10 @@ class PlaneObstacle(RigidObstacle):
         p, n = self._at(t)
         return (x - p) @ n
 
+    def distance_scale(self, x: np.ndarray, t: float) -> float:
+        """|x| and |p(t)| ((x - p) . n)."""
+        return float(max(np.max(np.abs(x), initial=0.0), np.max(np.abs(self._at(t)[0]))))
+
     def body_normals(self, x: np.ndarray, t: float) -> np.ndarray:
         """-n(t) at every point (the plane's normal, turned with it)."""
         return np.broadcast_to(-self._at(t)[1], np.shape(x)).copy()
@@ -444,6 +453,11 @@ class SphereObstacle(RigidObstacle):
 
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         return np.linalg.norm(x - self._at(t), axis=1) - self.radius
+
+    def distance_scale(self, x: np.ndarray, t: float) -> float:
+        """|x - c(t)| and |c(t)| (the distance to the centre, less the radius)."""
+        c = self._at(t)
+        return float(max(np.max(np.linalg.norm(x - c, axis=1), initial=0.0), np.max(np.abs(c)), self.radius))
 
     def body_normals(self, x: np.ndarray, t: float) -> np.ndarray:
         """-(x - c(t)) / |x - c(t)|: towards the ball's centre."""
@@ -825,6 +839,11 @@ class SurfaceObstacle(RigidObstacle):
     def gaps(self, x: np.ndarray, t: float) -> np.ndarray:
         """phi(x, t) (n,) of the surface at time t at points x (n, d); +inf beyond its edge."""
         return self._signed(self.motion.to_data(np.asarray(x, dtype=float), t))[0]
+
+    def body_normals(self, x: np.ndarray, t: float) -> np.ndarray:
+        """-grad phi at the points x at time t: the facet's normal, or the direction to the closest edge or
+        vertex (turned with the surface)."""
+        return -self.motion.to_world(self._signed(self.motion.to_data(np.asarray(x, dtype=float), t))[1], t)
 
     def material_points(self, x: np.ndarray) -> np.ndarray:
         return self._signed(self.motion.to_data(np.asarray(x, dtype=float), 0.0))[2]

@@ -22,6 +22,11 @@ import numpy as np
 
 from ..errors import InputError
 
+#: the gaps of the current configuration are the true ones to this many touch tolerances (1e-10 of the body)
+GAP_TOLERANCE = 100.0
+#: the round-off of a distance relative to the numbers it is computed from (1e3 machine epsilons)
+ROUNDOFF = 1e3 * np.finfo(float).eps
+
 if TYPE_CHECKING:
     from .contact_rows import ContactRows
     from .context import Context
@@ -53,6 +58,12 @@ class CurrentRows:
         changed = np.flatnonzero(np.any(nu != c.normals, axis=1))
         self._set(changed, nu[changed])
         return bound, changed
+
+    def distance_scale(self, U: np.ndarray, t: float) -> float:
+        """The size of the numbers the obstacle's distance is computed from at U (its round-off's scale)
+        [length]: the obstacle's own (:meth:`~signorini.contact.obstacles.RigidObstacle.distance_scale`)."""
+        c = self.contact
+        return float(self.obstacle.distance_scale(c.points + U[c.dofs], t))
 
     def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
         """phi_t(X + U) (nc,) of the contact nodes [length]."""
@@ -124,6 +135,13 @@ class FollowingBound:
         if self.bound is None or not self.bound.size:
             return 0.0
         return float(np.max(np.abs(self.ctx.rows.current.gaps(U, self.t) - (self.bound - self.ctx.B @ U))))
+
+    def converged(self, U: np.ndarray) -> bool:
+        """Whether the last rows' linearized gaps are the true ones at U: to :data:`GAP_TOLERANCE` touch
+        tolerances (1e-10 of the body), or to the round-off of the obstacle's distance there (a ball of a
+        large radius: one ulp of |x - c|)."""
+        floor = ROUNDOFF * self.ctx.rows.current.distance_scale(U, self.t)
+        return self.gap_error(U) <= max(GAP_TOLERANCE * self.ctx.touch_tolerance, floor)
 
 
 def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarray | FollowingBound:

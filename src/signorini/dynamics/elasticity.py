@@ -145,8 +145,8 @@ class FiniteStrain(Elasticity):
     def cell_fields(self, U: np.ndarray) -> dict[str, np.ndarray]:
         """Per cell: ``cauchy_stress`` (n_cells, 3, 3) in the current configuration, ``green_lagrange`` (n_cells,
         3, 3) and ``strain_energy_density`` W (n_cells,), cell means (:func:`~signorini.fem.hyperelastic.cell_fields`);
-        the linear cells' small-strain stress and strain (plane strain's sigma_zz = lam tr eps) and 1/2 of their
-        cell means' product (the mean of W where the strain is constant in the cell)."""
+        on the linear cells the small-strain stress (plane strain's sigma_zz = lam tr eps), strain and
+        W = 1/2 sigma:eps, as means over the cell's points."""
         from ..fem.assembly import geometry, strain
 
         n = self.mesh.n_cells
@@ -155,25 +155,25 @@ class FiniteStrain(Elasticity):
             ids, s_, e_, w_ = cell_fields(self.mesh, law, U, cells)
             sig[ids], E[ids], W[ids] = s_, e_, w_
         linear = np.setdiff1d(np.arange(n), np.concatenate([np.arange(n) if c is None else c for _, c in self.groups]))
-        if linear.size:
-            from ..fem.assembly import stress as linear_stress
-
+        if linear.size:  # small strain: sigma(eps), eps and W = 1/2 sigma:eps, each a mean over the cell's points
             sub = sub_mesh(self.mesh, linear)
             material = self.ctx.disc.material
-            part = material.take(linear) if isinstance(material, CellMaterial) else material
             d = self.mesh.dim
-            s_lin = linear_stress(sub, part, U, nodal=False)
-            means = []  # the volume-weighted mean small strain of each cell, block by block
+            start = 0
             for block, _ in sub.parts():
+                ids = linear[start : start + block.n_cells]
+                start += block.n_cells
+                mat = material.take(ids) if isinstance(material, CellMaterial) else material
                 wdet = geometry(block)[0]
-                means.append(np.einsum("eq,eqij->eij", wdet / wdet.sum(axis=1, keepdims=True), strain(block, U)))
-            eps = np.concatenate(means)
-            sig[linear, :d, :d] = s_lin
-            if d == 2:  # plane strain: sigma_zz = lam tr(eps)
-                lam = np.broadcast_to(np.asarray(part.lam, dtype=float), linear.shape)
-                sig[linear, 2, 2] = lam * np.trace(eps, axis1=1, axis2=2)
-            E[linear, :d, :d] = eps
-            W[linear] = 0.5 * np.einsum("eij,eij->e", s_lin, eps)
+                w = wdet / wdet.sum(axis=1, keepdims=True)
+                eps = strain(block, U)  # (e, q, d, d)
+                sq = mat.stress(eps)
+                sig[ids, :d, :d] = np.einsum("eq,eqij->eij", w, sq)
+                if d == 2:  # plane strain: sigma_zz = lam tr(eps)
+                    lam = np.broadcast_to(np.asarray(mat.lam, dtype=float), ids.shape)
+                    sig[ids, 2, 2] = lam * np.einsum("eq,eq->e", w, np.trace(eps, axis1=2, axis2=3))
+                E[ids, :d, :d] = np.einsum("eq,eqij->eij", w, eps)
+                W[ids] = 0.5 * np.einsum("eq,eqij,eqij->e", w, sq, eps)
         return {"cauchy_stress": sig, "green_lagrange": E, "strain_energy_density": W}
 
     def counters(self) -> dict[str, int]:
@@ -232,3 +232,18 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
         raise InputError(f"{what} with mass 'seed-normal' is refused: it removes the inertia along the contact "
                          "normal only, so a rotating body does not keep its angular momentum; use a mass that "
                          "treats every component alike (moment-preserving, seed, standard, lumped)")  # fmt: skip
+
+
+def check_finite_strain_solvers(ctx: Context) -> None:
+    """After the set-up's factorizations: refuse a finite-strain run whose backend, chosen by ``auto``, has no
+    factor (cg when no factor fits ``memory_budget``): its Newton step factorizes every tangent."""
+    if not ctx.elastic.finite:
+        return
+    from ..errors import InputError
+
+    if any(getattr(s, "condensation", "") == "none" for s in ctx.solvers):
+        raise InputError(
+            "finite strain ([material] model) needs a factorization of every Newton tangent, and backend 'auto' "
+            f"picked cg (no factor fits memory_budget = {ctx.solver_options.get('memory_budget'):g} bytes): "
+            "raise memory_budget, or give backend superlu, cholmod or pardiso"
+        )

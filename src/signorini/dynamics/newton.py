@@ -32,12 +32,13 @@ fails, exit 3, levels kept; the energy control rejects and halves the step).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..contact.solver import ContactLaw, StepInfo
-from ..errors import ConvergenceError
+from ..errors import ConvergenceError, InputError
 from .context import Operator, Tangent
 
 if TYPE_CHECKING:
@@ -48,65 +49,74 @@ if TYPE_CHECKING:
 ROUNDOFF = 1e3 * np.finfo(float).eps
 #: the most halvings of a Newton step that did not reduce the residual
 LINE_SEARCH_HALVINGS = 5
-#: contact in the current configuration: a step converges when the linearized gaps of its last rows are the
-#: true ones to this many touch tolerances (1e-12 of the body: 1e-10 of it)
-GAP_TOLERANCE = 100.0
 #: tangent=modified keeps its factor while the residual falls by at least this factor per iteration
 MODIFIED_CONTRACTION = 0.1
 
 
-def residual_norm(ctx: Context, op: Operator, rhs: np.ndarray, gU: np.ndarray, U: np.ndarray,
+def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
                   lam: np.ndarray, lam_t: np.ndarray | None, inertia: np.ndarray | None = None
-                  ) -> tuple[float, float]:  # fmt: skip
-    """(|r|_inf, scale, floor) of the step's force residual on the free dofs (module docstring) [force].
+                  ) -> tuple[float, float, float]:  # fmt: skip
+    """(|r|_inf, scale, floor) of the step's force residual on the free dofs [force], in increments:
 
-    The scale is the largest of the step's forces: the inertia c_M M U - M p (``inertia``: the part
-    M p of ``rhs`` that is the scheme's inertial prediction; the whole rhs when None), the internal
-    force, the loads and the contact force; not c_M M U itself, which grows with the distance a body
-    has travelled.  ``floor``: the round-off of r's largest terms (:data:`ROUNDOFF` of them)."""
-    MU = op.mass * (ctx.M @ U)
+        r = c_M M (U - U_base) + c_S g(U) - rest - B^T lambda - T^T lambda_t,   rest = rhs - c_M M U_base,
+
+    so that its precision is that of the step's forces, not of the displacement (a body that has travelled
+    far).  The scale is the largest of the step's forces: the inertia c_M M (U - U_base) - M q (``inertia``:
+    the inertial part M q of ``rest``; 0 when None), the internal force, the loads and the contact force;
+    ``floor`` the round-off of r's largest terms (:data:`ROUNDOFF` of them)."""
+    MdU = op.mass * (ctx.M @ (U - base))
     contact = ctx.contact_force(lam, lam_t)
-    r = MU + op.stiffness * gU - rhs - contact
+    r = MdU + op.stiffness * gU - rest - contact
     f = ctx.free
-    terms = (MU - rhs, op.stiffness * gU, contact) if inertia is None else (
-        MU - inertia, op.stiffness * gU, rhs - inertia, contact)  # fmt: skip
+    q = 0.0 if inertia is None else inertia
+    terms = (MdU - q, op.stiffness * gU, rest - q, contact)
     scale = max(max(float(np.max(np.abs(np.broadcast_to(a, U.shape)[f]), initial=0.0)) for a in terms), 1e-300)
-    # the round-off of the sum itself (c_M M U and M p cancel): a residual below it is converged
-    floor = ROUNDOFF * max(float(np.max(np.abs(MU[f]), initial=0.0)), float(np.max(np.abs(rhs[f]), initial=0.0)))
+    floor = ROUNDOFF * max(float(np.max(np.abs(MdU[f]), initial=0.0)), float(np.max(np.abs(rest[f]), initial=0.0)))
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
+
+
+def _shifted(law: ContactLaw, ctx: Context, U: np.ndarray) -> ContactLaw:
+    """The law of a solve for the increment from U: the slip reference c_t less T U."""
+    if law.reference is None:
+        return law
+    return replace(law, reference=law.reference - (ctx.T @ U).reshape(law.reference.shape))
 
 
 def newton_solve(
     ctx: Context,
     op: Operator,
-    rhs: np.ndarray,
+    base: np.ndarray,
+    rest: np.ndarray,
     force: Callable[[np.ndarray], np.ndarray],
     tangent: Callable[[np.ndarray], object],
-    start: np.ndarray,
     bound: np.ndarray | Callable[[np.ndarray], np.ndarray],
     fixed: np.ndarray | None,
     law: ContactLaw,
     inertia: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
-    """Solve the nonlinear step of the module docstring from the iterate ``start`` (n,).
+    """Solve the nonlinear step of the module docstring, whose right-hand side is c_M M U_base + ``rest``, from
+    the iterate ``base`` = U_base (n,: the level the step starts from).
 
-    ``op``: the step's linear operator (its coefficients c_M, c_S; its S is replaced by each tangent);
-    ``force(U)`` g(U) (n,) and ``tangent(U)`` dg/dU (sparse, n x n).  ``bound``: the gaps, or (contact in
-    the current configuration, :class:`~.current_rows.FollowingBound`) a function that moves the rows to the
-    iterate and returns their bound; then the iterations also wait for the linearized gaps to be the true
-    ones to ``GAP_TOLERANCE`` times the context's touch tolerance.  ``inertia``: the inertial part M p of
-    ``rhs`` (:func:`residual_norm`'s scale).  Returns U (n,), lambda (nc,) and the
-    last contact solve's info with ``nonlinear_iterations`` (the Newton iterations) set."""
+    Each iteration solves for the increment d = U^{k+1} - U^k, (c_M M + c_S G_k) d = -r(U^k) + B^T lambda with
+    B d <= bound - B U^k (the same contact problem; lambda the whole multiplier), so that the iterates keep
+    the precision of the step's forces (:func:`residual_norm`).  ``op``: the step's linear operator (its
+    coefficients c_M, c_S; its S is replaced by each tangent); ``force(U)`` g(U) (n,) and ``tangent(U)``
+    dg/dU (sparse, n x n).  ``bound``: the gaps, or (contact in the current configuration,
+    :class:`~.current_rows.FollowingBound`) a function that moves the rows to the iterate and returns their
+    bound; then the iterations also wait for the linearized gaps to be the true ones (to ``GAP_TOLERANCE``
+    touch tolerances, or their round-off).  ``inertia``: the inertial part M q of ``rest``.  Returns U (n,),
+    lambda (nc,) and the last contact solve's info with ``nonlinear_iterations`` (the Newton iterations) set."""
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
     modified = opts.get("tangent", "modified") == "modified"
-    U = np.array(start, dtype=float, copy=True)
+    U = np.array(base, dtype=float, copy=True)
     gU = force(U)
     lam = lam_t = None
     previous = np.inf
     current: Operator | None = None
     elastic = ctx.elastic
     norm = scale = allowed = np.nan
+    D = ctx.fixed
     try:
         for k in range(1, most + 1):
             refactor = current is None or not modified or norm > MODIFIED_CONTRACTION * previous
@@ -115,19 +125,27 @@ def newton_solve(
                     ctx.factors.release(current)
                 current = Operator(op.mass, op.stiffness, Tangent(tangent(U)))
                 elastic.factorizations += 1
-            G = current.tangent.matrix
             bnd = bound(U) if callable(bound) else bound
-            U_new, lam_new, info = ctx.solve(current, rhs - op.stiffness * (gU - G @ U), bnd, fixed, law)
+            minus_r = rest - op.mass * (ctx.M @ (U - base)) - op.stiffness * gU
+            try:
+                d, lam_new, info = ctx.solve(current, minus_r, bnd - ctx.B @ U, None if fixed is None else fixed - U[D],
+                                             _shifted(law, ctx, U))  # fmt: skip
+            except InputError as exc:  # the tangent itself cannot be factorized: not the set-up's input
+                raise ConvergenceError(
+                    f"the tangent of Newton iterate {k} cannot be factorized: it is not positive definite (an "
+                    "unstable state: buckling, or a material driven beyond its stability); reduce the step"
+                ) from exc
+            U_new = U + d
             g_new = force(U_new)
-            n_new, scale, floor = residual_norm(ctx, op, rhs, g_new, U_new, lam_new, info.lam_t, inertia)
+            n_new, scale, floor = residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia)
             allowed = tol * scale + floor
             if lam is not None and not n_new < norm and n_new > allowed:  # no decrease: halve the step
                 for _ in range(LINE_SEARCH_HALVINGS):
-                    U_try = 0.5 * (U + U_new)
+                    U_try = U + 0.5 * (U_new - U)
                     lam_try = 0.5 * (lam + lam_new)
                     lt_try = None if info.lam_t is None else 0.5 * (lam_t + info.lam_t)
                     g_try = force(U_try)
-                    n_try = residual_norm(ctx, op, rhs, g_try, U_try, lam_try, lt_try, inertia)[0]
+                    n_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia)[0]
                     elastic.line_search_steps += 1
                     U_new, lam_new, g_new, n_new = U_try, lam_try, g_try, n_try
                     info.lam_t = lt_try
@@ -138,7 +156,7 @@ def newton_solve(
                 full = True
             previous, norm = norm, n_new
             U, lam, lam_t, gU = U_new, lam_new, info.lam_t, g_new
-            gaps_ok = not callable(bound) or bound.gap_error(U) <= GAP_TOLERANCE * ctx.touch_tolerance
+            gaps_ok = not callable(bound) or bound.converged(U)
             if full and norm <= allowed and gaps_ok:
                 info.nonlinear_iterations = k
                 return U, lam, info

@@ -25,7 +25,7 @@ from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
 from .context import Context
 from .damping import UNDAMPED
-from .elasticity import check_finite_strain
+from .elasticity import check_finite_strain, check_finite_strain_solvers
 from .history import COUNTER_KEYS, History
 from .mass import GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
@@ -88,6 +88,16 @@ def check_history_fits(steps: int) -> None:
         )
 
 
+def _initial_force(ctx: Context, U: np.ndarray) -> np.ndarray:
+    """f(U0) of finite strain; an initial displacement that inverts a cell is input to refuse (InputError)."""
+    from ..fem.hyperelastic import InvertedCellError
+
+    try:
+        return ctx.elastic.force(U)
+    except InvertedCellError as exc:
+        raise InputError(f"the initial displacement inverts a cell: {exc}".split("; reduce the step")[0]) from None
+
+
 def initial_state(ctx: Context) -> State:
     """Level 0: U0, V0 and A0 from equilibrium, M A0 = F(0) - S U0 - C V0 (lambda_0 = 0; C the
     damping, when given, whose force C V0 is the level's damping force).
@@ -106,7 +116,7 @@ def initial_state(ctx: Context) -> State:
         vD, aD = disc.dirichlet_rates(ctx.dt / 4)
         V[ctx.fixed], A[ctx.fixed] = vD, aD
     F = ctx.load(0.0)
-    r = F - (ctx.elastic.force(U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
+    r = F - (_initial_force(ctx, U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
     Fd = ctx.damping.force(ctx, V) if ctx.damping is not None else None
     if Fd is not None:  # damped: M A0 = F(0) - S U0 - C V0
         r -= Fd
@@ -286,6 +296,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
         if op is not None:
             ctx.factors.system(op)
             s.check_context(ctx, prepared=True)
+    check_finite_strain_solvers(ctx)
     ctx.Mop, ctx.Sop  # noqa: B018 - built now (set-up), after the factors: a lower peak of memory
     return ctx
 

@@ -99,8 +99,8 @@ class EnergyMomentum(Scheme):
         ml = self._massless_mask(ctx)
         Fw = np.where(ml, 0.5 * F1, 0.5 * (F0 + F1))
         op = self.step_operator(ctx, dt)
-        Mp = (2.0 / (dt * dt)) * (ctx.Mop @ (s.U + dt * s.V))
-        rhs = Mp + Fw
+        Mq = (2.0 / dt) * (ctx.Mop @ s.V)  # the inertia of the step less 2/dt^2 M U^n
+        rhs = (2.0 / (dt * dt)) * (ctx.Mop @ s.U) + Mq + Fw
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         law = ctx.friction_law(s.U, s.t, t)
         el = ctx.elastic
@@ -114,7 +114,7 @@ class EnergyMomentum(Scheme):
                 return el.tangent(0.5 * (U0 + U))
 
             bound = contact_bound(ctx, s.U, s.t, t)
-            U, mu, info = newton_solve(ctx, op, rhs, force, tangent, s.U, bound, fixed, law, Mp)
+            U, mu, info = newton_solve(ctx, op, s.U, Mq + Fw, force, tangent, bound, fixed, law, Mq)
         else:  # g(U) = S U + (S U^n on rows m): one solve
             SU0 = products(ctx, s)[1]
             U, mu, info = ctx.solve(op, rhs - 0.5 * np.where(ml, 0.0, SU0), ctx.gaps(t), fixed, law,

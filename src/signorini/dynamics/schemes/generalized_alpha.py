@@ -134,9 +134,12 @@ class GeneralizedAlpha(Newmark):
             el = ctx.elastic
             bound = contact_bound(ctx, s.U, s.t, t)
             law = ctx.friction_law(s.U, s.t, t)
-            Mp = ctx.M @ ((1 - am) * pred - am * s.A) / (1 - af)
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U, bound,
-                                        fixed, law, Mp)  # fmt: skip
+            Mq = ctx.M @ ((1 - am) * self.increment_predictor(ctx, s.V, s.A) - am * s.A) / (1 - af)
+            rest = Mq + ctx.load(t) + (lagged / (1 - af) if af else 0.0)
+            if ctx.damping is not None:
+                rest -= ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent, bound,
+                                        fixed, law, Mq)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),

@@ -111,16 +111,19 @@ class Newmark(Scheme):
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
-        Mp = ctx.Mop @ p
-        rhs = Mp + ctx.load(t)
+        rhs = ctx.Mop @ p + ctx.load(t)
         if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
             rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), rhs, el.force, el.tangent, s.U,
-                                        contact_bound(ctx, s.U, s.t, t), fixed, law, Mp)  # fmt: skip
+            Mq = ctx.Mop @ self.increment_predictor(ctx, s.V, s.A)
+            rest = Mq + ctx.load(t)
+            if ctx.damping is not None:
+                rest -= ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent,
+                                        contact_bound(ctx, s.U, s.t, t), fixed, law, Mq)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),
@@ -131,6 +134,18 @@ class Newmark(Scheme):
                 functools.partial(self.taylor_guess, ctx, s),
             )
         return self.update(ctx, s, t, U, lam, info, p)
+
+    def increment_predictor(self, ctx, V: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """q = p - U^n/(beta dt^2) = V/(beta dt) + (1/(2 beta) - 1) A, without the cancellation of p's U^n
+        (a finite-strain step solves in increments, :mod:`~..newton`)."""
+        b, dt = self.beta, ctx.dt
+        return V / (b * dt) + (0.5 / b - 1.0) * A
+
+    def damping_offset_increment(self, ctx, s: State) -> np.ndarray:
+        """:meth:`damping_offset` less its part in U^n, - gamma U^n/(beta dt)."""
+        dt, g = ctx.dt, self.gamma
+        Vd, Ad = damping_velocity(s)
+        return Vd + (dt * (1 - g)) * Ad - (g * dt) * self.increment_predictor(ctx, Vd, Ad)
 
     def predictor(self, ctx, s: State) -> np.ndarray:
         """p with A^{n+1} = U^{n+1}/(beta dt^2) - p: (U + dt V)/(beta dt^2) + (1/(2 beta) - 1) A."""

@@ -79,8 +79,7 @@ class Theta(Scheme):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
-        Mp = ctx.Mop @ p
-        rhs = Mp + ctx.load(t)
+        rhs = ctx.Mop @ p + ctx.load(t)
         Vd0 = damping_velocity(s)[0]
         if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
             rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
@@ -89,8 +88,12 @@ class Theta(Scheme):
             el = ctx.elastic
             bound = contact_bound(ctx, s.U, s.t, t)
             law = ctx.friction_law(s.U, s.t, t)
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), rhs, el.force, el.tangent, s.U, bound, fixed,
-                                        law, Mp)  # fmt: skip
+            Mq = ctx.Mop @ (s.V / (th * th * dt) + (1 - th) / th * s.A)  # M p less M U^n / (theta dt)^2
+            rest = Mq + ctx.load(t)
+            if ctx.damping is not None:  # and C q less C U^n / (theta dt)
+                rest += ctx.damping.force(ctx, (1 - th) / th * Vd0)
+            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), s.U, rest, el.force, el.tangent, bound, fixed,
+                                        law, Mq)  # fmt: skip
         else:
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, dt),
