@@ -191,8 +191,9 @@ def elasticity(ctx: Context) -> Elasticity:
 
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
-    a Newton step, a 1D bar, contact pairs, a curved or rotating obstacle, a distributed or iterative
-    backend, stiffness-proportional damping, a mass that treats the normal apart (``seed-normal``)."""
+    a Newton step, a 1D bar, contact pairs, an obstacle without normals in the current configuration, friction
+    against an obstacle whose normals turn, a distributed or iterative backend, stiffness-proportional damping,
+    a mass that treats the normal apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
     from ..contact.obstacles import PlaneObstacle
