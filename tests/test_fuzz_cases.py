@@ -57,7 +57,7 @@ from hypothesis import strategies as st
 
 from signorini.contact.obstacles import OBSTACLES
 from signorini.dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
-from signorini.dynamics.schemes import SCHEMES, GeneralizedAlpha, MoreauJean
+from signorini.dynamics.schemes import SCHEMES, EnergyMomentum, GeneralizedAlpha, MoreauJean
 from signorini.io.cli import main
 from signorini.io.config import SECTIONS
 from signorini.linalg import BACKENDS, SOLVER_OPTIONS, has_pardiso
@@ -184,7 +184,7 @@ def mass_choices(entry, tilted: bool, cell_type: str) -> list[str]:
     if not entry.obj.massless_dofs_allowed:
         return ["standard", "lumped"]
     names = list(MASS_VARIANTS.names(aliases=False))
-    if tilted and issubclass(entry.obj, (GeneralizedAlpha, MoreauJean)):
+    if tilted and issubclass(entry.obj, (GeneralizedAlpha, MoreauJean, EnergyMomentum)):
         names.remove("seed-normal")
     if cell_type not in ("line", "quad", "hexahedron"):
         names.remove("moment-preserving-tensor")

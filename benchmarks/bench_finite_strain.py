@@ -1,0 +1,105 @@
+"""Finite strain's costs (issue 41), as ratios measured in one run.
+
+    python -m benchmarks.bench_finite_strain [--cells 12] [--steps 20]
+
+A 3D Neo-Hookean block (cells x cells/2 x cells/2 hexahedra, 40 x 20 x 20 mm, rubber) thrown spinning
+at a plane, its whole skin in contact, energy-momentum at dt = 2e-5 s, the default backend, in one
+process, alternated twice (the best of each):
+
+1. the median step with ``tangent=modified`` (the default) against ``tangent=full``, with their Newton
+   iterations and tangent factorizations per step;
+2. the median finite-strain step against the linear (``model = "linear"``) step of the same run, and
+   against one bare solve with the linear step's factor;
+3. the parts of a step: one internal force, one tangent assembly, one factorization of the step
+   operator with that tangent, each timed over a few calls.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from benchmarks import median_step, per_call
+
+
+def block(cells: int, model: str):
+    from signorini.contact.obstacles import PlaneObstacle
+    from signorini.dynamics.problem import Problem
+    from signorini.fem.material import MATERIAL_MODELS
+    from signorini.fem.mesh import box
+
+    m = box(cells, cells // 2, cells // 2, 0.04, 0.02, 0.02)
+    c, w = np.array([0.02, 0.01, 0.01]), np.array([0.0, 20.0, 60.0])
+    return Problem(m, MATERIAL_MODELS[model].from_young(5e6, 0.45, 1100.0),
+                   ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"], PlaneObstacle([0, 0, -0.006], [0, 0, 1.0]),
+                   v0=lambda x: np.cross(w, x - c) + [0.0, 0.0, -1.0])  # fmt: skip
+
+
+def run(cells: int, steps: int) -> dict:
+    from signorini.dynamics.simulate import Stepper
+
+    best: dict[str, float] = {}
+    info: dict[str, dict] = {}
+    for _ in range(2):
+        for key, model, tangent in (("modified", "neo-hookean", "modified"), ("full", "neo-hookean", "full"),
+                                    ("linear", "linear", "modified")):  # fmt: skip
+            s = Stepper(block(cells, model), "energy-momentum", 2e-5, steps * 2e-5, solver_options={"tangent": tangent})
+            step = median_step(s)
+            H = s.finish()
+            best[key] = min(best.get(key, np.inf), step)
+            n = max(H.steps, 1)
+            info[key] = {"newton_per_step": float(H.nonlinear_iterations[1:].mean()) if H.steps else 0.0,
+                         "tangent_factorizations_per_step": H.counters.get("tangent_factorizations", 0) / n,
+                         "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
+    s = Stepper(block(cells, "neo-hookean"), "energy-momentum", 2e-5, 2e-5)
+    ctx = s.run.ctx
+    U = 1e-4 * np.sin(50.0 * ctx.disc.problem.mesh.points).ravel()
+    shifts = iter(range(1, 100))
+    force = per_call(lambda: ctx.elastic.force(U * (1.0 + 1e-9 * next(shifts))), 5)  # (the last one is cached)
+    tangent = per_call(lambda: ctx.elastic.tangent(U), 3)
+    from signorini.dynamics.context import Operator, Tangent
+
+    K = ctx.elastic.tangent(U)
+    op = s.scheme.step_operator(ctx, 2e-5)
+
+    def factorize():
+        o = Operator(op.mass, op.stiffness, Tangent(K))
+        ctx.factors.system(o)
+        ctx.factors.release(o)
+
+    factor = per_call(factorize, 3)
+    sys_, _ = ctx.factors.system(op)
+    b = np.random.default_rng(0).standard_normal(ctx.free.size)
+    t0 = time.perf_counter()
+    for _ in range(5):
+        sys_.solver.solve_linear(b)
+    bare = (time.perf_counter() - t0) / 5
+    s.finish()
+    return {"case": f"3D Neo-Hookean block {cells} x {cells // 2} x {cells // 2} hexahedra, whole skin in contact",
+            "dofs": info["modified"]["dofs"], "backend": info["modified"]["backend"], "steps": steps,
+            "step_modified_s": best["modified"], "step_full_s": best["full"], "step_linear_s": best["linear"],
+            "modified_over_full": best["modified"] / best["full"],
+            "finite_over_linear": best["modified"] / best["linear"], "finite_over_bare_solve": best["modified"] / bare,
+            "newton": info, "internal_force_s": force, "tangent_s": tangent, "factorization_s": factor,
+            "bare_solve_s": bare}  # fmt: skip
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cells", type=int, default=12)
+    ap.add_argument("--steps", type=int, default=20)
+    args = ap.parse_args(argv)
+    r = run(args.cells, args.steps)
+    print(json.dumps(r, indent=1))
+    print(f"{r['case']} ({r['dofs']} dofs, {r['backend']}): a step with tangent=modified is "
+          f"x{r['modified_over_full']:.2f} of full's, x{r['finite_over_linear']:.1f} of the linear model's and "
+          f"x{r['finite_over_bare_solve']:.0f} of one bare solve; internal force {1e3 * r['internal_force_s']:.1f} ms, "
+          f"tangent {1e3 * r['tangent_s']:.1f} ms, factorization {1e3 * r['factorization_s']:.1f} ms")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
