@@ -63,7 +63,7 @@ def run(cells: int, steps: int) -> dict:
     from signorini.dynamics.context import Operator, Tangent
 
     K = ctx.elastic.tangent(U)
-    op = s.scheme.step_operator(ctx, 2e-5)
+    op = s.run.scheme.step_operator(ctx, 2e-5)
 
     def factorize():
         o = Operator(op.mass, op.stiffness, Tangent(K))
