@@ -40,6 +40,8 @@ _PUBLIC = {
     "join": "fem.mesh",
     "Mesh": "fem.mesh",
     "IsotropicElastic": "fem.material",
+    "SaintVenantKirchhoff": "fem.material",
+    "NeoHookean": "fem.material",
     "Dirichlet": "fem.space",
     # contact
     "PlaneObstacle": "contact.obstacles",
