@@ -95,7 +95,7 @@ def _initial_force(ctx: Context, U: np.ndarray) -> np.ndarray:
     try:
         return ctx.elastic.force(U)
     except InvertedCellError as exc:
-        raise InputError(f"the initial displacement inverts a cell: {exc}".split("; reduce the step")[0]) from None
+        raise InputError(f"the initial displacement inverts a cell: {exc.what}") from None
 
 
 def initial_state(ctx: Context) -> State:

@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError, NonFiniteError
 from .assembly import assemble_vector, geometry, sum_of
+from .elements import determinants
 from .mesh import Mesh
 
 
@@ -43,7 +44,12 @@ def _lame(value, shape: tuple[int, ...]) -> np.ndarray | float:
 
 class InvertedCellError(NonFiniteError):
     """A state that inverts a cell (det F <= 0): no energy, no stress; a numerical failure of the step
-    that reached it (exit 3, or a rejected step under the adaptive control)."""
+    that reached it (exit 3, or a rejected step under the adaptive control).  ``what``: the cell and its
+    det F, without the advice to the step."""
+
+    def __init__(self, what: str):
+        super().__init__(f"{what}: the deformation is beyond what the mesh can carry; reduce the step")
+        self.what = what
 
 
 @dataclass(frozen=True)
@@ -85,21 +91,11 @@ class HyperelasticLaw:
         raise NotImplementedError
 
 
-def _det(A: np.ndarray) -> np.ndarray:
-    """det A (...) of 2 x 2 or 3 x 3 matrices (..., d, d), by the rule of Sarrus (numpy's LU per matrix is
-    ten times slower on these)."""
-    if A.shape[-1] == 2:
-        return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-    return (A[..., 0, 0] * (A[..., 1, 1] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 1])
-            - A[..., 0, 1] * (A[..., 1, 0] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 0])
-            + A[..., 0, 2] * (A[..., 1, 0] * A[..., 2, 1] - A[..., 1, 1] * A[..., 2, 0]))  # fmt: skip
-
-
 def _inv(A: np.ndarray) -> np.ndarray:
     """A^-1 (..., d, d) of 2 x 2 or 3 x 3 matrices: the adjugate over the determinant."""
     if A.shape[-1] == 2:
         adj = np.stack([np.stack([A[..., 1, 1], -A[..., 0, 1]], -1), np.stack([-A[..., 1, 0], A[..., 0, 0]], -1)], -2)
-        return adj / _det(A)[..., None, None]
+        return adj / determinants(A)[..., None, None]
     c0, c1, c2 = (
         np.cross(A[..., 1, :], A[..., 2, :]),
         np.cross(A[..., 2, :], A[..., 0, :]),
@@ -166,7 +162,7 @@ class NeoHookeanLaw(HyperelasticLaw):
 
     def energy_C(self, C: np.ndarray) -> np.ndarray:
         d = C.shape[-1]
-        lnJ = 0.5 * np.log(_det(C))
+        lnJ = 0.5 * np.log(determinants(C))
         I1 = np.trace(C, axis1=-2, axis2=-1) + (3 - d)  # plane strain: C_33 = 1
         lam, mu = _lame(self.lam, lnJ.shape), _lame(self.mu, lnJ.shape)
         return 0.5 * mu * (I1 - 3.0 - 2.0 * lnJ) + 0.5 * lam * lnJ**2
@@ -177,20 +173,20 @@ class NeoHookeanLaw(HyperelasticLaw):
         d = C0.shape[-1]
         X = np.linalg.solve(C0, C1 - C0)
         trX = np.trace(X, axis1=-2, axis2=-1)
-        detX = _det(X)
+        detX = determinants(X)
         if d == 2:
             rest = trX + detX
         else:
             rest = trX + 0.5 * (trX**2 - np.einsum("...ij,...ji->...", X, X)) + detX
         dlnJ = 0.5 * np.log1p(rest)
-        lnJ0, lnJ1 = 0.5 * np.log(_det(C0)), 0.5 * np.log(_det(C1))
+        lnJ0, lnJ1 = 0.5 * np.log(determinants(C0)), 0.5 * np.log(determinants(C1))
         lam, mu = _lame(self.lam, trX.shape), _lame(self.mu, trX.shape)
         trdC = np.trace(C1 - C0, axis1=-2, axis2=-1)
         return 0.5 * mu * (trdC - 2.0 * dlnJ) + 0.5 * lam * dlnJ * (lnJ0 + lnJ1)
 
     def stress_C(self, C: np.ndarray) -> np.ndarray:
         Ci = _inv(C)
-        lnJ = 0.5 * np.log(_det(C))[..., None, None]
+        lnJ = 0.5 * np.log(determinants(C))[..., None, None]
         lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
         return mu * (np.eye(C.shape[-1]) - Ci) + lam * lnJ * Ci
 
@@ -198,7 +194,7 @@ class NeoHookeanLaw(HyperelasticLaw):
         Ci = _inv(C)
         d = C.shape[-1]
         shape = C.shape[:-2] + (d, d, d, d)
-        lnJ = 0.5 * np.log(_det(C))[..., None, None, None, None]
+        lnJ = 0.5 * np.log(determinants(C))[..., None, None, None, None]
         lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
         outer = np.einsum("...IJ,...KL->...IJKL", Ci, Ci)
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
@@ -247,14 +243,13 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
 def check_orientation(mesh: Mesh, F: np.ndarray, ids: np.ndarray | slice) -> None:
     """:class:`InvertedCellError` naming the first cell where det F <= 0 (an inverted element); ``ids``: the
     mesh's numbers of the cells of F (or their slice)."""
-    J = _det(F)
+    J = determinants(F)
     bad = ~(J > 0)
     if bad.any():
         e, q = np.argwhere(bad)[0]
         ids = np.arange(ids.start, ids.stop) if isinstance(ids, slice) else ids
         cell = int(ids[e])
-        raise InvertedCellError(f"cell {cell} is inverted (det F = {J[e, q]:.3g} <= 0 at quadrature point {q}): the "
-                             "deformation is beyond what the mesh can carry; reduce the step")  # fmt: skip
+        raise InvertedCellError(f"cell {cell} is inverted (det F = {J[e, q]:.3g} <= 0 at quadrature point {q})")
 
 
 def strain_energy(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None) -> float:
@@ -354,7 +349,7 @@ def _out_of_plane_stress(law: HyperelasticLaw, C: np.ndarray) -> np.ndarray:
     lam = _lame(law.lam, shape)
     if isinstance(law, SaintVenantKirchhoffLaw):
         return lam * 0.5 * (np.trace(C, axis1=-2, axis2=-1) - C.shape[-1])
-    return lam * 0.5 * np.log(_det(C))
+    return lam * 0.5 * np.log(determinants(C))
 
 
 def cell_fields(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
@@ -370,7 +365,7 @@ def cell_fields(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarr
         d = mesh.dim
         C, E = _green(F)
         S = part_law.stress_C(C)
-        J = _det(F)
+        J = determinants(F)
         sig = np.zeros(F.shape[:2] + (3, 3))
         sig[..., :d, :d] = np.einsum("eqiI,eqIJ,eqjJ->eqij", F, S, F) / J[..., None, None]
         if d == 2:

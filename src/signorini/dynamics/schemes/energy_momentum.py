@@ -65,27 +65,23 @@ class EnergyMomentum(Scheme):
 
     def row_weights(self, ctx) -> np.ndarray:
         """(nc,) the weight of lambda^{n+1} in a row's contact impulse: 1 on rows of nodes with mass,
-        1/2 on those of massless nodes (module docstring)."""
-        cache = ctx.__dict__.setdefault("_energy_momentum_rows", {})
-        key = id(ctx.B)
-        if key not in cache:
-            ml = np.zeros(ctx.M.shape[0])
-            ml[ctx.massless] = 1.0
-            pattern = (ctx.B != 0).astype(float)
-            on_massless, on_all = pattern @ ml, pattern @ np.ones(ml.size)
-            joined = (on_massless > 0) & (on_massless < on_all)
-            if joined.any():
-                from ...errors import InputError
+        1/2 on those of massless nodes (module docstring); a row that joins both is refused.  One product
+        with B's pattern (the rows move with sliding pairs and in the current configuration)."""
+        ml = np.zeros(ctx.M.shape[0])
+        ml[ctx.massless] = 1.0
+        pattern = (ctx.B != 0).astype(float)
+        on_massless, on_all = pattern @ ml, pattern @ np.ones(ml.size)
+        joined = (on_massless > 0) & (on_massless < on_all)
+        if joined.any():
+            from ...errors import InputError
 
-                row = int(np.flatnonzero(joined)[0])
-                raise InputError(
-                    f"scheme {self.name}: contact row {row} joins nodes with and without mass (mass "
-                    f"{ctx.disc.mass_name!r}); its balance needs either; use a mass that removes the inertia on "
-                    "both sides of a pair, or crank-nicolson"
-                )
-            cache.clear()
-            cache[key] = np.where(on_massless > 0, 0.5, 1.0)
-        return cache[key]
+            row = int(np.flatnonzero(joined)[0])
+            raise InputError(
+                f"scheme {self.name}: contact row {row} joins nodes with and without mass (mass "
+                f"{ctx.disc.mass_name!r}); its balance needs either; use a mass that removes the inertia on "
+                "both sides of a pair, or crank-nicolson"
+            )
+        return np.where(on_massless > 0, 0.5, 1.0)
 
     def _massless_mask(self, ctx) -> np.ndarray:
         mask = np.zeros(ctx.M.shape[0], dtype=bool)

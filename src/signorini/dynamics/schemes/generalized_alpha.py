@@ -48,14 +48,13 @@ import numpy as np
 from ...errors import InputError
 from ...registry import Parameter
 from ..context import Operator
-from ..current_rows import contact_bound
-from ..newton import newton_solve
 from .base import (
     EnergyParts,
     State,
     contact_works,
     damping_force,
     damping_split,
+    elastic_work_error,
     load_work,
     products,
     reaction_work,
@@ -117,36 +116,32 @@ class GeneralizedAlpha(Newmark):
         am, af = self.alphas()
         t = ctx.next_time(s.t)
         pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
-        rhs = ctx.M @ ((1 - am) * pred - am * s.A)
         Fd0 = damping_force(ctx, s)
+        lagged = 0.0
         if af:
             lagged = af * (ctx.load(s.t) - products(ctx, s)[1] + ctx.contact_force(s.lam, s.lam_t, s.t))
             if Fd0 is not None:  # the damping force weighs as the elastic one: a_f C V^n lagged
                 lagged -= af * Fd0
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
-            rhs += lagged
-        rhs = rhs / (1 - af) + ctx.load(t)
-        if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
-            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        law = ctx.friction_law(s.U, s.t, t)
         if ctx.elastic.finite:  # (1 - a_f) f(U^{n+1}) + a_f f(U^n): Newton on f(U^{n+1}) (:mod:`~..newton`)
-            el = ctx.elastic
-            bound = contact_bound(ctx, s.U, s.t, t)
-            law = ctx.friction_law(s.U, s.t, t)
             Mq = ctx.M @ ((1 - am) * self.increment_predictor(ctx, s.V, s.A) - am * s.A) / (1 - af)
-            rest = Mq + ctx.load(t) + (lagged / (1 - af) if af else 0.0)
-            if ctx.damping is not None:
-                rest -= ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent, bound,
-                                        fixed, law, Mq)  # fmt: skip
+            U, lam, info = self.newton_step(ctx, s, t, Mq, Mq + ctx.load(t) + lagged / (1 - af), fixed, law)
         else:
+            rhs = ctx.M @ ((1 - am) * pred - am * s.A)
+            if af:
+                rhs += lagged
+            rhs = rhs / (1 - af) + ctx.load(t)
+            if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
+                rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),
                 rhs,
                 ctx.gaps(t),
                 fixed,
-                ctx.friction_law(s.U, s.t, t),
+                law,
                 functools.partial(self.taylor_guess, ctx, s),
             )
         return self.update(ctx, s, t, U, lam, info, pred)
@@ -194,9 +189,7 @@ class GeneralizedAlpha(Newmark):
                 parts.numerical -= (0.5 - af) * (dt * float(vbar @ MdA) + float(dU @ (ctx.S @ dU)))
             parts.numerical -= 2 * self._extra(ctx) * (0.5 - am) * float(dA @ MdA)
         if ctx.elastic.finite:
-            f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
-            dPi = ctx.elastic.energy(new.U, f1) - ctx.elastic.energy(old.U, f0)
-            parts.numerical += dPi - float(dU @ ((1 - af) * f1 + af * f0))
+            parts.numerical += elastic_work_error(ctx, dU, old, new, 1 - af)
         return parts
 
 

@@ -35,7 +35,7 @@ import functools
 
 import numpy as np
 
-from ...contact.solver import SIGNORINI, ContactLaw
+from ...contact.solver import SIGNORINI, ContactLaw, StepInfo
 from ...registry import Parameter
 from ..context import Operator
 from ..current_rows import contact_bound
@@ -47,9 +47,9 @@ from .base import (
     contact_works,
     damping_split,
     damping_velocity,
+    elastic_work_error,
     load_work,
     mechanical_energy,
-    products,
     reaction_work,
 )
 
@@ -111,20 +111,15 @@ class Newmark(Scheme):
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
         p = self.predictor(ctx, s)
-        rhs = ctx.Mop @ p + ctx.load(t)
-        if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
-            rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
-            el = ctx.elastic
             Mq = ctx.Mop @ self.increment_predictor(ctx, s.V, s.A)
-            rest = Mq + ctx.load(t)
-            if ctx.damping is not None:
-                rest -= ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent,
-                                        contact_bound(ctx, s.U, s.t, t), fixed, law, Mq)  # fmt: skip
+            U, lam, info = self.newton_step(ctx, s, t, Mq, Mq + ctx.load(t), fixed, law)
         else:
+            rhs = ctx.Mop @ p + ctx.load(t)
+            if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
+                rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, ctx.dt),
                 rhs,
@@ -134,6 +129,16 @@ class Newmark(Scheme):
                 functools.partial(self.taylor_guess, ctx, s),
             )
         return self.update(ctx, s, t, U, lam, info, p)
+
+    def newton_step(self, ctx, s: State, t: float, Mq: np.ndarray, rest: np.ndarray, fixed: np.ndarray | None,
+                    law: ContactLaw) -> tuple[np.ndarray, np.ndarray, StepInfo]:  # fmt: skip
+        """The finite-strain step (:func:`~..newton.newton_solve`) from the level ``s`` to t: ``rest`` the
+        right-hand side less c_M M U^n (and less Newmark's damping force), ``Mq`` its inertial part."""
+        if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q: its part not in U^n
+            rest = rest - ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
+        el = ctx.elastic
+        return newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent,
+                            contact_bound(ctx, s.U, s.t, t), fixed, law, Mq)  # fmt: skip
 
     def increment_predictor(self, ctx, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """q = p - U^n/(beta dt^2) = V/(beta dt) + (1/(2 beta) - 1) A, without the cancellation of p's U^n
@@ -195,9 +200,7 @@ class Newmark(Scheme):
             damping=damping,
         )
         if ctx.elastic.finite:  # Delta Pi - dU.(f^n + f^{n+1})/2: the trapezoid's error on f (0 when linear)
-            (_, f0), (_, f1) = products(ctx, old), products(ctx, new)
-            dPi = ctx.elastic.energy(new.U, f1) - ctx.elastic.energy(old.U, f0)
-            parts.numerical += dPi - 0.5 * float(dU @ (f0 + f1))
+            parts.numerical += elastic_work_error(ctx, dU, old, new, 0.5)
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)
             MA1 = new.product("MA", lambda: ctx.M @ new.A)

@@ -41,6 +41,7 @@ from .base import (
     contact_works,
     damping_split,
     damping_velocity,
+    elastic_work_error,
     load_work,
     products,
     reaction_work,
@@ -78,11 +79,7 @@ class Theta(Scheme):
     def step(self, ctx, s: State) -> State:
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
-        p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
-        rhs = ctx.Mop @ p + ctx.load(t)
         Vd0 = damping_velocity(s)[0]
-        if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
-            rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
             el = ctx.elastic
@@ -95,6 +92,10 @@ class Theta(Scheme):
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), s.U, rest, el.force, el.tangent, bound, fixed,
                                         law, Mq)  # fmt: skip
         else:
+            p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
+            rhs = ctx.Mop @ p + ctx.load(t)
+            if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
+                rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
             U, lam, info = ctx.solve(
                 self.step_operator(ctx, dt),
                 rhs,
@@ -124,8 +125,7 @@ class Theta(Scheme):
         dR_fixed, dR_free = reaction_work(ctx, old, new, th)
         numerical = dR_free
         if ctx.elastic.finite:  # Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (the trapezoid's error of f)
-            dPi = ctx.elastic.energy(new.U, SU1) - ctx.elastic.energy(old.U, SU0)
-            numerical += dPi - float(dU @ (th * SU1 + (1 - th) * SU0)) - (th - 0.5) * float(dV @ (MV1 - MV0))
+            numerical += elastic_work_error(ctx, dU, old, new, th) - (th - 0.5) * float(dV @ (MV1 - MV0))
         elif th != 0.5:
             numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
         normal, tangential = contact_works(ctx, dU, old, new, th)
