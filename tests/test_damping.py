@@ -13,7 +13,7 @@ import pytest
 import scipy.linalg as sl
 
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.damping import Rayleigh, make_damping
+from signorini.dynamics.damping import UNDAMPED, Rayleigh, RegionalRayleigh, make_damping, regional_damping
 from signorini.dynamics.problem import discretize
 from signorini.dynamics.schemes import SCHEMES, damping_schemes
 from signorini.dynamics.simulate import simulate
@@ -212,3 +212,139 @@ def test_stiffness_damping_never_creates_energy_with_massless_contact_nodes(tmp_
     dd, E = cols["damping_dissipation"], cols["energy"]
     assert dd[-1] > 0.02 * E[0] and np.all(np.diff(dd) >= -1e-12 * dd[-1]), np.diff(dd).min()
     assert E.max() <= E[0] * (1 + 1e-6), E.max() / E[0]
+
+
+# ----------------------------------------------------------------------------- damping per region
+def _two_blocks(gap: float = 0.0, damping=None):
+    """A block 0.2 x 0.1 (E 1e6, rho 1000) above a clamped one 0.5 x 0.1 (E 5e6, rho 2000), ``gap`` [m]
+    apart; the upper one pushed down at 0.5 m/s and stretched along x by 1% (so that it vibrates)."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.dynamics.problem import Problem, RegionInitial
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import join, rectangle
+    from signorini.fem.space import Dirichlet
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(10, 2, 0.5, 0.1)
+    upper.points = upper.points + [0.15, 0.1 + gap]
+    m = join({"upper": upper, "lower": lower})
+    u0 = np.zeros((m.n_nodes, 2))
+    up = m.region_nodes("upper")
+    u0[up, 0] = 0.01 * (m.points[up, 0] - 0.25)
+    return Problem(m, IsotropicElastic.from_young(5e6, 0.3, 2000.0), None, None, dirichlet=[Dirichlet("lower_ymin")],
+                   pairs=[ContactPair("upper_ymin", "lower_ymax")], u0=u0,
+                   materials={"upper": IsotropicElastic.from_young(1e6, 0.45, 1000.0)},
+                   initial_regions=[RegionInitial("upper", velocity=[0.0, -0.5])], damping=damping)  # fmt: skip
+
+
+UPPER_ONLY = RegionalRayleigh(UNDAMPED, (("upper", Rayleigh(alpha=20.0, beta=2e-4)),))
+
+
+def test_damping_per_body_is_each_bodys_rayleigh_matrix():
+    """Where the regions are bodies, C = sum_b (alpha_b M_b + beta_b S_b) exactly (M_b the mass in use on
+    body b's dofs, S_b the stiffness of its cells); one coefficient pair on every region is Rayleigh."""
+    from signorini.fem.assembly import stiffness_matrix
+    from signorini.fem.material import CellMaterial
+
+    both = RegionalRayleigh(Rayleigh(alpha=3.0, beta=1e-5), (("upper", Rayleigh(alpha=20.0, beta=2e-4)),))
+    p = _two_blocks(0.05, both)
+    disc = discretize(p, "moment-preserving")
+    C = both.matrix(p.mesh, disc.material, disc.M, disc.S)
+    up = np.zeros(p.mesh.n_nodes, dtype=bool)
+    up[p.mesh.region_nodes("upper")] = True
+    on = np.repeat(up, 2).astype(float)
+    Mu = disc.M.multiply(np.outer(on, on))
+    mat = disc.material
+    cell_up = np.zeros(p.mesh.n_cells, dtype=bool)
+    cell_up[p.mesh.regions["upper"]] = True
+    Su = stiffness_matrix(p.mesh, CellMaterial(mat.lam * cell_up, mat.mu * cell_up, mat.rho))
+    expected = 20.0 * Mu + 3.0 * (disc.M - Mu) + 2e-4 * Su + 1e-5 * (disc.S - Su)
+    assert abs(C - expected).max() <= 1e-13 * abs(expected).max()
+    same = regional_damping(Rayleigh(alpha=3.0), {"upper": Rayleigh(alpha=3.0)})
+    assert same == Rayleigh(alpha=3.0)
+
+
+def test_a_damped_body_beside_an_undamped_one_moves_as_if_alone():
+    """Two blocks 5 cm apart (they do not meet), only the upper damped: its motion is that of the upper block
+    alone with the same Rayleigh damping over the whole mesh (to round-off of the two orderings)."""
+    from signorini.dynamics.problem import Problem
+    from signorini.dynamics.stepper import Stepper
+    from signorini.fem.mesh import rectangle
+
+    def final(problem, **options):
+        s = Stepper(problem, "cn", dt, T, mass="standard", **options)
+        while s.status == "running":
+            s.step()
+        return s.state.U, s.finish()
+
+    p = _two_blocks(0.05, UPPER_ONLY)
+    dt, T = 2e-4, 0.02
+    U, H = final(p, solver_options={"energy_check": "fail"})
+    block = rectangle(4, 2, 0.2, 0.1)
+    block.points = block.points + [0.15, 0.15]
+    nodes = p.mesh.region_nodes("upper")
+    order = [int(np.argmin(np.abs(p.mesh.points[nodes] - x).sum(axis=1))) for x in block.points]
+    nodes = nodes[order]
+    assert np.abs(p.mesh.points[nodes] - block.points).max() < 1e-14
+    alone = Problem(block, p.materials["upper"], "ymin", PlaneObstacle([0.0, -10.0], [0.0, 1.0]), u0=p.u0[nodes],
+                    v0=np.array([0.0, -0.5]), damping=Rayleigh(alpha=20.0, beta=2e-4))  # fmt: skip
+    UA, A = final(alone)
+    dofs = np.stack([2 * nodes, 2 * nodes + 1], axis=1).ravel()
+    assert np.abs(U[dofs] - UA).max() <= 1e-9 * np.abs(UA).max()
+    dd = H.columns()["damping_dissipation"]
+    assert np.isclose(dd[-1], A.columns()["damping_dissipation"][-1], rtol=1e-9, atol=0.0)
+    assert dd[-1] > 0.05 * H.columns()["energy"][0]
+
+
+@pytest.mark.parametrize("scheme", damping_schemes())
+def test_damping_per_region_closes_the_energy_identity_through_impacts(scheme):
+    """The upper block damped, the lower not, falling onto it (a pair, the default mass): the identity closes
+    to round-off at every level with the damping term, the damping dissipates."""
+    p = _two_blocks(0.002, UPPER_ONLY)
+    try:
+        H = simulate(p, scheme, 1e-4, 0.02, solver_options={"energy_check": "fail"})
+    except InputError as exc:  # a scheme that refuses this case refuses it undamped too
+        with pytest.raises(InputError):
+            simulate(_two_blocks(0.002), scheme, 1e-4, 0.02)
+        assert "damping" not in str(exc)
+        return
+    assert H.lam.min() < 0
+    assert _identity_residual(H) < 1e-11
+    dd = H.columns()["damping_dissipation"]
+    assert dd[-1] > 0 and np.all(np.diff(dd) >= -1e-12 * dd[-1]), np.diff(dd).min()
+
+
+def test_damping_per_region_resumes_bit_for_bit_and_is_refused_where_not_done(tmp_path):
+    p = _two_blocks(0.002, UPPER_ONLY)
+    dt, T = 1e-4, 0.01
+    full = simulate(p, "cn", dt, T)
+    simulate(p, "cn", dt, T / 2, checkpoint=tmp_path / "c.h5")
+    r = simulate(p, "cn", dt, T, resume=tmp_path / "c.h5")
+    for k in ("energy", "damping_dissipation", "lambda_sum"):
+        assert np.array_equal(full.columns()[k], r.columns()[k]), k
+    with pytest.raises(InputError, match="the damping"):
+        simulate(_two_blocks(0.002, Rayleigh(alpha=20.0, beta=2e-4)), "cn", dt, T, resume=tmp_path / "c.h5")
+    with pytest.raises(InputError, match="damping per region .* with backend 'cg' is not done"):
+        simulate(p, "cn", dt, T, solver_options={"backend": "cg"})
+
+
+def test_damping_per_region_in_a_case_file(tmp_path, capsys):
+    """``regions = [{ tag, ..., damping }]``: the summary lists each region's, the one-screen summary says
+    so; an entry without damping takes the section's; two regions sharing cells with different damping are
+    refused (exit 2, nothing written)."""
+    text = (Path(__file__).parents[1] / "examples" / "block_on_block.toml").read_text()
+    text = text.replace('"meshes/', f'"{Path(__file__).parents[1] / "examples" / "meshes"}/')
+    text = text.replace("T = 0.12", "T = 0.01")
+    own = text.replace("rho = 1000.0 }", "rho = 1000.0, damping = { alpha = 20.0 } }")
+    case = tmp_path / "c.toml"
+    case.write_text(own.replace("[material]   # the default: the lower block", "[material]\ndamping = { beta = 1e-5 }"))
+    assert main(["run", str(case), "--out", str(tmp_path / "o")]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["damping"] == {"model": "rayleigh", "alpha": 0.0, "beta": 1e-5,
+                            "regions": [{"tag": "upper", "alpha": 20.0, "beta": 0.0}]}  # fmt: skip
+    assert "damping rayleigh alpha 0, beta 1e-05 (elsewhere); upper alpha 20, beta 0" in capsys.readouterr().out
+    shared = own.replace("{ tag = \"upper\",", "{ tag = \"upper\", damping = { alpha = 1.0 }, E = 1.0e6, nu = 0.45, "
+                         "rho = 1000.0 },\n    { tag = \"upper\",")  # fmt: skip
+    case.write_text(shared)
+    assert main(["run", str(case), "--out", str(tmp_path / "p"), "--quiet"]) == 2
+    assert "material.regions" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()

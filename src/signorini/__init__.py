@@ -22,6 +22,7 @@ _PUBLIC = {
     "Problem": "dynamics.problem",
     "RegionInitial": "dynamics.problem",
     "Rayleigh": "dynamics.damping",
+    "RegionalRayleigh": "dynamics.damping",
     "simulate": "dynamics.simulate",
     "Stepper": "dynamics.stepper",
     "History": "dynamics.history",

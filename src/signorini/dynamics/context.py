@@ -27,7 +27,7 @@ import scipy.sparse as sp
 
 from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, make_contact_solver
 from ..errors import InputError, NonFiniteError
-from ..linalg.base import CG_FRIENDLY_RATIO
+from ..linalg.base import CG_FRIENDLY_RATIO, backend_traits
 from ..linalg.row_block import RowBlock, node_row_bounds, row_bounds
 from ..linalg.sparse import linear_combination, principal_combination, principal_rows
 from ..linalg.spmv import sparse_product
@@ -56,35 +56,75 @@ class Tangent:
         return f"Tangent(id={id(self):#x})"
 
 
+class Viscous:
+    """``c C``, a damping matrix C (n, n) that is not a combination of M and S (Rayleigh damping per
+    region, :class:`~signorini.dynamics.damping.RegionalRayleigh`) times a step's coefficient c
+    [1/time]: an operator holds it as its third term.  Two are the same when their coefficients are
+    equal and their matrices the same object."""
+
+    __slots__ = ("coefficient", "matrix")
+
+    def __init__(self, coefficient: float, matrix: sp.spmatrix):
+        self.coefficient = float(coefficient)
+        self.matrix = matrix
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Viscous) and other.coefficient == self.coefficient and other.matrix is self.matrix
+
+    def __hash__(self) -> int:
+        return hash((self.coefficient, id(self.matrix)))
+
+    def __repr__(self) -> str:
+        return f"Viscous({self.coefficient:g} C)"
+
+
 @dataclass(frozen=True)
 class Operator:
     """The linear operator K = mass * M + stiffness * S of a scheme for a given dt; with a ``tangent``
-    (finite strain), mass * M + stiffness * K(U) of that iterate."""
+    (finite strain), mass * M + stiffness * K(U) of that iterate; with ``viscous`` (damping per region),
+    plus c C."""
 
     mass: float
     stiffness: float
     tangent: Tangent | None = None
+    viscous: Viscous | None = None
 
     def matrix(self, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
-        return linear_combination(self.mass, M, self.stiffness, self.stiffness_matrix(S))
+        return linear_combination(self.mass, M, *self.stiffness_part(S))
 
     def stiffness_matrix(self, S: Any) -> Any:
         """The stiffness this operator combines: the tangent's, or ``S``."""
         return S if self.tangent is None else self.tangent.matrix
 
+    def stiffness_part(self, S: Any) -> tuple[float, Any]:
+        """(b, B) with K = mass M + b B: (stiffness, S or the tangent), or with ``viscous``
+        (1, stiffness S + c C)."""
+        if self.viscous is None:
+            return self.stiffness, self.stiffness_matrix(S)
+        return 1.0, linear_combination(self.stiffness, self.stiffness_matrix(S), self.viscous.coefficient,
+                                       self.viscous.matrix)  # fmt: skip
+
+    def coefficients(self) -> list[float]:
+        """[mass, stiffness] and, with ``viscous``, its coefficient (what a checkpoint records)."""
+        return [self.mass, self.stiffness] + ([] if self.viscous is None else [self.viscous.coefficient])
+
     def ratio_to(self, other: Operator) -> float | None:
         """s with self = s * other, or None when they are not proportional."""
         if self.tangent is not other.tangent:
             return None
-        for a, b in ((self.stiffness, other.stiffness), (self.mass, other.mass)):
+        if (self.viscous is None) != (other.viscous is None) or (
+            self.viscous is not None and self.viscous.matrix is not other.viscous.matrix
+        ):
+            return None
+        mine, theirs = self.coefficients(), other.coefficients()
+        pairs = ((self.stiffness, other.stiffness), (self.mass, other.mass), *zip(mine[2:], theirs[2:], strict=True))
+        for a, b in pairs:
             if b != 0.0:
                 s = a / b
                 break
         else:  # pragma: no cover - a zero operator is rejected earlier
             return None
-        ok = np.isclose(self.mass, s * other.mass, rtol=1e-13, atol=0.0) and np.isclose(
-            self.stiffness, s * other.stiffness, rtol=1e-13, atol=0.0
-        )
+        ok = all(np.isclose(a, s * b, rtol=1e-13, atol=0.0) for a, b in zip(mine, theirs, strict=True))
         return float(s) if ok and s > 0 else None
 
 
@@ -138,7 +178,7 @@ class _System:
             local = (Kff.local, KfD.local)
             self.KfD = KfD if D.size else None
         elif D.size:
-            Kff, self.KfD = principal_combination(op.mass, ctx.M, op.stiffness, op.stiffness_matrix(ctx.S), f, D)
+            Kff, self.KfD = principal_combination(op.mass, ctx.M, *op.stiffness_part(ctx.S), f, D)
             local = (Kff, self.KfD)
         else:
             Kff, self.KfD = op.matrix(ctx.M, ctx.S), None
@@ -258,6 +298,19 @@ class Context:
             self.iterative_ok = False
         #: Rayleigh damping C = alpha M + beta S (None: undamped), :mod:`~signorini.dynamics.damping`
         self.damping = disc.problem.damping
+        #: C per region (:class:`~signorini.dynamics.damping.RegionalRayleigh`): a third term of the step
+        #: operators, factorized by the serial direct backends only; None otherwise
+        self.damping_matrix = None
+        if self.damping is not None and hasattr(self.damping, "regions"):
+            backend = self.solver_options.get("backend", "auto")
+            if self.distributed or not backend_traits(backend).finite_strain:
+                raise InputError(
+                    f"damping per region ([material] regions[k].damping) with backend {backend!r} is not done: its "
+                    "step operator holds C as a third matrix beside M and S, which the serial direct backends "
+                    "factorize; use superlu, cholmod, pardiso or auto (or one damping for the whole mesh)"
+                )
+            self.damping_matrix = self.damping.matrix(disc.problem.mesh, disc.material, disc.M, disc.S)
+            self.iterative_ok = False
         #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
         #: tilted or curved contact): schemes that balance massless rows apart refuse it
         n = disc.contact.normals

@@ -236,15 +236,21 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
 
 
 def check_finite_strain_solvers(ctx: Context) -> None:
-    """After the set-up's factorizations: refuse a finite-strain run whose backend, chosen by ``auto``, has no
-    factor (cg when no factor fits ``memory_budget``): its Newton step factorizes every tangent."""
-    if not ctx.elastic.finite:
+    """After the set-up's factorizations: refuse a finite-strain run (or one damped per region) whose backend,
+    chosen by ``auto``, has no factor (cg when no factor fits ``memory_budget``): its Newton step factorizes
+    every tangent (its step operators hold the damping matrix as a third term)."""
+    what = None
+    if ctx.elastic.finite:
+        what = "finite strain ([material] model)"
+    elif ctx.damping_matrix is not None:
+        what = "damping per region ([material] regions[k].damping)"
+    if what is None:
         return
     from ..errors import InputError
 
     if any(getattr(s, "condensation", "") == "none" for s in ctx.solvers):
         raise InputError(
-            "finite strain ([material] model) needs a factorization of every Newton tangent, and backend 'auto' "
+            f"{what} needs a factorization of every step operator, and backend 'auto' "
             f"picked cg (no factor fits memory_budget = {ctx.solver_options.get('memory_budget'):g} bytes): "
             "raise memory_budget, or give backend superlu, cholmod or pardiso"
         )

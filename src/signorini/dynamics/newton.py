@@ -64,7 +64,7 @@ def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray
     far).  The scale is the largest of the step's forces: the inertia c_M M (U - U_base) - M q (``inertia``:
     the inertial part M q of ``rest``; 0 when None), the internal force, the loads and the contact force;
     ``floor`` the round-off of r's largest terms (:data:`ROUNDOFF` of them)."""
-    MdU = op.mass * (ctx.M @ (U - base))
+    MdU = _mass_part(ctx, op, U - base)
     contact = ctx.contact_force(lam, lam_t)
     r = MdU + op.stiffness * gU - rest - contact
     f = ctx.free
@@ -73,6 +73,14 @@ def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray
     scale = max(max(float(np.max(np.abs(np.broadcast_to(a, U.shape)[f]), initial=0.0)) for a in terms), 1e-300)
     floor = ROUNDOFF * max(float(np.max(np.abs(MdU[f]), initial=0.0)), float(np.max(np.abs(rest[f]), initial=0.0)))
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
+
+
+def _mass_part(ctx: Context, op: Operator, dU: np.ndarray) -> np.ndarray:
+    """c_M M dU, plus c C dU when the operator holds a damping matrix (damping per region) [force]."""
+    out = op.mass * (ctx.M @ dU)
+    if op.viscous is not None:
+        out = out + op.viscous.coefficient * (op.viscous.matrix @ dU)
+    return out
 
 
 def _shifted(law: ContactLaw, ctx: Context, U: np.ndarray) -> ContactLaw:
@@ -123,10 +131,10 @@ def newton_solve(
             if refactor:
                 if current is not None:
                     ctx.factors.release(current)
-                current = Operator(op.mass, op.stiffness, Tangent(tangent(U)))
+                current = Operator(op.mass, op.stiffness, Tangent(tangent(U)), op.viscous)
                 elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
-            minus_r = rest - op.mass * (ctx.M @ (U - base)) - op.stiffness * gU
+            minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
             try:
                 d, lam_new, info = ctx.solve(current, minus_r, bnd - ctx.B @ U, None if fixed is None else fixed - U[D],
                                              _shifted(law, ctx, U))  # fmt: skip

@@ -30,7 +30,7 @@ from ..fem.material import IsotropicElastic, Material, cell_material
 from ..fem.mesh import Mesh
 from ..fem.node_order import in_order
 from ..fem.space import Constraints, Dirichlet, Value, VectorSpace
-from .damping import Rayleigh, make_damping
+from .damping import Rayleigh, RegionalRayleigh, make_damping
 from .mass import DEFAULT_MASS, MASS_VARIANTS, Redistribution, redistribute
 from .mass_effect import mass_effect
 from .owned_rows import mass_rows, stiffness_rows
@@ -112,7 +112,8 @@ class Problem:
         the load M_used g (``follow_mass``) or int rho g phi (``follow_mass=False``), each cell
         with its own density [``[loads] gravity``].
     damping : Rayleigh damping C = alpha M + beta S, a :class:`~signorini.dynamics.damping.Rayleigh`
-        or ``{"alpha": ..., "beta": ...}`` (None, or both zero: undamped) [``[material] damping``].
+        or ``{"alpha": ..., "beta": ...}`` (None, or both zero: undamped) [``[material] damping``]; per
+        region, a :class:`~signorini.dynamics.damping.RegionalRayleigh` [``[material] regions[k].damping``].
     """
 
     mesh: Mesh
@@ -133,7 +134,7 @@ class Problem:
     materials: dict[str, IsotropicElastic] = field(default_factory=dict)
     initial_regions: Sequence[RegionInitial] = ()
     gravity: Value | Callable | None = None
-    damping: Rayleigh | dict | None = None
+    damping: Rayleigh | RegionalRayleigh | dict | None = None
 
     def __post_init__(self) -> None:
         from .validate import check_problem

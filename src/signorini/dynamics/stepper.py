@@ -483,7 +483,7 @@ class Stepper:
         """``solvers/k/...`` arrays of :meth:`_warm_starts`."""
         out: dict[str, np.ndarray] = {}
         for k, (sys, arrays, blocks, dt) in enumerate(warm):
-            out[f"solvers/{k}/operator"] = np.array([sys.op.mass, sys.op.stiffness])
+            out[f"solvers/{k}/operator"] = np.array(sys.op.coefficients())
             out[f"solvers/{k}/dt"] = np.array(dt)
             out.update({f"solvers/{k}/{name}": a for name, a in arrays.items()})
             log = sys.solver.delassus.history(blocks) if blocks is not None else None
@@ -610,19 +610,25 @@ class Stepper:
         n, t = int(attrs["level"]), float(attrs["t"])
         state_arrays = ckpt.unflatten("state", saved)
         self.state = ckpt.restore_state(run, state_arrays, attrs.get("state_flags", {}), t)
-        from .context import Operator
+        from .context import Operator, Viscous
 
         current, restored = run.ctx.dt, {}
         for k in range(int(attrs.get("n_solvers", 0)) if run.ctx.comm.size == 1 else 0):
             op = saved["arrays"].get(f"solvers/{k}/operator")
-            if op is None or op.shape != (2,) or not np.all(np.isfinite(op)):
+            if op is None or op.shape not in ((2,), (3,)) or not np.all(np.isfinite(op)):
                 raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
             step = saved["arrays"].get(f"solvers/{k}/dt")
             if self.control is not None and step is not None:  # a step an adaptive control kept: its own systems
                 if step.shape != () or not np.isfinite(step) or not step > 0:
                     raise InputError(f"checkpoint {where!r}: solver {k} has no valid step")
                 run.ctx.use_step(float(step), run.ctx.t0, [], self._ladder_bytes)
-            sys, _ = run.ctx.factors.system(Operator(float(op[0]), float(op[1])))  # made now if the loop made it
+            viscous = None
+            if op.shape == (3,):  # damping per region: c C, the third term
+                if run.ctx.damping_matrix is None:
+                    raise InputError(f"checkpoint {where!r}: solver {k} holds a damping matrix this run does not have")
+                viscous = Viscous(float(op[2]), run.ctx.damping_matrix)
+            # made now if the loop made it
+            sys, _ = run.ctx.factors.system(Operator(float(op[0]), float(op[1]), None, viscous))
             for name in getattr(sys.solver, "warm_state", ()):
                 a = saved["arrays"].get(f"solvers/{k}/{name}")
                 old = np.asarray(getattr(sys.solver, name))

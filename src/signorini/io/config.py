@@ -77,7 +77,7 @@ from typing import Any
 
 from ..contact.friction import make_friction
 from ..contact.obstacles import OBSTACLES, ROTATION_KEYS, RigidObstacle, Rotation, read_surface
-from ..dynamics.damping import Rayleigh, make_damping
+from ..dynamics.damping import Rayleigh, RegionalRayleigh, make_damping, regional_damping
 from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.problem import Problem
 from ..dynamics.schemes import SCHEMES
@@ -311,20 +311,20 @@ def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
     return out
 
 
-def _damping(t: dict) -> Rayleigh | None:
-    """``[material] damping = { alpha = ..., beta = ... }``: Rayleigh damping of the whole mesh.
-
-    A ``regions`` entry may repeat it but not change it: C = alpha M + beta S is folded into the
-    step operator as a combination of M and S, which needs one (alpha, beta) for the whole mesh
-    (docs/schemes.md, "Damping")."""
+def _damping(t: dict, mesh: Mesh) -> Rayleigh | RegionalRayleigh | None:
+    """``[material] damping = { alpha = ..., beta = ... }``: Rayleigh damping of the mesh; a ``regions`` entry
+    with its own ``damping`` gives its cells theirs (an entry without one takes the section's), a
+    :class:`~signorini.dynamics.damping.RegionalRayleigh` (docs/schemes.md, "Damping")."""
     damping = make_damping(t.get("damping"), "material.damping")
+    own: dict[str, Rayleigh | None] = {}
     for k, entry in enumerate(t.get("regions", [])):
         if isinstance(entry, dict) and "damping" in entry:
-            key = f"material.regions[{k}].damping"
-            if make_damping(entry["damping"], key) != damping:
-                raise InputError(f"'{key}': damping per region is not supported; one [material] damping = "
-                                 "{ alpha = ..., beta = ... } applies to the whole mesh (docs/schemes.md)")  # fmt: skip
-    return damping
+            key = f"material.regions[{k}]"
+            own[_region_tag(mesh, f"{key}", entry)] = make_damping(entry["damping"], f"{key}.damping")
+    out = regional_damping(damping, own)
+    if isinstance(out, RegionalRayleigh):
+        out.cell_coefficients(mesh)  # regions sharing cells with different damping: refused now
+    return out
 
 
 def _initial_regions(init: dict, mesh: Mesh) -> list:
@@ -606,7 +606,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     dim = mesh.dim
     material = _material(data["material"])
     materials = _material_regions(data["material"], mesh)
-    damping = _damping(data["material"])
+    damping = _damping(data["material"], mesh)
     dirichlet = _dirichlet(data.get("dirichlet", []), mesh)
     tractions = _tractions(data.get("traction", []), mesh)
     c = data["contact"]

@@ -91,11 +91,15 @@ SECTIONS: tuple[Section, ...] = (
             Key("damping", "inline table", "none", "alpha: 1/time, beta: time",
                 "Rayleigh damping C = alpha M + beta S, { alpha = ..., beta = ... } (each >= 0, 0 by default; M the "
                 "mass in use): a mode of angular frequency w decays with the ratio alpha/(2w) + beta w/2; its work "
-                "is the damping_dissipation column.  One value for the whole mesh (a regions entry may repeat it)",
+                "is the damping_dissipation column.  A regions entry may give its cells their own (a regions entry "
+                "without one takes this one): then C = D_a^(1/2) M D_a^(1/2) + sum of each cell's beta S_cell, "
+                "alpha per node the mass-weighted mean of its cells' (bodies: each its own alpha M + beta S; serial "
+                "direct backends only; docs/schemes.md)",
                 _same("{ alpha = 0.0, beta = 0.0 }")),
             Key("regions", "array of inline tables", "none", "",
                 "materials per region of cells: [{ tag = \"plate\", E = ..., nu = ..., rho = ... }, ...] (or lam, "
-                "mu; rho required); the section's own keys are the default for cells in no listed region.  Regions "
+                "mu; rho required; model and damping optional); the section's own keys are the default for cells in "
+                "no listed region.  Regions "
                 "are a mesh file's named physical groups of cells (volumes in 3D, surfaces in 2D)"),
         ),
         required=True,

@@ -221,7 +221,7 @@ class Scheme:
         op = self.operator(dt)
         if op is None or ctx.damping is None:
             return op
-        return ctx.damping.fold(op, self.damping_coefficient(dt))
+        return ctx.damping.fold(op, self.damping_coefficient(dt), ctx)
 
     def start(self, ctx: Context, first: State, second: State) -> State:
         """Turn the starter's state at t_1 into this scheme's state (two-step schemes)."""
