@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401 - sp.linalg
 from scipy.spatial.transform import Rotation
 
 from signorini.errors import InputError, NonFiniteError
@@ -232,3 +234,100 @@ def test_neo_hookeans_energy_difference_is_the_difference_of_its_energies():
         law = NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu)
         direct = law.energy_C(C1) - law.energy_C(C0)
         assert np.abs(law.energy_difference_C(C0, C1) - direct).max() <= 1e-12 * np.abs(direct).max()
+
+
+# ----------------------------------------------------------------------------- static truth
+def _stretch_problem(mesh, stretch: float):
+    """Uniaxial stretch of the unit block: u_x = 0 on xmin, u_x = (stretch - 1) on xmax, u_y = 0 on ymin (and
+    u_z = 0 on zmin), the lateral faces free: the solution is homogeneous, F = diag(stretch, s, s)."""
+    d = mesh.dim
+    fixed, values = [], []
+    for tag, comp, value in (("xmin", 0, 0.0), ("xmax", 0, stretch - 1.0), ("ymin", 1, 0.0), ("zmin", 2, 0.0)):
+        if comp < d:
+            nodes = mesh.nodes_of(tag)
+            fixed.append(d * nodes + comp)
+            values.append(np.full(nodes.size, value))
+    fixed, values = np.concatenate(fixed), np.concatenate(values)
+    return fixed, values
+
+
+def _static_newton(mesh, law, fixed, values, stretch, iterations: int = 30, tangent=None):
+    """Newton on f(U) = 0 at the free dofs with U = values on ``fixed``, from u_x = (stretch - 1) x, u_y = 0:
+    the residuals |f_free|_inf of every iterate (data), and U."""
+    d, n = mesh.dim, mesh.n_nodes * mesh.dim
+    tangent = tangent or (lambda U: tangent_stiffness(mesh, law, U))
+    U = np.zeros(n)
+    U[0::d] = mesh.points[:, 0] * (stretch - 1.0)
+    U[fixed] = values
+    free = np.setdiff1d(np.arange(n), fixed)
+    residuals = []
+    for _ in range(iterations):
+        r = internal_force(mesh, law, U)[free]
+        residuals.append(float(np.abs(r).max()))
+        if residuals[-1] < 1e-13:
+            break
+        K = tangent(U)[free][:, free]
+        U[free] -= sp.linalg.spsolve(K.tocsc(), r)
+    return np.array(residuals), U
+
+
+def _closed_form_force(law_name: str, lam: float, mu: float, stretch: float, d: int) -> tuple[float, float]:
+    """(P_11, lateral stretch) of a uniaxial stretch with free lateral faces (3D) or plane strain (2D, F_33 = 1).
+
+    Saint Venant-Kirchhoff: S = lam tr(E) I + 2 mu E, S_22 = 0 gives E_22 = -lam E_11 / (m lam + 2 mu) (m = 2 in
+    3D, 1 in 2D); Neo-Hookean: S = mu (I - C^-1) + lam ln(J) C^-1, S_22 = 0 is solved for the lateral stretch
+    (one scalar root, brentq to 1e-15).  P_11 = stretch S_11."""
+    from scipy.optimize import brentq
+
+    m = d - 1  # the number of free lateral directions
+    if law_name == "saint-venant-kirchhoff":
+        E11 = (stretch**2 - 1) / 2
+        E22 = -lam * E11 / (m * lam + 2 * mu)
+        S11 = lam * (E11 + m * E22) + 2 * mu * E11
+        return stretch * S11, np.sqrt(1 + 2 * E22)
+
+    def S(s: float, i: int) -> float:
+        c = (stretch**2, s * s)[i]
+        return mu * (1 - 1 / c) + lam * np.log(stretch * s**m) / c
+
+    s = brentq(lambda s: S(s, 1), 0.2, 2.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    return stretch * S(s, 0), s
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("stretch", [1.5, 0.7])
+def test_uniaxial_stretch_end_force_is_the_closed_form(law, dim, stretch):
+    """The end force of a block stretched by 50% or compressed by 30% equals the closed form to 1e-8 (the
+    homogeneous state is in the element space: no discretization error), as does the lateral stretch; and
+    Newton with the assembled tangent converges quadratically: e_{k+1} / e_k^2 stays bounded (within 10 times
+    its smallest over the iterates above 1e-9, where a linear rate makes it grow by 1/e_k) and the last order
+    estimate log(e_{k+1}/e_k) / log(e_k/e_{k-1}) is at least 1.6 (the residuals are data of the test)."""
+    mesh = rectangle(3, 2, 1.0, 1.0) if dim == 2 else box(2, 2, 2, 1.0, 1.0, 1.0)
+    lw = law(MATERIAL.lam, MATERIAL.mu)
+    fixed, values = _stretch_problem(mesh, stretch)
+    res, U = _static_newton(mesh, lw, fixed, values, stretch)
+    assert res[-1] < 1e-13, res
+    f = internal_force(mesh, lw, U).reshape(-1, dim)
+    end = f[mesh.nodes_of("xmax"), 0].sum()  # the reaction on the stretched face: force over area 1
+    P11, lateral = _closed_form_force(lw.name, MATERIAL.lam, MATERIAL.mu, stretch, dim)
+    assert abs(end - P11) <= 1e-8 * abs(P11), (end, P11)
+    corner = int(np.argmin(np.abs(mesh.points - 1.0).sum(axis=1)))
+    assert abs(1.0 + U.reshape(-1, dim)[corner, 1] - lateral) <= 1e-10
+    big = res[res > 1e-9]
+    q = big[1:] / big[:-1] ** 2
+    orders = np.log(big[2:] / big[1:-1]) / np.log(big[1:-1] / big[:-2])
+    assert big.size >= 4 and q.max() <= 10 * q.min() and orders[-1] >= 1.6, (res, q, orders)
+
+
+def test_a_wrong_tangent_does_not_converge_quadratically():
+    """The same Newton with the reference stiffness S in place of K(U) (the error a wrong tangent makes):
+    linear convergence, orders about 1: the order test above can fail."""
+    mesh, lw = rectangle(3, 2, 1.0, 1.0), NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu)
+    fixed, values = _stretch_problem(mesh, 1.5)
+    S = stiffness_matrix(mesh, MATERIAL)
+    res, _ = _static_newton(mesh, lw, fixed, values, 1.5, iterations=12, tangent=lambda U: S)
+    big = res[res > 1e-9]
+    q = big[1:] / big[:-1] ** 2
+    orders = np.log(big[2:] / big[1:-1]) / np.log(big[1:-1] / big[:-2])
+    assert np.all(np.abs(orders[1:] - 1.0) < 0.1) and q.max() > 1e4 * q.min(), (orders, q)

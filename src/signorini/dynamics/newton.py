@@ -51,6 +51,9 @@ ROUNDOFF = 1e3 * np.finfo(float).eps
 LINE_SEARCH_HALVINGS = 5
 #: tangent=modified keeps its factor while the residual falls by at least this factor per iteration
 MODIFIED_CONTRACTION = 0.1
+#: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
+#: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
+KEPT_CONTRACTION = 0.5
 
 
 def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
@@ -124,10 +127,11 @@ def newton_solve(
     current: Operator | None = None
     elastic = ctx.elastic
     norm = scale = allowed = np.nan
+    full = True
     D = ctx.fixed
     try:
         for k in range(1, most + 1):
-            refactor = current is None or not modified or norm > MODIFIED_CONTRACTION * previous
+            refactor = current is None or not modified or not full or norm > MODIFIED_CONTRACTION * previous
             if refactor:
                 if current is not None:
                     ctx.factors.release(current)
@@ -147,6 +151,9 @@ def newton_solve(
             g_new = force(U_new)
             n_new, scale, floor = residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia)
             allowed = tol * scale + floor
+            if lam is not None and not refactor and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
+                full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
+                continue
             if lam is not None and not n_new < norm and n_new > allowed:  # no decrease: halve the step
                 for _ in range(LINE_SEARCH_HALVINGS):
                     U_try = U + 0.5 * (U_new - U)
