@@ -23,6 +23,14 @@ first argument (a JSON text or the path of a JSON file) or on stdin (no argument
                 ``incline2d``/``incline3d`` block), ``params`` rho, lam, mu
     pair        or two (or more) deformable bodies in contact (below): ``mesh`` a Gmsh 2.2
                 file of all the bodies, ``pair`` ``{"slave": tag, "master": tag}``
+    static      or a static finite-strain case (no time, no contact): ``{"counts": [...], "sizes":
+                [...], "law": "saint-venant-kirchhoff" | "neo-hookean", "lam", "mu", "traction":
+                [...], "increments": k}``: the grid of ``rectangle``/``box`` (Q1, 2 Gauss points per
+                direction) clamped on the face x_d = max, a dead traction on the face x_d = 0 applied
+                in k equal increments, GetFEM's finite strain elasticity brick ("SaintVenant
+                Kirchhoff", "Compressible Neo Hookean Bonet": W = mu/2 (I1 - 3) - mu ln J + lam/2
+                (ln J)^2, signorini's) solved by Newton to max_res; one row per increment with the
+                displacement ``u`` node-major
     mass        ``standard`` (consistent) or ``seed`` (the seed paper's M_mod, GetFEM's
                 ``singular_mass=1``: the mass brick only on the elements that touch no
                 contact node, so the contact nodes are massless in every component; with
@@ -300,9 +308,42 @@ def newton(md: gf.Model, unknowns: list[str], solver: dict) -> tuple[int, bool, 
     return total, False, ladder[-1]
 
 
+GETFEM_LAWS = {"saint-venant-kirchhoff": "SaintVenant Kirchhoff", "neo-hookean": "Compressible Neo Hookean Bonet"}
+
+
+def run_static_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
+    """A static finite-strain case (module docstring, ``static``): (header, one row per load increment)."""
+    c = case["static"]
+    m, pts = grid_mesh(list(c["counts"]), list(c["sizes"]))
+    dim = m.dim()
+    mf = gf.MeshFem(m, dim)
+    mf.set_fem(gf.Fem(f"FEM_QK({dim},1)"))
+    mim = gf.MeshIm(m, gf.Integ(f"IM_GAUSS_PARALLELEPIPED({dim},3)"))
+    node, comp = dof_nodes(mf, pts, dim)
+    md = gf.Model("real")
+    md.add_fem_variable("u", mf)
+    md.add_initialized_data("params", [float(c["lam"]), float(c["mu"])])
+    md.add_finite_strain_elasticity_brick(mim, GETFEM_LAWS[c["law"]], "u", "params")
+    md.add_Dirichlet_condition_with_simplification("u", CLAMP)
+    md.add_initialized_data("traction", np.zeros(dim))
+    md.add_source_term_brick(mim, "u", "traction", CONTACT)
+    traction, k = np.asarray(c["traction"], dtype=float), int(c["increments"])
+    rows = []
+    for step in range(1, k + 1):
+        md.set_variable("traction", traction * step / k)
+        its, conv, reached = newton(md, ["u"], solver)
+        U = np.zeros((len(pts), dim))
+        U[node, comp] = np.asarray(md.variable("u"))
+        rows.append({"increment": step, "iterations": its, "converged": conv, "max_res": reached,
+                     "u": U.ravel().tolist()})  # fmt: skip
+    return {"getfem": getfem_version(), "points": pts.tolist()}, rows
+
+
 def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     """GetFEM's run of one case: (header, one row per time level)."""
     solver = {**solver, **case.get("solver", {})}
+    if "static" in case:
+        return run_static_case(case, solver)
     if "pair" in case:
         return run_pair_case(case, solver)
     if "benchmark" in case:
