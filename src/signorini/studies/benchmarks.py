@@ -41,6 +41,11 @@ the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/
                 g (sin a - mu cos a) (0 when tan a <= mu) is printed beside the computed
                 one (:mod:`signorini.studies.incline`).
 
+``spin2d``      a free disc (plane strain, Q1) or ball (hexahedra) of radius ``R`` spinning at a tip
+``spin3d``      speed ``tip`` times the wave speed for ``revolutions`` turns, Neo-Hookean (``model`` 2;
+                1 Saint Venant-Kirchhoff, 0 linear): energy-momentum keeps its energy and angular
+                momentum, a linear body builds a spurious strain energy (:mod:`signorini.studies.spin`).
+
 Hertz parameters: ``R``=1, ``E``=1, ``nu``=0.3, ``rho``=1, ``velocity``=0.002,
 ``tangential_velocity``=0 (along x: an oblique impact), ``mu``=0 (Coulomb friction with the
 plane; 0 and no ``--friction``: frictionless), mesh
@@ -65,7 +70,7 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import collision, collision_balls, hertz, incline
+from ..studies import collision, collision_balls, hertz, incline, spin
 from ..studies.exact import ExactBar1D
 
 
@@ -299,6 +304,11 @@ for _b in (
     *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
                 "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
                 2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params, True)
+      for d in (2, 3)),
+    *(Benchmark(f"spin{d}d", d, dict(spin.SPIN_DEFAULTS), spin.builder(d), None,
+                f"a free elastic {'ball' if d == 3 else 'disc (plane strain)'} spinning (finite strain: energy and "
+                "angular momentum kept; the linear model's spurious strain energy)", spin.DEFAULT_LEVEL[d],
+                spin.sizes(d), spin.run_times, spin.measure(d), spin.check_params)
       for d in (2, 3)),
 ):  # fmt: skip
     _register(_b)
