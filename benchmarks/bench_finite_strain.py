@@ -11,7 +11,15 @@ process, alternated twice (the best of each):
 2. the median finite-strain step against the linear (``model = "linear"``) step of the same run, and
    against one bare solve with the linear step's factor;
 3. the parts of a step: one internal force, one tangent assembly, one factorization of the step
-   operator with that tangent, each timed over a few calls.
+   operator with that tangent, each timed over a few calls;
+4. ``hertz3d`` at its default level and dt (the ball touching the plane at t = 0: every step inside the
+   impact, mass-dominated), Crank-Nicolson and the default mass: the median Neo-Hookean step against the
+   linear one (issue 41 asks at most x3), with the Newton iterations and factorizations per step (needs
+   gmsh: skipped with a message otherwise);
+5. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
+   hexahedra (about 100k dofs) against the linear stiffness assembly, on the structured grid (whose
+   cells are translates: the linear assembly computes one element matrix) and on the same grid with its
+   points moved by up to 20% of a cell (every element its own); issue 41 asks at most x2.
 """
 
 from __future__ import annotations
@@ -87,17 +95,83 @@ def run(cells: int, steps: int) -> dict:
             "bare_solve_s": bare}  # fmt: skip
 
 
+def hertz(steps: int) -> dict | None:
+    """Item 4 of the module docstring."""
+    import dataclasses
+    import importlib.util
+
+    if importlib.util.find_spec("gmsh") is None:
+        return None
+    from signorini.dynamics.simulate import Stepper
+    from signorini.fem.material import with_model
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark("hertz3d")
+    n = b.n_default()
+    p = b.problem(n)
+    dt, _ = b.run_times(n)
+    best: dict[str, float] = {}
+    info: dict[str, dict] = {}
+    for _ in range(2):
+        for model in ("neo-hookean", "linear"):
+            q = dataclasses.replace(p, material=with_model(p.material, model))
+            s = Stepper(q, "crank-nicolson", dt, steps * dt)
+            best[model] = min(best.get(model, np.inf), median_step(s))
+            H = s.finish()
+            info[model] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
+                           "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0)),
+                           "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
+    return {"case": f"hertz3d n = {n}, dt = {dt:.3g}, crank-nicolson, {steps} steps", "step_finite_s": best["neo-hookean"],
+            "step_linear_s": best["linear"], "finite_over_linear": best["neo-hookean"] / best["linear"],
+            "newton": info}  # fmt: skip
+
+
+def assembly(cells: int) -> list[dict]:
+    """Item 5 of the module docstring."""
+    from signorini.fem.assembly import stiffness_matrix
+    from signorini.fem.hyperelastic import NeoHookeanLaw, SaintVenantKirchhoffLaw, tangent_stiffness
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import box
+
+    mat = IsotropicElastic.from_young(1.0, 0.3, 1.0)
+    rng = np.random.default_rng(1)
+    out = []
+    for label in ("structured", "moved points"):
+        mesh = box(cells, cells, cells, 1.0, 1.0, 1.0)
+        if label == "moved points":
+            mesh.points = mesh.points + 0.2 / cells * rng.uniform(-1.0, 1.0, mesh.points.shape)
+        U = 1e-3 * rng.standard_normal(mesh.n_nodes * 3)
+        linear = per_call(lambda: stiffness_matrix(mesh, mat), 3)  # noqa: B023
+        for law in (NeoHookeanLaw(mat.lam, mat.mu), SaintVenantKirchhoffLaw(mat.lam, mat.mu)):
+            t = per_call(lambda: tangent_stiffness(mesh, law, U), 3)  # noqa: B023
+            out.append({"mesh": f"{cells}^3 hexahedra, {label}", "dofs": 3 * mesh.n_nodes, "law": law.name,
+                        "linear_s": linear, "tangent_s": t, "tangent_over_linear": t / linear})  # fmt: skip
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=12)
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--assembly", type=int, default=32, help="cells per side of the assembly cube (0: none)")
     args = ap.parse_args(argv)
     r = run(args.cells, args.steps)
-    print(json.dumps(r, indent=1))
+    h = hertz(args.steps)
+    a = assembly(args.assembly) if args.assembly else []
+    print(json.dumps({**r, "hertz3d": h, "assembly": a}, indent=1))
     print(f"{r['case']} ({r['dofs']} dofs, {r['backend']}): a step with tangent=modified is "
           f"x{r['modified_over_full']:.2f} of full's, x{r['finite_over_linear']:.1f} of the linear model's and "
           f"x{r['finite_over_bare_solve']:.0f} of one bare solve; internal force {1e3 * r['internal_force_s']:.1f} ms, "
           f"tangent {1e3 * r['tangent_s']:.1f} ms, factorization {1e3 * r['factorization_s']:.1f} ms")  # fmt: skip
+    if h is None:
+        print("hertz3d: skipped (gmsh not installed: pip install '.[mesh]')")
+    else:
+        print(f"{h['case']} ({h['newton']['linear']['dofs']} dofs): a Neo-Hookean step is x{h['finite_over_linear']:.2f} "
+              f"of the linear one ({h['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
+              f"{h['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations)")  # fmt: skip
+    for x in a:
+        print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
+              f"linear stiffness assembly ({x['tangent_s']:.3f} against {x['linear_s']:.3f} s)")  # fmt: skip
     return 0
 
 

@@ -331,3 +331,31 @@ def test_a_wrong_tangent_does_not_converge_quadratically():
     q = big[1:] / big[:-1] ** 2
     orders = np.log(big[2:] / big[1:-1]) / np.log(big[1:-1] / big[:-2])
     assert np.all(np.abs(orders[1:] - 1.0) < 0.1) and q.max() > 1e4 * q.min(), (orders, q)
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("d", [2, 3])
+def test_each_laws_voigt_tangent_is_its_tensor_tangent(law, d):
+    """The laws' own stress_and_voigt_tangent (shared invariants) equal the generic gather of tangent_C to
+    round-off, per cell constants included."""
+    from signorini.fem.hyperelastic import HyperelasticLaw
+
+    rng = np.random.default_rng(3)
+    F = np.eye(d) + 0.2 * rng.standard_normal((5, 4, d, d))
+    lw = law(np.linspace(1.0, 2.0, 5), np.linspace(0.5, 1.5, 5))
+    S, D = lw.stress_and_voigt_tangent(F)
+    S0, D0 = HyperelasticLaw.stress_and_voigt_tangent(lw, F)
+    assert np.abs(S - S0).max() <= 1e-14 * np.abs(S0).max() and np.abs(D - D0).max() <= 1e-14 * np.abs(D0).max()
+
+
+def test_the_tangent_computed_in_blocks_of_cells_is_the_same(monkeypatch):
+    """tangent_stiffness works on blocks of TANGENT_CHUNK cells (bounded temporaries): blocks of 3 cells give
+    the matrix of one block, per-cell constants included."""
+    import signorini.fem.hyperelastic as hyper
+
+    mesh = MESHES["mixed"]
+    U, _ = _state(mesh, seed=4)
+    law = NeoHookeanLaw(np.linspace(1.0, 2.0, mesh.n_cells), np.linspace(0.5, 1.0, mesh.n_cells))
+    whole = tangent_stiffness(mesh, law, U)
+    monkeypatch.setattr(hyper, "TANGENT_CHUNK", 3)
+    assert abs(tangent_stiffness(mesh, law, U) - whole).max() <= 1e-14 * abs(whole).max()

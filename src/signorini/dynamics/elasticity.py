@@ -23,6 +23,7 @@ from ..fem.hyperelastic import (
     HYPERELASTIC_LAWS,
     algorithmic_force,
     cell_fields,
+    deformation_gradients,
     internal_force,
     strain_energy,
     tangent_stiffness,
@@ -93,6 +94,8 @@ class FiniteStrain(Elasticity):
                 continue
             cells = np.flatnonzero(models == name)
             self.groups.append((HYPERELASTIC_LAWS[name](lam, mu), None if cells.size == mesh.n_cells else cells))
+        #: (n_cells,) which cells are hyperelastic (None: every cell)
+        self.hyperelastic = None if "linear" not in self.models else models != "linear"
         linear = np.flatnonzero(models == "linear")
         #: the linear cells' stiffness (None: no linear cell)
         self.S_linear: sp.csr_matrix | None = None
@@ -120,6 +123,16 @@ class FiniteStrain(Elasticity):
     def energy(self, U: np.ndarray, fU: np.ndarray | None = None) -> float:
         e = 0.0 if self.S_linear is None else 0.5 * float(U @ (self.S_linear @ U))
         return e + sum(strain_energy(self.mesh, law, U, cells) for law, cells in self.groups)
+
+    def displacement_gradient(self, U: np.ndarray) -> float:
+        """max |F - I| = max |grad_X u| over the quadrature points of the hyperelastic cells (entrywise) [-]."""
+        out = 0.0
+        for part, cut in self.mesh.parts():
+            F = deformation_gradients(part, U)[0]
+            if self.hyperelastic is not None:
+                F = F[self.hyperelastic[cut.start : cut.stop]]
+            out = max(out, float(np.abs(F - np.eye(F.shape[-1])).max(initial=0.0)))
+        return out
 
     def tangent(self, U: np.ndarray) -> sp.csr_matrix:
         self.tangents += 1

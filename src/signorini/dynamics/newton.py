@@ -51,6 +51,10 @@ ROUNDOFF = 1e3 * np.finfo(float).eps
 LINE_SEARCH_HALVINGS = 5
 #: tangent=modified keeps its factor while the residual falls by at least this factor per iteration
 MODIFIED_CONTRACTION = 0.1
+#: tangent=modified starts a step with the scheme's linear operator c_M M + c_S S (no factorization) when the
+#: displacement gradient at its start is at most this (max |F - I| over the quadrature points): its contraction is
+#: then about this times the stiffness's share of the operator (measured in docs/finite_strain.md)
+REFERENCE_GRADIENT = 0.05
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
@@ -129,14 +133,21 @@ def newton_solve(
     norm = scale = allowed = np.nan
     full = True
     D = ctx.fixed
+    # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
+    # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
+    reference = modified and elastic.displacement_gradient(U) <= REFERENCE_GRADIENT
+    owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's operator
     try:
         for k in range(1, most + 1):
             refactor = current is None or not modified or not full or norm > MODIFIED_CONTRACTION * previous
             if refactor:
-                if current is not None:
+                if owned:
                     ctx.factors.release(current)
-                current = Operator(op.mass, op.stiffness, Tangent(tangent(U)), op.viscous)
-                elastic.factorizations += 1
+                if k == 1 and reference:
+                    current, owned = op, False
+                else:
+                    current, owned = Operator(op.mass, op.stiffness, Tangent(tangent(U)), op.viscous), True
+                    elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
             minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
             try:
@@ -176,7 +187,7 @@ def newton_solve(
                 info.nonlinear_iterations = k
                 return U, lam, info
     finally:
-        if current is not None:
+        if owned:
             ctx.factors.release(current)
     raise ConvergenceError(
         f"Newton's method did not converge in {most} iterations (force residual {norm:.3g}, {norm / scale:.3g} of "

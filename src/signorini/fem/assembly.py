@@ -122,6 +122,14 @@ def assemble_scalar(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((data, indices, indptr), shape=(mesh.n_nodes, mesh.n_nodes))
 
 
+def assemble_nodal(mesh: Mesh, fe: np.ndarray) -> np.ndarray:
+    """The node-major vector (n_nodes d,) of element vectors ``fe`` (n_cells, nv, d) summed over the cells
+    (one ``np.bincount``, not ``np.add.at``)."""
+    d = fe.shape[-1]
+    idx = (mesh.cells[:, :, None] * d + np.arange(d)).ravel()
+    return np.bincount(idx, weights=fe.ravel(), minlength=mesh.n_nodes * d)
+
+
 def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
     """Assemble ``Ke`` of shape (n_cells, nv, nv, d, d) (node a, node b, comp i, comp j)
     into the (d n_nodes)^2 CSR matrix with node-major dof numbering."""

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError, NonFiniteError
-from .assembly import assemble_vector, geometry, sum_of
+from .assembly import assemble_nodal, assemble_vector, geometry, sum_of
 from .elements import determinants
 from .mesh import Mesh
 
@@ -78,6 +78,19 @@ class HyperelasticLaw:
         discrete gradient divides it, less S:dC/2, by |dC|^2)."""
         return self.energy_C(C1) - self.energy_C(C0)
 
+    def take(self, lo: int, hi: int) -> HyperelasticLaw:
+        """The law of the cells lo .. hi - 1 (per-cell constants sliced; numbers as they are)."""
+        cut = lambda v: v if np.ndim(v) == 0 else np.asarray(v)[lo:hi]  # noqa: E731
+        return type(self)(cut(self.lam), cut(self.mu))
+
+    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(S (..., d, d), D (..., m, m)): the stress and the tangent in Voigt's order (:data:`VOIGT`),
+        D_ab = CC_{I_a J_a I_b J_b} (m = 3 in 2D, 6 in 3D); laws override it to share their invariants."""
+        C = _green(F)[0]
+        I, J = VOIGT[F.shape[-1]]
+        CC = self.tangent_C(C)
+        return self.stress_C(C), CC[..., I[:, None], J[:, None], I[None, :], J[None, :]]
+
     def energy_C(self, C: np.ndarray) -> np.ndarray:
         """W as a function of the right Cauchy-Green tensor C (..., d, d)."""
         raise NotImplementedError
@@ -89,6 +102,10 @@ class HyperelasticLaw:
     def tangent_C(self, C: np.ndarray) -> np.ndarray:
         """CC = 4 d^2W/dC^2 (..., d, d, d, d)."""
         raise NotImplementedError
+
+
+#: the Voigt order of a symmetric tensor's components (I_a, J_a): 11, 22, 12 in 2D; 11, 22, 33, 12, 23, 13 in 3D
+VOIGT = {2: (np.array([0, 1, 0]), np.array([0, 1, 1])), 3: (np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2]))}
 
 
 def _inv(A: np.ndarray) -> np.ndarray:
@@ -147,6 +164,16 @@ class SaintVenantKirchhoffLaw(HyperelasticLaw):
         base = lam * np.einsum("IJ,KL->IJKL", eye, eye) + mu * _symmetric_identity(d)
         return np.broadcast_to(base, shape)
 
+    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = F.shape[-1]
+        m = 3 * (d - 1)
+        normal = np.zeros((m, m))
+        normal[:d, :d] = 1.0
+        shear = np.diag(np.r_[2.0 * np.ones(d), np.ones(m - d)])  # mu (delta_IK delta_JL + delta_IL delta_JK)
+        shape = F.shape[:-2] + (m, m)
+        lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
+        return self.stress_C(_green(F)[0]), lam * normal + mu * shear
+
 
 @dataclass(frozen=True)
 class NeoHookeanLaw(HyperelasticLaw):
@@ -200,6 +227,22 @@ class NeoHookeanLaw(HyperelasticLaw):
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
         return lam * outer + (mu - lam * lnJ) * sym
 
+    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        C = _green(F)[0]
+        Ci = _inv(C)
+        lnJ = 0.5 * np.log(determinants(C))
+        I, J = VOIGT[F.shape[-1]]
+        lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
+        S = mu * (np.eye(C.shape[-1]) - Ci) + lam * lnJ[..., None, None] * Ci
+        c = Ci[..., I, J]  # (..., m)
+        a, b = I[:, None], J[:, None]
+        k, l = I[None, :], J[None, :]  # noqa: E741
+        sym = Ci[..., a, k] * Ci[..., b, l] + Ci[..., a, l] * Ci[..., b, k]
+        lam_m = _lame(self.lam, sym.shape)
+        return S, lam_m * c[..., :, None] * c[..., None, :] + (
+            _lame(self.mu, sym.shape) - lam_m * lnJ[..., None, None]
+        ) * sym
+
 
 #: the finite-strain laws by name (``[material] model``; ``linear`` is today's small strain)
 HYPERELASTIC_LAWS: dict[str, type[HyperelasticLaw]] = {
@@ -229,11 +272,18 @@ def _parts(mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
     return out
 
 
+#: the cell types whose shape functions are linear (P1): their gradients are constant on a cell
+SIMPLICES = ("triangle", "tetra")
+
+
 def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F, wdet, G) of a one-type mesh: F = I + grad_X u at every quadrature point (e, q, d, d),
     the weights w_q |det J| (e, q) and the reference shape gradients G (e, q, nv, d).  ``U`` (n_nodes d,)
-    node-major."""
+    node-major.  On simplices (:data:`SIMPLICES`) one point per cell (q = 1, its weight the cell's measure):
+    F is constant there, so every integrand of F is integrated exactly with a quarter of the work (tetrahedra)."""
     wdet, G = geometry(mesh)
+    if mesh.cell_type in SIMPLICES:  # linear shape functions: G and F constant on a cell, one point is exact
+        wdet, G = wdet.sum(axis=1, keepdims=True), G[:, :1]
     d = mesh.dim
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
     F = np.matmul(u.transpose(0, 2, 1)[:, None], G) + np.eye(d)  # F_iJ = sum_a u_ai dN_a/dX_J
@@ -271,7 +321,7 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
         check_orientation(part, F, cut)
         P = np.matmul(F, part_law.stress(F))  # first Piola-Kirchhoff
         fe = np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(axis=1)  # (e, nv, d)
-        np.add.at(f.reshape(-1, d), part.cells, fe)
+        f += assemble_nodal(part, fe)
     return f
 
 
@@ -279,24 +329,48 @@ def tangent_stiffness(
     mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
 ) -> sp.csr_matrix:
     """K(U) = df/dU (n_nodes d)^2, symmetric: the geometric part (grad N_a . S grad N_b) I plus the
-    material part F grad N_a : CC : F grad N_b [force / length]."""
+    material part B_a^T D B_b, with B (m x d per node, Voigt's order) the variation of the Green-Lagrange
+    strain, 2 dE_IJ = F_kI dN_b/dX_J + F_kJ dN_b/dX_I (engineering shears) and D the law's tangent
+    CC in Voigt's order [force / length]."""
     mats = []
     for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
-        S, CC = part_law.stress(F), part_law.tangent(F)
-        d = mesh.dim
-        e, q, nv, _ = G.shape
-        geo = np.einsum("eq,eqaI,eqIJ,eqbJ->eab", wdet, G, S, G, optimize=True)
-        # the material part as batched matrix products: FG[(I J), (a i)] = F_iI dN_a/dX_J, then
-        # sum_q w FG^T CC FG over the quadrature points of each cell
-        FG = np.einsum("eqiI,eqaJ->eqIJai", F, G).reshape(e, q, d * d, nv * d)
-        CFG = np.matmul(CC.reshape(e, q, d * d, d * d), FG)
-        mat = np.matmul((FG * wdet[:, :, None, None]).reshape(e, q * d * d, nv * d).transpose(0, 2, 1),
-                        CFG.reshape(e, q * d * d, nv * d))  # fmt: skip
-        Ke = mat.reshape(e, nv, d, nv, d).transpose(0, 1, 3, 2, 4) + geo[..., None, None] * np.eye(d)
+        e, q, nv, d = G.shape
+        Ke = np.empty((e, nv, nv, d, d))
+        for lo in range(0, e, TANGENT_CHUNK):  # blocks of cells: temporaries of a few MB, not of the mesh's size
+            hi = min(lo + TANGENT_CHUNK, e)
+            Ke[lo:hi] = _tangent_blocks(part_law.take(lo, hi) if np.ndim(part_law.lam) else part_law, F[lo:hi],
+                                        wdet[lo:hi], G[lo:hi])  # fmt: skip
         mats.append(assemble_vector(part, Ke))
     return sum_of(mats) if len(mats) > 1 else mats[0]
+
+
+#: cells per block of :func:`tangent_stiffness`'s element computation
+TANGENT_CHUNK = 2048
+
+
+def _tangent_blocks(law: HyperelasticLaw, F: np.ndarray, wdet: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The element tangents K[e, a, b, i, j] (e, nv, nv, d, d) of cells with deformation gradients F (e, q, d, d),
+    weights w |det J| (e, q) and shape gradients G (e, q, nv, d) (:func:`tangent_stiffness`)."""
+    S, D = law.stress_and_voigt_tangent(F)
+    e, q, nv, d = G.shape
+    I, J = VOIGT[d]
+    m = I.size
+    Ft = np.swapaxes(F, -1, -2)  # Ft[..., I, k] = F_kI
+    Gt = np.swapaxes(G, -1, -2)  # Gt[..., J, b] = dN_b/dX_J
+    # B[e, q, a, b, k] = F_kI G_bJ + F_kJ G_bI for a = (I, J) (the normal rows counted once)
+    B = Ft[:, :, I, None, :] * Gt[:, :, J, :, None]
+    B[:, :, d:] += Ft[:, :, J[d:], None, :] * Gt[:, :, I[d:], :, None]
+    B = B.reshape(e, q, m, nv * d)
+    DB = np.matmul(D, B)  # (e, q, m, nv d)
+    B *= wdet[:, :, None, None]
+    mat = np.matmul(B.reshape(e, q * m, nv * d).transpose(0, 2, 1), DB.reshape(e, q * m, nv * d))  # (e, nv d, nv d)
+    GS = np.matmul(G * wdet[:, :, None, None], S)  # (e, q, nv, d): w G S
+    geo = np.matmul(GS.transpose(0, 2, 1, 3).reshape(e, nv, q * d), Gt.reshape(e, q * d, nv))
+    Ke = mat.reshape(e, nv, d, nv, d).transpose(0, 1, 3, 2, 4)
+    Ke[..., np.arange(d), np.arange(d)] += geo[..., None]
+    return Ke
 
 
 #: |dC|^2 relative to |C_mid|^2 below which the discrete gradient is the midpoint stress (its
@@ -338,7 +412,7 @@ def algorithmic_force(
         check_orientation(part, F1, cut)
         S = algorithmic_stress(part_law, _green(F0)[0], _green(F1)[0])
         P = np.matmul(0.5 * (F0 + F1), S)
-        np.add.at(f.reshape(-1, d), part.cells, np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(1))
+        f += assemble_nodal(part, np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(1))
     return f
 
 
