@@ -121,8 +121,9 @@ def hertz(steps: int) -> dict | None:
             info[model] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
                            "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0)),
                            "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
-    return {"case": f"hertz3d n = {n}, dt = {dt:.3g}, crank-nicolson, {steps} steps", "step_finite_s": best["neo-hookean"],
-            "step_linear_s": best["linear"], "finite_over_linear": best["neo-hookean"] / best["linear"],
+    return {"case": f"hertz3d n = {n}, dt = {dt:.3g}, crank-nicolson, {steps} steps",
+            "step_finite_s": best["neo-hookean"], "step_linear_s": best["linear"],
+            "finite_over_linear": best["neo-hookean"] / best["linear"],
             "newton": info}  # fmt: skip
 
 
@@ -166,8 +167,9 @@ def main(argv=None) -> int:
     if h is None:
         print("hertz3d: skipped (gmsh not installed: pip install '.[mesh]')")
     else:
-        print(f"{h['case']} ({h['newton']['linear']['dofs']} dofs): a Neo-Hookean step is x{h['finite_over_linear']:.2f} "
-              f"of the linear one ({h['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
+        dofs = h["newton"]["linear"]["dofs"]
+        print(f"{h['case']} ({dofs} dofs): a Neo-Hookean step is x{h['finite_over_linear']:.2f} of the linear one"
+              f" ({h['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
               f"{h['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations)")  # fmt: skip
     for x in a:
         print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
