@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
+from ..fem.dofmap import DofMap
 from ..fem.elements import determinants, jacobians, reference_element
 from ..fem.material import Material
 from ..fem.mesh import Mesh, facet_type, uniform_cells
@@ -126,7 +127,7 @@ def assemble_nodal(mesh: Mesh, fe: np.ndarray) -> np.ndarray:
     """The node-major vector (n_nodes d,) of element vectors ``fe`` (n_cells, nv, d) summed over the cells
     (one ``np.bincount``, not ``np.add.at``)."""
     d = fe.shape[-1]
-    idx = (mesh.cells[:, :, None] * d + np.arange(d)).ravel()
+    idx = DofMap.serial(mesh.n_nodes, d).dofs(mesh.cells.ravel()).ravel()  # (cell, vertex, component) order
     return np.bincount(idx, weights=fe.ravel(), minlength=mesh.n_nodes * d)
 
 
