@@ -22,8 +22,9 @@ full step does not reduce |r| (far from the solution), the step is halved along 
 (a line search, at most :data:`LINE_SEARCH_HALVINGS` times; only a full step, which solved the contact
 problem, may end the iterations).
 
-``tangent=modified`` keeps G of the step's first iterate while |r| falls at least tenfold per iteration
-(:data:`MODIFIED_CONTRACTION`) and refactorizes at the iterate where it does not; each step starts from
+``tangent=modified`` keeps G of the step's first iterate while |r| falls fast enough to reach the tolerance in a
+few more iterations (:func:`_renew`) and refactorizes at the iterate where it does not (a step that starts near
+the reference configuration starts with the scheme's linear operator, :data:`REFERENCE_GRADIENT`); each step starts from
 the tangent at U^n, so that a step depends on its starting level only (a checkpoint resumes bit for bit).
 A step that does not converge in ``newton_max`` iterations raises :class:`ConvergenceError` (the run
 fails, exit 3, levels kept; the energy control rejects and halves the step).
@@ -49,12 +50,14 @@ if TYPE_CHECKING:
 ROUNDOFF = 1e3 * np.finfo(float).eps
 #: the most halvings of a Newton step that did not reduce the residual
 LINE_SEARCH_HALVINGS = 5
-#: tangent=modified keeps its factor while the residual falls by at least this factor per iteration
-MODIFIED_CONTRACTION = 0.1
+#: tangent=modified keeps its factor while the residual falls by at least this factor per iteration and reaches
+#: the tolerance in at most KEPT_ITERATIONS more iterations at that rate (a factorization costs tens of solves)
+MODIFIED_CONTRACTION = 0.5
+KEPT_ITERATIONS = 10
 #: tangent=modified starts a step with the scheme's linear operator c_M M + c_S S (no factorization) when the
 #: displacement gradient at its start is at most this (max |F - I| over the quadrature points): its contraction is
 #: then about this times the stiffness's share of the operator (measured in docs/finite_strain.md)
-REFERENCE_GRADIENT = 0.05
+REFERENCE_GRADIENT = 0.25
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
@@ -80,6 +83,17 @@ def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray
     scale = max(max(float(np.max(np.abs(np.broadcast_to(a, U.shape)[f]), initial=0.0)) for a in terms), 1e-300)
     floor = ROUNDOFF * max(float(np.max(np.abs(MdU[f]), initial=0.0)), float(np.max(np.abs(rest[f]), initial=0.0)))
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
+
+
+def _renew(norm: float, previous: float, allowed: float) -> bool:
+    """Whether a kept tangent should be renewed: its rate |r_k| / |r_k-1| is above :data:`MODIFIED_CONTRACTION`,
+    or it would take more than :data:`KEPT_ITERATIONS` more iterations at that rate to reach ``allowed``."""
+    if not np.isfinite(previous) or norm <= allowed:
+        return False
+    rate = norm / previous
+    if rate > MODIFIED_CONTRACTION:
+        return True
+    return bool(np.log(allowed / norm) / np.log(rate) > KEPT_ITERATIONS) if rate > 0 else False
 
 
 def _mass_part(ctx: Context, op: Operator, dU: np.ndarray) -> np.ndarray:
@@ -139,7 +153,7 @@ def newton_solve(
     owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's operator
     try:
         for k in range(1, most + 1):
-            refactor = current is None or not modified or not full or norm > MODIFIED_CONTRACTION * previous
+            refactor = current is None or not modified or not full or _renew(norm, previous, allowed)
             if refactor:
                 if owned:
                     ctx.factors.release(current)
