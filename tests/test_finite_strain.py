@@ -509,3 +509,29 @@ def test_energy_momentums_tangent_is_symmetric_and_converges_linearly(monkeypatc
     e = _newton_residuals(monkeypatch, "energy-momentum", "full")
     ratios = e[1:] / e[:-1]
     assert e[-1] < 1e-12 and 0.05 < np.median(ratios[2:]) < 0.5, ratios
+
+
+@pytest.mark.parametrize("name", ["bar2d", "bar3d"])
+def test_small_amplitudes_approach_linear_elasticity_at_first_order(name):
+    """The seed paper's bar with a Neo-Hookean material, its gap and velocity scaled by a = 0.04, 0.02, 0.01
+    (Crank-Nicolson, the default mass): the contact force history over a, against the linear run's (the same
+    for every a: the linear contact problem is positively homogeneous), differs by O(a): the rate of that
+    difference between successive halvings of a is between 0.8 and 1.2 (as data), the difference at the
+    smallest a below 1%.  The reference is the linear model on the same mesh and steps."""
+    import dataclasses
+
+    from signorini.fem.material import with_model
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark(name)
+    dt, T = b.run_times(1)
+    errors = []
+    for a in (0.04, 0.02, 0.01):
+        p = b.problem(1, {"gap": 0.2 * a, "velocity": 0.5 * a})
+        lin = simulate(p, "crank-nicolson", dt, T)
+        nh = simulate(dataclasses.replace(p, material=with_model(p.material, "neo-hookean")), "crank-nicolson", dt, T,
+                      solver_options={"newton_tol": 1e-12})  # fmt: skip
+        assert lin.lambda_sum.min() < 0
+        errors.append(float(np.abs(nh.lambda_sum - lin.lambda_sum).max() / np.abs(lin.lambda_sum).max()))
+    rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all((rates > 0.8) & (rates < 1.2)) and errors[-1] < 1e-2, (errors, rates)
