@@ -341,10 +341,65 @@ def test_damping_per_region_in_a_case_file(tmp_path, capsys):
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["damping"] == {"model": "rayleigh", "alpha": 0.0, "beta": 1e-5,
                             "regions": [{"tag": "upper", "alpha": 20.0, "beta": 0.0}]}  # fmt: skip
-    assert "damping rayleigh alpha 0, beta 1e-05 (elsewhere); upper alpha 20, beta 0" in capsys.readouterr().out
+    assert (
+        "damping rayleigh upper alpha 20, beta 0; cells in no listed region alpha 0, beta 1e-05"
+        in capsys.readouterr().out
+    )
     shared = own.replace("{ tag = \"upper\",", "{ tag = \"upper\", damping = { alpha = 1.0 }, E = 1.0e6, nu = 0.45, "
                          "rho = 1000.0 },\n    { tag = \"upper\",")  # fmt: skip
     case.write_text(shared)
     assert main(["run", str(case), "--out", str(tmp_path / "p"), "--quiet"]) == 2
     assert "material.regions" in capsys.readouterr().err
     assert not (tmp_path / "p").exists()
+
+
+def test_damping_per_region_edge_cases():
+    """A 1D bar with beta on one region only (the scaled element matrices: no 0/0 Young modulus where beta = 0);
+    overlapping regions that disagree on any shared cell are refused, not only on the first; a region
+    entry of a case file with damping and no constants takes the section's material."""
+    from signorini.fem.assembly import stiffness_matrix
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import interval, rectangle
+
+    bar = interval(10)
+    bar.regions["soft"] = np.arange(4)
+    mat = IsotropicElastic.from_young(2.0, 0.3, 1.0)
+    d = RegionalRayleigh(UNDAMPED, (("soft", Rayleigh(beta=0.01)),))
+    from signorini.dynamics.mass import mass_matrix
+
+    M, S = mass_matrix("standard", bar, 1.0), stiffness_matrix(bar, mat)
+    C = d.matrix(bar, mat, M, S)
+    assert np.all(np.isfinite(C.data)) and abs(C).max() > 0 and abs(C[6:, 6:]).max() == 0.0
+    m = rectangle(4, 1)
+    m.regions.update({"A": np.array([0, 1]), "B": np.array([2, 3]), "C": np.array([1, 2])})
+    clash = RegionalRayleigh(UNDAMPED, (("A", Rayleigh(alpha=5.0)), ("B", Rayleigh(alpha=9.0)),
+                                        ("C", Rayleigh(alpha=5.0))))  # fmt: skip
+    with pytest.raises(InputError, match="damping regions 'B' and 'C' share 1 cell"):
+        clash.cell_coefficients(m)
+
+
+def test_a_damping_only_region_entry_takes_the_sections_material(tmp_path):
+    text = (Path(__file__).parents[1] / "examples" / "block_on_block.toml").read_text()
+    text = text.replace('"meshes/', f'"{Path(__file__).parents[1] / "examples" / "meshes"}/').replace(
+        "T = 0.12", "T = 0.005"
+    )
+    case = tmp_path / "c.toml"
+    case.write_text(text.replace('{ tag = "upper", E = 1.0e6, nu = 0.45, rho = 1000.0 },',
+                                 '{ tag = "upper", E = 1.0e6, nu = 0.45, rho = 1000.0 },\n'
+                                 '    { tag = "lower", damping = { alpha = 3.0 } },'))  # fmt: skip
+    assert main(["run", str(case), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["damping"]["regions"] == [{"tag": "lower", "alpha": 3.0, "beta": 0.0}]
+
+
+def test_a_resume_with_the_damped_cells_changed_is_refused(tmp_path):
+    """The checkpoint's identity has figures of C itself: the same tag and coefficients on other cells is
+    another run."""
+    zone = RegionalRayleigh(UNDAMPED, (("zone", Rayleigh(alpha=20.0)),))
+    p = _two_blocks(0.002, zone)
+    p.mesh.regions["zone"] = p.mesh.regions["upper"].copy()
+    simulate(p, "cn", 1e-4, 5e-4, checkpoint=tmp_path / "c.h5")
+    q = _two_blocks(0.002, zone)
+    q.mesh.regions["zone"] = q.mesh.regions["upper"][:4]  # fewer damped cells, same tag and coefficients
+    with pytest.raises(InputError, match="damping_matrix"):
+        simulate(q, "cn", 1e-4, 1e-3, resume=tmp_path / "c.h5")

@@ -359,3 +359,14 @@ def test_the_tangent_computed_in_blocks_of_cells_is_the_same(monkeypatch):
     whole = tangent_stiffness(mesh, law, U)
     monkeypatch.setattr(hyper, "TANGENT_CHUNK", 3)
     assert abs(tangent_stiffness(mesh, law, U) - whole).max() <= 1e-14 * abs(whole).max()
+
+
+def test_blocks_of_cells_with_one_constant_scalar_and_the_other_per_cell(monkeypatch):
+    import signorini.fem.hyperelastic as hyper
+
+    mesh = MESHES["triangle"]
+    U, _ = _state(mesh, seed=5)
+    law = NeoHookeanLaw(1.0, np.linspace(0.5, 1.0, mesh.n_cells))
+    whole = tangent_stiffness(mesh, law, U)
+    monkeypatch.setattr(hyper, "TANGENT_CHUNK", 2)
+    assert abs(tangent_stiffness(mesh, law, U) - whole).max() <= 1e-14 * abs(whole).max()

@@ -89,6 +89,8 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
     }
     if ctx.damping is not None:  # (an undamped run's identity is the one before damping existed)
         out["damping"] = json.dumps(ctx.damping.describe(), sort_keys=True)
+        if ctx.damping_matrix is not None:  # per region: which cells, not only the coefficients per tag
+            out["damping_matrix"] = _figures(ctx.damping_matrix @ w)
     if ctx.elastic.finite:  # (a linear run's identity is the one before finite strain; K(0) = S hides the model)
         models = cell_models(disc.material, mesh.n_cells)
         out["material_model"] = [*ctx.elastic.models, *_figures(np.unique(models, return_inverse=True)[1] + 1.0)]

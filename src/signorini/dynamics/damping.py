@@ -150,10 +150,11 @@ class RegionalRayleigh:
                 known = ", ".join(sorted(mesh.regions)) or "none"
                 raise InputError(f"damping region {tag!r} is not a region of the mesh; its regions: {known}")
             cells = np.asarray(mesh.regions[tag])
-            clash = owner[cells] >= 0
-            if clash.any() and self.regions[int(owner[cells[clash][0]])][1] != r:
-                other = self.regions[int(owner[cells[clash][0]])][0]
-                raise InputError(f"damping regions {other!r} and {tag!r} share {int(clash.sum())} cell(s) and give "
+            shared = cells[owner[cells] >= 0]
+            differ = shared[(alpha[shared] != r.alpha) | (beta[shared] != r.beta)]
+            if differ.size:
+                other = self.regions[int(owner[differ[0]])][0]
+                raise InputError(f"damping regions {other!r} and {tag!r} share {differ.size} cell(s) and give "
                                  "them different damping; list each cell's region once")  # fmt: skip
             owner[cells] = k
             alpha[cells], beta[cells] = r.alpha, r.beta
@@ -162,8 +163,7 @@ class RegionalRayleigh:
     def matrix(self, mesh: Any, material: Any, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
         """C (n, n) [force time / length] for the mass in use ``M`` and the stiffness ``S`` of
         ``material`` on ``mesh``."""
-        from ..fem.assembly import nodal_average, stiffness_matrix
-        from ..fem.material import CellMaterial
+        from ..fem.assembly import nodal_average, scaled_stiffness
 
         alpha, beta = self.cell_coefficients(mesh)
         rho = np.broadcast_to(np.asarray(material.rho, dtype=float), (mesh.n_cells,))
@@ -171,13 +171,7 @@ class RegionalRayleigh:
         root = sp.diags(np.repeat(np.sqrt(a), S.shape[0] // mesh.n_nodes))
         C = root @ M @ root
         if np.any(beta > 0):
-            if np.all(beta == beta[0]):
-                Sb = beta[0] * S
-            else:
-                lam = np.broadcast_to(np.asarray(material.lam, dtype=float), (mesh.n_cells,))
-                mu = np.broadcast_to(np.asarray(material.mu, dtype=float), (mesh.n_cells,))
-                Sb = stiffness_matrix(mesh, CellMaterial(lam * beta, mu * beta, rho))
-            C = C + Sb
+            C = C + (beta[0] * S if np.all(beta == beta[0]) else scaled_stiffness(mesh, material, beta))
         C = sp.csr_matrix(C)
         C.sum_duplicates()
         C.sort_indices()

@@ -239,8 +239,13 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     if not backend_traits(backend).finite_strain:
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
                          "iterate; use superlu, cholmod, pardiso or auto")  # fmt: skip
-    if ctx.damping is not None and ctx.damping.beta != 0.0:
-        raise InputError(f"{what} with stiffness-proportional damping (beta = {ctx.damping.beta:g}) is refused: "
+    beta = 0.0 if ctx.damping is None else ctx.damping.beta
+    if beta and hasattr(ctx.damping, "cell_coefficients"):  # per region: only the hyperelastic cells' beta matters
+        mesh = ctx.disc.problem.mesh
+        hyper = cell_models(ctx.disc.material, mesh.n_cells) != "linear"
+        beta = float(ctx.damping.cell_coefficients(mesh)[1][hyper].max(initial=0.0))
+    if beta:
+        raise InputError(f"{what} with stiffness-proportional damping (beta = {beta:g} on its cells) is refused: "
                          "beta S V with the reference stiffness S damps rigid rotations; use alpha only")  # fmt: skip
     if ctx.disc.mass_name == "seed-normal":
         raise InputError(f"{what} with mass 'seed-normal' is refused: it removes the inertia along the contact "

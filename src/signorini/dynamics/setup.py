@@ -288,7 +288,8 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
         for s in schemes:
             if s.damping_refusal:
                 raise InputError(
-                    f"scheme {s.name} cannot carry damping ([material] damping): {s.damping_refusal}; "
+                    f"scheme {s.name} cannot carry damping ([material] damping, regions[k].damping): "
+                    f"{s.damping_refusal}; "
                     f"schemes that do: {', '.join(damping_schemes())}"
                 )
     for s in schemes:

@@ -196,6 +196,18 @@ def stiffness_matrix(mesh: Mesh, material: Material) -> sp.csr_matrix:
     return assemble_vector(mesh, Ke)
 
 
+def scaled_stiffness(mesh: Mesh, material: Material, factor: np.ndarray) -> sp.csr_matrix:
+    """sum_c factor_c S_c: the stiffness with each cell's element matrix times ``factor`` (n_cells,) (a
+    stiffness-proportional damping per region) [force / length]."""
+    if mesh.mixed:
+        return sum_of(scaled_stiffness(part, part_material(material, cut), factor[cut]) for part, cut in mesh.parts())
+    Ke = element_stiffness_matrices(mesh, material)
+    Ke = Ke * per_cell(factor, Ke.ndim)
+    if mesh.dim == 1:
+        return assemble_scalar(mesh, Ke[..., 0, 0])
+    return assemble_vector(mesh, Ke)
+
+
 def sum_of(matrices) -> sp.csr_matrix:
     """The sum of a mixed mesh's parts' matrices (CSR, canonical)."""
     out = None

@@ -340,8 +340,7 @@ def tangent_stiffness(
         Ke = np.empty((e, nv, nv, d, d))
         for lo in range(0, e, TANGENT_CHUNK):  # blocks of cells: temporaries of a few MB, not of the mesh's size
             hi = min(lo + TANGENT_CHUNK, e)
-            Ke[lo:hi] = _tangent_blocks(part_law.take(lo, hi) if np.ndim(part_law.lam) else part_law, F[lo:hi],
-                                        wdet[lo:hi], G[lo:hi])  # fmt: skip
+            Ke[lo:hi] = _tangent_blocks(part_law.take(lo, hi), F[lo:hi], wdet[lo:hi], G[lo:hi])
         mats.append(assemble_vector(part, Ke))
     return sum_of(mats) if len(mats) > 1 else mats[0]
 

@@ -307,8 +307,16 @@ def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
         tag = _region_tag(mesh, key, entry)
         if tag in out:
             raise InputError(f"'{key}.tag': region {tag!r} is listed twice in material.regions")
-        out[tag] = _material({a: v for a, v in entry.items() if a != "tag"}, key, allowed, t.get("model", "linear"))
+        own = {a: v for a, v in entry.items() if a != "tag"}
+        if set(own) <= {"damping", "model"}:  # no constants of its own: the section's material (its damping, model)
+            _keys(key, own, allowed)
+            own = {**{a: v for a, v in t.items() if a in CONSTANTS}, **own}
+        out[tag] = _material(own, key, allowed, t.get("model", "linear"))
     return out
+
+
+#: the constants of a material table (a regions entry without any takes the section's)
+CONSTANTS = ("E", "nu", "lam", "mu", "rho")
 
 
 def _damping(t: dict, mesh: Mesh) -> Rayleigh | RegionalRayleigh | None:

@@ -124,10 +124,11 @@ def damping_line(H, s: dict) -> str:
     res_text = f" (energy identity residual {res:.2e} with it)" if res is not None else ""
     e0 = abs(float(s["energy_initial"]))
     share = f", {100 * diss / e0:.3g}% of E0" if e0 > 0 and np.isfinite(diss) else ""
-    regions = "".join(f"; {r['tag']} alpha {r['alpha']:g}, beta {r['beta']:g}" for r in d.get("regions", ()))
-    where = f" (elsewhere){regions}" if regions else ""
-    return (f"  damping rayleigh alpha {d['alpha']:g}, beta {d['beta']:g}{where}: damping_dissipation {work}{share}"
-            f"{res_text}\n")  # fmt: skip
+    regions = "".join(f"{r['tag']} alpha {r['alpha']:g}, beta {r['beta']:g}; " for r in d.get("regions", ()))
+    coefficients = f"alpha {d['alpha']:g}, beta {d['beta']:g}"
+    if regions:
+        coefficients = f"{regions}cells in no listed region {coefficients}"
+    return f"  damping rayleigh {coefficients}: damping_dissipation {work}{share}{res_text}\n"
 
 
 def material_line(H, s: dict) -> str:

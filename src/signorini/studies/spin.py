@@ -16,7 +16,8 @@ y^2 z^2 / 3), and the same by permutation): no gmsh needed.  Initial velocity: t
 z axis (2D) or about the axis (1, 2, 3) / sqrt(14) (3D) at omega = ``tip`` c / R, c the compression wave
 speed sqrt((lam + 2 mu) / rho) (a tip speed of ``tip`` times the wave speed: 0.3 by default).  Material
 ``model``: 2 (neo-hookean, default), 1 (saint-venant-kirchhoff) or 0 (linear).  Contact: the nodes of the
-mapped face y = -1 (z = -1) against a plane 10 R below the centre, never reached, which the Problem needs;
+mapped face y = -1 (z = -1) against a plane far below the centre (:func:`plane_distance`), never reached,
+which the Problem needs;
 with the default (moment-preserving) mass those nodes are massless, and energy-momentum keeps the angular
 momentum to O(dt^2) only (docs/finite_strain.md): ``--mass standard`` keeps both exactly.
 
@@ -102,12 +103,18 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
             mesh=round_mesh(dim, n, p["R"]),
             material=material(p),
             contact_tag="ymin" if dim == 2 else "zmin",
-            obstacle=PlaneObstacle(-10.0 * p["R"] * e, e),
+            obstacle=PlaneObstacle(-plane_distance(p) * e, e),
             v0=v0,
             name=f"spin{dim}d",
         )
 
     return build
+
+
+def plane_distance(p: dict) -> float:
+    """How far below the centre the plane lies: beyond the reach of the linear body, whose radius grows to
+    R sqrt(1 + (2 pi revolutions)^2) (twice that, and at least 10 R) [length]."""
+    return p["R"] * max(10.0, 2.0 * math.sqrt(1.0 + (2.0 * math.pi * p["revolutions"]) ** 2))
 
 
 def sizes(dim: int) -> Callable[[int, dict], tuple[float, int, int, int, int]]:
@@ -169,7 +176,7 @@ class SpinMeasure:
     @staticmethod
     def text(summary: dict) -> str:
         s = summary["spin"]
-        return (f"  spin {s['revolutions']:.3g} revolutions at tip speed {s['tip_speed_over_wave_speed']:g} c: energy "
+        return (f"  spin: {s['revolutions']:.3g} turn(s) at tip speed {s['tip_speed_over_wave_speed']:g} c: energy "
                 f"drift {s['energy_max_relative_drift']:.2e}, angular momentum drift "
                 f"{s['angular_momentum_max_relative_drift']:.2e}, strain energy up to "
                 f"{100 * s['strain_energy_share_max']:.3g}% of E0, radius {100 * s['radius_change']:+.3g}% at the "

@@ -85,7 +85,8 @@ def render() -> str:
         "hand.  Each",
         f"cell is one run of a soft block thrown spinning onto a plane it touches ({STEPS} steps of {DT:g} s, "
         "the identity checked at every level):",
-        f"✓ runs with its energy identity closed at every level (to {CLOSED:g} of E0; `+N%`: its energy rose N% above "
+        f"✓ runs with its energy identity closed at every level (to {CLOSED:g} of the run's energy scale; `+N%`: its "
+        "energy rose N% above "
         "E0,",
         "the gain through impacts of the masses that keep the contact inertia, which the redistributed masses "
         "remove), or the reason it is "
