@@ -9,9 +9,12 @@ from signorini.io.cli import main
 from signorini.io.config import load_case
 
 EXAMPLES = sorted((Path(__file__).parents[1] / "examples").glob("*.toml"))
+#: examples whose run takes minutes: run (and checked) by the slow suite's own test in tests/test_examples.py
+LONG_EXAMPLES = {"bracket_tumble"}
 
 
-@pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
+@pytest.mark.parametrize("path", [p for p in EXAMPLES if p.stem not in LONG_EXAMPLES],
+                         ids=[p.stem for p in EXAMPLES if p.stem not in LONG_EXAMPLES])  # fmt: skip
 def test_every_example_runs(tmp_path, path):
     out = tmp_path / "o"
     assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
