@@ -15,6 +15,7 @@ Node orderings follow meshio / VTK:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 
@@ -38,6 +39,9 @@ class ReferenceElement:
     dN : (nq, nv, dim) reference gradients at the quadrature points.
     facets : local node indices of each facet, ordered so that the facet normal
         computed from them points outwards (used when extracting boundaries).
+    constant_gradients : whether the shape functions are linear (P1): their gradients, and so any
+        deformation gradient, are constant on a cell, and one quadrature point integrates a function of
+        them exactly (finite strain's force and tangent use it).
     """
 
     name: str
@@ -48,6 +52,7 @@ class ReferenceElement:
     N: np.ndarray
     dN: np.ndarray
     facets: tuple[tuple[int, ...], ...]
+    constant_gradients: bool = False
 
     @property
     def n_nodes(self) -> int:
@@ -80,72 +85,80 @@ def _p1(dim: int, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return N, dN
 
 
+def _vertex() -> ReferenceElement:
+    return ReferenceElement("vertex", 0, np.zeros((1, 0)), np.zeros((1, 0)), np.ones(1), np.ones((1, 1)),
+                            np.zeros((1, 1, 0)), (), True)  # fmt: skip
+
+
+def _line() -> ReferenceElement:
+    nodes = np.array([[0.0], [1.0]])
+    pts = ((_G2 + 1.0) / 2.0)[:, None]
+    N = np.column_stack([1.0 - pts[:, 0], pts[:, 0]])
+    dN = np.broadcast_to(np.array([[-1.0], [1.0]]), (2, 2, 1)).copy()
+    return ReferenceElement("line", 1, nodes, pts, np.full(2, 0.5), N, dN, ((0,), (1,)), True)
+
+
+def _quad() -> ReferenceElement:
+    nodes = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    pts, w = _tensor_gauss(2)
+    N, dN = _q1(nodes, pts)
+    return ReferenceElement("quad", 2, nodes, pts, w, N, dN, ((0, 1), (1, 2), (2, 3), (3, 0)), False)
+
+
+def _hexahedron() -> ReferenceElement:
+    b = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    nodes = np.vstack([np.column_stack([b, -np.ones(4)]), np.column_stack([b, np.ones(4)])])
+    pts, w = _tensor_gauss(3)
+    N, dN = _q1(nodes, pts)
+    facets = ((0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))
+    return ReferenceElement("hexahedron", 3, nodes, pts, w, N, dN, facets, False)
+
+
+def _triangle() -> ReferenceElement:
+    nodes = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    pts = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])
+    N, dN = _p1(2, pts)
+    return ReferenceElement("triangle", 2, nodes, pts, np.full(3, 1 / 6), N, dN, ((0, 1), (1, 2), (2, 0)), True)
+
+
+def _tetra() -> ReferenceElement:
+    nodes = np.vstack([np.zeros(3), np.eye(3)])
+    a, b = 0.5854101966249685, 0.1381966011250105
+    pts = np.array([[b, b, b], [a, b, b], [b, a, b], [b, b, a]])
+    N, dN = _p1(3, pts)
+    facets = ((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))
+    return ReferenceElement("tetra", 3, nodes, pts, np.full(4, 1 / 24), N, dN, facets, True)
+
+
+@dataclass(frozen=True)
+class CellKind:
+    """A registered cell type: its reference element's builder and the type of its facets."""
+
+    build: Callable[[], ReferenceElement]
+    facet: str
+
+
+#: the cell types signorini meshes (meshio names) -> builder and facet type: the only place that lists them (a
+#: quadratic element is one more entry); ``vertex`` is the facet of a line
+ELEMENTS: dict[str, CellKind] = {
+    "line": CellKind(_line, "vertex"),
+    "quad": CellKind(_quad, "line"),
+    "triangle": CellKind(_triangle, "line"),
+    "hexahedron": CellKind(_hexahedron, "quad"),
+    "tetra": CellKind(_tetra, "triangle"),
+}
+
+
 @cache
 def reference_element(name: str) -> ReferenceElement:
-    """Return the reference element for a meshio cell-type name."""
+    """The reference element of a meshio cell-type name (:data:`ELEMENTS`, or ``vertex``); KeyError otherwise."""
     if name == "vertex":
-        return ReferenceElement(
-            "vertex",
-            0,
-            np.zeros((1, 0)),
-            np.zeros((1, 0)),
-            np.ones(1),
-            np.ones((1, 1)),
-            np.zeros((1, 1, 0)),
-            (),
-        )
-    if name == "line":
-        nodes = np.array([[0.0], [1.0]])
-        pts = ((_G2 + 1.0) / 2.0)[:, None]
-        w = np.full(2, 0.5)
-        N = np.column_stack([1.0 - pts[:, 0], pts[:, 0]])
-        dN = np.broadcast_to(np.array([[-1.0], [1.0]]), (2, 2, 1)).copy()
-        return ReferenceElement(name, 1, nodes, pts, w, N, dN, ((0,), (1,)))
-    if name == "quad":
-        nodes = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-        pts, w = _tensor_gauss(2)
-        N, dN = _q1(nodes, pts)
-        facets = ((0, 1), (1, 2), (2, 3), (3, 0))
-        return ReferenceElement(name, 2, nodes, pts, w, N, dN, facets)
-    if name == "hexahedron":
-        b = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-        nodes = np.vstack([np.column_stack([b, -np.ones(4)]), np.column_stack([b, np.ones(4)])])
-        pts, w = _tensor_gauss(3)
-        N, dN = _q1(nodes, pts)
-        facets = (
-            (0, 3, 2, 1),
-            (4, 5, 6, 7),
-            (0, 1, 5, 4),
-            (1, 2, 6, 5),
-            (2, 3, 7, 6),
-            (3, 0, 4, 7),
-        )
-        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets)
-    if name == "triangle":
-        nodes = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        pts = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])
-        w = np.full(3, 1 / 6)
-        N, dN = _p1(2, pts)
-        return ReferenceElement(name, 2, nodes, pts, w, N, dN, ((0, 1), (1, 2), (2, 0)))
-    if name == "tetra":
-        nodes = np.vstack([np.zeros(3), np.eye(3)])
-        a, b = 0.5854101966249685, 0.1381966011250105
-        pts = np.array([[b, b, b], [a, b, b], [b, a, b], [b, b, a]])
-        w = np.full(4, 1 / 24)
-        N, dN = _p1(3, pts)
-        facets = ((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))
-        return ReferenceElement(name, 3, nodes, pts, w, N, dN, facets)
-    raise KeyError(name)
+        return _vertex()
+    return ELEMENTS[name].build()
 
 
-SUPPORTED_CELLS = ("line", "quad", "triangle", "hexahedron", "tetra")
-FACET_TYPES = {
-    "line": "vertex",
-    "quad": "line",
-    "triangle": "line",
-    "hexahedron": "quad",
-    "tetra": "triangle",
-}
+SUPPORTED_CELLS = tuple(ELEMENTS)
+FACET_TYPES = {name: kind.facet for name, kind in ELEMENTS.items()}
 
 
 def jacobians(dN: np.ndarray, X: np.ndarray) -> np.ndarray:

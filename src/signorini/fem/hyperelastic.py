@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError, NonFiniteError
 from .assembly import assemble_nodal, assemble_vector, geometry, sum_of
-from .elements import determinants
+from .elements import determinants, reference_element
 from .mesh import Mesh
 
 
@@ -272,17 +272,14 @@ def _parts(mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
     return out
 
 
-#: the cell types whose shape functions are linear (P1): their gradients are constant on a cell
-SIMPLICES = ("triangle", "tetra")
-
-
 def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F, wdet, G) of a one-type mesh: F = I + grad_X u at every quadrature point (e, q, d, d),
     the weights w_q |det J| (e, q) and the reference shape gradients G (e, q, nv, d).  ``U`` (n_nodes d,)
-    node-major.  On simplices (:data:`SIMPLICES`) one point per cell (q = 1, its weight the cell's measure):
-    F is constant there, so every integrand of F is integrated exactly with a quarter of the work (tetrahedra)."""
+    node-major.  On P1 cells (``ReferenceElement.constant_gradients``) one point per cell (q = 1, its weight the
+    cell's measure): F is constant there, so every integrand of F is integrated exactly with a quarter of the
+    work (tetrahedra)."""
     wdet, G = geometry(mesh)
-    if mesh.cell_type in SIMPLICES:  # linear shape functions: G and F constant on a cell, one point is exact
+    if reference_element(mesh.cell_type).constant_gradients:  # G and F constant on a cell: one point is exact
         wdet, G = wdet.sum(axis=1, keepdims=True), G[:, :1]
     d = mesh.dim
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
