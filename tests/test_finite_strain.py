@@ -90,14 +90,14 @@ def test_a_linear_body_that_turns_grows_a_finite_strain_one_keeps_its_shape():
     assert abs(grow["linear"] - (np.sqrt(1 + 1.5**2) - 1)) < 0.05 and abs(grow["neo-hookean"]) < 1e-2, grow
 
 
-NEWTON_SCHEMES = ["crank-nicolson", "backward-euler", "newmark", "theta", "generalized-alpha", "hht"]
+NEWTON_SCHEMES = ["crank-nicolson", "backward-euler", "newmark", "theta", "generalized-alpha", "hht", "energy-momentum"]
 
 
 @pytest.mark.parametrize("scheme", NEWTON_SCHEMES)
 def test_newton_schemes_close_their_energy_identity_at_every_step(scheme):
-    """CN, BE, Newmark, theta, generalized-alpha (rho_inf = 1: CN) and HHT (alpha = 0.1) with finite strain: the
-    identity with the trapezoid's error on f in its numerical part closes at every step (``energy_check=fail``)
-    through contact with friction."""
+    """CN, BE, Newmark, theta, generalized-alpha (rho_inf = 1: CN), HHT (alpha = 0.1) and energy-momentum with
+    finite strain: the identity with the trapezoid's error on f in its numerical part (energy-momentum: the
+    massless rows' term) closes at every step (``energy_check=fail``) through contact with Coulomb friction."""
     p = spinning("neo-hookean", 2, omega=2.0)
     p.obstacle = PlaneObstacle([0.0, -0.05], [0.0, 1.0])
     p.v0 = lambda x: np.column_stack([-2.0 * (x[:, 1] - 0.25) + 0.3, 2.0 * (x[:, 0] - 0.5) - 1.0])
@@ -535,3 +535,26 @@ def test_small_amplitudes_approach_linear_elasticity_at_first_order(name):
         errors.append(float(np.abs(nh.lambda_sum - lin.lambda_sum).max() / np.abs(lin.lambda_sum).max()))
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all((rates > 0.8) & (rates < 1.2)) and errors[-1] < 1e-2, (errors, rates)
+
+
+@pytest.mark.parametrize("law", ["coulomb:0.3", "tresca:0.002"])
+def test_energy_momentum_with_friction_is_crank_nicolson_in_linear_elasticity(law):
+    """incline2d (a block sliding on a plane under tilted gravity) with the default mass (massless contact
+    rows): linear energy-momentum is Crank-Nicolson's step, friction included, to round-off; the halved
+    massless rows' tangential forces are doubled back (Coulomb's cone is invariant; Tresca's threshold is
+    halved with them, without which the Tresca histories differ by the factor 2 on the bound)."""
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark("incline2d")
+    p = b.problem(1)
+    p.friction = law
+    p.__post_init__()
+    dt, _ = b.run_times(1)
+    em = simulate(p, "energy-momentum", dt, 0.6)
+    cn = simulate(p, "crank-nicolson", dt, 0.6)
+    assert em.status == cn.status == "finished"
+    f = em.columns()["friction_dissipation"]
+    assert f[-1] > 0 and np.abs(f - cn.columns()["friction_dissipation"]).max() <= 1e-10 * f[-1]
+    for k in ("energy", "lambda_sum", "slip_nodes"):
+        a, c = em.columns()[k], cn.columns()[k]
+        assert np.abs(a - c).max() <= 1e-9 * max(np.abs(c).max(), 1.0), k

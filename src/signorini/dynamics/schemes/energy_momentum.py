@@ -16,11 +16,14 @@ rows are balanced at t_{n+1}, as Crank-Nicolson does (a midpoint balance there l
 
 Energy identity (E = 1/2 V.MV + Pi(U) - U.F(t); docs/schemes.md):
 
-    Delta E = dU.F_mid - Delta(U.F) + (B dU).lambda_w + dU_l.(f_alg - (f^n + f^{n+1})/2)_l + dU_f.R_f,mid
+    Delta E = dU.F_mid - Delta(U.F) + (B dU).lambda_w + (T dU).lambda_t,w + dU_l.(f_alg - (f^n + f^{n+1})/2)_l
+              + dU_f.R_f,mid
 
 with lambda_w = lambda^{n+1} on the rows of nodes with mass and (lambda^n + lambda^{n+1})/2 on those of
-massless nodes (the scheme's contact impulse is dt lambda_w), the last but one term its numerical
-part (0 in linear elasticity, where the scheme conserves energy exactly).
+massless nodes (the scheme's contact impulse is dt lambda_w), lambda_t,w the tangential (friction) forces
+weighted alike, the last but one term its numerical part (0 in linear elasticity, where the scheme conserves
+energy exactly).  Friction (Coulomb, Tresca): the tangential forces of the halved massless rows are halved
+too (Coulomb's cone is invariant; a Tresca threshold is halved with them) and doubled back.
 
 The step is solved by Newton (:mod:`~signorini.dynamics.newton`) with the operator 2/dt^2 M + 1/2 K(U_mid)
 (proportional to Crank-Nicolson's: one factorization serves both in linear elasticity), the massless
@@ -30,6 +33,7 @@ rows' equations halved so that the tangent stays symmetric (their multipliers ar
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 
 import numpy as np
 
@@ -44,7 +48,7 @@ class EnergyMomentum(Scheme):
     description = ("midpoint rule with a discrete-gradient stress: a free body keeps its energy, linear and angular "
                    "momentum (finite strain too); contact at t_{n+1}")  # fmt: skip
     energy_definition = "E = 1/2 V.MV + Pi(U) - U.F(t)"
-    friction_refusal = "its contact rows carry no tangential forces yet"
+    friction_refusal = None
     finite_strain_refusal = None
 
     def operator(self, dt: float) -> Operator:
@@ -98,7 +102,10 @@ class EnergyMomentum(Scheme):
         Mq = (2.0 / dt) * (ctx.Mop @ s.V)  # the inertia of the step less 2/dt^2 M U^n
         rhs = (2.0 / (dt * dt)) * (ctx.Mop @ s.U) + Mq + Fw
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
+        w = self.row_weights(ctx)
         law = ctx.friction_law(s.U, s.t, t)
+        if law.radius is not None:  # Tresca: the halved rows' multipliers are half the forces, so is their bound
+            law = replace(law, radius=law.radius * w)
         el = ctx.elastic
         if el.finite:
             U0 = s.U
@@ -115,7 +122,9 @@ class EnergyMomentum(Scheme):
             SU0 = products(ctx, s)[1]
             U, mu, info = ctx.solve(op, rhs - 0.5 * np.where(ml, 0.0, SU0), ctx.gaps(t), fixed, law,
                                     functools.partial(self.taylor_guess, ctx, s))  # fmt: skip
-        lam = np.where(self.row_weights(ctx) == 0.5, 2.0 * mu, mu) if mu.size else mu
+        lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu
+        if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike
+            info.lam_t = np.where((w == 0.5)[:, None], 2.0 * info.lam_t, info.lam_t)
         V = 2.0 * (U - s.U) / dt - s.V
         A = (V - s.V) / dt
         ctx.massless_update(V, A, U, s.U)
@@ -132,6 +141,7 @@ class EnergyMomentum(Scheme):
         _, dR_free = reaction_work(ctx, old, new, 0.5)
         B0 = ctx.rows_of(old.t)[0]  # the rows the level's multipliers acted through (sliding pairs)
         contact = float((ctx.B @ dU) @ (w * new.lam) + (B0 @ dU) @ ((1.0 - w) * old.lam)) if new.lam.size else 0.0
+        friction = self._friction_work(ctx, dU, old, new, w)
         numerical = dR_free
         el, ml = ctx.elastic, ctx.massless
         f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
@@ -139,7 +149,23 @@ class EnergyMomentum(Scheme):
             f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
             numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
         return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, B0, f0, f1),
-                           contact=contact, numerical=numerical)  # fmt: skip
+                           contact=contact, numerical=numerical, friction=friction)  # fmt: skip
+
+    @staticmethod
+    def _tangential(ctx, old: State, new: State, w) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(w lambda_t^{n+1}, (1 - w) lambda_t^n) per row (nc, d - 1), None for a frictionless level."""
+        a = None if new.lam_t is None else w[:, None] * new.lam_t
+        b = None if old.lam_t is None else (1.0 - w)[:, None] * old.lam_t
+        return a, b
+
+    def _friction_work(self, ctx, dU: np.ndarray, old: State, new: State, w) -> float:
+        """(T dU) . (w lambda_t^{n+1} + (1 - w) lambda_t^n), each level's forces through its own frames [energy]."""
+        if ctx.T is None:
+            return 0.0
+        a, b = self._tangential(ctx, old, new, w)
+        T0 = ctx.rows_of(old.t)[1]
+        out = 0.0 if a is None else float((ctx.T @ dU) @ a.ravel())
+        return out + (0.0 if b is None or T0 is None else float((T0 @ dU) @ b.ravel()))
 
     def _prescribed_work(self, ctx, old: State, new: State, w, B0, f0, f1) -> float:
         """dU_D . R_D: the work of the reactions of a prescribed motion, R = M dV/dt + g_w - F_mid - B^T lambda_w
@@ -152,5 +178,11 @@ class EnergyMomentum(Scheme):
             f_alg = new.product("f_alg", lambda: ctx.elastic.algorithmic_force(old.U, new.U))
             g = np.where(self._massless_mask(ctx), g, f_alg)
         contact = ctx.B.T @ (w * new.lam) + B0.T @ ((1.0 - w) * old.lam) if new.lam.size else 0.0
+        a, b = self._tangential(ctx, old, new, w)
+        T0 = ctx.rows_of(old.t)[1]
+        if a is not None and ctx.T is not None:
+            contact = contact + ctx.T.T @ a.ravel()
+        if b is not None and T0 is not None:
+            contact = contact + T0.T @ b.ravel()
         R = (ctx.M @ (new.V - old.V)) / dt + g - 0.5 * (ctx.load(old.t) + ctx.load(new.t)) - contact
         return float((new.U - old.U)[D] @ R[D])
