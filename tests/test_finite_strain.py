@@ -156,7 +156,7 @@ def test_an_inverted_cell_is_a_failure_naming_it():
 
 REFUSED = [
     (dict(scheme="paoli-schatzman"), "scheme paoli-schatzman cannot run finite strain"),
-    (dict(scheme="penalty"), "schemes that do: "),
+    (dict(scheme="moreau-jean"), "schemes that do: "),
     (dict(obstacle="sphere", friction="coulomb:0.2"), "friction against a sphere obstacle"),
     (dict(backend="cg"), "backend 'cg'"),
     (dict(damping={"alpha": 0.0, "beta": 1e-3}), "stiffness-proportional damping"),
@@ -558,3 +558,18 @@ def test_energy_momentum_with_friction_is_crank_nicolson_in_linear_elasticity(la
     for k in ("energy", "lambda_sum", "slip_nodes"):
         a, c = em.columns()[k], cn.columns()[k]
         assert np.abs(a - c).max() <= 1e-9 * max(np.abs(c).max(), 1.0), k
+
+
+def test_penalty_runs_finite_strain_with_crank_nicolsons_newton_step():
+    """The penalty scheme is Crank-Nicolson with a compliance in each contact solve: with finite strain it takes
+    the same Newton step (the compliance law in every iteration's solve), its identity closed at every step;
+    the block penetrates the ball by O(1/stiffness) (the penalty), less with a stiffer spring."""
+    p = block_on_ball()
+    depth = []
+    for k in (100.0, 1000.0):
+        H = simulate(p, "penalty", 2e-5, 0.0045, scheme_options={"stiffness": k}, solver_options={"energy_check": "fail"})
+        assert H.status == "finished" and H.impacts >= 1, H.message
+        inc, pred = np.diff(H.energy), H.predicted_increment[1:]
+        assert np.abs(inc - pred).max() <= 1e-8 * H.energy[0]
+        depth.append(-H.gap.min())
+    assert 0 < depth[1] < 0.3 * depth[0], depth

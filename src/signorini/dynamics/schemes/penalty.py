@@ -30,7 +30,7 @@ from .newmark import CrankNicolson
 
 class PenaltyCN(CrankNicolson):
     name = "penalty"
-    finite_strain_refusal = "its step has no Newton iteration for a nonlinear internal force yet"
+    finite_strain_refusal = None  # Crank-Nicolson's Newton step, the compliance in each contact solve
     description = "Crank-Nicolson with penalized contact, k_i = stiffness E w_i / h (penetration O(1/stiffness))"
     parameters = (Parameter("stiffness", 100.0, "penalty factor on E w_i / h (dimensionless)", float, 0.0, None, True),)
     energy_definition = "E = 1/2 V.MV + 1/2 U.SU - U.F(t) (penalty springs' energy not included)"
