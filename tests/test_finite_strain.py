@@ -567,7 +567,8 @@ def test_penalty_runs_finite_strain_with_crank_nicolsons_newton_step():
     p = block_on_ball()
     depth = []
     for k in (100.0, 1000.0):
-        H = simulate(p, "penalty", 2e-5, 0.0045, scheme_options={"stiffness": k}, solver_options={"energy_check": "fail"})
+        H = simulate(p, "penalty", 2e-5, 0.0045, scheme_options={"stiffness": k},
+                     solver_options={"energy_check": "fail"})  # fmt: skip
         assert H.status == "finished" and H.impacts >= 1, H.message
         inc, pred = np.diff(H.energy), H.predicted_increment[1:]
         assert np.abs(inc - pred).max() <= 1e-8 * H.energy[0]
