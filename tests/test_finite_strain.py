@@ -574,3 +574,59 @@ def test_penalty_runs_finite_strain_with_crank_nicolsons_newton_step():
         assert np.abs(inc - pred).max() <= 1e-8 * H.energy[0]
         depth.append(-H.gap.min())
     assert 0 < depth[1] < 0.3 * depth[0], depth
+
+
+def two_neo_hookean_blocks(vx: float = 3.0, vy: float = -1.0, friction=None, obstacle=None) -> Problem:
+    """A Neo-Hookean block 0.2 x 0.1 m (4 x 2 quads) 2 mm above another 0.6 x 0.1 m (12 x 2 quads), both free,
+    thrown at (vx, vy) m/s: it lands and slides over several facets of the lower one (contact pair)."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.dynamics.problem import RegionInitial
+    from signorini.fem.mesh import join
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 2, 0.6, 0.1)
+    upper.points = upper.points + [0.05, 0.102]
+    m = join({"upper": upper, "lower": lower})
+    return Problem(m, NeoHookean.from_young(1e5, 0.3, 1000.0), "lower_ymin" if obstacle else None, obstacle,
+                   pairs=[ContactPair("upper_ymin", "lower_ymax", friction=friction)],
+                   initial_regions=[RegionInitial("upper", velocity=[vx, vy])])  # fmt: skip
+
+
+@pytest.mark.parametrize("scheme", ["crank-nicolson", "backward-euler", "energy-momentum"])
+def test_contact_pairs_in_the_current_configuration_slide_across_facets(scheme):
+    """Large sliding: the upper block's slave nodes are projected on the deformed lower block in every Newton
+    iteration and travel across several master facets (each 5 cm; the block slides about 20 cm); no node
+    through the master surface (current gaps >= -1e-10 of the body), the identity closed at every step
+    (energy_check=fail), the total linear momentum kept (CN, BE: to 1e-10, Newton's tolerance; measured 1.4e-12;
+    energy-momentum's massless rows: to 1e-5)."""
+    from signorini.dynamics.stepper import Stepper
+
+    s = Stepper(two_neo_hookean_blocks(), scheme, 2e-4, 0.08, solver_options={"energy_check": "fail"})
+    first = s.run.ctx.disc.contact.master_facet.copy()
+    while s.status == "running":
+        s.step()
+    facets = s.run.ctx.disc.contact.master_facet
+    H = s.finish()
+    assert H.status == "finished", H.message
+    assert H.impacts >= 1 and H.lam.min() < 0
+    assert np.abs(facets - first).max() >= 3  # a slave node crossed three facets or more
+    assert H.gap.min() >= -1e-10 * 0.6
+    P = H.columns()["momentum_x"]
+    assert np.abs(P - P[0]).max() <= (1e-5 if scheme == "energy-momentum" else 1e-10) * abs(P[0])
+
+
+def test_contact_pairs_in_the_current_configuration_resume_bit_for_bit_and_refuse_what_is_not_done(tmp_path):
+    """A checkpoint inside the sliding contact holds the pairing of the current configuration: the resumed run
+    is the uninterrupted one byte for byte.  Friction on the pairs, and pairs beside a rigid obstacle, are
+    refused by name."""
+    p = two_neo_hookean_blocks()
+    full = simulate(p, "crank-nicolson", 2e-4, 0.02)
+    simulate(p, "crank-nicolson", 2e-4, 0.014, checkpoint=tmp_path / "c.h5")
+    r = simulate(p, "crank-nicolson", 2e-4, 0.02, resume=tmp_path / "c.h5")
+    assert full.lam[70].min() < 0  # in contact at the checkpoint (levels 10 .. 141)
+    for k in ("energy", "lambda_sum", "momentum_x", "angular_momentum_z", "nonlinear_iterations"):
+        assert np.array_equal(full.columns()[k], r.columns()[k]), k
+    with pytest.raises(InputError, match="friction on contact pairs is not done yet"):
+        simulate(two_neo_hookean_blocks(friction="coulomb:0.2"), "crank-nicolson", 2e-4, 0.002)
+    with pytest.raises(InputError, match="contact pairs and a rigid obstacle together"):
+        simulate(two_neo_hookean_blocks(obstacle=PlaneObstacle([0.0, -0.1], [0.0, 1.0])), "crank-nicolson", 2e-4,
+                 0.002, mass="standard")  # fmt: skip

@@ -328,22 +328,22 @@ def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:
 LEAVE = 1e-9
 
 
-def _outside(x: np.ndarray, P: np.ndarray, kind: str) -> np.ndarray:
+def _outside(x: np.ndarray, P: np.ndarray, kind: str, leave: float = LEAVE) -> np.ndarray:
     """Whether the orthogonal projection of x (m, d) on the facets P (m, nfv, d) (their plane,
-    or the bilinear surface) lies outside them by more than :data:`LEAVE` in their parameters."""
+    or the bilinear surface) lies outside them by more than ``leave`` in their parameters."""
     if kind == "vertex":
         return np.zeros(x.shape[0], dtype=bool)
     if kind == "line":
         a, e = P[:, 0], P[:, 1] - P[:, 0]
         s = ((x - a) * e).sum(axis=1) / (e * e).sum(axis=1)
-        return (s < -LEAVE) | (s > 1 + LEAVE)
+        return (s < -leave) | (s > 1 + leave)
     if kind == "triangle":
         a, e1, e2 = P[:, 0], P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
         g11, g12, g22 = (e1 * e1).sum(axis=1), (e1 * e2).sum(axis=1), (e2 * e2).sum(axis=1)
         r1, r2 = ((x - a) * e1).sum(axis=1), ((x - a) * e2).sum(axis=1)
         det = g11 * g22 - g12 * g12
         s, t = (g22 * r1 - g12 * r2) / det, (g11 * r2 - g12 * r1) / det
-        return (s < -LEAVE) | (t < -LEAVE) | (s + t > 1 + LEAVE)
+        return (s < -leave) | (t < -leave) | (s + t > 1 + leave)
     # bilinear quadrilateral: unclipped Gauss-Newton for (xi, eta), outside [-1, 1]^2
     c0 = 0.25 * (P[:, 0] + P[:, 1] + P[:, 2] + P[:, 3])
     c1 = 0.25 * (-P[:, 0] + P[:, 1] + P[:, 2] - P[:, 3])
@@ -360,7 +360,7 @@ def _outside(x: np.ndarray, P: np.ndarray, kind: str) -> np.ndarray:
         xi, eta = xi + dxi, eta + deta
         if max(float(np.abs(dxi).max(initial=0.0)), float(np.abs(deta).max(initial=0.0))) <= 1e-14:
             break
-    return (np.abs(xi) > 1 + LEAVE) | (np.abs(eta) > 1 + LEAVE)
+    return (np.abs(xi) > 1 + 2 * leave) | (np.abs(eta) > 1 + 2 * leave)
 
 
 @dataclass
@@ -431,6 +431,87 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
         n_m = normals_f[new]
     gaps = np.einsum("md,md->m", mesh.points[slave] - np.einsum("mk,mkd->md", N, P), n_m)
     return SlidRows(rows, -n_m, gaps, new, N, oriented[new])
+
+
+# ----------------------------------------------------------------------------- current configuration
+def _facet_normals(P: np.ndarray, N: np.ndarray, kind: str) -> np.ndarray:
+    """Unit normals (m, d) of facets P (m, nfv, d) at the points of shape functions N (m, nfv), by the facets'
+    node order (a segment's (t_y, -t_x), a triangle's (P1 - P0) x (P2 - P0), a bilinear face's at N)."""
+    if kind == "line":
+        t = P[:, 1] - P[:, 0]
+        n = np.column_stack([t[:, 1], -t[:, 0]])
+    elif kind == "triangle":
+        n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    else:
+        return _quad_normal(P, N)
+    return n / np.linalg.norm(n, axis=1)[:, None]
+
+
+@dataclass
+class CurrentProjection:
+    """Slave nodes projected on the master surface of one pair in the current configuration X + U."""
+
+    facet: np.ndarray  # (m,) the closest master facet (index in the master tag's facets)
+    xi: np.ndarray  # (m, nfv) its shape functions at the projection
+    normals: np.ndarray  # (m, d) n_m, the deformed facet's outward unit normal there
+    gaps: np.ndarray  # (m,) (x_s - p) . n_m in the current configuration [length]
+    facet_nodes: np.ndarray  # (m, nfv) the facet's nodes, outward orientation
+    scale: float  # the size of the coordinates the gaps are computed from [length]
+
+
+#: in the current configuration a slave node keeps its facet while its orthogonal projection lies on the facet
+#: extended by this fraction of its parameters (a hysteresis at the kinks of the deformed master surface)
+KEEP_FACET = 0.05
+
+
+class CurrentPairing:
+    """The projections of a pair's slave nodes in the current configuration (finite strain: large sliding).
+
+    Each call searches the closest deformed master facet among the :data:`CANDIDATES` nearest centres (as
+    at t = 0, ties by the same geometric rules) and gives its current outward normal: the facets' node
+    order gives a normal up to a sign fixed once per facet against the reference outward normal."""
+
+    def __init__(self, mesh: Mesh, pair: ContactPair):
+        self.mesh = mesh
+        normals_f, self.oriented = master_geometry(mesh, pair)
+        d = mesh.dim
+        self.kind = "line" if d == 2 else ("triangle" if self.oriented.shape[1] == 3 else "quad")
+        P = mesh.points[self.oriented]
+        centre = np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])
+        self.sign = np.sign(np.einsum("md,md->m", _facet_normals(P, centre, self.kind), normals_f))
+
+    def __call__(self, slave: np.ndarray, U: np.ndarray, facet: np.ndarray | None = None) -> CurrentProjection:
+        """The projections at X + U; ``facet``: the slave nodes' facets so far, kept while the orthogonal
+        projection stays on them within :data:`KEEP_FACET` of their parameters (at a kink of the deformed
+        master surface the closest facet would alternate between Newton iterates)."""
+        d = self.mesh.dim
+        X = self.mesh.points + np.asarray(U).reshape(-1, d)
+        Pd = X[self.oriented]
+        centres = Pd.mean(axis=1)
+        stay = (
+            np.zeros(slave.size, dtype=bool) if facet is None else ~_outside(X[slave], Pd[facet], self.kind, KEEP_FACET)
+        )
+        new = np.array(facet, copy=True) if facet is not None else np.zeros(slave.size, dtype=np.int64)
+        N = np.zeros((slave.size, self.oriented.shape[1]))
+        p = np.zeros((slave.size, d))
+        if stay.any():
+            p[stay], N[stay] = _closest_on_facets(X[slave[stay]], Pd[facet[stay]], self.kind)
+        search = np.flatnonzero(~stay)
+        if search.size:
+            k = min(CANDIDATES, len(self.oriented))
+            _, cand = cKDTree(centres).query(X[slave[search]], k=k)
+            cand = np.asarray(cand).reshape(search.size, k)
+            xs = np.repeat(X[slave[search]], k, axis=0)
+            pc, Nc = _closest_on_facets(xs, Pd[cand.ravel()], self.kind)
+            dist = np.linalg.norm(xs - pc, axis=1)
+            size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
+            pick = _closest(np.repeat(np.arange(search.size), k), dist, centres[cand.ravel()], size, xs)
+            new[search], N[search], p[search] = cand.ravel()[pick], Nc[pick], pc[pick]
+        facet = new
+        scale = float(np.abs(X[np.unique(np.concatenate([slave, self.oriented.ravel()]))]).max(initial=0.0))
+        n = self.sign[facet][:, None] * _facet_normals(Pd[facet], N, self.kind)
+        gaps = np.einsum("md,md->m", X[slave] - p, n)
+        return CurrentProjection(facet, N, n, gaps, self.oriented[facet], scale)
 
 
 #: a slave side whose facets are this many times larger than the master's gets a warning

@@ -140,7 +140,7 @@ class ContactRows:
         left its master facet in X + U are re-paired; B, its free and fixed blocks and the
         friction frames follow.  Returns the rows re-paired (counted in ``pair_rows_repaired``),
         whose solvers' rows the caller replaces (:meth:`Context.slide`)."""
-        if not self.sliding:
+        if not self.sliding or self.current is not None:  # (finite strain: the pairs follow in every iteration)
             return np.zeros(0, dtype=np.int64)
         disc = self.disc
         B_before, T_before = self.B, self.T

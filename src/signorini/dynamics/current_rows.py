@@ -1,4 +1,4 @@
-"""Contact rows in the current configuration (finite strain against a rigid obstacle).
+"""Contact rows in the current configuration (finite strain against a rigid obstacle, and contact pairs).
 
 With finite strain a contact node's gap is the signed distance of its current position x = X + u to the
 obstacle, phi_t(x), and its row the obstacle's outward body normal there, nu(x, t).  A step's Newton
@@ -105,10 +105,116 @@ class CurrentRows:
             self.rows.rebuilt()
 
 
-def current_rows(rows: ContactRows) -> CurrentRows | None:
-    """The run's :class:`CurrentRows` when its rigid obstacle gives its normals at any point (plane, sphere),
-    else None (no obstacle rows, or an obstacle refused with finite strain)."""
+class CurrentPairRows:
+    """Contact pairs' rows in the current configuration (finite strain: large sliding).
+
+    At every Newton iterate U each slave node is projected on its pair's deformed master surface
+    (:class:`~signorini.contact.pairs.CurrentPairing`): the closest facet, its shape functions N_j at the
+    projection p and its current outward normal n_m there give the row and the bound
+
+        -n_m . (u_s - sum_j N_j u_j) <= (x_s - p) . n_m - n_m . (u_s^k - sum_j N_j u_j^k)
+
+    (the current normal gap linearized at U^k with n_m and N frozen): a slave node may travel across any
+    number of facets.  The same interface as :class:`CurrentRows` (the rows a level acted through kept,
+    put back and saved).  Frictionless; rows of a rigid obstacle beside the pairs are not done (refused).
+    """
+
+    #: the contact set's arrays of a pair row's pairing
+    ARRAYS = ("normals", "master_facet", "master_shape", "master_dofs")
+
+    def __init__(self, rows: ContactRows):
+        from ..contact.pairs import CurrentPairing
+
+        self.rows = rows
+        disc = rows.disc
+        self.contact, self.space = disc.contact, disc.space
+        self.n_dofs = disc.space.n_dofs
+        pairs = disc.problem.pairs
+        self.pairings = [CurrentPairing(disc.problem.mesh, p) for p in pairs]
+        self.pair_rows = [np.flatnonzero(self.contact.pair == k) for k in range(len(pairs))]
+        self._kept: tuple[float, dict[str, np.ndarray]] | None = None
+
+    def _project(self, U: np.ndarray) -> list:
+        """Each pair's rows and their projections at U, the rows' facets so far kept where they still hold."""
+        c = self.contact
+        return [(r, f(c.nodes[r], U, c.master_facet[r])) for r, f in zip(self.pair_rows, self.pairings, strict=True)
+                if r.size]  # fmt: skip
+
+    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rows at the iterate U: (bound (nc,), the rows that changed)."""
+        c, d = self.contact, self.space.dim
+        new = {k: np.array(getattr(c, k), copy=True) for k in self.ARRAYS}
+        gaps = np.zeros(c.size)
+        for r, proj in self._project(U):
+            new["normals"][r] = -proj.normals
+            new["master_facet"][r] = proj.facet
+            new["master_shape"][r] = proj.xi
+            new["master_dofs"][r] = self.space.dofs(proj.facet_nodes.ravel()).reshape(r.size, -1, d)
+            gaps[r] = proj.gaps
+        changed = self._set(new)
+        return gaps + c.B @ U, changed
+
+    def distance_scale(self, U: np.ndarray, t: float) -> float:
+        """The largest coordinate of the slave and master nodes at U (the gaps' round-off scale) [length]."""
+        return max((proj.scale for _, proj in self._project(U)), default=0.0)
+
+    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
+        """The current normal gaps (x_s - p) . n_m (nc,) at U [length]."""
+        out = np.zeros(self.contact.size)
+        for r, proj in self._project(U):
+            out[r] = proj.gaps
+        return out
+
+    def keep_level(self, t: float) -> np.ndarray:
+        """As :meth:`CurrentRows.keep_level`: the level's pairing kept, or put back before a step is tried again."""
+        c = self.contact
+        changed = np.zeros(0, dtype=np.int64)
+        if self._kept is not None and self._kept[0] == t:
+            changed = self._set(self._kept[1])
+        else:
+            self._kept = (t, {k: np.array(getattr(c, k), copy=True) for k in self.ARRAYS})
+        self.rows.keep_level(t)
+        return changed
+
+    def saved(self) -> dict[str, Any]:
+        """The pairing the last level's multipliers acted through (a checkpoint's)."""
+        return {k: np.array(getattr(self.contact, k), copy=True) for k in self.ARRAYS}
+
+    def resume(self, data: dict[str, Any]) -> np.ndarray:
+        """Put back :meth:`saved` (a resumed run, before its first step); the rows it changed."""
+        c = self.contact
+        new = {}
+        for k in self.ARRAYS:
+            a = np.asarray(data.get(k))
+            old = getattr(c, k)
+            if a.shape != old.shape:
+                raise InputError(f"checkpoint: the pairing field {k!r} has shape {a.shape}, expected {old.shape}")
+            new[k] = a.astype(old.dtype, copy=True)
+        return self._set(new)
+
+    def _set(self, new: dict[str, np.ndarray]) -> np.ndarray:
+        c = self.contact
+        changed = np.zeros(c.size, dtype=bool)
+        for k in self.ARRAYS:
+            changed |= (np.asarray(new[k]) != getattr(c, k)).reshape(c.size, -1).any(axis=1)
+        rows = np.flatnonzero(changed)
+        if rows.size:
+            for k in self.ARRAYS:
+                getattr(c, k)[...] = new[k]
+            c.rebuild_rows(self.n_dofs)
+            self.rows.rebuilt()
+        return rows
+
+
+def current_rows(rows: ContactRows) -> CurrentRows | CurrentPairRows | None:
+    """The run's rows of the current configuration: :class:`CurrentPairRows` with contact pairs,
+    :class:`CurrentRows` when its rigid obstacle gives its normals at any point (plane, sphere), else None (no
+    obstacle rows, or an obstacle refused with finite strain)."""
     disc = rows.disc
+    if disc.space.dim == 1:  # refused with finite strain (check_finite_strain)
+        return None
+    if disc.problem.pairs and disc.contact.has_pair_rows:
+        return CurrentPairRows(rows)
     ob = disc.problem.obstacle
     if ob is None or not disc.contact.size or ob.body_normals(disc.contact.points[:1], 0.0) is None:
         return None
