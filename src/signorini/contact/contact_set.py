@@ -279,13 +279,14 @@ class ContactSet:
         none = np.zeros(0, dtype=np.int64)
         return cls(none, np.zeros((0, d)), z, z.copy(), B, np.zeros((0, d)), None, np.zeros((0, d), dtype=np.int64))
 
-    def with_pairs(self, space: VectorSpace, pairs: Sequence) -> ContactSet:
+    def with_pairs(self, space: VectorSpace, pairs: Sequence, every: bool = False) -> ContactSet:
         """This set (the rigid obstacle's rows, maybe none) followed by the rows of ``pairs``
-        (:class:`~.pairs.ContactPair`), pair k's rows tagged k in :attr:`pair`."""
+        (:class:`~.pairs.ContactPair`), pair k's rows tagged k in :attr:`pair`; ``every``: a row for every slave
+        node, facing the master surface at t = 0 or not (finite strain)."""
         from .pairs import pair_rows, pair_side_warning
 
         mesh = space.mesh
-        parts = [pair_rows(mesh, p, space.n_dofs) for p in pairs]
+        parts = [pair_rows(mesh, p, space.n_dofs, every) for p in pairs]
         check_pair_tags(mesh, pairs)
         for p, r in zip(pairs, parts, strict=True):
             if r.nodes.size == 0:

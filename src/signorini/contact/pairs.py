@@ -229,11 +229,13 @@ class FacetRows:
     inactive: int  # nodes laterally off the surface: no row
 
 
-def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int) -> FacetRows:
+def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int, every: bool = False
+                       ) -> FacetRows:  # fmt: skip
     """The linearized gap rows of ``nodes`` against the surface of ``facets`` (boundary facets
     of the mesh) at t = 0 (the module docstring): closest facet among the :data:`CANDIDATES`
     nearest centres, exact closest point, the facet's outward normal there; nodes laterally
-    off the surface by more than :data:`OFF_SURFACE` of the size get no row."""
+    off the surface by more than :data:`OFF_SURFACE` of the size get no row (``every``: they get one too, at
+    their closest point: finite strain, whose pairing follows the current configuration)."""
     d = mesh.dim
     normals_f, oriented = facet_owner_normals(mesh, facets)
     X = mesh.points
@@ -265,7 +267,7 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     gaps = np.einsum("md,md->m", delta, normals_m)
     lateral = np.linalg.norm(delta - gaps[:, None] * normals_m, axis=1)
     size = float(np.linalg.norm(np.ptp(np.vstack([X[nodes], centres]), axis=0))) or 1.0
-    on = lateral <= OFF_SURFACE * size
+    on = (lateral <= OFF_SURFACE * size) | every
     nodes, facet, N, normals_m, gaps = nodes[on], facet[on], N[on], normals_m[on], gaps[on]
     m, nfv = nodes.size, oriented.shape[1]
     rows = np.repeat(np.arange(m), d * (1 + nfv))
@@ -297,14 +299,15 @@ def _closest(row: np.ndarray, dist: np.ndarray, centres: np.ndarray, size: float
     return order[np.r_[0, np.flatnonzero(np.diff(row[order])) + 1]]
 
 
-def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int) -> PairRows:
-    """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring)."""
+def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -> PairRows:
+    """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring); ``every``: a row for every
+    slave node (:func:`node_to_facet_rows`)."""
     slave = mesh.nodes_of(pair.slave)
     facets = mesh.facets_of(pair.master)
     if np.intersect1d(slave, np.unique(facets)).size:
         raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
                          "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
-    r = node_to_facet_rows(mesh, slave, facets, n_dofs)
+    r = node_to_facet_rows(mesh, slave, facets, n_dofs, every)
     weights = facet_weights(mesh, pair.slave)[r.nodes]
     return PairRows(r.nodes, -r.normals, r.gaps, weights, r.B, r.facet, r.xi, r.facet_nodes, np.unique(facets),
                     r.inactive)  # fmt: skip

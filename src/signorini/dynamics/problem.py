@@ -496,7 +496,8 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
         contact = ContactSet.empty(space)
     if problem.pairs:
         _check_pairs(problem, mass)
-        contact = contact.with_pairs(space, list(problem.pairs))
+        finite = any(m.model != "linear" for m in (problem.material, *problem.materials.values()))
+        contact = contact.with_pairs(space, list(problem.pairs), every=finite and space.dim > 1)
         for info, law in zip(contact.pair_info, pair_laws(problem), strict=True):
             info["friction"] = law.describe()
     normals = None if problem.pairs else contact.normals  # seed-normal only, refused with pairs

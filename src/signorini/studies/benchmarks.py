@@ -46,6 +46,10 @@ the bar (h = width/n); in 1D ``n`` elements along the bar.  Default time step h/
                 1 Saint Venant-Kirchhoff, 0 linear): energy-momentum keeps its energy and angular
                 momentum, a linear body builds a spurious strain energy (:mod:`signorini.studies.spin`).
 
+``rings2d``     two Neo-Hookean rings colliding obliquely, a contact pair in the current configuration
+                (:mod:`signorini.studies.rings`): the drifts of the energy and the momenta, the contact's
+                span and peak force.
+
 Hertz parameters: ``R``=1, ``E``=1, ``nu``=0.3, ``rho``=1, ``velocity``=0.002,
 ``tangential_velocity``=0 (along x: an oblique impact), ``mu``=0 (Coulomb friction with the
 plane; 0 and no ``--friction``: frictionless), mesh
@@ -70,7 +74,7 @@ from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import collision, collision_balls, hertz, incline, spin
+from ..studies import collision, collision_balls, hertz, incline, rings, spin
 from ..studies.exact import ExactBar1D
 
 
@@ -310,6 +314,9 @@ for _b in (
                 "angular momentum kept; the linear model's spurious strain energy)", spin.DEFAULT_LEVEL[d],
                 spin.sizes(d), spin.run_times, spin.measure(d), spin.check_params)
       for d in (2, 3)),
+    Benchmark("rings2d", 2, dict(rings.RINGS_DEFAULTS), rings.build, None,
+              "two Neo-Hookean rings colliding obliquely (contact pair in the current configuration, plane strain)",
+              1, rings.sizes, rings.run_times, rings.measure, rings.check_params),
 ):  # fmt: skip
     _register(_b)
 
