@@ -630,3 +630,27 @@ def test_contact_pairs_in_the_current_configuration_resume_bit_for_bit_and_refus
     with pytest.raises(InputError, match="contact pairs and a rigid obstacle together"):
         simulate(two_neo_hookean_blocks(obstacle=PlaneObstacle([0.0, -0.1], [0.0, 1.0])), "crank-nicolson", 2e-4,
                  0.002, mass="standard")  # fmt: skip
+
+
+def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force():
+    """A block sliding off the end of another (gravity, the lower block clamped): the slave nodes that pass the
+    master surface's rim face nothing and carry no contact force (before, the last facet's line held them up
+    in mid-air and Newton then stalled); the block tips over the edge, no node goes through the surface
+    (an adversarial review's case)."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.dynamics.problem import RegionInitial
+    from signorini.fem.mesh import join
+    from signorini.fem.space import Dirichlet
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 2, 0.6, 0.1)
+    upper.points = upper.points + [0.35, 0.1001]
+    m = join({"upper": upper, "lower": lower})
+    p = Problem(m, NeoHookean.from_young(1e5, 0.3, 1000.0), None, None, dirichlet=[Dirichlet("lower_ymin", 0.0)],
+                pairs=[ContactPair("upper_ymin", "lower_ymax")], gravity=[0.0, -49.05],
+                initial_regions=[RegionInitial("upper", velocity=[4.0, 0.0])])  # fmt: skip
+    H = simulate(p, "crank-nicolson", 2e-4, 0.06)
+    assert H.status == "finished", H.message
+    slave_x = m.points[m.nodes_of("upper_ymin"), 0]
+    assert H.lam.min() < 0 and H.gap.min() >= -1e-10 * 0.6
+    assert np.all(H.lam[-1] == 0.0) and H.columns()["momentum_y"][-1] < 0  # off the edge, falling
+    assert slave_x.size == H.lam.shape[1]

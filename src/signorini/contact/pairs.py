@@ -460,6 +460,7 @@ class CurrentProjection:
     gaps: np.ndarray  # (m,) (x_s - p) . n_m in the current configuration [length]
     facet_nodes: np.ndarray  # (m, nfv) the facet's nodes, outward orientation
     scale: float  # the size of the coordinates the gaps are computed from [length]
+    facing: np.ndarray  # (m,) whether the node faces the surface (not beyond its rim): the others get no contact
 
 
 #: in the current configuration a slave node keeps its facet while its orthogonal projection lies on the facet
@@ -482,6 +483,15 @@ class CurrentPairing:
         P = mesh.points[self.oriented]
         centre = np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])
         self.sign = np.sign(np.einsum("md,md->m", _facet_normals(P, centre, self.kind), normals_f))
+        # the master surface's rim: the vertices (2D) or the nodes of the edges (3D) of only one master facet
+        if d == 2:
+            nodes, count = np.unique(self.oriented, return_counts=True)
+        else:
+            e = np.sort(np.stack([self.oriented, np.roll(self.oriented, -1, axis=1)], -1).reshape(-1, 2), axis=1)
+            keys, count = np.unique(e, axis=0, return_counts=True)
+            nodes, count = np.unique(keys[count == 1]), None
+        self.rim = np.zeros(mesh.n_nodes, dtype=bool)
+        self.rim[nodes if count is None else nodes[count == 1]] = True
 
     def __call__(self, slave: np.ndarray, U: np.ndarray, facet: np.ndarray | None = None) -> CurrentProjection:
         """The projections at X + U; ``facet``: the slave nodes' facets so far, kept while the orthogonal
@@ -513,8 +523,14 @@ class CurrentPairing:
         facet = new
         scale = float(np.abs(X[np.unique(np.concatenate([slave, self.oriented.ravel()]))]).max(initial=0.0))
         n = self.sign[facet][:, None] * _facet_normals(Pd[facet], N, self.kind)
-        gaps = np.einsum("md,md->m", X[slave] - p, n)
-        return CurrentProjection(facet, N, n, gaps, self.oriented[facet], scale)
+        delta = X[slave] - p
+        gaps = np.einsum("md,md->m", delta, n)
+        # a node whose closest point is on the master surface's rim and off its normal faces nothing there
+        lateral = np.linalg.norm(delta - gaps[:, None] * n, axis=1)
+        on_rim = np.all(self.rim[self.oriented[facet]] | (N <= 1e-12), axis=1)
+        size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
+        facing = ~(on_rim & (lateral > OFF_SURFACE * size))
+        return CurrentProjection(facet, N, n, gaps, self.oriented[facet], scale, facing)
 
 
 #: a slave side whose facets are this many times larger than the master's gets a warning

@@ -24,6 +24,9 @@ from ..errors import InputError
 
 #: the gaps of the current configuration are the true ones to this many touch tolerances (1e-10 of the body)
 GAP_TOLERANCE = 100.0
+#: the gap given to a pair row whose slave node lies beyond the master surface's rim (faces nothing), in units
+#: of the coordinates' size: large enough never to be reached in a step
+OFF_RIM = 1e6
 #: the round-off of a distance relative to the numbers it is computed from (1e3 machine epsilons)
 ROUNDOFF = 1e3 * np.finfo(float).eps
 
@@ -132,6 +135,10 @@ class CurrentPairRows:
         pairs = disc.problem.pairs
         self.pairings = [CurrentPairing(disc.problem.mesh, p) for p in pairs]
         self.pair_rows = [np.flatnonzero(self.contact.pair == k) for k in range(len(pairs))]
+        #: the gap of a row beyond the master surface's rim (one number for the run: the bound it gives is the
+        #: same at every iterate) [length]
+        X = disc.problem.mesh.points
+        self.far = OFF_RIM * (float(np.abs(X).max(initial=0.0)) + float(np.ptp(X, axis=0).max(initial=0.0)) or 1.0)
         self._kept: tuple[float, dict[str, np.ndarray]] | None = None
 
     def _project(self, U: np.ndarray) -> list:
@@ -150,7 +157,7 @@ class CurrentPairRows:
             new["master_facet"][r] = proj.facet
             new["master_shape"][r] = proj.xi
             new["master_dofs"][r] = self.space.dofs(proj.facet_nodes.ravel()).reshape(r.size, -1, d)
-            gaps[r] = proj.gaps
+            gaps[r] = np.where(proj.facing, proj.gaps, self.far)  # beyond the rim: never active
         changed = self._set(new)
         return gaps + c.B @ U, changed
 
@@ -159,10 +166,11 @@ class CurrentPairRows:
         return max((proj.scale for _, proj in self._project(U)), default=0.0)
 
     def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
-        """The current normal gaps (x_s - p) . n_m (nc,) at U [length]."""
+        """The current normal gaps (x_s - p) . n_m (nc,) at U [length]; a node beyond the master surface's rim
+        (facing nothing) gets the bound :meth:`follow` gives it, so that it never counts as unsettled."""
         out = np.zeros(self.contact.size)
         for r, proj in self._project(U):
-            out[r] = proj.gaps
+            out[r] = np.where(proj.facing, proj.gaps, self.far)
         return out
 
     def keep_level(self, t: float) -> np.ndarray:

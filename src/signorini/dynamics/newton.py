@@ -203,6 +203,13 @@ def newton_solve(
     finally:
         if owned:
             ctx.factors.release(current)
+    if norm <= allowed:  # the forces balance; the rows of the current configuration did not settle
+        raise ConvergenceError(
+            f"Newton's method did not converge in {most} iterations: the forces balance (residual {norm / scale:.3g} "
+            f"of its scale, newton_tol = {tol:g}) but the contact rows of the current configuration did not settle "
+            "(their linearized gaps are not the true ones: a node alternating between facets, or a large rotation "
+            "within the step); reduce the step, or raise newton_max"
+        )
     raise ConvergenceError(
         f"Newton's method did not converge in {most} iterations (force residual {norm:.3g}, {norm / scale:.3g} of "
         f"its scale against newton_tol = {tol:g}); reduce the step, or raise newton_max"

@@ -32,13 +32,11 @@ RINGS_DEFAULTS = {"R": 1.0, "inner": 0.8, "E": 100.0, "nu": 0.3, "rho": 1.0, "ve
 
 
 def check_params(p: dict) -> None:
-    """0 < inner < 1, Poisson ratio in (-1, 1/2), gap > 0, |offset| < 1."""
+    """0 < inner < 1, Poisson ratio in (-1, 1/2), |offset| < 1 (gap >= 0: the common check)."""
     if not 0.0 < p["inner"] < 1.0:
         raise InputError(f"parameter 'inner' (inner radius / R) must be in (0, 1), got {p['inner']}")
     if not -1.0 < p["nu"] < 0.5:
         raise InputError(f"parameter 'nu' must be in (-1, 0.5), got {p['nu']}")
-    if p["gap"] <= 0:
-        raise InputError(f"parameter 'gap' must be > 0, got {p['gap']}")
     if not abs(p["offset"]) < 1.0:
         raise InputError(f"parameter 'offset' (a fraction of R) must be in (-1, 1), got {p['offset']}")
 
@@ -106,6 +104,7 @@ class RingsMeasure:
             "contact_start": float(H.t[on[0]]) if on.size else None,
             "contact_end": float(H.t[on[-1]]) if on.size else None,
             "peak_contact_force": float(-np.min(c["lambda_sum"])) if on.size else 0.0,
+            "contact_at_T": bool(on.size and on[-1] == len(E) - 1),
             "definition": "drifts: max over the levels of |X^n - X^0| (momenta: absolute, the two rings' cancel); "
                           "contact from the first to the last level with an active row",
         }}  # fmt: skip
@@ -115,8 +114,9 @@ class RingsMeasure:
         s = summary["rings"]
         span = "no contact"
         if s["contact_start"] is not None:
-            span = (f"contact from t = {s['contact_start']:.4g} to {s['contact_end']:.4g}, peak force "
-                    f"{s['peak_contact_force']:.4g}")  # fmt: skip
+            end = f"{s['contact_end']:.4g}" + (", still in contact at T" if s.get("contact_at_T") else "")
+            span = (f"contact from t = {s['contact_start']:.4g} to {end} (the case's time unit), peak force "
+                    f"{s['peak_contact_force']:.4g} per unit thickness")  # fmt: skip
         return (f"  rings: {span}; energy drift {s['energy_max_relative_drift']:.2e} of E0, linear momentum drift "
                 f"{s['momentum_max_drift']:.2e}, angular momentum drift "
                 f"{s['angular_momentum_max_drift']:.2e}")  # fmt: skip
