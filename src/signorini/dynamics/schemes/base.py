@@ -364,14 +364,23 @@ def friction_work(ctx: Context, dX: np.ndarray, lam_t: np.ndarray | None) -> flo
 
 
 def contact_works(
-    ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float, w_old: float | None = None
+    ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float | np.ndarray, w_old: float | None = None
 ) -> tuple[float, float]:
     """(normal, tangential) work of the contact forces w lambda^{n+1} + w_old lambda^n (w_old
     = 1 - w by default) over dU, each level's multipliers through its own rows
     (:meth:`Context.rows_of`: they differ after a contact pair re-paired a slave node between
-    the levels) [energy]."""
+    the levels) [energy].  ``w_new``: one weight, or one per contact row (nc,) (energy-momentum)."""
     w_old = 1 - w_new if w_old is None else w_old
     B0, T0 = ctx.rows_of(old.t)
+    if np.ndim(w_new):  # per row: each level's forces weighted through its own rows
+        normal = float((ctx.B @ dU) @ (w_new * new.lam) + (B0 @ dU) @ (w_old * old.lam)) if new.lam.size else 0.0
+        tangential = 0.0
+        if ctx.T is not None:
+            if new.lam_t is not None:
+                tangential += float((ctx.T @ dU) @ weighted(new.lam_t, None, w_new).ravel())
+            if old.lam_t is not None and T0 is not None:
+                tangential += float((T0 @ dU) @ weighted(None, old.lam_t, w_new).ravel())
+        return normal, tangential
     if B0 is ctx.B:
         normal = float((ctx.B @ dU) @ (w_new * new.lam + w_old * old.lam))
         return normal, friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, w_new))
@@ -385,12 +394,15 @@ def contact_works(
     return normal, tangential
 
 
-def weighted(a: np.ndarray | None, b: np.ndarray | None, w: float) -> np.ndarray | None:
-    """w a + (1 - w) b, or None when both are None (frictionless levels)."""
+def weighted(a: np.ndarray | None, b: np.ndarray | None, w: float | np.ndarray) -> np.ndarray | None:
+    """w a + (1 - w) b, or None when both are None (frictionless levels); ``w`` one weight or one per row of a
+    and b (their first axis)."""
     if a is None and b is None:
         return None
     a = np.zeros_like(b) if a is None else a
     b = np.zeros_like(a) if b is None else b
+    if np.ndim(w):
+        w = np.reshape(w, (-1,) + (1,) * (a.ndim - 1))
     return w * a + (1 - w) * b
 
 

@@ -40,7 +40,7 @@ import numpy as np
 from ..context import Operator
 from ..current_rows import contact_bound
 from ..newton import newton_solve
-from .base import EnergyParts, Scheme, State, load_work, products, reaction_work
+from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, weighted
 
 
 class EnergyMomentum(Scheme):
@@ -139,35 +139,17 @@ class EnergyMomentum(Scheme):
         dU = new.U - old.U
         w = self.row_weights(ctx)
         _, dR_free = reaction_work(ctx, old, new, 0.5)
-        B0 = ctx.rows_of(old.t)[0]  # the rows the level's multipliers acted through (sliding pairs)
-        contact = float((ctx.B @ dU) @ (w * new.lam) + (B0 @ dU) @ ((1.0 - w) * old.lam)) if new.lam.size else 0.0
-        friction = self._friction_work(ctx, dU, old, new, w)
+        contact, friction = contact_works(ctx, dU, old, new, w)
         numerical = dR_free
         el, ml = ctx.elastic, ctx.massless
         f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
         if el.finite:
             f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
             numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
-        return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, B0, f0, f1),
+        return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, f0, f1),
                            contact=contact, numerical=numerical, friction=friction)  # fmt: skip
 
-    @staticmethod
-    def _tangential(ctx, old: State, new: State, w) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """(w lambda_t^{n+1}, (1 - w) lambda_t^n) per row (nc, d - 1), None for a frictionless level."""
-        a = None if new.lam_t is None else w[:, None] * new.lam_t
-        b = None if old.lam_t is None else (1.0 - w)[:, None] * old.lam_t
-        return a, b
-
-    def _friction_work(self, ctx, dU: np.ndarray, old: State, new: State, w) -> float:
-        """(T dU) . (w lambda_t^{n+1} + (1 - w) lambda_t^n), each level's forces through its own frames [energy]."""
-        if ctx.T is None:
-            return 0.0
-        a, b = self._tangential(ctx, old, new, w)
-        T0 = ctx.rows_of(old.t)[1]
-        out = 0.0 if a is None else float((ctx.T @ dU) @ a.ravel())
-        return out + (0.0 if b is None or T0 is None else float((T0 @ dU) @ b.ravel()))
-
-    def _prescribed_work(self, ctx, old: State, new: State, w, B0, f0, f1) -> float:
+    def _prescribed_work(self, ctx, old: State, new: State, w, f0, f1) -> float:
         """dU_D . R_D: the work of the reactions of a prescribed motion, R = M dV/dt + g_w - F_mid - B^T lambda_w
         on the Dirichlet dofs (g_w = f_alg with mass, (f^n + f^{n+1})/2 without); 0 when it does not move."""
         if not (ctx.has_fixed and ctx.disc.dirichlet_varies):
@@ -177,12 +159,10 @@ class EnergyMomentum(Scheme):
         if ctx.elastic.finite:
             f_alg = new.product("f_alg", lambda: ctx.elastic.algorithmic_force(old.U, new.U))
             g = np.where(self._massless_mask(ctx), g, f_alg)
-        contact = ctx.B.T @ (w * new.lam) + B0.T @ ((1.0 - w) * old.lam) if new.lam.size else 0.0
-        a, b = self._tangential(ctx, old, new, w)
-        T0 = ctx.rows_of(old.t)[1]
-        if a is not None and ctx.T is not None:
-            contact = contact + ctx.T.T @ a.ravel()
-        if b is not None and T0 is not None:
-            contact = contact + T0.T @ b.ravel()
+        contact = 0.0
+        if new.lam.size:  # each level's weighted forces through its own rows
+            contact = ctx.contact_force(w * new.lam, weighted(new.lam_t, None, w) if new.lam_t is not None else None)
+            contact = contact + ctx.contact_force((1.0 - w) * old.lam, weighted(None, old.lam_t, w)
+                                                  if old.lam_t is not None else None, old.t)  # fmt: skip
         R = (ctx.M @ (new.V - old.V)) / dt + g - 0.5 * (ctx.load(old.t) + ctx.load(new.t)) - contact
         return float((new.U - old.U)[D] @ R[D])
