@@ -501,6 +501,7 @@ class CurrentPairing:
         X = self.mesh.points + np.asarray(U).reshape(-1, d)
         Pd = X[self.oriented]
         centres = Pd.mean(axis=1)
+        size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
         stay = (
             np.zeros(slave.size, dtype=bool) if facet is None else ~_outside(X[slave], Pd[facet], self.kind, KEEP_FACET)
         )
@@ -517,7 +518,6 @@ class CurrentPairing:
             xs = np.repeat(X[slave[search]], k, axis=0)
             pc, Nc = _closest_on_facets(xs, Pd[cand.ravel()], self.kind)
             dist = np.linalg.norm(xs - pc, axis=1)
-            size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
             pick = _closest(np.repeat(np.arange(search.size), k), dist, centres[cand.ravel()], size, xs)
             new[search], N[search], p[search] = cand.ravel()[pick], Nc[pick], pc[pick]
         facet = new
@@ -528,7 +528,6 @@ class CurrentPairing:
         # a node whose closest point is on the master surface's rim and off its normal faces nothing there
         lateral = np.linalg.norm(delta - gaps[:, None] * n, axis=1)
         on_rim = np.all(self.rim[self.oriented[facet]] | (N <= 1e-12), axis=1)
-        size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
         facing = ~(on_rim & (lateral > OFF_SURFACE * size))
         return CurrentProjection(facet, N, n, gaps, self.oriented[facet], scale, facing)
 

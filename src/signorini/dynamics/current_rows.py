@@ -140,12 +140,20 @@ class CurrentPairRows:
         X = disc.problem.mesh.points
         self.far = OFF_RIM * (float(np.abs(X).max(initial=0.0)) + float(np.ptp(X, axis=0).max(initial=0.0)) or 1.0)
         self._kept: tuple[float, dict[str, np.ndarray]] | None = None
+        self._last: tuple[np.ndarray, np.ndarray, list] | None = None
 
     def _project(self, U: np.ndarray) -> list:
-        """Each pair's rows and their projections at U, the rows' facets so far kept where they still hold."""
+        """Each pair's rows and their projections at U, the rows' facets so far kept where they still hold.  The
+        last one is reused for the same U and facets: a Newton iteration asks it three times (the convergence
+        test's gaps and round-off scale, then the next iteration's rows)."""
         c = self.contact
-        return [(r, f(c.nodes[r], U, c.master_facet[r])) for r, f in zip(self.pair_rows, self.pairings, strict=True)
-                if r.size]  # fmt: skip
+        last = self._last
+        if last is not None and np.array_equal(last[0], U) and np.array_equal(last[1], c.master_facet):
+            return last[2]
+        out = [(r, f(c.nodes[r], U, c.master_facet[r])) for r, f in zip(self.pair_rows, self.pairings, strict=True)
+               if r.size]  # fmt: skip
+        self._last = (np.array(U, copy=True), c.master_facet.copy(), out)
+        return out
 
     def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The rows at the iterate U: (bound (nc,), the rows that changed)."""

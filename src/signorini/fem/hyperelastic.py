@@ -212,10 +212,12 @@ class NeoHookeanLaw(HyperelasticLaw):
         return 0.5 * mu * (trdC - 2.0 * dlnJ) + 0.5 * lam * dlnJ * (lnJ0 + lnJ1)
 
     def stress_C(self, C: np.ndarray) -> np.ndarray:
-        Ci = _inv(C)
-        lnJ = 0.5 * np.log(determinants(C))[..., None, None]
-        lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
-        return mu * (np.eye(C.shape[-1]) - Ci) + lam * lnJ * Ci
+        return self._stress(_inv(C), 0.5 * np.log(determinants(C)))
+
+    def _stress(self, Ci: np.ndarray, lnJ: np.ndarray) -> np.ndarray:
+        """S = mu (I - C^-1) + lam ln(J) C^-1 from C^-1 (..., d, d) and ln J (...)."""
+        lam, mu = _lame(self.lam, Ci.shape), _lame(self.mu, Ci.shape)
+        return mu * (np.eye(Ci.shape[-1]) - Ci) + lam * lnJ[..., None, None] * Ci
 
     def tangent_C(self, C: np.ndarray) -> np.ndarray:
         Ci = _inv(C)
@@ -232,8 +234,7 @@ class NeoHookeanLaw(HyperelasticLaw):
         Ci = _inv(C)
         lnJ = 0.5 * np.log(determinants(C))
         I, J = VOIGT[F.shape[-1]]
-        lam, mu = _lame(self.lam, C.shape), _lame(self.mu, C.shape)
-        S = mu * (np.eye(C.shape[-1]) - Ci) + lam * lnJ[..., None, None] * Ci
+        S = self._stress(Ci, lnJ)
         c = Ci[..., I, J]  # (..., m)
         a, b = I[:, None], J[:, None]
         k, l = I[None, :], J[None, :]  # noqa: E741
