@@ -130,11 +130,6 @@ class RegionalRayleigh:
         return self.default.active or any(r.active for _, r in self.regions)
 
     @property
-    def alpha(self) -> float:
-        """The largest alpha of the cells [1/time]."""
-        return max([self.default.alpha, *(r.alpha for _, r in self.regions)])
-
-    @property
     def beta(self) -> float:
         """The largest beta of the cells [time]."""
         return max([self.default.beta, *(r.beta for _, r in self.regions)])
