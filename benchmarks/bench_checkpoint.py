@@ -22,6 +22,7 @@ import numpy as np
 
 
 def measure(n: int, steps: int) -> dict:
+    from signorini.dynamics.run_options import CheckpointPolicy
     from signorini.dynamics.simulate import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
@@ -33,7 +34,7 @@ def measure(n: int, steps: int) -> dict:
     loops: dict[int, float] = {}
     for every in (0, 10, 0, 10):  # alternated, the best of two each: the first run warms the process
         t0 = time.perf_counter()
-        s = Stepper(problem, "cn", dt, steps * dt, checkpoint=where / f"c{every}.h5", checkpoint_every=every)
+        s = Stepper(problem, "cn", (dt, steps * dt), {"checkpoint": CheckpointPolicy(where / f"c{every}.h5", every)})
         setup = time.perf_counter() - t0
         times = []
         t_loop = time.perf_counter()
@@ -54,7 +55,7 @@ def measure(n: int, steps: int) -> dict:
         s.finish()
     out["loop_every10_over_none"] = loops[10] / loops[0]
     t0 = time.perf_counter()
-    r = Stepper(problem, "cn", dt, (steps + 2) * dt, resume=where / "c.h5")
+    r = Stepper.resume(where / "c.h5", problem, "cn", (dt, (steps + 2) * dt))
     out["resume_setup_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     r.step()

@@ -54,7 +54,9 @@ def run(cells: int, steps: int) -> dict:
     for _ in range(2):
         for key, model, tangent in (("modified", "neo-hookean", "modified"), ("full", "neo-hookean", "full"),
                                     ("linear", "linear", "modified")):  # fmt: skip
-            s = Stepper(block(cells, model), "energy-momentum", 2e-5, steps * 2e-5, solver_options={"tangent": tangent})
+            s = Stepper(
+                block(cells, model), "energy-momentum", (2e-5, steps * 2e-5), {"solver_options": {"tangent": tangent}}
+            )
             step = median_step(s)
             H = s.finish()
             best[key] = min(best.get(key, np.inf), step)
@@ -62,7 +64,7 @@ def run(cells: int, steps: int) -> dict:
             info[key] = {"newton_per_step": float(H.nonlinear_iterations[1:].mean()) if H.steps else 0.0,
                          "tangent_factorizations_per_step": H.counters.get("tangent_factorizations", 0) / n,
                          "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
-    s = Stepper(block(cells, "neo-hookean"), "energy-momentum", 2e-5, 2e-5)
+    s = Stepper(block(cells, "neo-hookean"), "energy-momentum", (2e-5, 2e-5))
     ctx = s.run.ctx
     U = 1e-4 * np.sin(50.0 * ctx.disc.problem.mesh.points).ravel()
     shifts = iter(range(1, 100))
@@ -115,7 +117,7 @@ def hertz(steps: int) -> dict | None:
     for _ in range(2):
         for model in ("neo-hookean", "linear"):
             q = dataclasses.replace(p, material=with_model(p.material, model))
-            s = Stepper(q, "crank-nicolson", dt, steps * dt)
+            s = Stepper(q, "crank-nicolson", (dt, steps * dt))
             best[model] = min(best.get(model, np.inf), median_step(s))
             H = s.finish()
             info[model] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),

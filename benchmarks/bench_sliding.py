@@ -37,7 +37,7 @@ def level_costs(n: int, steps: int) -> dict:
     b = get_benchmark("bar2d")
     p = b.problem(n, {})
     dt, _ = b.run_times(n, {})
-    s = Stepper(p, "cn", dt, steps * dt)
+    s = Stepper(p, "cn", (dt, steps * dt))
     step = median_step(s)
 
     run, state = s.run, s.state
@@ -60,7 +60,7 @@ def damping_cost(n: int, steps: int) -> dict:
     dt, _ = b.run_times(n, {})
     best: dict[str, float] = {}
     for damping in (None, {"alpha": 0.1, "beta": 1e-3}) * 2:
-        s = Stepper(dataclasses.replace(p, damping=damping), "cn", dt, steps * dt)
+        s = Stepper(dataclasses.replace(p, damping=damping), "cn", (dt, steps * dt))
         key = "damped" if damping else "undamped"
         best[key] = min(best.get(key, np.inf), median_step(s))
         s.finish()

@@ -101,7 +101,7 @@ def overhead(n: int) -> dict:
     b = get_benchmark("bar3d")
     p = b.problem(n, {})
     dt, T = b.run_times(n, {})
-    s = Stepper(p, "cn", dt, T, control="energy")
+    s = Stepper(p, "cn", (dt, T), {"control": "energy"})
     step = median_step(s, lambda s, k: bool(np.any(s.state.lam)) and k >= 20)  # a level in contact
     in_contact = bool(np.any(s.state.lam))
     cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s._save_point()), 50)

@@ -11,7 +11,7 @@ from signorini import Stepper, get_benchmark, simulate
 
 problem = get_benchmark("bar2d").problem(4, {})  # the bar of the first example
 dt, T = 0.0125, 1.0
-stepper = Stepper(problem, "crank-nicolson", dt, T)
+stepper = Stepper(problem, "crank-nicolson", (dt, T))
 while stepper.status == "running":
     stepper.step()
     if stepper.state.lam.min() < 0:  # the first level in contact

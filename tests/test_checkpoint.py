@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from signorini.dynamics.problem import with_friction
+from signorini.dynamics.run_options import CheckpointPolicy
 from signorini.dynamics.schemes import SCHEMES, friction_schemes
 from signorini.dynamics.simulate import Stepper, simulate
 from signorini.errors import InputError
@@ -170,7 +171,7 @@ def test_stepper_by_hand(tmp_path):
     """The public loop: status, t and n follow the steps; a stepper stopped early finishes as
     interrupted; step() after the end is an error; finish() is idempotent."""
     p, dt, T = _bar2d()
-    s = Stepper(p, "cn", dt, T)
+    s = Stepper(p, "cn", (dt, T))
     assert (s.status, s.n, s.t, s.dt) == ("running", 0, 0.0, dt)
     while s.status == "running" and s.n < 5:
         s.step()
@@ -180,7 +181,7 @@ def test_stepper_by_hand(tmp_path):
     assert s.finish() is H
     with pytest.raises(RuntimeError):
         s.step()
-    s2 = Stepper(p, "cn", dt, T)
+    s2 = Stepper(p, "cn", (dt, T))
     while s2.step() == "running":
         pass
     assert_same_run(s2.finish(), simulate(p, "cn", dt, T))
@@ -526,7 +527,7 @@ def test_a_run_stopped_at_level_0_is_resumable(tmp_path):
     used to have no checkpoint, which `resume` then refused; now level 0 is checkpointed and the
     resumed run equals the uninterrupted one."""
     p, dt, T = _bar2d()
-    s = Stepper(p, "cn", dt, T, checkpoint=tmp_path / "c.h5")
+    s = Stepper(p, "cn", (dt, T), {"checkpoint": CheckpointPolicy(tmp_path / "c.h5")})
     s.interrupt("SIGINT after step 0 of 80")
     H = s.finish()
     assert H.status == "interrupted" and H.steps == 0 and H.meta["checkpoints"]["level"] == 0

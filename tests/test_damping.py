@@ -271,7 +271,7 @@ def test_a_damped_body_beside_an_undamped_one_moves_as_if_alone():
     from signorini.fem.mesh import rectangle
 
     def final(problem, **options):
-        s = Stepper(problem, "cn", dt, T, mass="standard", **options)
+        s = Stepper(problem, "cn", (dt, T), {"mass": "standard", **options})
         while s.status == "running":
             s.step()
         return s.state.U, s.finish()

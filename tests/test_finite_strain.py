@@ -248,7 +248,9 @@ def test_a_resume_is_bit_for_bit_and_refuses_another_material_model(tmp_path):
     assert main(["resume", str(tmp_path / "part"), "--T", "6.0e-4", "--out", str(tmp_path / "resumed"), "--quiet"]) == 0
     full = (tmp_path / "full" / "history.csv").read_text()
     assert (tmp_path / "resumed" / "history.csv").read_text() == full
-    runs = [Stepper(spinning(m, 2), "crank-nicolson", 0.01, 0.02, mass="standard") for m in ("linear", "neo-hookean")]
+    runs = [
+        Stepper(spinning(m, 2), "crank-nicolson", (0.01, 0.02), {"mass": "standard"}) for m in ("linear", "neo-hookean")
+    ]
     ids = [identity(s.run) for s in runs]
     for s in runs:
         s.finish()
@@ -306,6 +308,7 @@ def test_contact_with_a_ball_in_the_current_configuration(scheme):
 def test_ball_contact_resumes_bit_for_bit(tmp_path):
     """A checkpoint holds the rows' normals of the current configuration: resumed at level 170 (during the
     contact, levels 155-190), the run is the uninterrupted one byte for byte."""
+    from signorini.dynamics.run_options import CheckpointPolicy
     from signorini.dynamics.simulate import Stepper
 
     def finish(s):
@@ -313,12 +316,14 @@ def test_ball_contact_resumes_bit_for_bit(tmp_path):
             pass
         return s.finish()
 
-    a = finish(Stepper(block_on_ball(), "crank-nicolson", 2e-5, 0.006))
-    part = Stepper(block_on_ball(), "crank-nicolson", 2e-5, 0.006, checkpoint=tmp_path / "c.h5", checkpoint_every=170)
+    a = finish(Stepper(block_on_ball(), "crank-nicolson", (2e-5, 0.006)))
+    part = Stepper(
+        block_on_ball(), "crank-nicolson", (2e-5, 0.006), {"checkpoint": CheckpointPolicy(tmp_path / "c.h5", 170)}
+    )
     for _ in range(170):
         part.step()
     part.finish()
-    b = finish(Stepper(block_on_ball(), "crank-nicolson", 2e-5, 0.006, resume=tmp_path / "c.h5"))
+    b = finish(Stepper.resume(tmp_path / "c.h5", block_on_ball(), "crank-nicolson", (2e-5, 0.006)))
     assert a.lam[170].min() < 0 and a.lam[171].min() < 0  # the checkpoint's level is inside the contact
     assert np.array_equal(a.lam, b.lam) and np.array_equal(a.energy, b.energy) and np.array_equal(a.gap, b.gap)
 
@@ -484,8 +489,8 @@ def _newton_residuals(monkeypatch, scheme: str, tangent: str) -> np.ndarray:
 
     monkeypatch.setattr(newton, "residual_norm", spy)
     options = {"newton_tol": 1e-15, "tangent": tangent, "newton_max": 60}
-    s = Stepper(spinning("neo-hookean", 2, omega=5.0, E=1e3), scheme, 0.05, 0.05, mass="standard",
-                solver_options=options)  # fmt: skip
+    s = Stepper(spinning("neo-hookean", 2, omega=5.0, E=1e3), scheme, (0.05, 0.05),
+                {"mass": "standard", "solver_options": options})  # fmt: skip
     s.step()
     return np.array(seen)
 
@@ -600,7 +605,7 @@ def test_contact_pairs_in_the_current_configuration_slide_across_facets(scheme):
     energy-momentum's massless rows: to 1e-5)."""
     from signorini.dynamics.stepper import Stepper
 
-    s = Stepper(two_neo_hookean_blocks(), scheme, 2e-4, 0.08, solver_options={"energy_check": "fail"})
+    s = Stepper(two_neo_hookean_blocks(), scheme, (2e-4, 0.08), {"solver_options": {"energy_check": "fail"}})
     first = s.run.ctx.disc.contact.master_facet.copy()
     while s.status == "running":
         s.step()

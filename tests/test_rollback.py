@@ -24,11 +24,11 @@ def _same_step_twice(stepper: Stepper, before: int) -> None:
     for _ in range(before):
         assert stepper.step() == "running"
     n = stepper.n + 1
-    saved = stepper._save_point()
-    first, why = stepper._trial(n)
+    saved = stepper.solvers.point()
+    first, why = stepper.trial(n)
     assert first is not None, why
-    stepper._restore_point(saved)
-    again, why = stepper._trial(n)
+    stepper.solvers.put_back(saved)
+    again, why = stepper.trial(n)
     assert again is not None, why
     for name in ("U", "V", "A", "lam"):
         assert np.array_equal(getattr(first, name), getattr(again, name)), name
@@ -40,7 +40,7 @@ def _same_step_twice(stepper: Stepper, before: int) -> None:
 
 def _stepper(problem, scheme: str, dt: float, T: float, mass: str) -> Stepper | None:
     try:
-        return Stepper(problem, scheme, dt, T, mass=mass)
+        return Stepper(problem, scheme, (dt, T), {"mass": mass})
     except InputError:  # the scheme refuses the mass (tests/test_schemes.py says why)
         return None
 
@@ -73,6 +73,6 @@ def test_a_rolled_back_step_is_the_same_step_with_sliding_pairs(scheme):
     (Coulomb 0.3): rows re-paired before the step rolled back."""
     c = load_case(Path(__file__).parents[1] / "examples" / "block_on_block.toml")
     p = dataclasses.replace(c.problem, initial_regions=[RegionInitial("upper", velocity=[1.0, 0.0])])
-    s = Stepper(p, scheme, 1e-3, 0.03, mass=c.mass)
+    s = Stepper(p, scheme, (1e-3, 0.03), {"mass": c.mass})
     _same_step_twice(s, 12)
     assert s.run.ctx.rows.repaired > 0

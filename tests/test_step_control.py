@@ -33,9 +33,9 @@ def steel(tmp_path_factory):
 
 
 def _run(problem, scheme="cn", dt=5e-6, T=5e-5, force=False, **kw):
-    s = Stepper(problem, scheme, dt, T, **kw)
+    s = Stepper(problem, scheme, (dt, T), kw)
     if force:
-        s.control.force_reject_once = True
+        s.adaptive.control.force_reject_once = True
     while s.status == "running":
         s.step()
     return s.finish()
@@ -93,7 +93,7 @@ def test_the_control_keeps_what_a_resume_needs_inside_the_impact(steel, tmp_path
     history and counters equal to the uninterrupted run's bit for bit (the ladder's other
     factorizations and their Delassus columns restored, the control's position too)."""
     for stop in (3, 37):
-        s = Stepper(steel, "cn", 5e-6, 5e-5, control="energy")
+        s = Stepper(steel, "cn", (5e-6, 5e-5), {"control": "energy"})
         while s.status == "running":
             s.step()
             if s.n == stop:
@@ -109,7 +109,7 @@ def test_a_second_impact_factorizes_nothing(steel):
     of the ladder are all made by the end of the first impact, the later ones reuse them; the
     energy stays within 1% of E0."""
     p = dataclasses.replace(steel, gravity=[0.0, -1e5])
-    s = Stepper(p, "cn", 5e-6, 1e-4, control="energy")
+    s = Stepper(p, "cn", (5e-6, 1e-4), {"control": "energy"})
     fact = []
     while s.status == "running":
         s.step()

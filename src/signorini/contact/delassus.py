@@ -53,7 +53,7 @@ class DelassusColumns:
         self.seconds = 0.0
         #: what changed the columns, in order (:meth:`replay` redoes it): ("solve", nodes, slots) of
         #: each block solved, ("rows", rows, B'[rows]) of each :meth:`replace_rows`
-        self._log: list[tuple[str, np.ndarray, np.ndarray | sp.csr_matrix]] = []
+        self.log: list[tuple[str, np.ndarray, np.ndarray | sp.csr_matrix]] = []
         self.replayed = 0  # columns solved again by :meth:`replay`
         self._origin = _digest(self.B)  # the rows the log starts from (a replay needs the same)
         self._origin_B = self.B  # those rows (a system made after a re-pairing starts from them on resume)
@@ -145,7 +145,7 @@ class DelassusColumns:
                 self._Zt[s] = Zj.T
             self.slot[J] = s
             self.solved += J.size
-            self._log.append(("solve", J.copy(), s.copy()))
+            self.log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
 
     def history(self, blocks: int | None = None) -> dict[str, np.ndarray]:
@@ -153,7 +153,7 @@ class DelassusColumns:
         the blocks solved (nodes, slots, block sizes) and, when B's rows changed (re-pairing),
         each change in order (``kinds``: 0 a block, 1 a change; its rows and their new
         entries), and a digest of the rows the log starts from."""
-        log = self._log if blocks is None else self._log[:blocks]
+        log = self.log if blocks is None else self.log[:blocks]
         solves = [e for e in log if e[0] == "solve"]
         changes = [e for e in log if e[0] == "rows"]
 
@@ -208,7 +208,7 @@ class DelassusColumns:
         t0 = time.perf_counter()
         start = rstart = nzstart = 0
         blocks, changes = iter(sizes), iter(row_sizes)
-        done = list(self._log)  # blocks this run solved already (the set-up's): not again
+        done = list(self.log)  # blocks this run solved already (the set-up's): not again
         for kind in kinds:
             if kind == 1:
                 size = next(changes)
@@ -246,14 +246,14 @@ class DelassusColumns:
             self.slot[np.isin(self.slot, s)] = -1  # a slot reused by a later block
             self.slot[J] = s
             self.replayed += J.size  # not in ``solved``: the run that wrote the log counted them
-            self._log.append(("solve", J.copy(), s.copy()))
+            self.log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
         return True
 
     def _start_from(self, data: dict[str, np.ndarray], origin: bytes) -> bool:
         """Take the log's starting rows of B (``origin_*``: a system made after a re-pairing, its
         columns not begun yet) when their digest is the log's; False when they cannot be taken."""
-        if self.count or self._log or not all(f"origin_{k}" in data for k in ("indptr", "indices", "data")):
+        if self.count or self.log or not all(f"origin_{k}" in data for k in ("indptr", "indices", "data")):
             return False
         nc, n = self.B.shape
         indptr, indices = (np.asarray(data[f"origin_{k}"], dtype=np.int64) for k in ("indptr", "indices"))
@@ -286,7 +286,7 @@ class DelassusColumns:
         B_before = self.B
         self.B, self._digest_B = B, digest
         self.Bt = self.B.T.tocsc()
-        self._log.append(("rows", rows.copy(), self.B[rows]))
+        self.log.append(("rows", rows.copy(), self.B[rows]))
         t0 = time.perf_counter()
         if self._Zt is not None:
             kept = rows[self.slot[rows] >= 0]

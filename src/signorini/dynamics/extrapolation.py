@@ -236,11 +236,9 @@ def _grow(mesh: Mesh, contact_nodes: np.ndarray, is_c: np.ndarray, todo: np.ndar
 
 def body_labels(mesh: Mesh) -> np.ndarray:
     """The body (connected component) of every node, computed once per mesh."""
-    if "bodies" not in mesh._cache:
-        from ..fem.mesh import bodies
+    from ..fem.mesh import bodies
 
-        mesh._cache["bodies"] = bodies(mesh)
-    return mesh._cache["bodies"]
+    return mesh.cached("bodies", lambda: bodies(mesh))
 
 
 def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name: str) -> sp.csr_matrix:

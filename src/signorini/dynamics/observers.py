@@ -49,6 +49,16 @@ class Run:
     level_times: np.ndarray | None = None
 
 
+def grow_observers(run: Run, observers: list[Any], size: int) -> int:
+    """Room for ``size`` levels in every observer that keeps per-level arrays (``grow``);
+    returns ``size``."""
+    run.n_steps = size - 1
+    for o in observers:
+        if hasattr(o, "grow"):
+            o.grow(size)
+    return size
+
+
 class Observer:
     """Base class: override any of ``start``, ``record``, ``close`` (and, for checkpoints,
     ``checkpoint_key``, ``saved`` and ``resume``)."""
@@ -431,6 +441,28 @@ class EnergyRecorder(Observer):
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
+
+    def report(self, meta: dict[str, Any], lam: np.ndarray, t: np.ndarray, run: Run, failed: bool,
+               adaptive: bool) -> None:  # fmt: skip
+        """What the recorder found, in a run's ``meta``: the warning of an identity that did not
+        close; ``spurious_energy`` and ``single_level_contacts`` (``lam``: the multipliers per
+        level; ``t``: the levels' times), and the warning of a run whose scheme created more
+        than 1% of its energy scale (not for a run that failed: its message says why)."""
+        from .diagnostics import contact_duration_estimate, single_level_contacts
+
+        if self.exceeded() and not failed:
+            meta["warnings"].append(self.message())
+        single = single_level_contacts(lam)
+        meta["single_level_contacts"] = single
+        meta["spurious_energy"] = {"absolute": self.spurious, "relative": self.spurious_relative(),
+                                   "scale": self.energy_scale, "first_level": self.spurious_first}  # fmt: skip
+        if self.spurious_exceeded() and not failed:
+            first = self.spurious_first
+            t_first = float(t[first]) if 0 <= first < t.size else None
+            duration = contact_duration_estimate(run.ctx.disc.problem)
+            meta["warnings"].append(
+                self.spurious_message(single, t_first, duration, run.dt, adaptive, run.ctx.disc.mass_name)
+            )
 
 
 class SnapshotRecorder(Observer):

@@ -31,6 +31,7 @@ from .history import History
 from .mass import DEFAULT_MASS
 from .observers import Observer
 from .problem import Discretization, Problem
+from .run_options import CheckpointPolicy, RunOptions
 from .schemes import Scheme
 from .setup import (  # noqa: F401 - the names users and older code import from here
     MAX_CONTACT_RESIDUAL,
@@ -148,11 +149,13 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
-    stepper = Stepper(problem, scheme, dt, T, mass, snapshot_every, backend, memory_budget, progress,
-                      scheme_options=scheme_options, solver_options=solver_options, observers=observers,
-                      energy=energy, events=events, checkpoint=checkpoint, checkpoint_every=checkpoint_every,
-                      checkpoint_meta=checkpoint_meta, case_hash=case_hash, resume=resume,
-                      on_checkpoint=on_checkpoint, control=control)  # fmt: skip
+    policy = CheckpointPolicy.of(checkpoint, checkpoint_every, checkpoint_meta, case_hash, on_checkpoint)
+    options = RunOptions(mass, snapshot_every, backend, memory_budget, progress, scheme_options, solver_options,
+                         observers, energy, events, control, policy)  # fmt: skip
+    if resume is None:
+        stepper = Stepper(problem, scheme, (dt, T), options)
+    else:
+        stepper = Stepper.resume(resume, problem, scheme, (dt, T), options)
     comm = stepper.run.ctx.comm
     with _catch_signals(handle_signals) as interrupts:
         interrupts.abort_on_second = comm.size == 1
@@ -160,11 +163,11 @@ def simulate(
             agree_deferred(comm)  # several ranks: a signal of the set-up stops every rank here
         except KeyboardInterrupt:
             stepper.status = "interrupted"
-            stepper._close_observers()
+            stepper.close_observers()
             raise
         try:
-            with blas_threads(stepper._threads):
-                stepper._in_loop = True
+            with blas_threads(stepper.threads):
+                stepper.in_loop = True
                 while stepper.status == "running":
                     name = interrupts.agree(comm)
                     if name:
@@ -178,7 +181,7 @@ def simulate(
                     finally:
                         interrupts.in_step = False
         finally:
-            stepper._in_loop = False
+            stepper.in_loop = False
             H = stepper.finish()  # observers closed on every exit
         name = interrupts.agree(comm)
         if name and H.status == "finished":  # after the last step: every step kept

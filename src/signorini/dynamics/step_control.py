@@ -288,3 +288,147 @@ def _rows(data: dict[str, Any], key: str, width: int, kind: type, what: str) -> 
                                          for r in rows):  # fmt: skip
         raise InputError(f"checkpoint: time control {key!r} must be a list of {what}")
     return [[kind(x) for x in r] for r in rows]
+
+
+class AdaptiveSteps:
+    """The energy control driving a :class:`~.stepper.Stepper`: each level tried, judged,
+    rejected and tried again at half the step (its rollback: the solvers' warm starts,
+    :class:`~.restart.SolverStates`), and the step grown back after calm steps.
+
+    Parameters
+    ----------
+    stepper : the run (its grid, energies, event watch, solvers and trial step).
+    control : the :class:`EnergyControl` (its counters and ladder).
+    """
+
+    def __init__(self, stepper: Any, control: EnergyControl) -> None:
+        self.stepper, self.control = stepper, control
+        #: the judgement of the level accepted last: (verdict, delta, scale, h, dt_piece, eta)
+        self.verdict: tuple = ()
+        #: T reached with a grown step: the segment a resume to a later T goes on with
+        self.next_segment: list | None = None
+        #: the contact force at the level before the step (a steady force lets the step grow)
+        self.force_before: np.ndarray | None = None
+
+    @classmethod
+    def build(cls, stepper: Any, scheme: Any, grid: Any, energy: bool, options: dict[str, Any]) -> AdaptiveSteps:
+        """The control of ``options`` (:func:`control_spec`) for ``scheme`` on ``grid``; an
+        InputError for a scheme that refuses it, a run without energy, or a dt_min outside
+        [dt / 2^MAX_LEVELS, dt]."""
+        why = scheme.step_control_refusal() if hasattr(scheme, "step_control_refusal") else ""
+        if why:
+            raise InputError(f"control 'energy' cannot run scheme {scheme.label}: {why}; use control 'fixed'")
+        if not energy:
+            raise InputError("control 'energy' judges each step by the energy identity: it needs energy=True")
+        ctl = EnergyControl(**options)
+        smallest = min(piece[2] for piece in grid.plan)
+        ctl.dt_min_used = ctl.dt_min or smallest / 2 ** ctl.k_max(smallest)
+        if ctl.dt_min > smallest:
+            raise InputError(f"control 'energy': dt_min = {ctl.dt_min:g} is above the step {smallest:g}; give "
+                             "dt_min <= dt")  # fmt: skip
+        if 0 < ctl.dt_min < smallest / 2**MAX_LEVELS:
+            raise InputError(f"control 'energy': dt_min = {ctl.dt_min:g} is below dt / 2^{MAX_LEVELS} = "
+                             f"{smallest / 2**MAX_LEVELS:.4g} (the energy identity is lost to round-off at such "
+                             "steps); give a larger dt_min")  # fmt: skip
+        return cls(stepper, ctl)
+
+    def step(self, n: int) -> tuple[Any, str]:
+        """Level n under the control: (state, "") or (None, why it failed).  A step judged above
+        its allowance, or failed, is rejected (the warm starts put back) and tried again at half
+        the step, down to dt_min."""
+        s, ctl = self.stepper, self.control
+        grid, run = s.grid, s.run
+        comm = run.ctx.comm
+        while True:
+            begin, _, dt_piece = grid.piece(s.t)
+            h = grid.segment(n).dt
+            s.use_segment(n)  # the systems of h first: theirs are the warm starts a rejection puts back
+            point = s.solvers.point()
+            new, why = s.trial(n)
+            if comm.any(new is None):  # every rank takes the same decision
+                new, why = None, why or f"step {n} failed on another rank"
+            if new is None:
+                verdict = "reject" if ctl.k < ctl.k_max(dt_piece) else "failed"
+                if verdict == "failed":
+                    return None, why
+                ctl.failed_trials += 1
+            else:
+                delta, scale, eta = s.energies.indicator(run, n, new)
+                verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece, eta)
+                if comm.any(verdict == "reject"):
+                    verdict = "reject"
+            if verdict == "accept" and s.watch is not None and ctl.k < ctl.k_max(dt_piece) and comm.any(
+                    s.watch.would_stop(new)):  # a terminal event inside the step: located within dt_min  # fmt: skip
+                verdict = "reject"
+                ctl.event_refinements += 1
+            if verdict == "unresolved" and s.energies.check == "fail":  # energy_check=fail: levels kept
+                allowed = ctl.allowed(scale, h, dt_piece)
+                return None, (f"step {n} (t = {s.grid.time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
+                              f"creates or destroys {abs(delta):.3g} of energy (its error estimate: {eta:.3g}), above "
+                              f"the allowance {allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
+            if verdict in ("accept", "unresolved"):
+                self.verdict = (verdict, delta, scale, h, dt_piece, eta)
+                return new, ""
+            s.solvers.put_back(point)
+            if verdict == "retry":  # the test hook: the same step again
+                continue
+            ctl.rejected += 1
+            ctl.k += 1
+            ctl.calm = 0
+            grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+
+    def accepted(self, t0: float) -> None:
+        """The control's count of the level just accepted; the step grows by 2 after
+        ``grow_after`` calm steps when the level is on the grid of the doubled step."""
+        s, ctl = self.stepper, self.control
+        verdict, delta, scale, h, dt_piece, eta = self.verdict
+        excess = max(abs(delta) if s.run.scheme.conserving else delta, eta)
+        ctl.note_accepted(t0, s.t, h, dt_piece, verdict, s.n, excess)
+        self._grow(delta, scale, h, dt_piece, eta)
+        s.run.n_steps = s.grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
+
+    def _grow(self, delta: float, scale: float, h: float, dt_piece: float, eta: float) -> None:
+        """The step of the next levels: the piece's own at a piece's start; twice h after
+        ``grow_after`` calm steps with a steady contact force, on the grid of 2h."""
+        s, ctl = self.stepper, self.control
+        grid = s.grid
+        at_T = s.n >= grid.n_steps
+        begin, end, dt_piece_next = grid.piece(s.t)
+        if not at_T and (dt_piece_next != dt_piece or begin >= s.t - 1e-12 * max(abs(s.t), h)):  # a new piece
+            ctl.k, ctl.calm = 0, 0  # its own dt
+            return
+        calm = ctl.calm_step(delta, s.run.scheme.conserving, scale, h, dt_piece, eta)
+        ctl.calm = ctl.calm + 1 if calm and ctl.steady_force(self.force_before, s.state.lam) else 0
+        if ctl.k == 0 or ctl.calm < ctl.grow_after:
+            return
+        r = (s.t - begin) / (2.0 * h)
+        if abs(r - round(r)) > 1e-6 * max(1.0, abs(r)):  # not on the grid of 2h yet
+            return
+        ctl.k -= 1
+        ctl.calm = 0
+        if at_T:  # T reached: the grown step is where a resume to a later T goes on (:meth:`grid_attrs`)
+            self.next_segment = [float(s.t), dt_piece / 2**ctl.k, s.n]
+            return
+        grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+
+    def grid_attrs(self) -> dict[str, Any]:
+        """The segment of the next level, the step factorized now and the control's state (a
+        checkpoint's ``segment``, ``dt`` and ``time_control``)."""
+        s = self.stepper
+        n, grid = s.n, s.grid
+        if n < grid.n_steps:  # a growth or rejection may have changed it
+            seg = grid.segment(n + 1)
+            segment = [seg.start, seg.dt, seg.first]
+        else:  # at T: the segment a resume to a later T goes on with (grown at T, or the last one)
+            seg = grid.segment(n)
+            segment = self.next_segment or [seg.start, seg.dt, seg.first]
+        state = {**self.control.state(), "plan_dt": grid.piece(s.t)[2]}  # the largest step (a resume's dt)
+        return {"segment": segment, "dt": s.dt, "time_control": state}
+
+    def summary(self, meta: dict[str, Any], scale: float, factorizations: int, failed: bool) -> None:
+        """``summary.json`` ``time_control`` and the warning of unresolved steps."""
+        ctl = self.control
+        ctl.settle(scale)
+        meta["time_control"] = ctl.summary(factorizations)
+        if ctl.unresolved and not failed:
+            meta["warnings"].append(ctl.unresolved_message())

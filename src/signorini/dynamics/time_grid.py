@@ -207,6 +207,11 @@ class TimeGrid:
                 return s
         return self.segments[-1]
 
+    def time_of(self, n: int) -> float:
+        """The time of level n [s]."""
+        seg = self.segment(n)
+        return seg.start + (n - seg.first) * seg.dt
+
     def schedule(self) -> list[dict[str, float]]:
         """[{until, dt}] of the grid (summary.json ``dt_schedule``)."""
         return [{"until": s.end, "dt": s.dt} for s in self.segments]

@@ -37,8 +37,10 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     wdet : (n_cells, nq) array, w_q |det J_e(xi_q)|  [length^d].
     grad : (n_cells, nq, nv, d) array, grad N_a at the quadrature points [1/length].
     """
-    if "geometry" in mesh._cache:
-        return mesh._cache["geometry"]
+    return mesh.cached("geometry", lambda: _geometry(mesh))
+
+
+def _geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     if mesh.mixed:  # per-cell arrays of different quadrature sizes: per part
         raise MeshError("geometry() of a mixed mesh: use the parts (Mesh.parts()), one cell type each")
     ref = reference_element(mesh.cell_type)
@@ -51,7 +53,6 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     Jinv = np.linalg.inv(J) if mesh.dim > 1 else 1.0 / J
     grad = np.einsum("qak,eqki->eqai", ref.dN, Jinv)
     wdet = np.abs(det) * ref.weights[None, :]
-    mesh._cache["geometry"] = (wdet, grad)
     return wdet, grad
 
 
@@ -93,8 +94,10 @@ def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns ``(indptr, indices, slot)`` where ``slot`` has shape (n_cells, nv, nv) and
     ``slot[e, a, b]`` is the position of the pair (cells[e,a], cells[e,b]) in ``indices``.
     """
-    if "pattern" in mesh._cache:
-        return mesh._cache["pattern"]
+    return mesh.cached("pattern", lambda: _node_pattern(mesh))
+
+
+def _node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     nn = mesh.n_nodes
     c = mesh.cells
     ne, nv = c.shape
@@ -111,9 +114,7 @@ def node_pattern(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pattern_keys = rows * nn + indices
     del rows
     slot = np.searchsorted(pattern_keys, (c[:, :, None] * nn + c[:, None, :]).ravel())  # intp: bincount takes it as is
-    out = (indptr, indices, slot.reshape(c.shape[0], c.shape[1], c.shape[1]))
-    mesh._cache["pattern"] = out
-    return out
+    return indptr, indices, slot.reshape(c.shape[0], c.shape[1], c.shape[1])
 
 
 def assemble_scalar(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import io
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -128,6 +129,13 @@ class Mesh:
         if len(dims) > 1:
             raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one dimension")
         return blocks
+
+    def cached(self, key: str, build: Callable[[], Any]) -> Any:
+        """The mesh's ``key`` data (geometry, pattern, bodies, ...), built by ``build()`` once:
+        a mesh is not changed after it is made, so what is computed from it is kept with it."""
+        if key not in self._cache:
+            self._cache[key] = build()
+        return self._cache[key]
 
     @property
     def mixed(self) -> bool:
