@@ -1,6 +1,6 @@
 """The dof map is the only place that turns (node, component) into a dof (issue 39, item 3):
 ``d * node + c`` computed by hand anywhere else fails this test, except the expressions below,
-which number other things (each with why)."""
+which number other things (each with why; none today)."""
 
 import sys
 from pathlib import Path
@@ -8,15 +8,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parents[1] / "scripts"))
 from house_metrics import hand_dofs  # noqa: E402
 
-#: (file, expression): not a dof of the mesh
-ALLOWED = {
-    ("signorini/contact/solver.py", "near[:, None] * d + comp"): "rows of the frame matrix: d per contact node",
-    ("signorini/contact/solver.py", "P[:, None] * d + comp"): "rows of the frame matrix: d per contact node",
-    ("signorini/dynamics/reactions.py", "k * d + c"): "a row of the (tag, component) sums",
-    ("signorini/fem/assembly.py", "d * nn + 1"): "the length of a CSR row pointer",
-    ("signorini/fem/assembly.py", "nn * dim + 1"): "the length of a CSR row pointer",
-    ("signorini/fem/node_order.py", "b * d + k"): "a bit position of the Morton code",
-}
+#: (file, expression): not a dof of the mesh (none left: contact-row components and reaction rows
+#: go through ``fem.dofmap.blocked`` too)
+ALLOWED: dict[tuple[str, str], str] = {}
 
 
 def test_no_dof_is_numbered_by_hand():

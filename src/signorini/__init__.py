@@ -25,6 +25,8 @@ _PUBLIC = {
     "RegionalRayleigh": "dynamics.damping",
     "simulate": "dynamics.simulate",
     "Stepper": "dynamics.stepper",
+    "RunOptions": "dynamics.run_options",
+    "CheckpointPolicy": "dynamics.run_options",
     "History": "dynamics.history",
     "Event": "dynamics.events",
     "Observer": "dynamics.observers",

@@ -48,6 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
+from ..fem.dofmap import blocked
 from ..linalg import (
     BACKENDS,
     backend_traits,
@@ -404,14 +405,13 @@ class CondensedContactSolver(ContactSolver):
         # problem with a normal force of round-off size, degenerate for a large mu
         touch = GRAZING * scale
         in_P = (gap < -touch) | self.active[idx]
-        comp = np.arange(d)
         iterations, fallback, residual = 0, False, 0.0
         sol = None
         near = idx[np.argsort(gap)]
-        fill = (near[:, None] * d + comp).ravel()
+        fill = blocked(near, d).ravel()
         while in_P.any():
             P = idx[in_P]
-            rows = (P[:, None] * d + comp).ravel()
+            rows = blocked(P, d).ravel()
             self.delassus.ensure(rows, fill=fill)
             W, vP = self.delassus.block(rows), v_free[P]
             dead = self.dead[P].ravel()

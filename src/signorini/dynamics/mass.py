@@ -64,7 +64,7 @@ from ..fem.assembly import (
     sum_of,
     vectorize,
 )
-from ..fem.mesh import Mesh
+from ..fem.mesh import Mesh, over_blocks
 from ..linalg.row_block import RowBlock
 from ..linalg.sparse import count_per_row
 from ..registry import Registry
@@ -221,17 +221,27 @@ def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals:
     d = mesh.dim
     if normals is None:
         raise InputError("mass 'seed-normal' needs the contact normals")
-    if mesh.mixed:  # the seed part on the whole mesh, the projected part per cell type
-        base = vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
-        return sum_of([base] + [seed_normal_mass(part, part_value(rho, cut), contact_nodes, normals)
-                                - vectorize(seed_scalar_mass(part, part_value(rho, cut), contact_nodes), d)
-                                for part, cut in mesh.parts()])  # fmt: skip
     nu = np.asarray(normals, dtype=float)
+    out = vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)  # the seed part on the whole mesh
+
+    def present(parts: list) -> sp.csr_matrix | None:
+        parts = [m for m in parts if m is not None]
+        return sum_of(parts) if parts else None
+
+    # the projected part per cell type
+    projected = over_blocks(mesh, lambda part, cut: _projected_mass(part, part_value(rho, cut), contact_nodes, nu),
+                            present)  # fmt: skip
+    return out if projected is None else (out + projected).tocsr()
+
+
+def _projected_mass(mesh: Mesh, rho, contact_nodes: np.ndarray, nu: np.ndarray) -> sp.csr_matrix | None:
+    """sum over the cells K touching Gamma_C of P_K (M_K (x) I) P_K on a one-type mesh
+    (:func:`seed_normal_mass`), made exactly symmetric; None when no cell touches Gamma_C."""
+    d = mesh.dim
     cells = mesh.cells
     near = touching_cells(mesh, contact_nodes)
-    out = vectorize(seed_scalar_mass(mesh, rho, contact_nodes), d)
     if not near.any():
-        return out
+        return None
     # the unit normal of every contact node (n_nodes, d), zero elsewhere
     node_normal = np.zeros((mesh.n_nodes, d))
     node_normal[contact_nodes] = nu
@@ -248,7 +258,7 @@ def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals:
     Ke = element_mass_matrices(mesh, rho)[near]  # (m, nv, nv)
     Kv = Ke[:, :, :, None, None] * np.einsum("eaik,ebkj->eabij", P, P)
     near_part = assemble_vector(Mesh(mesh.points, sub, mesh.cell_type), Kv)
-    return (out + 0.5 * (near_part + near_part.T)).tocsr()  # exactly symmetric (P_a P_b vs P_b P_a round-off)
+    return 0.5 * (near_part + near_part.T)  # exactly symmetric (P_a P_b vs P_b P_a round-off)
 
 
 # ----------------------------------------------------------------------------- other redistributions

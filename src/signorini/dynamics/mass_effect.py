@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..fem.assembly import _element_data
+from ..fem.assembly import _element_data, part_value
 from ..fem.elements import reference_element
-from ..fem.mesh import Mesh
+from ..fem.mesh import Mesh, over_blocks
 
 #: relative change of the total mass above which a run warns
 MASS_TOLERANCE = 1e-3
@@ -48,9 +48,11 @@ def consistent_moments(mesh: Mesh, rho: float | np.ndarray, chunk: int = 65536) 
     cells: no global matrix and no per-cell geometry beyond a chunk.  ``rho``: a number or
     one density per cell (n_cells,).
     """
-    if mesh.mixed:  # the sum over the one-type parts
-        return sum(consistent_moments(part, rho if np.ndim(rho) == 0 else np.asarray(rho)[cut], chunk)
-                   for part, cut in mesh.parts())  # fmt: skip
+    return over_blocks(mesh, lambda part, cut: _moments_one_type(part, part_value(rho, cut), chunk), sum)
+
+
+def _moments_one_type(mesh: Mesh, rho: float | np.ndarray, chunk: int) -> np.ndarray:
+    """:func:`consistent_moments` of a one-type mesh."""
     ref = reference_element(mesh.cell_type)
     wdet, _ = _element_data(mesh)
     Me = np.einsum("eq,qa,qb->eab", wdet, ref.N, ref.N)

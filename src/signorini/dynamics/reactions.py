@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..fem.dofmap import blocked
+
 AXES = "xyz"
 
 
@@ -39,7 +41,7 @@ class Reactions:
             for c in range(d) if bc.components is None else bc.components:
                 dofs = space.dofs(nodes, [c]).ravel()
                 dofs = dofs[index[dofs] < 0]
-                index[dofs] = k * d + c
+                index[dofs] = blocked([k], d, [c])[0, 0]
         rows = index[D]
         keep = rows >= 0
         self.G = sp.csr_matrix(

@@ -25,7 +25,7 @@ from ..errors import MeshError
 from ..fem.dofmap import DofMap
 from ..fem.elements import determinants, jacobians, reference_element
 from ..fem.material import Material
-from ..fem.mesh import Mesh, facet_type, uniform_cells
+from ..fem.mesh import Mesh, facet_type, one_type, over_blocks, uniform_cells
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -41,8 +41,7 @@ def geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _geometry(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
-    if mesh.mixed:  # per-cell arrays of different quadrature sizes: per part
-        raise MeshError("geometry() of a mixed mesh: use the parts (Mesh.parts()), one cell type each")
+    one_type(mesh, "geometry()")  # per-cell arrays of different quadrature sizes: per part
     ref = reference_element(mesh.cell_type)
     X = mesh.points[mesh.cells]  # (ne, nv, d)
     J = jacobians(ref.dN, X)  # J_ik = dx_i / dxi_k
@@ -64,9 +63,7 @@ def quadrature_points(mesh: Mesh) -> np.ndarray:
 
 def cell_volumes(mesh: Mesh) -> np.ndarray:
     """Measure of every cell, shape (n_cells,)."""
-    if mesh.mixed:
-        return np.concatenate([cell_volumes(part) for part, _ in mesh.parts()])
-    return geometry(mesh)[0].sum(axis=1)
+    return over_blocks(mesh, lambda part, _: geometry(part)[0].sum(axis=1), np.concatenate)
 
 
 def part_material(material: Material, cut: slice) -> Material:
@@ -141,10 +138,10 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
     # straight into CSR (no BSR and conversion): dof row (a, i) holds the d * len(a)
     # columns (b, j) of node row a, so entry (i, j) of node entry s (row a) lands at
     # ptr[d a + i] + d (s - indptr[a]) + j = d s + d (d - 1) indptr[a] + i d len(a) + j
-    nn = mesh.n_nodes
+    n_rows = mesh.n_nodes * d  # the dofs
     row_len = np.diff(indptr)
     itype = indices.dtype
-    ptr = np.zeros(d * nn + 1, dtype=itype)
+    ptr = np.zeros(n_rows + 1, dtype=itype)
     np.cumsum(np.repeat(d * row_len, d), out=ptr[1:])
     dest = np.arange(0, d * indices.size, d, dtype=itype)
     dest += np.repeat(d * (d - 1) * indptr[:-1], row_len)
@@ -162,7 +159,7 @@ def assemble_vector(mesh: Mesh, Ke: np.ndarray) -> sp.csr_matrix:
             col += 1
         dest += step - d
         col -= d
-    out = sp.csr_matrix((d * nn, d * nn))
+    out = sp.csr_matrix((n_rows, n_rows))
     out.indptr, out.indices, out.data = ptr, cols, data  # set after construction: no check of the large arrays
     out.has_canonical_format = True  # sorted, one entry per pair of nodes: saves scipy's scans
     return out
@@ -189,9 +186,14 @@ def stiffness_matrix(mesh: Mesh, material: Material) -> sp.csr_matrix:
     :class:`~signorini.fem.material.IsotropicElastic`, or a
     :class:`~signorini.fem.material.CellMaterial` (lam, mu per cell: regions of different materials).
     """
-    if mesh.mixed:
-        return sum_of(stiffness_matrix(part, part_material(material, cut)) for part, cut in mesh.parts())
+    return over_blocks(mesh, lambda part, cut: _stiffness(part, part_material(material, cut)), sum_of)
+
+
+def _stiffness(mesh: Mesh, material: Material, factor: np.ndarray | None = None) -> sp.csr_matrix:
+    """The stiffness of a one-type mesh (each element matrix times ``factor``, if given)."""
     Ke = element_stiffness_matrices(mesh, material)
+    if factor is not None:
+        Ke = Ke * per_cell(factor, Ke.ndim)
     if mesh.dim == 1:
         return assemble_scalar(mesh, Ke[..., 0, 0])
     return assemble_vector(mesh, Ke)
@@ -200,13 +202,7 @@ def stiffness_matrix(mesh: Mesh, material: Material) -> sp.csr_matrix:
 def scaled_stiffness(mesh: Mesh, material: Material, factor: np.ndarray) -> sp.csr_matrix:
     """sum_c factor_c S_c: the stiffness with each cell's element matrix times ``factor`` (n_cells,) (a
     stiffness-proportional damping per region) [force / length]."""
-    if mesh.mixed:
-        return sum_of(scaled_stiffness(part, part_material(material, cut), factor[cut]) for part, cut in mesh.parts())
-    Ke = element_stiffness_matrices(mesh, material)
-    Ke = Ke * per_cell(factor, Ke.ndim)
-    if mesh.dim == 1:
-        return assemble_scalar(mesh, Ke[..., 0, 0])
-    return assemble_vector(mesh, Ke)
+    return over_blocks(mesh, lambda part, cut: _stiffness(part, part_material(material, cut), factor[cut]), sum_of)
 
 
 def sum_of(matrices) -> sp.csr_matrix:
@@ -261,13 +257,14 @@ def scalar_mass_matrix(
     ``cell_weight`` (n_cells,) multiplies each element's contribution (0 drops it; this
     is how the ``seed`` mass removes the elements touching the contact boundary).
     """
-    if mesh.mixed:
-        return sum_of(scalar_mass_matrix(part, part_value(rho, cut), part_value(cell_weight, cut))
-                      for part, cut in mesh.parts())  # fmt: skip
-    Ke = element_mass_matrices(mesh, rho)
-    if cell_weight is not None:
-        Ke = Ke * np.asarray(cell_weight, dtype=float)[:, None, None]
-    return assemble_scalar(mesh, Ke)
+
+    def one(part: Mesh, cut: slice) -> sp.csr_matrix:
+        Ke = element_mass_matrices(part, part_value(rho, cut))
+        if cell_weight is not None:
+            Ke = Ke * np.asarray(part_value(cell_weight, cut), dtype=float)[:, None, None]
+        return assemble_scalar(part, Ke)
+
+    return over_blocks(mesh, one, sum_of)
 
 
 def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
@@ -284,7 +281,8 @@ def vectorize(m: sp.spmatrix, dim: int) -> sp.csr_matrix:
     nn, nnz = m.shape[0], m.nnz
     itype = np.int32 if dim * max(nnz, m.shape[1]) < 2**31 else np.int64
     length = np.diff(m.indptr).astype(itype)
-    ptr = np.zeros(nn * dim + 1, dtype=itype)
+    n_rows = nn * dim  # the dofs
+    ptr = np.zeros(n_rows + 1, dtype=itype)
     np.cumsum(np.repeat(length, dim), out=ptr[1:])
     dest = np.arange(nnz, dtype=itype)
     dest += np.repeat((dim - 1) * m.indptr[:-1].astype(itype), length)
@@ -321,8 +319,11 @@ def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) ->
 
     ``f`` is a constant vector of length d or a function of points (n, d) -> (n, d).
     """
-    if mesh.mixed:
-        return sum(body_load(part, f) for part, _ in mesh.parts())
+    return over_blocks(mesh, lambda part, _: _body_load(part, f), sum)
+
+
+def _body_load(mesh: Mesh, f) -> np.ndarray:
+    """:func:`body_load` on a one-type mesh."""
     ref = reference_element(mesh.cell_type)
     wdet, _ = geometry(mesh)
     xq = quadrature_points(mesh)
@@ -411,23 +412,23 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
 def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """von Mises stress of the displacement ``u``: per cell (mean over quadrature
     points) or, with ``nodal=True``, averaged at the nodes."""
-    if mesh.mixed:
-        cell = np.concatenate([von_mises(part, part_material(material, cut), u, nodal=False)
-                               for part, cut in mesh.parts()])  # fmt: skip
-        return nodal_average(mesh, cell) if nodal else cell
-    wdet, _ = geometry(mesh)
-    vm = material.von_mises(strain(mesh, u))  # (ne, nq)
-    cell = (vm * wdet).sum(axis=1) / wdet.sum(axis=1)
+
+    def one(part: Mesh, cut: slice) -> np.ndarray:
+        wdet, _ = geometry(part)
+        vm = part_material(material, cut).von_mises(strain(part, u))  # (ne, nq)
+        return (vm * wdet).sum(axis=1) / wdet.sum(axis=1)
+
+    cell = over_blocks(mesh, one, np.concatenate)
     return nodal_average(mesh, cell) if nodal else cell
 
 
 def stress(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
-    if mesh.mixed:
-        cell = np.concatenate([stress(part, part_material(material, cut), u, nodal=False)
-                               for part, cut in mesh.parts()])  # fmt: skip
-        return nodal_average(mesh, cell) if nodal else cell
-    wdet, _ = geometry(mesh)
-    sig = material.stress(strain(mesh, u))
-    cell = np.einsum("eq,eqij->eij", wdet, sig) / wdet.sum(axis=1)[:, None, None]
+
+    def one(part: Mesh, cut: slice) -> np.ndarray:
+        wdet, _ = geometry(part)
+        sig = part_material(material, cut).stress(strain(part, u))
+        return np.einsum("eq,eqij->eij", wdet, sig) / wdet.sum(axis=1)[:, None, None]
+
+    cell = over_blocks(mesh, one, np.concatenate)
     return nodal_average(mesh, cell) if nodal else cell

@@ -15,6 +15,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+def blocked(items: np.ndarray, block_size: int, components: Sequence[int] | None = None) -> np.ndarray:
+    """The indices ``block_size * item + component`` of a block layout (node-major), shape
+    (len(items), len(components)): a node's dofs, a contact row's normal and tangential
+    components, a tag's reaction components (``components`` None: all of them)."""
+    comps = np.arange(block_size) if components is None else np.asarray(components, dtype=np.int64)
+    return block_size * np.asarray(items, dtype=np.int64)[:, None] + comps[None, :]
+
+
 @dataclass(frozen=True)
 class DofMap:
     """Owned node range, ghost nodes and block size of one process.
@@ -55,8 +63,7 @@ class DofMap:
 
     def dofs(self, nodes: np.ndarray, components: Sequence[int] | None = None) -> np.ndarray:
         """Global dofs of ``nodes`` for ``components``, shape (len(nodes), len(components))."""
-        comps = np.arange(self.block_size) if components is None else np.asarray(components, dtype=np.int64)
-        return self.block_size * np.asarray(nodes, dtype=np.int64)[:, None] + comps[None, :]
+        return blocked(nodes, self.block_size, components)
 
     def nodes_of(self, dofs: np.ndarray) -> np.ndarray:
         """The node of each dof."""

@@ -247,30 +247,55 @@ class Mesh:
 
     def check_cells(self) -> None:
         """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
-        if self.mixed:
-            for part, cut in self.parts():
-                try:
-                    part.check_cells()
-                except MeshError as exc:
-                    raise MeshError(f"{exc} (cells of the {part.cell_type} block, numbered from {cut.start})") from None
-            return
-        ref = reference_element(self.cell_type)
-        # translates of one element (structured generators): checking the first suffices
-        uniform = uniform_cells(self, cached=False)  # points may have moved since it was cached
-        X = self.points[self.cells[:1] if uniform else self.cells]
-        J = jacobians(ref.dN, X)
-        det = J[..., 0, 0] if ref.dim == 1 else determinants(J)
-        scale = np.abs(X - X.mean(axis=1, keepdims=True)).max(axis=(1, 2)) ** ref.dim
-        bad = np.where((det <= 1e-12 * scale[:, None]).any(axis=1))[0]
-        if bad.size:
-            inverted = (det[bad] < -1e-12 * scale[bad, None]).all(axis=1)
-            kind = "inverted" if inverted.all() else "degenerate or inverted"
-            if uniform:  # the first cell stands for all
-                bad = np.arange(self.n_cells)
-            raise MeshError(
-                f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; "
-                "fix the node ordering or the geometry"
-            )
+
+        def check(part: Mesh, cut: slice) -> None:
+            try:
+                _check_one_type(part)
+            except MeshError as exc:
+                if part is self:
+                    raise
+                raise MeshError(f"{exc} (cells of the {part.cell_type} block, numbered from {cut.start})") from None
+
+        over_blocks(self, check, lambda _: None)
+
+
+def _check_one_type(mesh: Mesh) -> None:
+    """:meth:`Mesh.check_cells` of a one-type mesh."""
+    ref = reference_element(mesh.cell_type)
+    # translates of one element (structured generators): checking the first suffices
+    uniform = uniform_cells(mesh, cached=False)  # points may have moved since it was cached
+    X = mesh.points[mesh.cells[:1] if uniform else mesh.cells]
+    J = jacobians(ref.dN, X)
+    det = J[..., 0, 0] if ref.dim == 1 else determinants(J)
+    scale = np.abs(X - X.mean(axis=1, keepdims=True)).max(axis=(1, 2)) ** ref.dim
+    bad = np.where((det <= 1e-12 * scale[:, None]).any(axis=1))[0]
+    if bad.size:
+        inverted = (det[bad] < -1e-12 * scale[bad, None]).all(axis=1)
+        kind = "inverted" if inverted.all() else "degenerate or inverted"
+        if uniform:  # the first cell stands for all
+            bad = np.arange(mesh.n_cells)
+        raise MeshError(
+            f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; "
+            "fix the node ordering or the geometry"
+        )
+
+
+def over_blocks(mesh: Mesh, kernel: Callable[[Mesh, slice], Any], combine: Callable[[list[Any]], Any]) -> Any:
+    """The one loop over a mesh's cell blocks: ``kernel(part, cells)`` on each one-type part
+    (``cells``: the slice of its cells in the mesh's numbering, for per-cell data), the results
+    combined by ``combine`` (a sum of matrices, a concatenation of per-cell values).  A
+    one-type mesh is its own single part (its result as it is)."""
+    parts = mesh.parts()
+    if len(parts) == 1:
+        return kernel(*parts[0])
+    return combine([kernel(part, cut) for part, cut in parts])
+
+
+def one_type(mesh: Mesh, what: str) -> None:
+    """A MeshError unless ``mesh`` has one cell type (``what`` works on one type: per-cell
+    arrays of one quadrature size); a mixed mesh goes through :func:`over_blocks`."""
+    if len(mesh.blocks) > 1:
+        raise MeshError(f"{what} of a mixed mesh: use the parts (Mesh.parts()), one cell type each")
 
 
 def _region_cells(tag: str, cells, n_cells: int) -> np.ndarray:
@@ -342,8 +367,8 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
 def mesh_boundary(mesh: Mesh) -> list[np.ndarray]:
     """The boundary facets of a mesh, one (n, nfv) array per facet type (a facet of a mixed
     mesh between two blocks, a 2D edge of a triangle and a quad, is inside)."""
-    if not mesh.mixed:
-        return [boundary_facets(mesh.cells, mesh.cell_type)]
+    if len(mesh.blocks) == 1:
+        return [boundary_facets(mesh.blocks[0].cells, mesh.blocks[0].cell_type)]
     faces = []
     for b in mesh.blocks:
         loc = np.array(reference_element(b.cell_type).facets)

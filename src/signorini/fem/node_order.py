@@ -49,9 +49,10 @@ def morton_order(points: np.ndarray) -> np.ndarray:
     q = np.minimum(np.floor((points - lo) * scale), 2.0**bits - 1).astype(np.uint64)  # (n, d)
     code = np.zeros(n, dtype=np.uint64)
     one = np.uint64(1)
+    position = np.arange(bits * d, dtype=np.uint64).reshape(bits, d)  # where bit b of coordinate k goes
     for b in range(bits):  # bit b of every coordinate, interleaved: O(63 n), no loop over nodes
         for k in range(d):
-            code |= ((q[:, k] >> np.uint64(b)) & one) << np.uint64(b * d + k)
+            code |= ((q[:, k] >> np.uint64(b)) & one) << position[b, k]
     return np.argsort(code, kind="stable").astype(np.int64)
 
 

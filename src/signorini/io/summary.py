@@ -261,10 +261,11 @@ def _value(x) -> str:
 
 def factorization_tip(s: dict) -> str:
     """A hint when SuperLU factored a large 3D system and a faster backend is one pip away."""
-    from ..linalg import has_cholmod, has_pardiso
+    from ..linalg import BACKENDS, has_cholmod, has_pardiso
 
     big_3d = s.get("dim") == 3 and s.get("free_dofs", s["dofs"]) >= 30_000
-    if s["backend"] != "superlu" or not big_3d or has_cholmod() or has_pardiso():
+    fallback = s["backend"] in BACKENDS.names() and BACKENDS.get(s["backend"]).traits.fallback
+    if not fallback or not big_3d or has_cholmod() or has_pardiso():
         return ""
     from ..linalg.base import IMPORT_FAILURES
 

@@ -167,7 +167,8 @@ class BackendTraits:
     ``friction``: gives the Delassus matrix that friction needs; ``schur``: can compute the
     Schur complement on the contact dofs; ``mixed_meshes``: several cell types;
     ``chooses``: picks another backend (``auto``); ``finite_strain``: factorizes the tangent of
-    every Newton iterate of a finite-strain step (a serial direct factor)."""
+    every Newton iterate of a finite-strain step (a serial direct factor); ``fallback``: always
+    there but slow on large 3D systems (a run's summary then names the faster factors)."""
 
     factor: bool = False
     iterative: bool = False
@@ -177,6 +178,7 @@ class BackendTraits:
     mixed_meshes: bool = True
     chooses: bool = False
     finite_strain: bool = True
+    fallback: bool = False
 
 
 BACKENDS = Registry("linear solver backend")
@@ -194,7 +196,7 @@ BACKENDS.register(
     "superlu",
     ".superlu:SuperLUFactor",
     "scipy SuperLU, symmetric mode, nested dissection on large 3D systems (always available)",
-    traits=BackendTraits(factor=True),
+    traits=BackendTraits(factor=True, fallback=True),
 )
 BACKENDS.register(
     "pardiso",

@@ -1,0 +1,53 @@
+"""The measures of issue 39 held at their targets (``scripts/house_metrics.py`` prints them):
+no class over 20 methods, ``Stepper.__init__`` with at most 8 parameters, no access to another
+object's private attribute across modules, no ``mesh.mixed`` branch outside the block loop, no
+backend name compared outside the backend choice.  A change that breaks one fails here and
+names the place."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "scripts"))
+import house_metrics as hm  # noqa: E402
+
+
+def test_no_class_has_more_than_20_methods():
+    assert hm.big_classes() == []
+
+
+def test_the_stepper_takes_at_most_8_parameters():
+    assert 1 <= hm.stepper_parameters() <= 8
+
+
+def test_no_private_attribute_is_read_across_modules():
+    assert hm.private_access() == []
+
+
+def test_no_module_branches_on_a_mixed_mesh():
+    assert hm.mixed_branches() == []
+
+
+def test_no_backend_name_is_compared_outside_the_backend_choice():
+    assert hm.backend_comparisons() == []
+
+
+def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
+    """Each checker finds its pattern in a module written for it (a checker that sees nothing
+    would pass the tests above whatever the code)."""
+    pkg = tmp_path / "signorini"
+    pkg.mkdir()
+    (pkg / "bad.py").write_text(
+        "class Big:\n" + "".join(f"    def m{k}(self):\n        pass\n" for k in range(21)) + "\n"
+        "def f(mesh, other, node, d, opts):\n"
+        "    if mesh.mixed:\n"
+        "        pass\n"
+        "    x = other._hidden\n"
+        "    y = node * d + 1\n"
+        "    return opts['backend'] == 'superlu'\n"
+    )
+    monkeypatch.setattr(hm, "PKG", pkg)
+    assert [c[1] for c in hm.big_classes()] == ["Big"]
+    assert len(hm.mixed_branches()) == 1
+    assert [p[2] for p in hm.private_access()] == ["other._hidden"]
+    assert len(hm.hand_dofs()) == 1
+    assert len(hm.backend_comparisons()) == 1
