@@ -2,8 +2,8 @@
 
 Usage: python benchmarks/bench_moved_timings.py
 
-The tests now assert counts instead (tests/test_expressions.py: tree nodes compiled before
-a rejection, vectorized operations per evaluation; tests/test_fuzz_cases.py: the sleep the
+The tests now assert counts instead (tests/io/test_expressions.py: tree nodes compiled before
+a rejection, vectorized operations per evaluation; tests/io/test_fuzz_cases.py: the sleep the
 time limit interrupts).  The times they bounded, on this machine:
 
 - the rejection of each expensive or overflowing expression (the test bounded it by 1 s);

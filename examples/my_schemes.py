@@ -3,7 +3,7 @@
     signorini run bar2d --scheme examples/my_schemes.py:MyTheta --out out/mine
 
 It is the theta-method written from scratch, without reusing the package's Theta
-(docs/schemes.md, "Writing a new scheme"); tests/test_schemes.py imports it and checks
+(docs/schemes.md, "Writing a new scheme"); tests/dynamics/test_schemes.py imports it and checks
 that it reproduces the registered ``theta``.
 """
 

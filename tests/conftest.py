@@ -1,5 +1,14 @@
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
+
+# the tests live in folders that mirror the package (tests/fem, tests/contact, ...); a test module
+# may use another's helpers by its name (``from test_pairs import bars``), wherever it lives
+for _folder in sorted(p for p in Path(__file__).parent.iterdir() if p.is_dir() and p.name != "data"):
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""Every registered scheme on a distributed backend, run under mpiexec by tests/test_petsc_run.py.
+"""Every registered scheme on a distributed backend, run under mpiexec by tests/linalg/test_petsc_run.py.
 
 ``mpiexec -n P python tests/mpi_schemes.py OUT.json [BACKEND]``: each scheme integrates
 bar3d n = 2 (40 steps through the impact, standard mass, which every scheme takes) with

@@ -97,7 +97,7 @@ def violations(source: str, filename: str = "<test>") -> list[str]:
 
 
 def _test_files() -> list[Path]:
-    return sorted(TESTS.glob("*.py"))
+    return sorted(TESTS.rglob("*.py"))
 
 
 def test_every_comparison_in_the_tests_states_both_tolerances():

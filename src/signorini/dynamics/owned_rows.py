@@ -9,7 +9,7 @@ Rank r owns the nodes [a_r, a_{r+1}) (an even split of the node numbers,
   :data:`LAYERS` layers of the owned nodes make a sub-mesh (the same points, a subset of
   the cells); the variant built on it has the whole mesh's rows at the owned nodes.  One
   layer holds every cell that contributes to an owned row; the second is a margin.
-  tests/test_owned_rows.py checks every variant's rows against the whole mesh's on
+  tests/dynamics/test_owned_rows.py checks every variant's rows against the whole mesh's on
   several meshes and rank counts;
 * ``moment-preserving`` (M = T^T M_c T, T the affine extrapolation of the contact
   nodes): T is built on the whole mesh on every rank (one sparse row per node); the

@@ -11,7 +11,7 @@ of each component.  A dof fixed by several entries (a corner of two clamped side
 counted once, in the first tag that fixes it, so that the sum over the tags is the total
 reaction.  With it the total momentum p = 1^T M V balances, for the Newmark family,
 p^{n+1} - p^n = dt sum_levels w (F + contact + R) (1^T S U = 0: a translation is
-stress-free), which ``tests/test_reactions.py`` checks.
+stress-free), which ``tests/dynamics/test_reactions.py`` checks.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ steps.  A combination either runs, its identity closed (the largest residual is 
 is refused by name: the table shows the refusal's reason, the first clause of the error.
 
     python -m signorini.studies.support --write    # regenerate docs/support.md
-    python -m signorini.studies.support --check    # exit 1 when it is out of date (tests/test_support.py)
+    python -m signorini.studies.support --check    # exit 1 when it is out of date (tests/studies/test_support.py)
 """
 
 from __future__ import annotations
