@@ -209,7 +209,6 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     a mass that treats the normal apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
-    from ..contact.obstacles import PlaneObstacle
     from ..errors import InputError
     from ..linalg.base import backend_traits
     from .schemes import finite_strain_schemes
@@ -233,7 +232,7 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:
         raise InputError(f"{what} against a {kind} obstacle is not done yet (its normals in the current "
                          "configuration); a plane or a sphere, fixed or moving, is")  # fmt: skip
-    turning = ob is not None and (not isinstance(ob, PlaneObstacle) or (ob.motion is not None and ob.motion.rotates))
+    turning = ob is not None and ob.normals_turn
     if turning and ctx.friction.frictional:
         raise InputError(f"{what} with friction against a {kind} obstacle{' that rotates' if kind == 'plane' else ''} "
                          "is not done yet (its frames turn in the Newton iterations); friction runs against a "
