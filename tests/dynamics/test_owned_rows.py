@@ -23,7 +23,7 @@ from signorini.fem.space import Constraints, VectorSpace
 from signorini.io.config import load_case
 from signorini.studies.benchmarks import get_benchmark
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _problem(which: str):

@@ -29,7 +29,7 @@ from signorini.fem.node_order import (
 )
 from signorini.io.config import load_case
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _cylinder():

@@ -10,7 +10,7 @@ from signorini.io.config import SECTIONS, load_case
 from signorini.io.schema import SECTIONS as SCHEMA
 from signorini.io.schema import reference_markdown
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_case_file_reference_is_generated_and_up_to_date():

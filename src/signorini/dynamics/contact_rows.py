@@ -161,7 +161,6 @@ class ContactRows:
     def rebuilt(self) -> None:
         """B's blocks and the frames again after the contact set rebuilt its rows."""
         disc = self.disc
-        disc.B = disc.contact.B
         self._blocks(disc.B)
         if self.components > 1:
             self._frame_rows()

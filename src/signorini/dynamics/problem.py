@@ -277,7 +277,6 @@ class Discretization:
     space: VectorSpace
     constraints: Constraints
     contact: ContactSet
-    B: sp.csr_matrix
     S: sp.csr_matrix
     M: sp.csr_matrix
     U0: np.ndarray
@@ -290,6 +289,12 @@ class Discretization:
     mass_effect: dict = field(default_factory=dict)
     #: the material of the cells: the problem's one, or per cell with regions (``materials``)
     material: Material | None = None
+
+    @property
+    def B(self) -> sp.csr_matrix:
+        """(nc, n) the contact rows: the contact set's own matrix (one owner; re-paired rows
+        change it there)."""
+        return self.contact.B
 
     @property
     def free(self) -> np.ndarray:
@@ -521,7 +526,7 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     check_magnitude(
         **{"initial displacement": U0, "initial velocity": V0, "gaps": contact.gaps, "Dirichlet values": cons.values}
     )
-    disc = Discretization(problem, space, cons, contact, contact.B.tocsr(), S, M, U0, V0, mass, {}, F, varying)
+    disc = Discretization(problem, space, cons, contact, S, M, U0, V0, mass, {}, F, varying)
     disc.material = material
     disc.mass_effect = mass_effect(M, mesh, material.rho)
     if red.T is not None:  # the largest |w|_1 of an extrapolated contact node (1 for a node's own value)
