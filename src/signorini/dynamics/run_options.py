@@ -83,7 +83,8 @@ class RunOptions:
     events : :class:`~.events.Event` objects or built-in event names (:mod:`~.events`).
     control : the time-step control: ``"fixed"``/None, ``"energy"`` or a table
         (:mod:`~.step_control`).
-    checkpoint : a :class:`CheckpointPolicy` (None: no checkpoint).
+    checkpoint : a :class:`CheckpointPolicy`, or a path (the policy that writes it when the run
+        ends), or None (no checkpoint).
     """
 
     mass: str = DEFAULT_MASS
@@ -97,7 +98,15 @@ class RunOptions:
     energy: bool = True
     events: Iterable[Any] = ()
     control: str | Mapping[str, Any] | None = None
-    checkpoint: CheckpointPolicy | None = None
+    checkpoint: CheckpointPolicy | str | Path | None = None
+
+    def __post_init__(self) -> None:
+        c = self.checkpoint
+        if isinstance(c, (str, Path)):  # a path: written when the run ends (CheckpointPolicy(path, every=K) for more)
+            object.__setattr__(self, "checkpoint", CheckpointPolicy(c))
+        elif c is not None and not isinstance(c, CheckpointPolicy):
+            raise InputError(f"the run option 'checkpoint' must be a CheckpointPolicy or a path, got "
+                             f"{type(c).__name__}")  # fmt: skip
 
     @classmethod
     def of(cls, options: RunOptions | Mapping[str, Any] | None) -> RunOptions:

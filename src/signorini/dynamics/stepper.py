@@ -124,7 +124,7 @@ class Stepper:
         if not isinstance(problem, (Problem, Discretization)):
             raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
                              f"{type(problem).__name__}")  # fmt: skip
-        if not isinstance(grid, tuple) or len(grid) != 2:
+        if not isinstance(grid, (tuple, list)) or len(grid) != 2:
             raise InputError(f"the stepper's grid must be a pair (dt, T), got {grid!r}")
         dt, T = grid
         if not isinstance(dt, (list, tuple)) and resume is None:
