@@ -621,8 +621,7 @@ def test_contact_pairs_in_the_current_configuration_slide_across_facets(scheme):
 
 def test_contact_pairs_in_the_current_configuration_resume_bit_for_bit_and_refuse_what_is_not_done(tmp_path):
     """A checkpoint inside the sliding contact holds the pairing of the current configuration: the resumed run
-    is the uninterrupted one byte for byte.  Friction on the pairs, and pairs beside a rigid obstacle, are
-    refused by name."""
+    is the uninterrupted one byte for byte.  Friction on the pairs is refused by name."""
     p = two_neo_hookean_blocks()
     full = simulate(p, "crank-nicolson", 2e-4, 0.02)
     simulate(p, "crank-nicolson", 2e-4, 0.014, checkpoint=tmp_path / "c.h5")
@@ -632,9 +631,61 @@ def test_contact_pairs_in_the_current_configuration_resume_bit_for_bit_and_refus
         assert np.array_equal(full.columns()[k], r.columns()[k]), k
     with pytest.raises(InputError, match="friction on contact pairs is not done yet"):
         simulate(two_neo_hookean_blocks(friction="coulomb:0.2"), "crank-nicolson", 2e-4, 0.002)
-    with pytest.raises(InputError, match="contact pairs and a rigid obstacle together"):
-        simulate(two_neo_hookean_blocks(obstacle=PlaneObstacle([0.0, -0.1], [0.0, 1.0])), "crank-nicolson", 2e-4,
-                 0.002, mass="standard")  # fmt: skip
+
+
+def stack_on_floor(omega: float = 20.0) -> Problem:
+    """A Neo-Hookean block 0.2 x 0.1 m (4 x 2 quads) spinning at ``omega`` rad/s and thrown at (1, -1) m/s
+    onto another 0.6 x 0.1 m (12 x 4 quads) that falls at 0.5 m/s onto a floor 2 mm below it: a contact pair
+    between the blocks and the rigid floor's rows beside it, both in the current configuration."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.dynamics.problem import RegionInitial
+    from signorini.fem.mesh import join
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 4, 0.6, 0.1)
+    upper.points = upper.points + [0.05, 0.112]
+    lower.points = lower.points + [0.0, 0.002]
+    center = np.array([0.15, 0.162])
+
+    def spin(x):
+        r = x - center
+        return np.stack([1.0 - omega * r[:, 1], omega * r[:, 0] - 1.0], axis=1)
+
+    return Problem(join({"upper": upper, "lower": lower}), NeoHookean.from_young(1e5, 0.3, 1000.0), "lower_ymin",
+                   PlaneObstacle([0.0, 0.0], [0.0, 1.0]), pairs=[ContactPair("upper_ymin", "lower_ymax")],
+                   initial_regions=[RegionInitial("upper", velocity=spin),
+                                    RegionInitial("lower", velocity=[0.0, -0.5])])  # fmt: skip
+
+
+@pytest.mark.parametrize("scheme", ["crank-nicolson", "backward-euler", "energy-momentum"])
+def test_contact_pairs_beside_a_rigid_obstacle_in_the_current_configuration(scheme):
+    """Both kinds of rows follow the current configuration together: the lower block lands on the floor
+    (t = 4 ms), the spinning upper block on the lower one (t = 10 ms); both carry force, no node through the
+    floor or through the lower block (current gaps >= -1e-10 of the size), the identity closed at every step
+    (energy_check=fail)."""
+    from signorini.dynamics.stepper import Stepper
+
+    s = Stepper(stack_on_floor(), scheme, (2e-4, 0.02), {"solver_options": {"energy_check": "fail"}})
+    while s.status == "running":
+        s.step()
+    pair = s.run.ctx.disc.contact.pair
+    H = s.finish()
+    assert H.status == "finished", H.message
+    assert H.lam[:, pair < 0].min() < 0 and H.lam[:, pair >= 0].min() < 0  # the floor and the pair both pressed
+    assert H.gap.min() >= -1e-10 * 0.6
+
+
+def test_contact_pairs_beside_a_rigid_obstacle_resume_bit_for_bit(tmp_path):
+    """A checkpoint while both contacts press (level 70 of 100): the resumed run is the uninterrupted one."""
+    p = stack_on_floor()
+    full = simulate(p, "crank-nicolson", 2e-4, 0.02)
+    simulate(p, "crank-nicolson", 2e-4, 0.014, checkpoint=tmp_path / "c.h5")
+    r = simulate(p, "crank-nicolson", 2e-4, 0.02, resume=tmp_path / "c.h5")
+    from signorini.dynamics.stepper import Stepper
+
+    pair = Stepper(p, "crank-nicolson", (2e-4, 0.02)).run.ctx.disc.contact.pair
+    assert full.lam[70, pair < 0].min() < 0 and full.lam[70, pair >= 0].min() < 0  # both contacts press
+    for k in ("energy", "lambda_sum", "momentum_y", "angular_momentum_z", "nonlinear_iterations"):
+        assert np.array_equal(full.columns()[k], r.columns()[k]), k
 
 
 def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force():

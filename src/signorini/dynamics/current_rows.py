@@ -43,35 +43,47 @@ class CurrentRows:
     rows : the run's contact rows (their contact set's normals are moved, their blocks rebuilt).
     """
 
-    def __init__(self, rows: ContactRows):
+    def __init__(self, rows: ContactRows, own: np.ndarray | None = None):
         self.rows = rows
         self.contact = rows.disc.contact
         self.obstacle = rows.disc.problem.obstacle
         self.n_dofs = rows.disc.space.n_dofs
-        #: (t, normals) of the level the step in progress starts from
+        #: the obstacle's rows (all rows but those of contact pairs, :class:`CurrentRowsAndPairs`)
+        self.own = np.arange(self.contact.size) if own is None else np.asarray(own, dtype=np.int64)
+        #: (t, normals of the own rows) of the level the step in progress starts from
         self._kept: tuple[float, np.ndarray] | None = None
 
-    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The rows at the iterate U (n,) and time t: (bound (nc,), the rows whose normal changed)."""
+    def _points(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, u) (m, d) of the own rows' nodes at U."""
         c = self.contact
-        u = U[c.dofs]
-        x = c.points + u
+        u = U[c.dofs[self.own]]
+        return c.points[self.own] + u, u
+
+    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rows at the iterate U (n,) and time t: (bound (nc,; 0 on the rows of others), the rows whose
+        normal changed)."""
+        c = self.contact
+        x, u = self._points(U)
         nu = self.obstacle.body_normals(x, t)
-        bound = np.asarray(self.obstacle.gaps(x, t), dtype=float) + np.einsum("id,id->i", nu, u)
-        changed = np.flatnonzero(np.any(nu != c.normals, axis=1))
-        self._set(changed, nu[changed])
+        bound = np.zeros(c.size)
+        bound[self.own] = np.asarray(self.obstacle.gaps(x, t), dtype=float) + np.einsum("id,id->i", nu, u)
+        moved = np.any(nu != c.normals[self.own], axis=1)
+        changed = self.own[moved]
+        self._set(changed, nu[moved])
         return bound, changed
 
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         """The size of the numbers the obstacle's distance is computed from at U (its round-off's scale)
         [length]: the obstacle's own (:meth:`~signorini.contact.obstacles.RigidObstacle.distance_scale`)."""
-        c = self.contact
-        return float(self.obstacle.distance_scale(c.points + U[c.dofs], t))
+        if not self.own.size:
+            return 0.0
+        return float(self.obstacle.distance_scale(self._points(U)[0], t))
 
     def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
-        """phi_t(X + U) (nc,) of the contact nodes [length]."""
-        c = self.contact
-        return np.asarray(self.obstacle.gaps(c.points + U[c.dofs], t), dtype=float)
+        """phi_t(X + U) (nc,) of the contact nodes [length] (0 on the rows of others)."""
+        out = np.zeros(self.contact.size)
+        out[self.own] = np.asarray(self.obstacle.gaps(self._points(U)[0], t), dtype=float)
+        return out
 
     def keep_level(self, t: float) -> np.ndarray:
         """Before a step from the level at t moves the rows: they are that level's (kept for its identity,
@@ -80,10 +92,11 @@ class CurrentRows:
         c = self.contact
         changed = np.zeros(0, dtype=np.int64)
         if self._kept is not None and self._kept[0] == t:
-            changed = np.flatnonzero(np.any(c.normals != self._kept[1], axis=1))
-            self._set(changed, self._kept[1][changed])
+            back = np.any(c.normals[self.own] != self._kept[1], axis=1)
+            changed = self.own[back]
+            self._set(changed, self._kept[1][back])
         else:
-            self._kept = (t, c.normals.copy())
+            self._kept = (t, c.normals[self.own].copy())
         self.rows.keep_level(t)
         return changed
 
@@ -119,7 +132,7 @@ class CurrentPairRows:
 
     (the current normal gap linearized at U^k with n_m and N frozen): a slave node may travel across any
     number of facets.  The same interface as :class:`CurrentRows` (the rows a level acted through kept,
-    put back and saved).  Frictionless; rows of a rigid obstacle beside the pairs are not done (refused).
+    put back and saved).  Frictionless; a rigid obstacle beside the pairs: :class:`CurrentRowsAndPairs`.
     """
 
     #: the contact set's arrays of a pair row's pairing
@@ -222,19 +235,56 @@ class CurrentPairRows:
         return rows
 
 
-def current_rows(rows: ContactRows) -> CurrentRows | CurrentPairRows | None:
-    """The run's rows of the current configuration: :class:`CurrentPairRows` with contact pairs,
-    :class:`CurrentRows` when its rigid obstacle gives its normals at any point (plane, sphere), else None (no
-    obstacle rows, or an obstacle refused with finite strain)."""
+def current_rows(rows: ContactRows) -> CurrentRows | CurrentPairRows | CurrentRowsAndPairs | None:
+    """The run's rows of the current configuration: :class:`CurrentPairRows` with contact pairs (with a rigid
+    obstacle beside them, :class:`CurrentRowsAndPairs`), :class:`CurrentRows` when its rigid obstacle gives its
+    normals at any point (plane, sphere), else None (no obstacle rows, or an obstacle refused with finite
+    strain)."""
     disc = rows.disc
     if disc.space.dim == 1:  # refused with finite strain (check_finite_strain)
         return None
-    if disc.problem.pairs and disc.contact.has_pair_rows:
-        return CurrentPairRows(rows)
     ob = disc.problem.obstacle
-    if ob is None or not disc.contact.size or ob.body_normals(disc.contact.points[:1], 0.0) is None:
-        return None
-    return CurrentRows(rows)
+    c = disc.contact
+    obstacle_rows = np.flatnonzero(c.pair < 0) if c.has_pair_rows else np.arange(c.size)
+    follows = ob is not None and obstacle_rows.size and ob.body_normals(c.points[obstacle_rows[:1]], 0.0) is not None
+    if disc.problem.pairs and c.has_pair_rows:
+        return CurrentRowsAndPairs(rows, obstacle_rows) if follows else CurrentPairRows(rows)
+    return CurrentRows(rows) if follows else None
+
+
+class CurrentRowsAndPairs:
+    """A rigid obstacle's rows and contact pairs' rows in the current configuration together (two bodies
+    that meet each other and a floor): each part moves its own rows (:class:`CurrentRows` the obstacle's,
+    :class:`CurrentPairRows` the pairs'), in that order, and their bounds, gaps and changed rows are joined.
+    What a checkpoint holds is the pairs' part (its arrays cover every row's normal)."""
+
+    def __init__(self, rows: ContactRows, obstacle_rows: np.ndarray):
+        self.obstacle = CurrentRows(rows, obstacle_rows)
+        self.pairs = CurrentPairRows(rows)
+        self.own = self.obstacle.own
+
+    def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        b_obstacle, moved = self.obstacle.follow(U, t)
+        bound, changed = self.pairs.follow(U, t)
+        bound[self.own] = b_obstacle[self.own]
+        return bound, np.union1d(moved, changed)
+
+    def distance_scale(self, U: np.ndarray, t: float) -> float:
+        return max(self.obstacle.distance_scale(U, t), self.pairs.distance_scale(U, t))
+
+    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
+        out = self.pairs.gaps(U, t)
+        out[self.own] = self.obstacle.gaps(U, t)[self.own]
+        return out
+
+    def keep_level(self, t: float) -> np.ndarray:
+        return np.union1d(self.obstacle.keep_level(t), self.pairs.keep_level(t))
+
+    def saved(self) -> dict[str, Any]:
+        return self.pairs.saved()
+
+    def resume(self, data: dict[str, Any]) -> np.ndarray:
+        return self.pairs.resume(data)
 
 
 class FollowingBound:

@@ -221,9 +221,6 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     problem = ctx.disc.problem
     if ctx.disc.space.dim == 1:
         raise InputError(f"{what} needs a 2D (plane strain) or 3D mesh, not a 1D bar; use model 'linear'")
-    if problem.pairs and ctx.disc.contact.size > int((ctx.disc.contact.pair >= 0).sum()):
-        raise InputError(f"{what} with contact pairs and a rigid obstacle together is not done yet (the pairs' "
-                         "rows and the obstacle's follow the current configuration apart); use either")  # fmt: skip
     if problem.pairs and ctx.friction.frictional:
         raise InputError(f"{what} with friction on contact pairs is not done yet (their frames turn with the master "
                          "facets in the Newton iterations); use frictionless pairs")  # fmt: skip
