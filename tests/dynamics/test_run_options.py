@@ -65,3 +65,37 @@ def test_a_checkpoint_path_is_a_policy_and_resume_is_a_constructor(bar, tmp_path
     whole = _run(Stepper(p, "cn", (dt, T / 2)))
     assert resumed.meta["resumed_from"]["level"] == round(T / 4 / dt)
     assert np.array_equal(resumed.lam, whole.lam) and np.array_equal(resumed.energy, whole.energy)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: CheckpointPolicy(None, 2), "checkpoint's path must be a path"),
+        (lambda: CheckpointPolicy(5), "checkpoint's path must be a path"),
+        (lambda: CheckpointPolicy("c.h5", on_checkpoint=5), "on_checkpoint must be a function"),
+        (lambda: CheckpointPolicy("c.h5", meta=[1]), "checkpoint_meta must be a mapping"),
+        (lambda: RunOptions.of({1: 2, "x": 3}), "unknown run option"),
+    ],
+)
+def test_a_wrong_checkpoint_policy_is_refused_when_it_is_made(make, message):
+    """(An adversarial review's cases: each raised a TypeError out of finish(), or ran without writing.)"""
+    with pytest.raises(InputError, match=message):
+        make()
+
+
+def test_the_case_file_is_part_of_the_identity_without_a_checkpoint_path(bar, tmp_path):
+    """A resume that writes no checkpoint of its own still compares the case file's hash."""
+    p, dt, _ = bar
+    simulate(p, "cn", dt, 4 * dt, checkpoint=tmp_path / "c.h5", case_hash="AAAA")
+    with pytest.raises(InputError, match="the case file .* differs"):
+        simulate(p, "cn", dt, 8 * dt, resume=tmp_path / "c.h5", case_hash="BBBB")
+    with pytest.raises(InputError, match="needs the path of a checkpoint"):
+        Stepper.resume(None, p, "cn", (dt, 8 * dt))
+
+
+def test_the_problem_and_the_step_are_checked_first(bar):
+    p, dt, T = bar
+    with pytest.raises(InputError, match="problem must be a signorini Problem"):
+        simulate("x", "cn", dt, T, checkpoint_every=-3)
+    with pytest.raises(InputError, match="dt must be > 0"):
+        simulate(p, "cn", -1.0, T, checkpoint_every=3)

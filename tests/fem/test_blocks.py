@@ -23,3 +23,23 @@ def test_a_mixed_mesh_sums_its_blocks():
     np.testing.assert_allclose(cell_volumes(m), [0.5, 0.5, 1.0], rtol=1e-14)
     M = mass_matrix(m, 3.0)
     np.testing.assert_allclose(M.sum(), 3.0 * 2.0 * 2, rtol=1e-13)  # two components, area 2
+
+
+def test_a_one_type_mesh_does_not_hold_itself():
+    """Its single part is not cached (the mesh would reference itself: its geometry and pattern freed only
+    by a full garbage collection; an adversarial review measured 60 -> 313 MB over six 3D assemblies)."""
+    import gc
+    import weakref
+
+    from signorini.fem.assembly import stiffness_matrix
+    from signorini.fem.material import IsotropicElastic
+
+    m = rectangle(4, 4)
+    stiffness_matrix(m, IsotropicElastic.from_young(1.0, 0.3, 1.0))
+    alive = weakref.ref(m)
+    gc.disable()
+    try:
+        del m
+        assert alive() is None
+    finally:
+        gc.enable()

@@ -33,9 +33,10 @@ class Checkpointer:
     ----------
     stepper : the run.
     policy : when and where to write (None: only :meth:`save` with a path).
+    case_hash : the case file's hash (part of the identity a resume compares).
     """
 
-    def __init__(self, stepper: Stepper, policy: CheckpointPolicy | None) -> None:
+    def __init__(self, stepper: Stepper, policy: CheckpointPolicy | None, case_hash: str | None = None) -> None:
         run = stepper.run
         self.stepper, self.policy = stepper, policy
         self.solvers = stepper.solvers
@@ -43,7 +44,7 @@ class Checkpointer:
         self.series = ckpt.SeriesLog()  # the levels' series written beside the checkpoint
         self.meta = dict(policy.meta) if policy is not None else {}
         self.log = ckpt.CheckpointLog(policy.every, policy.path) if policy is not None else None
-        self.identity = ckpt.identity(run, policy.case_hash if policy is not None else None)
+        self.identity = ckpt.identity(run, case_hash)
         #: what a checkpoint of the current level holds, taken before the next step works
         self._level: dict[str, Any] | None = None
 

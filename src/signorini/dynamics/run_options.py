@@ -31,20 +31,27 @@ class CheckpointPolicy:
         failed: the last level computed is always written).
     meta : JSON-able data stored with every checkpoint (the command line keeps there how to
         rebuild the run).
-    case_hash : the hash of the case file (part of the checkpoint's identity).
     on_checkpoint : called with ``{level, t, counters, scheme, mass}`` after each checkpoint
         is complete (the command line tells its watchdog).
     """
 
     path: str | Path | Callable[[], Path]
     every: int = 0
-    meta: Mapping[str, Any] = field(default_factory=dict)
-    case_hash: str | None = None
+    meta: Mapping[str, Any] | None = field(default_factory=dict)
     on_checkpoint: Callable[[dict[str, Any]], None] | None = None
 
     def __post_init__(self) -> None:
+        if not isinstance(self.path, (str, Path)) and not callable(self.path):
+            raise InputError(f"the checkpoint's path must be a path or a function returning one, got "
+                             f"{type(self.path).__name__}")  # fmt: skip
         if not isinstance(self.every, int) or isinstance(self.every, bool) or self.every < 0:
             raise InputError(f"checkpoint_every must be a non-negative integer, got {self.every!r}")
+        if self.meta is None:
+            object.__setattr__(self, "meta", {})
+        if not isinstance(self.meta, Mapping):
+            raise InputError(f"checkpoint_meta must be a mapping (JSON-able), got {type(self.meta).__name__}")
+        if self.on_checkpoint is not None and not callable(self.on_checkpoint):
+            raise InputError(f"on_checkpoint must be a function, got {type(self.on_checkpoint).__name__}")
 
     @classmethod
     def of(
@@ -52,7 +59,6 @@ class CheckpointPolicy:
         path: str | Path | Callable[[], Path] | None,
         every: int = 0,
         meta: Mapping[str, Any] | None = None,
-        case_hash: str | None = None,
         on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
     ) -> CheckpointPolicy | None:
         """The policy of :func:`~.simulate.simulate`'s keywords (None: no checkpoint)."""
@@ -62,7 +68,7 @@ class CheckpointPolicy:
             if every:
                 raise InputError("checkpoint_every needs a checkpoint path (checkpoint=...)")
             return None
-        return cls(path, every, dict(meta or {}), case_hash, on_checkpoint)
+        return cls(path, every, meta, on_checkpoint)
 
 
 @dataclass(frozen=True)
@@ -83,6 +89,8 @@ class RunOptions:
     events : :class:`~.events.Event` objects or built-in event names (:mod:`~.events`).
     control : the time-step control: ``"fixed"``/None, ``"energy"`` or a table
         (:mod:`~.step_control`).
+    case_hash : the hash of the case file the problem was read from (part of the run's identity:
+        a checkpoint of another case file is refused on resume).
     checkpoint : a :class:`CheckpointPolicy`, or a path (the policy that writes it when the run
         ends), or None (no checkpoint).
     """
@@ -99,6 +107,7 @@ class RunOptions:
     events: Iterable[Any] = ()
     control: str | Mapping[str, Any] | None = None
     checkpoint: CheckpointPolicy | str | Path | None = None
+    case_hash: str | None = None
 
     def __post_init__(self) -> None:
         c = self.checkpoint
@@ -118,9 +127,9 @@ class RunOptions:
         if not isinstance(options, Mapping):
             raise InputError(f"the run's options must be a RunOptions or a mapping, got {type(options).__name__}")
         names = [f.name for f in dataclasses.fields(cls)]
-        unknown = sorted(set(options) - set(names))
+        unknown = sorted(map(repr, set(options) - set(names)))
         if unknown:
-            raise InputError(f"unknown run option(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(names)}")
+            raise InputError(f"unknown run option(s) {', '.join(unknown)}; allowed: {', '.join(names)}")
         return cls(**options)
 
     def replace(self, **changes: Any) -> RunOptions:

@@ -40,7 +40,7 @@ from .setup import (  # noqa: F401 - the names users and older code import from 
     number_of_steps,
     set_up,
 )
-from .stepper import STATUSES, Stepper  # noqa: F401 - exported where users find simulate
+from .stepper import STATUSES, Stepper, check_problem_and_grid  # noqa: F401 - exported where users find simulate
 
 
 class _Interrupts:
@@ -149,9 +149,10 @@ def simulate(
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
-    policy = CheckpointPolicy.of(checkpoint, checkpoint_every, checkpoint_meta, case_hash, on_checkpoint)
+    check_problem_and_grid(problem, (dt, T), resume)  # these first, as the stepper would
+    policy = CheckpointPolicy.of(checkpoint, checkpoint_every, checkpoint_meta, on_checkpoint)
     options = RunOptions(mass, snapshot_every, backend, memory_budget, progress, scheme_options, solver_options,
-                         observers, energy, events, control, policy)  # fmt: skip
+                         observers, energy, events, control, policy, case_hash)  # fmt: skip
     if resume is None:
         stepper = Stepper(problem, scheme, (dt, T), options)
     else:

@@ -115,20 +115,15 @@ class Stepper:
         a mismatch is an InputError naming what differs) to any final time T at or after the
         checkpoint's.  It computes what the uninterrupted run computes (bit for bit on the same
         machine, backend and thread count) and its history holds every level from t = 0."""
+        if not isinstance(checkpoint, (str, Path)):
+            raise InputError(f"Stepper.resume needs the path of a checkpoint, got {type(checkpoint).__name__}")
         stepper = cls.__new__(cls)
         stepper._build(problem, scheme, grid, options, Path(checkpoint))
         return stepper
 
     def _build(self, problem: Problem | Discretization, scheme: str | type[Scheme] | Scheme, grid: Any,
                options: RunOptions | Mapping[str, Any] | None, resume: Path | None) -> None:  # fmt: skip
-        if not isinstance(problem, (Problem, Discretization)):
-            raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
-                             f"{type(problem).__name__}")  # fmt: skip
-        if not isinstance(grid, (tuple, list)) or len(grid) != 2:
-            raise InputError(f"the stepper's grid must be a pair (dt, T), got {grid!r}")
-        dt, T = grid
-        if not isinstance(dt, (list, tuple)) and resume is None:
-            number_of_steps(dt, T)  # dt and T first: a one-line error before anything is built
+        dt, T = check_problem_and_grid(problem, grid, resume)
         o = RunOptions.of(options)
         saved = ckpt.read(resume) if resume is not None else None  # a bad file: refused before the set-up
         control_name, control_options = control_spec(o.control)
@@ -184,7 +179,7 @@ class Stepper:
         #: factor bytes an adaptive control keeps for the steps it left (a quarter of the budget)
         ladder_bytes = 0.25 * float(run.ctx.solver_options.get("memory_budget") or total_memory())
         self.solvers = SolverStates(run.ctx, self.adaptive is not None, ladder_bytes)
-        self.checkpointer = Checkpointer(self, o.checkpoint)
+        self.checkpointer = Checkpointer(self, o.checkpoint, o.case_hash)
         self._loop_seconds = 0.0
         #: the BLAS threads of the loop (0: the libraries' own); a driver that holds them already
         #: sets :attr:`in_loop` (:func:`~.simulate.simulate`)
@@ -406,6 +401,21 @@ class Stepper:
         H.meta["T"] = float(self.grid.T)
         H.status, H.message = self.status, self.message
         return H
+
+
+def check_problem_and_grid(problem: Any, grid: Any, resume: Any = None) -> tuple[Any, Any]:
+    """The (dt, T) of ``grid``, the problem's type and the step checked first (a one-line InputError before
+    anything is built)."""
+    if not isinstance(problem, (Problem, Discretization)):
+        raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
+                         f"{type(problem).__name__}")  # fmt: skip
+    if not isinstance(grid, (tuple, list)) or len(grid) != 2:
+        raise InputError(f"the stepper's grid must be a pair (dt, T): Stepper(problem, scheme, (dt, T), options), "
+                         f"got {grid!r}")  # fmt: skip
+    dt, T = grid
+    if not isinstance(dt, (list, tuple)) and resume is None:
+        number_of_steps(dt, T)
+    return dt, T
 
 
 def adaptive_grid(dt: Any, T: float, attrs: dict[str, Any], where: str) -> TimeGrid:

@@ -152,12 +152,11 @@ class Mesh:
     def parts(self) -> list[tuple[Mesh, slice]]:
         """One one-type mesh per block (the same points, no tags) and the slice of its cells in
         this mesh's numbering: the assembly of a mixed mesh is the sum over its parts."""
+        if self._blocks is None:  # itself (not cached: the mesh would hold itself, freed only by a full collection)
+            return [(self, slice(0, self.n_cells))]
         if "parts" not in self._cache:
-            if self._blocks is None:
-                self._cache["parts"] = [(self, slice(0, self.n_cells))]
-            else:
-                self._cache["parts"] = [(Mesh(self.points, b.cells, b.cell_type), slice(b.start, b.stop))
-                                        for b in self._blocks]  # fmt: skip
+            self._cache["parts"] = [(Mesh(self.points, b.cells, b.cell_type), slice(b.start, b.stop))
+                                    for b in self._blocks]  # fmt: skip
         return self._cache["parts"]
 
     def cell_nodes(self, cells: np.ndarray | None = None) -> np.ndarray:
