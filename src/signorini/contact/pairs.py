@@ -493,6 +493,15 @@ class CurrentPairing:
         self.rim = np.zeros(mesh.n_nodes, dtype=bool)
         self.rim[nodes if count is None else nodes[count == 1]] = True
 
+    def gap_gradient(self, local: np.ndarray, facet: np.ndarray) -> np.ndarray:
+        """The gradient (m, (1 + nfv) d) of the normal gap g = (x_s - p) . n_m of slave points on their facets,
+        from local coordinates ``local`` (m, 1 + nfv, d): the slave point, then the facet's nodes in its outward
+        order (``oriented[facet]``): (n_m, -N_1 n_m, ..., -N_k n_m) at the closest point."""
+        x, P = local[:, 0], local[:, 1:]
+        _, N = _closest_on_facets(x, P, self.kind)
+        n = self.sign[facet][:, None] * _facet_normals(P, N, self.kind)
+        return np.concatenate([n[:, None, :], -N[:, :, None] * n[:, None, :]], axis=1).reshape(x.shape[0], -1)
+
     def __call__(self, slave: np.ndarray, U: np.ndarray, facet: np.ndarray | None = None) -> CurrentProjection:
         """The projections at X + U; ``facet``: the slave nodes' facets so far, kept while the orthogonal
         projection stays on them within :data:`KEEP_FACET` of their parameters (at a kink of the deformed

@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import InputError
 
@@ -71,6 +72,38 @@ class CurrentRows:
         changed = self.own[moved]
         self._set(changed, nu[moved])
         return bound, changed
+
+    def contact_force(self, U: np.ndarray, t: float, lam: np.ndarray) -> np.ndarray:
+        """B(U)^T lambda (n,) on the own rows: the force of the multipliers through the rows of the iterate U
+        itself (the body normals at x = X + U), not through those a solve froze [force]."""
+        c = self.contact
+        out = np.zeros(self.n_dofs)
+        if self.own.size:
+            nu = self.obstacle.body_normals(self._points(U)[0], t)
+            out[c.dofs[self.own]] = lam[self.own, None] * nu  # one row per contact node: no dof twice
+        return out
+
+    def geometric_stiffness(self, U: np.ndarray, t: float, lam: np.ndarray) -> sp.csr_matrix | None:
+        """sum_i lambda_i d^2 phi_t / dx^2 (x_i) (n, n) on the pressed own rows: the turning of the obstacle's
+        normal under a node that moves (a sphere's curvature; zero for a plane), which rows frozen at an
+        iterate leave out of Newton's tangent.  The row is -nu = grad phi; its derivative -d nu / dx by central
+        differences of the body normals (step 1e-7 of the coordinates' size), symmetrized.  None: nothing
+        pressed."""
+        c, d = self.contact, self.contact.dofs.shape[1]
+        pressed = self.own[lam[self.own] < 0]
+        if not pressed.size:
+            return None
+        x = c.points[pressed] + U[c.dofs[pressed]]
+        h = 1e-7 * max(float(np.abs(x).max(initial=0.0)), 1e-300)
+        H = np.zeros((pressed.size, d, d))
+        for a in range(d):
+            step = np.zeros(d)
+            step[a] = h
+            H[:, :, a] = -(self.obstacle.body_normals(x + step, t) - self.obstacle.body_normals(x - step, t)) / (2 * h)
+        if not np.any(H):
+            return None
+        return _blocks_matrix(0.5 * (H + H.transpose(0, 2, 1)) * lam[pressed, None, None], c.dofs[pressed],
+                              self.n_dofs)  # fmt: skip
 
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         """The size of the numbers the obstacle's distance is computed from at U (its round-off's scale)
@@ -182,6 +215,59 @@ class CurrentPairRows:
         changed = self._set(new)
         return gaps + c.B @ U, changed
 
+    def contact_force(self, U: np.ndarray, t: float, lam: np.ndarray) -> np.ndarray:
+        """B(U)^T lambda (n,) on the pair rows: the force of the multipliers through the rows of the iterate U
+        itself (each slave node's projection on the deformed master surface at U) [force]."""
+        c, d = self.contact, self.space.dim
+        out = np.zeros(self.n_dofs)
+        for r, proj in self._project(U):
+            f = lam[r, None] * -proj.normals  # (m, d) on the slave node; -N_j of it on the master node j
+            out[c.dofs[r]] += f
+            master = self.space.dofs(proj.facet_nodes.ravel()).reshape(r.size, -1, d)
+            np.add.at(out, master, -proj.xi[:, :, None] * f[:, None, :])
+        return out
+
+    def geometric_stiffness(self, U: np.ndarray, t: float, lam: np.ndarray) -> sp.csr_matrix | None:
+        """sum_i lambda_i d^2 g_i / dU^2 (n, n) over the pressed pair rows at U: the derivative of the contact
+        force's direction (the master facet's normal and the projection's shape functions move with the
+        nodes), which the rows frozen at an iterate leave out of Newton's tangent (None: no row pressed).
+
+        g_i(x_s, x_1..x_k) = (x_s - p) . n_m is the normal gap of row i on its facet, whose gradient is the
+        row (n_m, -N_1 n_m, ..., -N_k n_m) at the closest point; its Hessian (the row's (1 + k) d local
+        coordinates) is taken by central differences of that gradient (step 1e-6 of the facet's size:
+        the rows' projection and normal computed again), symmetrized."""
+        c, d = self.contact, self.space.dim
+        pressed = np.flatnonzero(lam < 0)
+        if not pressed.size:
+            return None
+        blocks, dofs, weights = [], [], []
+        for k, r in enumerate(self.pair_rows):
+            r = np.intersect1d(r, pressed)
+            if not r.size:
+                continue
+            pairing = self.pairings[k]
+            Xall = pairing.mesh.points + np.asarray(U).reshape(-1, d)
+            facet = c.master_facet[r]
+            local = np.concatenate([Xall[c.nodes[r]][:, None, :], Xall[pairing.oriented[facet]]], axis=1)
+            m, nloc = local.shape[0], local.shape[1] * d
+            h = 1e-6 * np.linalg.norm(np.ptp(local[:, 1:], axis=1), axis=1)[:, None]  # (m, 1)
+            H = np.zeros((m, nloc, nloc))
+            flat = local.reshape(m, nloc)
+            for a in range(nloc):
+                plus, minus = flat.copy(), flat.copy()
+                plus[:, a] += h[:, 0]
+                minus[:, a] -= h[:, 0]
+                H[:, :, a] = (pairing.gap_gradient(plus.reshape(local.shape), facet)
+                              - pairing.gap_gradient(minus.reshape(local.shape), facet)) / (2.0 * h)  # fmt: skip
+            blocks.append(0.5 * (H + H.transpose(0, 2, 1)))
+            nodes = np.concatenate([c.nodes[r][:, None], pairing.oriented[facet]], axis=1)
+            dofs.append(self.space.dofs(nodes.ravel()).reshape(m, nloc))
+            weights.append(lam[r])
+        if not blocks:
+            return None
+        return _blocks_matrix(np.concatenate(blocks) * np.concatenate(weights)[:, None, None], np.concatenate(dofs),
+                              self.n_dofs)  # fmt: skip
+
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         """The largest coordinate of the slave and master nodes at U (the gaps' round-off scale) [length]."""
         return max((proj.scale for _, proj in self._project(U)), default=0.0)
@@ -235,6 +321,15 @@ class CurrentPairRows:
         return rows
 
 
+def _blocks_matrix(H: np.ndarray, dofs: np.ndarray, n: int) -> sp.csr_matrix:
+    """The (n, n) sum of the dense blocks H (m, k, k) on the dofs (m, k) of each (duplicates summed)."""
+    dofs = dofs.reshape(dofs.shape[0], -1)
+    k = dofs.shape[1]
+    rows = np.repeat(dofs, k, axis=1).ravel()
+    cols = np.tile(dofs, (1, k)).ravel()
+    return sp.csr_matrix((H.reshape(-1), (rows, cols)), shape=(n, n))
+
+
 def current_rows(rows: ContactRows) -> CurrentRows | CurrentPairRows | CurrentRowsAndPairs | None:
     """The run's rows of the current configuration: :class:`CurrentPairRows` with contact pairs (with a rigid
     obstacle beside them, :class:`CurrentRowsAndPairs`), :class:`CurrentRows` when its rigid obstacle gives its
@@ -272,6 +367,14 @@ class CurrentRowsAndPairs:
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         return max(self.obstacle.distance_scale(U, t), self.pairs.distance_scale(U, t))
 
+    def contact_force(self, U: np.ndarray, t: float, lam: np.ndarray) -> np.ndarray:
+        return self.obstacle.contact_force(U, t, lam) + self.pairs.contact_force(U, t, lam)
+
+    def geometric_stiffness(self, U: np.ndarray, t: float, lam: np.ndarray) -> sp.csr_matrix | None:
+        parts = [K for K in (self.obstacle.geometric_stiffness(U, t, lam), self.pairs.geometric_stiffness(U, t, lam))
+                 if K is not None]  # fmt: skip
+        return None if not parts else (parts[0] if len(parts) == 1 else (parts[0] + parts[1]).tocsr())
+
     def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
         out = self.pairs.gaps(U, t)
         out[self.own] = self.obstacle.gaps(U, t)[self.own]
@@ -301,6 +404,19 @@ class FollowingBound:
         self.ctx.replace_rows(changed)
         self.bound = bound
         return bound
+
+    def contact_force(self, U: np.ndarray, lam: np.ndarray, lam_t: np.ndarray | None) -> np.ndarray:
+        """B(U)^T lambda + T^T lambda_t (n,): the multipliers' force through the rows of the iterate U itself
+        (Newton's residual there; friction runs only against a plane that does not turn, whose T is fixed)."""
+        f = self.ctx.rows.current.contact_force(U, self.t, lam)
+        T = self.ctx.rows.T
+        if lam_t is not None and T is not None:
+            f = f + T.T @ lam_t.ravel()
+        return f
+
+    def geometric_stiffness(self, U: np.ndarray, lam: np.ndarray) -> sp.csr_matrix | None:
+        """sum_i lambda_i d^2 g_i / dU^2 at U (the rows' own turning; None: none)."""
+        return self.ctx.rows.current.geometric_stiffness(U, self.t, lam)
 
     def gap_error(self, U: np.ndarray) -> float:
         """max_i |phi_t(x_i) - (bound_i - nu_i . u_i)| at U [length]: the linearization's error of the gaps."""

@@ -11,12 +11,14 @@ run's :class:`~.factorizations.Factorizations`, its Delassus columns by its cont
 
     (c_M M + c_S G_k) U^{k+1} = rhs - c_S (g(U^k) - G_k U^k) + B^T lambda^{k+1}
 
-so every iterate satisfies the contact conditions exactly (the rows B are linear in U) and only the
-force residual
+so every iterate satisfies the contact conditions of its linearized rows exactly and only the force residual
 
     r^{k+1} = c_M M U^{k+1} + c_S g(U^{k+1}) - rhs - B^T lambda^{k+1} - T^T lambda_t^{k+1}   (free dofs)
 
-measures the distance to the step's solution; the iterations stop when |r|_inf <= ``newton_tol`` times
+measures the distance to the step's solution.  With rows of the current configuration
+(:mod:`~.current_rows`) B in r is that of the iterate itself, B(U^{k+1}), and the tangent gains the derivative
+of B(U)^T lambda at fixed lambda (the rows' own turning, ``geometric_stiffness``), so that Newton converges
+quadratically where the normals turn under the force; the iterations stop when |r|_inf <= ``newton_tol`` times
 the largest of the step's forces plus the round-off of its own terms (:func:`residual_norm`).  When a
 full step does not reduce |r| (far from the solution), the step is halved along the segment from U^k
 (a line search, at most :data:`LINE_SEARCH_HALVINGS` times; only a full step, which solved the contact
@@ -64,8 +66,8 @@ KEPT_CONTRACTION = 0.5
 
 
 def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
-                  lam: np.ndarray, lam_t: np.ndarray | None, inertia: np.ndarray | None = None
-                  ) -> tuple[float, float, float]:  # fmt: skip
+                  lam: np.ndarray, lam_t: np.ndarray | None, inertia: np.ndarray | None = None,
+                  contact_force: Callable | None = None) -> tuple[float, float, float]:  # fmt: skip
     """(|r|_inf, scale, floor) of the step's force residual on the free dofs [force], in increments:
 
         r = c_M M (U - U_base) + c_S g(U) - rest - B^T lambda - T^T lambda_t,   rest = rhs - c_M M U_base,
@@ -73,9 +75,11 @@ def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray
     so that its precision is that of the step's forces, not of the displacement (a body that has travelled
     far).  The scale is the largest of the step's forces: the inertia c_M M (U - U_base) - M q (``inertia``:
     the inertial part M q of ``rest``; 0 when None), the internal force, the loads and the contact force;
-    ``floor`` the round-off of r's largest terms (:data:`ROUNDOFF` of them)."""
+    ``floor`` the round-off of r's largest terms (:data:`ROUNDOFF` of them).  ``contact_force(U, lam, lam_t)``:
+    the contact force through the rows of U itself (rows of the current configuration); else B^T lambda +
+    T^T lambda_t through the rows of the last solve."""
     MdU = _mass_part(ctx, op, U - base)
-    contact = ctx.contact_force(lam, lam_t)
+    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
     r = MdU + op.stiffness * gU - rest - contact
     f = ctx.free
     q = 0.0 if inertia is None else inertia
@@ -147,6 +151,8 @@ def newton_solve(
     norm = scale = allowed = np.nan
     full = True
     D = ctx.fixed
+    # rows of the current configuration: the residual's contact force through the rows of each iterate itself
+    through = bound.contact_force if callable(bound) else None
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and elastic.displacement_gradient(U) <= REFERENCE_GRADIENT
@@ -160,7 +166,11 @@ def newton_solve(
                 if k == 1 and reference:
                     current, owned = op, False
                 else:
-                    current, owned = Operator(op.mass, op.stiffness, Tangent(tangent(U)), op.viscous), True
+                    G = tangent(U)
+                    Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
+                    if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
+                        G = (G + Kc / op.stiffness).tocsr()
+                    current, owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
                     elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
             minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
@@ -174,7 +184,9 @@ def newton_solve(
                 ) from exc
             U_new = U + d
             g_new = force(U_new)
-            n_new, scale, floor = residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia)
+            n_new, scale, floor = residual_norm(
+                ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through
+            )
             allowed = tol * scale + floor
             if lam is not None and not refactor and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
@@ -185,7 +197,7 @@ def newton_solve(
                     lam_try = 0.5 * (lam + lam_new)
                     lt_try = None if info.lam_t is None else 0.5 * (lam_t + info.lam_t)
                     g_try = force(U_try)
-                    n_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia)[0]
+                    n_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia, through)[0]
                     elastic.line_search_steps += 1
                     U_new, lam_new, g_new, n_new = U_try, lam_try, g_try, n_try
                     info.lam_t = lt_try
