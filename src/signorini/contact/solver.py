@@ -251,6 +251,7 @@ class CondensedContactSolver(ContactSolver):
         lcp_max_iter: int = 50,
         condensation: str = "auto",
         components: int = 1,
+        reproducible: bool = False,
     ):
         super().__init__()
         self.B = sp.csr_matrix(B)
@@ -259,7 +260,7 @@ class CondensedContactSolver(ContactSolver):
         self.condensation = condensation = choose_condensation(condensation, backend, self.B, condense_budget)
         t0 = time.perf_counter()
         dofs = schur_dofs(self.B) if condensation == "schur" else None
-        self.factor = factorize(K, backend, dofs)
+        self.factor = factorize(K, backend, dofs, reproducible)
         self.counters["factorizations"] = 1
         t1 = time.perf_counter()
         self.name = self.factor.name
@@ -807,6 +808,7 @@ def make_contact_solver(
                 opts["lcp_max_iter"],
                 opts["condensation"],
                 components,
+                opts["reproducible"],
             )
             check_options_used(opts)
         finally:
@@ -818,5 +820,6 @@ def make_contact_solver(
             opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0), opts["spmv"],
         )  # fmt: skip
     return CondensedContactSolver(
-        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components
-    )
+        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components,
+        opts["reproducible"],
+    )  # fmt: skip

@@ -256,6 +256,14 @@ SOLVER_OPTIONS = (
     Parameter("memory_budget", 0.0, "bytes allowed for a factor (0: 40% of the RAM)", float, 0.0),
     Parameter("lcp_max_iter", 50, "primal-dual active-set iterations per contact solve (direct backends)", int, 1),
     Parameter(
+        "reproducible",
+        False,
+        "pardiso: MKL's conditional numerical reproducibility, the same bits from run to run (its parallel "
+        "factorization otherwise differs at round-off); its solves about 2x slower (docs/performance.md); "
+        "the other backends always are",
+        bool,
+    ),
+    Parameter(
         "condense_budget",
         2e9,
         "bytes allowed for the dense contact matrices: the computed columns of Z = K^-1 B^T (lazy, full), "
@@ -471,12 +479,16 @@ def factor_class(backend: str) -> type[Factor]:
     return getattr(importlib.import_module(module, __package__), cls)
 
 
-def factorize(K: sp.spmatrix, backend: str = "superlu", schur_dofs: np.ndarray | None = None) -> Factor:
+def factorize(K: sp.spmatrix, backend: str = "superlu", schur_dofs: np.ndarray | None = None,
+              reproducible: bool = False) -> Factor:  # fmt: skip
     """Factorize the SPD matrix ``K`` once with the direct backend ``backend``; with
-    ``schur_dofs`` (a backend with ``supports_schur``) also its Schur complement there."""
+    ``schur_dofs`` (a backend with ``supports_schur``) also its Schur complement there;
+    ``reproducible``: a backend whose parallel factorization is not reproducible by default
+    (``supports_reproducible``: pardiso) in its reproducible mode (the others always are)."""
     cls = factor_class(backend)
+    kw: dict[str, Any] = {"reproducible": True} if reproducible and getattr(cls, "supports_reproducible", False) else {}
     if schur_dofs is None:
-        return cls(K)
+        return cls(K, **kw)
     if not cls.supports_schur:
         raise InputError(f"backend {backend!r} cannot compute a Schur complement; use pardiso")
-    return cls(K, schur_dofs=schur_dofs)
+    return cls(K, schur_dofs=schur_dofs, **kw)

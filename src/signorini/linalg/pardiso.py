@@ -16,6 +16,7 @@ calls are made here (:meth:`PardisoFactor._call`) so that
 from __future__ import annotations
 
 import ctypes
+import os
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,17 +31,31 @@ from .sparse import upper_triangle
 FACTORIZE, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 33, 331, 333, -1
 
 
+def _mkl_threads() -> int:
+    """The threads MKL would use now (``mkl_get_max_threads``; the cores when it is not known)."""
+    from .mkl import mkl_runtime
+
+    lib = mkl_runtime()
+    get = getattr(lib, "MKL_Get_Max_Threads", None) if lib is not None else None
+    return int(get()) if get is not None else (os.cpu_count() or 1)
+
+
 class PardisoFactor(Factor):
     """Real SPD mode on the upper triangle, nested-dissection ordering, factorized once.
 
     ``schur_dofs`` (indices, optional): also compute the Schur complement of K on these
-    dofs (:attr:`schur`) and allow :meth:`forward` / :meth:`backward`.
+    dofs (:attr:`schur`) and allow :meth:`forward` / :meth:`backward`.  ``reproducible``: MKL's
+    conditional numerical reproducibility mode (``iparm[33]``, the threads MKL would take): the
+    same bits from run to run on the same machine and thread count; without it the parallel
+    factorization differs at round-off from one run to the next (measured in docs/performance.md,
+    with its cost: the solves about twice slower).
     """
 
     name = "pardiso"
     supports_schur = True
+    supports_reproducible = True
 
-    def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None):
+    def __init__(self, K: sp.spmatrix, schur_dofs: np.ndarray | None = None, reproducible: bool = False):
         super().__init__()
         with mkl_path_hint():
             pypardiso = optional_import("pypardiso", "backend 'pardiso'", "pardiso")
@@ -65,6 +80,8 @@ class PardisoFactor(Factor):
         iparm[1] = 3  # nested dissection (METIS), its parallel version
         iparm[9] = 8  # pivot perturbation 1e-8 (MKL's default for symmetric matrices)
         iparm[17] = -1  # report the factor's non-zeros
+        if reproducible:
+            iparm[33] = max(_mkl_threads(), 1)  # conditional numerical reproducibility with this many threads
         self._perm = np.zeros(self._n, dtype=np.int32)
         self.schur: np.ndarray | None = None
         self.schur_dofs = None
