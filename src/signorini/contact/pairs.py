@@ -493,13 +493,18 @@ class CurrentPairing:
         self.rim = np.zeros(mesh.n_nodes, dtype=bool)
         self.rim[nodes if count is None else nodes[count == 1]] = True
 
+    def _normals(self, P: np.ndarray, N: np.ndarray, facet: np.ndarray) -> np.ndarray:
+        """The outward unit normals (m, d) of the master facets ``facet`` at their points P (m, nfv, d), at the
+        shape functions N (m, nfv)."""
+        return self.sign[facet][:, None] * _facet_normals(P, N, self.kind)
+
     def gap_gradient(self, local: np.ndarray, facet: np.ndarray) -> np.ndarray:
         """The gradient (m, (1 + nfv) d) of the normal gap g = (x_s - p) . n_m of slave points on their facets,
         from local coordinates ``local`` (m, 1 + nfv, d): the slave point, then the facet's nodes in its outward
         order (``oriented[facet]``): (n_m, -N_1 n_m, ..., -N_k n_m) at the closest point."""
         x, P = local[:, 0], local[:, 1:]
         _, N = _closest_on_facets(x, P, self.kind)
-        n = self.sign[facet][:, None] * _facet_normals(P, N, self.kind)
+        n = self._normals(P, N, facet)
         return np.concatenate([n[:, None, :], -N[:, :, None] * n[:, None, :]], axis=1).reshape(x.shape[0], -1)
 
     def __call__(self, slave: np.ndarray, U: np.ndarray, facet: np.ndarray | None = None) -> CurrentProjection:
@@ -531,7 +536,7 @@ class CurrentPairing:
             new[search], N[search], p[search] = cand.ravel()[pick], Nc[pick], pc[pick]
         facet = new
         scale = float(np.abs(X[np.unique(np.concatenate([slave, self.oriented.ravel()]))]).max(initial=0.0))
-        n = self.sign[facet][:, None] * _facet_normals(Pd[facet], N, self.kind)
+        n = self._normals(Pd[facet], N, facet)
         delta = X[slave] - p
         gaps = np.einsum("md,md->m", delta, n)
         # a node whose closest point is on the master surface's rim and off its normal faces nothing there

@@ -248,7 +248,7 @@ def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: 
 
 
 # ----------------------------------------------------------------------------- file
-def _flatten(prefix: str, data: dict[str, Any], arrays: dict, attrs: dict) -> None:
+def flatten(prefix: str, data: dict[str, Any], arrays: dict, attrs: dict) -> None:
     """Arrays of ``data`` under ``prefix/key``; everything else as JSON in ``attrs``."""
     for k, v in data.items():
         if isinstance(v, np.ndarray) and v.dtype.kind in "biuf":

@@ -105,17 +105,17 @@ class Checkpointer:
         arrays.update({f"state/{k}": v for k, v in state_arrays.items()})
         attrs["state_flags"] = flags
         level = self._level or {}
-        solvers = SolverStates.arrays(level["solvers"] if "solvers" in level else self.solvers.snapshot())
+        solvers = SolverStates.arrays(level["solvers"]) if "solvers" in level else self.solvers.saved()
         arrays.update({f"solvers/{k}": v for k, v in solvers.items()})
         self.pairing.t = s.state.t
-        ckpt._flatten("pairing", self.pairing.saved(), arrays, attrs)
+        ckpt.flatten("pairing", self.pairing.saved(), arrays, attrs)
         series: dict[str, np.ndarray] = {}
         for o in s.observers:
             key = getattr(o, "checkpoint_key", None)
             if key:
                 data = dict(o.saved(n))
                 series.update({f"{key}/{k}": v for k, v in data.pop("series", {}).items()})
-                ckpt._flatten(f"observers/{key}", data, arrays, attrs)
+                ckpt.flatten(f"observers/{key}", data, arrays, attrs)
         attrs.update(level.get("grid") or self.grid_attrs())
         counters = level.get("counters") or s.counters
         attrs.update(level=n, t=float(s.state.t), identity=self.identity, counters=counters,

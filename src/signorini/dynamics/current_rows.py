@@ -188,6 +188,10 @@ class CurrentPairRows:
         self._kept: tuple[float, dict[str, np.ndarray]] | None = None
         self._last: tuple[np.ndarray, np.ndarray, list] | None = None
 
+    def _dofs(self, nodes: np.ndarray) -> np.ndarray:
+        """The dofs (m, k, d) of nodes (m, k)."""
+        return self.space.dofs(nodes.ravel()).reshape(*nodes.shape, -1)
+
     def _project(self, U: np.ndarray) -> list:
         """Each pair's rows and their projections at U, the rows' facets so far kept where they still hold.  The
         last one is reused for the same U and facets: a Newton iteration asks it three times (the convergence
@@ -203,14 +207,14 @@ class CurrentPairRows:
 
     def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The rows at the iterate U: (bound (nc,), the rows that changed)."""
-        c, d = self.contact, self.space.dim
+        c = self.contact
         new = {k: np.array(getattr(c, k), copy=True) for k in self.ARRAYS}
         gaps = np.zeros(c.size)
         for r, proj in self._project(U):
             new["normals"][r] = -proj.normals
             new["master_facet"][r] = proj.facet
             new["master_shape"][r] = proj.xi
-            new["master_dofs"][r] = self.space.dofs(proj.facet_nodes.ravel()).reshape(r.size, -1, d)
+            new["master_dofs"][r] = self._dofs(proj.facet_nodes)
             gaps[r] = np.where(proj.facing, proj.gaps, self.far)  # beyond the rim: never active
         changed = self._set(new)
         return gaps + c.B @ U, changed
@@ -218,13 +222,12 @@ class CurrentPairRows:
     def contact_force(self, U: np.ndarray, t: float, lam: np.ndarray) -> np.ndarray:
         """B(U)^T lambda (n,) on the pair rows: the force of the multipliers through the rows of the iterate U
         itself (each slave node's projection on the deformed master surface at U) [force]."""
-        c, d = self.contact, self.space.dim
+        c = self.contact
         out = np.zeros(self.n_dofs)
         for r, proj in self._project(U):
             f = lam[r, None] * -proj.normals  # (m, d) on the slave node; -N_j of it on the master node j
             out[c.dofs[r]] += f
-            master = self.space.dofs(proj.facet_nodes.ravel()).reshape(r.size, -1, d)
-            np.add.at(out, master, -proj.xi[:, :, None] * f[:, None, :])
+            np.add.at(out, self._dofs(proj.facet_nodes), -proj.xi[:, :, None] * f[:, None, :])
         return out
 
     def geometric_stiffness(self, U: np.ndarray, t: float, lam: np.ndarray) -> sp.csr_matrix | None:
@@ -260,8 +263,7 @@ class CurrentPairRows:
                 H[:, :, a] = (pairing.gap_gradient(plus.reshape(local.shape), facet)
                               - pairing.gap_gradient(minus.reshape(local.shape), facet)) / (2.0 * h)  # fmt: skip
             blocks.append(0.5 * (H + H.transpose(0, 2, 1)))
-            nodes = np.concatenate([c.nodes[r][:, None], pairing.oriented[facet]], axis=1)
-            dofs.append(self.space.dofs(nodes.ravel()).reshape(m, nloc))
+            dofs.append(self._dofs(np.concatenate([c.nodes[r][:, None], pairing.oriented[facet]], axis=1)))
             weights.append(lam[r])
         if not blocks:
             return None

@@ -75,7 +75,7 @@ class SolverStates:
             systems = ctx.factors.by_step() if self.kept_steps else [(ctx.dt, s) for s in ctx.factors.current]
         out = []
         for dt, sys in systems:  # each factorized operator's solver, in order of creation
-            warm = {name: np.array(getattr(sys.solver, name), copy=True) for name in _warm_names(sys)}
+            warm = _warm_copy(sys)
             delassus = getattr(sys.solver, "delassus", None)
             blocks = len(delassus.log) if hasattr(delassus, "log") else None
             out.append((sys, warm, blocks, dt))
@@ -150,8 +150,7 @@ class SolverStates:
     def point(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
         """What a rejected step must put back: the warm starts of the current step's solvers
         (the Delassus columns a rejected step solved stay valid for its operator)."""
-        return [(sys, {name: np.array(getattr(sys.solver, name), copy=True) for name in _warm_names(sys)})
-                for sys in self.ctx.factors.current]  # fmt: skip
+        return [(sys, _warm_copy(sys)) for sys in self.ctx.factors.current]
 
     @staticmethod
     def put_back(point: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
@@ -163,6 +162,11 @@ class SolverStates:
 
 def _warm_names(sys: Any) -> tuple[str, ...]:
     return tuple(getattr(sys.solver, "warm_state", ()))
+
+
+def _warm_copy(sys: Any) -> dict[str, np.ndarray]:
+    """Copies of a system's solver's warm starts, by name."""
+    return {name: np.array(getattr(sys.solver, name), copy=True) for name in _warm_names(sys)}
 
 
 class Pairing:

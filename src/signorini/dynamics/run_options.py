@@ -19,6 +19,11 @@ from ..errors import InputError
 from .mass import DEFAULT_MASS
 
 
+def _check_every(every: Any) -> None:
+    if not isinstance(every, int) or isinstance(every, bool) or every < 0:
+        raise InputError(f"checkpoint_every must be a non-negative integer, got {every!r}")
+
+
 @dataclass(frozen=True)
 class CheckpointPolicy:
     """When and where a run writes its checkpoint (:mod:`~.checkpoint`).
@@ -44,8 +49,7 @@ class CheckpointPolicy:
         if not isinstance(self.path, (str, Path)) and not callable(self.path):
             raise InputError(f"the checkpoint's path must be a path or a function returning one, got "
                              f"{type(self.path).__name__}")  # fmt: skip
-        if not isinstance(self.every, int) or isinstance(self.every, bool) or self.every < 0:
-            raise InputError(f"checkpoint_every must be a non-negative integer, got {self.every!r}")
+        _check_every(self.every)
         if self.meta is None:
             object.__setattr__(self, "meta", {})
         if not isinstance(self.meta, Mapping):
@@ -62,8 +66,7 @@ class CheckpointPolicy:
         on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
     ) -> CheckpointPolicy | None:
         """The policy of :func:`~.simulate.simulate`'s keywords (None: no checkpoint)."""
-        if not isinstance(every, int) or isinstance(every, bool) or every < 0:
-            raise InputError(f"checkpoint_every must be a non-negative integer, got {every!r}")
+        _check_every(every)
         if path is None:
             if every:
                 raise InputError("checkpoint_every needs a checkpoint path (checkpoint=...)")
@@ -131,7 +134,3 @@ class RunOptions:
         if unknown:
             raise InputError(f"unknown run option(s) {', '.join(unknown)}; allowed: {', '.join(names)}")
         return cls(**options)
-
-    def replace(self, **changes: Any) -> RunOptions:
-        """A copy with ``changes``."""
-        return dataclasses.replace(self, **changes)
