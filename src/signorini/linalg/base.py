@@ -345,6 +345,15 @@ SOLVER_OPTIONS = (
         choices=("full", "modified"),
     ),
     Parameter(
+        "momentum_projection",
+        True,
+        "energy-momentum with finite strain: after each step the velocities of the nodes with mass get the rigid "
+        "motion (closest in M's norm) that gives back the linear and angular momentum the massless contact rows "
+        "and the contact pairs' lever arms took (O(dt^2)); the bodies' momenta then change only by the impulses "
+        "from outside (obstacles, loads, damping); off: the scheme's own velocities (docs/finite_strain.md)",
+        bool,
+    ),
+    Parameter(
         "loop_blas_threads",
         1,
         "threads of the dense BLAS inside the time loop (0: the library's default); one is fastest for the "

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..context import Operator
 from ..current_rows import contact_bound
+from ..momentum_projection import velocity_correction
 from ..newton import newton_solve
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, weighted
 
@@ -126,9 +127,35 @@ class EnergyMomentum(Scheme):
         if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike
             info.lam_t = np.where((w == 0.5)[:, None], 2.0 * info.lam_t, info.lam_t)
         V = 2.0 * (U - s.U) / dt - s.V
+        cache = {}
+        if el.finite and self._projects(ctx):
+            f_alg = cache["f_alg"] = el.algorithmic_force(s.U, U)
+            f_mean = 0.5 * (products(ctx, s)[1] + el.force(U))
+            h = np.where(ml, f_mean - f_alg, 0.0) - self._pair_force(ctx, s, w, lam)
+            V += velocity_correction(ctx.M, ctx.disc.problem.mesh.points, s.U, U, h, dt, ~ml)
         A = (V - s.V) / dt
         ctx.massless_update(V, A, U, s.U)
-        return State(t, U, V, A, lam, info)
+        return State(t, U, V, A, lam, info, cache=cache)
+
+    @staticmethod
+    def _projects(ctx) -> bool:
+        """Whether the step's velocities get the momentum projection (:mod:`~signorini.dynamics.momentum_projection`):
+        solver option ``momentum_projection`` (on by default), bodies without a prescribed motion."""
+        return bool(ctx.solver_options.get("momentum_projection", True)) and not ctx.has_fixed
+
+    @staticmethod
+    def _pair_force(ctx, s: State, w: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """B^T (w lambda^{n+1}) + B_n^T ((1 - w) lambda^n) (n,) on the contact pairs' rows (each level's
+        multipliers through its own rows): the pairs' part of the scheme's contact impulse / dt (0 without
+        pairs)."""
+        pair = ctx.disc.contact.pair
+        if pair is None or not lam.size or not (pair >= 0).any():
+            return np.zeros(s.U.size)
+        on = pair >= 0
+        f = ctx.contact_force(np.where(on, w * lam, 0.0))
+        if s.lam.size and np.any(w < 1.0):
+            f = f + ctx.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), None, s.t)
+        return f
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """dt lambda_w (module docstring)."""
@@ -146,8 +173,18 @@ class EnergyMomentum(Scheme):
         if el.finite:
             f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
             numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
+            numerical += self._projection_work(ctx, old, new)
         return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, f0, f1),
                            contact=contact, numerical=numerical, friction=friction)  # fmt: skip
+
+    def _projection_work(self, ctx, old: State, new: State) -> float:
+        """(V + dV/2) . M dV: the kinetic energy the momentum projection gave the step, dV = V^{n+1} - V_s on the
+        rows with mass (V_s = 2 dU/dt - V^n, the scheme's own velocity; 0 without the projection)."""
+        Vs = 2.0 * (new.U - old.U) / ctx.dt - old.V
+        dV = np.where(self._massless_mask(ctx), 0.0, new.V - Vs)
+        if not dV.any():
+            return 0.0
+        return float((Vs + 0.5 * dV) @ (ctx.M @ dV))
 
     def _prescribed_work(self, ctx, old: State, new: State, w, f0, f1) -> float:
         """dU_D . R_D: the work of the reactions of a prescribed motion, R = M dV/dt + g_w - F_mid - B^T lambda_w
