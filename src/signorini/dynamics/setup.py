@@ -201,6 +201,9 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         # the material models of the cells: linear, or finite strain (Newton in every step)
         "material_model": list(ctx.elastic.models),
         "finite_strain": bool(ctx.elastic.finite),
+        # energy-momentum with finite strain: the velocities corrected by the rigid motion that keeps the momenta
+        # (docs/finite_strain.md; solver option momentum_projection)
+        "momentum_projection": bool(scheme.projects_momenta(ctx)),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,

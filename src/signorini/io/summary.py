@@ -138,8 +138,9 @@ def material_line(H, s: dict) -> str:
     c = s["counters"]
     it = H.columns()["nonlinear_iterations"][1:]
     mean = f", {float(np.mean(it)):.3g} per step (max {int(np.max(it))})" if it.size else ""
+    projected = "; velocities projected on the momenta (momentum_projection)" if s.get("momentum_projection") else ""
     return (f"  finite strain ({', '.join(s.get('material_model') or [])}): Newton {int(np.sum(it))} iterations{mean}, "
-            f"{c.get('tangent_factorizations', 0)} tangent factorizations\n")  # fmt: skip
+            f"{c.get('tangent_factorizations', 0)} tangent factorizations{projected}\n")  # fmt: skip
 
 
 def friction_line(H, s: dict) -> str:

@@ -159,6 +159,11 @@ class Scheme:
         :mod:`~signorini.dynamics.step_control`, and docs/schemes.md)."""
         return False
 
+    def projects_momenta(self, ctx: Context) -> bool:
+        """Whether the steps' velocities get the momentum projection
+        (:mod:`~signorini.dynamics.momentum_projection`; energy-momentum with finite strain)."""
+        return False
+
     def __init__(self, **options: Any):
         entry = Entry(self.name, type(self), self.description, (), self.parameters)
         self.options = entry.options(options, where=f"scheme {self.name}")

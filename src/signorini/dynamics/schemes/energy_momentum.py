@@ -25,6 +25,11 @@ weighted alike, the last but one term its numerical part (0 in linear elasticity
 energy exactly).  Friction (Coulomb, Tresca): the tangential forces of the halved massless rows are halved
 too (Coulomb's cone is invariant; a Tresca threshold is halved with them) and doubled back.
 
+Momenta (finite strain): the massless rows' balance at t_{n+1} and the pairs' lever arms take O(dt^2) of
+the linear and angular momentum; after each step the velocities of the nodes with mass get the rigid motion
+closest in M's norm that gives it back (:mod:`~signorini.dynamics.momentum_projection`, solver option
+``momentum_projection``), and the kinetic energy that motion changes is part of the numerical term above.
+
 The step is solved by Newton (:mod:`~signorini.dynamics.newton`) with the operator 2/dt^2 M + 1/2 K(U_mid)
 (proportional to Crank-Nicolson's: one factorization serves both in linear elasticity), the massless
 rows' equations halved so that the tangent stays symmetric (their multipliers are doubled back).
@@ -128,20 +133,20 @@ class EnergyMomentum(Scheme):
             info.lam_t = np.where((w == 0.5)[:, None], 2.0 * info.lam_t, info.lam_t)
         V = 2.0 * (U - s.U) / dt - s.V
         cache = {}
-        if el.finite and self._projects(ctx):
+        if self.projects_momenta(ctx):
             f_alg = cache["f_alg"] = el.algorithmic_force(s.U, U)
-            f_mean = 0.5 * (products(ctx, s)[1] + el.force(U))
+            f_mean = 0.5 * (products(ctx, s)[1] + cache.setdefault("SU", el.force(U)))  # the new level's f, kept
             h = np.where(ml, f_mean - f_alg, 0.0) - self._pair_force(ctx, s, w, lam)
             V += velocity_correction(ctx.M, ctx.disc.problem.mesh.points, s.U, U, h, dt, ~ml)
         A = (V - s.V) / dt
         ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info, cache=cache)
 
-    @staticmethod
-    def _projects(ctx) -> bool:
-        """Whether the step's velocities get the momentum projection (:mod:`~signorini.dynamics.momentum_projection`):
-        solver option ``momentum_projection`` (on by default), bodies without a prescribed motion."""
-        return bool(ctx.solver_options.get("momentum_projection", True)) and not ctx.has_fixed
+    def projects_momenta(self, ctx) -> bool:
+        """With finite strain, solver option ``momentum_projection`` (on by default), bodies without a prescribed
+        motion (whose reactions change the momenta anyway)."""
+        return (ctx.elastic.finite and bool(ctx.solver_options.get("momentum_projection", True))
+                and not ctx.has_fixed)  # fmt: skip
 
     @staticmethod
     def _pair_force(ctx, s: State, w: np.ndarray, lam: np.ndarray) -> np.ndarray:
