@@ -164,6 +164,12 @@ class ContactSolver:
         self.timings: dict[str, float] = {}
         self.factor_bytes = 0
 
+    def release(self) -> None:
+        """No longer of use (its counters read): its factor's resources go (``Factor.release``)."""
+        factor = getattr(self, "factor", None)
+        if factor is not None:
+            factor.release()
+
     def solve(
         self, b: np.ndarray, bound: np.ndarray, law: ContactLaw = SIGNORINI
     ) -> tuple[np.ndarray, np.ndarray, StepInfo]:

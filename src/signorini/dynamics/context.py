@@ -148,15 +148,18 @@ def _row_blocks(op: Operator, ctx: Context) -> tuple[RowBlock, RowBlock]:
     """This rank's rows of K_ff and K_fD (the free rows in blocks of whole nodes, so that a
     contact node's rows and its projection stay on one rank)."""
     f, D = ctx.free, ctx.fixed
+    b, S = op.stiffness_part(ctx.S)  # S, or a Newton iterate's tangent (finite strain: whole rows, or by rows)
     if isinstance(ctx.M, RowBlock):  # M and S by rows: the free rows among this rank's own
         bounds = np.searchsorted(f, ctx.M.bounds).astype(np.int64)
         rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
-        M, S, rows = ctx.M.local, ctx.S.local, rows - ctx.M.lo
+        lo, hi = ctx.M.lo, ctx.M.hi
+        S = S.local if isinstance(S, RowBlock) else sp.csr_matrix(S)[lo:hi]
+        M, rows = ctx.M.local, rows - lo
     else:
         bounds = node_row_bounds(ctx.disc.space.dofmap.nodes_of(f), ctx.comm.size)
         rows = f[bounds[ctx.comm.rank] : bounds[ctx.comm.rank + 1]]
-        M, S = ctx.M, ctx.S
-    Kf, KD = principal_rows(op.mass, M, op.stiffness, S, f, D, rows)
+        M = ctx.M
+    Kf, KD = principal_rows(op.mass, M, b, S, f, D, rows)
     return RowBlock(Kf, bounds, ctx.comm), RowBlock(KD, bounds, ctx.comm)
 
 

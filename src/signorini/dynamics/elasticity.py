@@ -30,6 +30,7 @@ from ..fem.hyperelastic import (
 )
 from ..fem.material import CellMaterial, cell_models
 from ..fem.mesh import sub_mesh
+from ..linalg.row_block import RowBlock
 
 if TYPE_CHECKING:
     from .context import Context
@@ -108,6 +109,7 @@ class FiniteStrain(Elasticity):
         self.factorizations = 0
         self.line_search_steps = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._by_rows: tuple[list, sp.csr_matrix | None, RowBlock] | None = None
 
     def force(self, U: np.ndarray) -> np.ndarray:
         last = self._last
@@ -134,15 +136,39 @@ class FiniteStrain(Elasticity):
             out = max(out, float(np.abs(F - np.eye(F.shape[-1])).max(initial=0.0)))
         return out
 
-    def tangent(self, U: np.ndarray) -> sp.csr_matrix:
+    def tangent(self, U: np.ndarray) -> sp.csr_matrix | RowBlock:
+        """K(U) (n, n); on the ranks of a distributed backend (M and S by rows) this rank's rows of it, a
+        :class:`~signorini.linalg.row_block.RowBlock`, assembled from the cells that touch its own nodes
+        (:meth:`_rank_groups`)."""
         self.tangents += 1
-        mats = [tangent_stiffness(self.mesh, law, U, cells) for law, cells in self.groups]
-        if self.S_linear is not None:
-            mats.append(self.S_linear)
+        by_rows = self._rank_groups()
+        groups, S_linear = (self.groups, self.S_linear) if by_rows is None else by_rows[:2]
+        mats = [tangent_stiffness(self.mesh, law, U, cells) for law, cells in groups if cells is None or cells.size]
+        if S_linear is not None:
+            mats.append(S_linear)
         K = mats[0]
         for A in mats[1:]:
             K = K + A
-        return K.tocsr()
+        if by_rows is None:
+            return K.tocsr()
+        M = by_rows[2]
+        return RowBlock(K.tocsr()[M.lo : M.hi], M.bounds, M.comm)
+
+    def _rank_groups(self) -> tuple[list, sp.csr_matrix | None, RowBlock] | None:
+        """With M by rows (a distributed backend): each law's cells that touch this rank's own nodes, the linear
+        cells' stiffness and M (its rows' bounds), made once; None otherwise.  A row of K at a node sums the
+        cells around that node only, so these cells give this rank's rows exactly (docs/parallel.md)."""
+        M = self.ctx.M
+        if not isinstance(M, RowBlock):
+            return None
+        if self._by_rows is None:
+            from .owned_rows import cells_near
+
+            d = self.mesh.dim
+            near = cells_near(self.mesh, np.arange(M.lo // d, M.hi // d), 1)
+            groups = [(law, near if cells is None else np.intersect1d(cells, near)) for law, cells in self.groups]
+            self._by_rows = (groups, self.S_linear, M)
+        return self._by_rows
 
     def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:
         """The energy-momentum force (n,): Gonzalez's discrete gradient on the hyperelastic cells,
@@ -205,7 +231,7 @@ def elasticity(ctx: Context) -> Elasticity:
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
     a Newton step, a 1D bar, contact pairs, an obstacle without normals in the current configuration, friction
-    against an obstacle whose normals turn, a distributed or iterative backend, stiffness-proportional damping,
+    against an obstacle whose normals turn, an iterative backend, stiffness-proportional damping,
     a mass that treats the normal apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
@@ -237,7 +263,7 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     backend = ctx.solver_options.get("backend", "auto")
     if not backend_traits(backend).finite_strain:
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
-                         "iterate; use superlu, cholmod, pardiso or auto")  # fmt: skip
+                         "iterate; use superlu, cholmod, pardiso, petsc or auto")  # fmt: skip
     beta = 0.0 if ctx.damping is None else ctx.damping.beta
     if beta and hasattr(ctx.damping, "cell_coefficients"):  # per region: only the hyperelastic cells' beta matters
         mesh = ctx.disc.problem.mesh

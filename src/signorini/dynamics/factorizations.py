@@ -71,6 +71,9 @@ class Factorizations:
         for sys in systems:
             for k, v in sys.solver.counters.items():
                 retired[k] = retired.get(k, 0) + int(v)
+            release = getattr(sys.solver, "release", None)  # a solver's factor resources (ContactSolver.release)
+            if release is not None:
+                release()
         self.retired = retired
 
     def release(self, op: Operator) -> None:

@@ -39,9 +39,11 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..contact.solver import ContactLaw, StepInfo
 from ..errors import ConvergenceError, InputError
+from ..linalg.row_block import RowBlock
 from .context import Operator, Tangent
 
 if TYPE_CHECKING:
@@ -169,7 +171,7 @@ def newton_solve(
                     G = tangent(U)
                     Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
                     if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
-                        G = (G + Kc / op.stiffness).tocsr()
+                        G = _plus(G, Kc / op.stiffness)
                     current, owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
                     elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
@@ -226,3 +228,10 @@ def newton_solve(
         f"Newton's method did not converge in {most} iterations (force residual {norm:.3g}, {norm / scale:.3g} of "
         f"its scale against newton_tol = {tol:g}); reduce the step, or raise newton_max"
     )
+
+
+def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:
+    """G + K (n, n); G by rows (a distributed backend's tangent): this rank's rows of the sum."""
+    if isinstance(G, RowBlock):
+        return RowBlock((G.local + sp.csr_matrix(K)[G.lo : G.hi]).tocsr(), G.bounds, G.comm)
+    return (G + K).tocsr()

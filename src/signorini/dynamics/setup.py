@@ -29,6 +29,7 @@ from .elasticity import check_finite_strain, check_finite_strain_solvers
 from .history import COUNTER_KEYS, History
 from .mass import GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
+from .momentum_projection import applies as momentum_projection_applies
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
 from .problem import Discretization, Problem, discretize, friction_summary, in_node_order
@@ -203,7 +204,7 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "finite_strain": bool(ctx.elastic.finite),
         # energy-momentum with finite strain: the velocities corrected by the rigid motion that keeps the momenta
         # (docs/finite_strain.md; solver option momentum_projection)
-        "momentum_projection": bool(scheme.projects_momenta(ctx)),
+        "momentum_projection": momentum_projection_applies(scheme, ctx),
         "warnings": run_warnings(disc),
         "dt": dt,
         "T": N * dt,

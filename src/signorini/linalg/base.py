@@ -55,6 +55,10 @@ class Factor:
     def nbytes(self) -> int:
         return 0
 
+    def release(self) -> None:
+        """The factor is no longer of use: a backend may free or keep its resources (petsc keeps its MUMPS
+        instance for the next factorization of the same pattern); the others leave it to the garbage collector."""
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         """K^-1 b for b of shape (n,) or (n, k); counts k right-hand sides."""
         self.solves += 1 if np.ndim(b) == 1 else int(np.shape(b)[1])
@@ -218,7 +222,7 @@ BACKENDS.register(
     "options petsc.NAME=VALUE pass through as -signorini_NAME",
     (),
     (NODE_ORDER,),
-    BackendTraits(factor=True, distributed=True, mixed_meshes=False, finite_strain=False),
+    BackendTraits(factor=True, distributed=True, mixed_meshes=False),
 )
 BACKENDS.register(
     "cg",
@@ -348,9 +352,10 @@ SOLVER_OPTIONS = (
         "momentum_projection",
         True,
         "energy-momentum with finite strain: after each step the velocities of the nodes with mass get the rigid "
-        "motion (closest in M's norm) that gives back the linear and angular momentum the massless contact rows "
-        "and the contact pairs' lever arms took (O(dt^2)); the bodies' momenta then change only by the impulses "
-        "from outside (obstacles, loads, damping); off: the scheme's own velocities (docs/finite_strain.md)",
+        "motion (closest in M's norm, one per group of bodies in contact) that gives back the linear and angular "
+        "momentum the massless contact rows and the contact pairs' forces took; the bodies' momenta then change "
+        "only by the impulses from outside (obstacles, loads); off: the scheme's own velocities "
+        "(docs/finite_strain.md)",
         bool,
     ),
     Parameter(

@@ -150,6 +150,9 @@ class Scheme:
     #: why the scheme refuses finite strain (a material model other than ``linear``); None: its step
     #: solves the nonlinear balance by Newton (:mod:`~signorini.dynamics.newton`)
     finite_strain_refusal: ClassVar[str | None] = "its step has no Newton iteration for a nonlinear internal force yet"
+    #: whether its steps' velocities get the momentum projection with finite strain
+    #: (:func:`~signorini.dynamics.momentum_projection.applies`; energy-momentum)
+    momentum_projection: ClassVar[bool] = False
 
     @property
     def conserving(self) -> bool:
@@ -157,11 +160,6 @@ class Scheme:
         identity is an error of either sign (crank-nicolson); False: its losses are intended
         damping (backward-euler), only a gain is an error (the adaptive control,
         :mod:`~signorini.dynamics.step_control`, and docs/schemes.md)."""
-        return False
-
-    def projects_momenta(self, ctx: Context) -> bool:
-        """Whether the steps' velocities get the momentum projection
-        (:mod:`~signorini.dynamics.momentum_projection`; energy-momentum with finite strain)."""
         return False
 
     def __init__(self, **options: Any):

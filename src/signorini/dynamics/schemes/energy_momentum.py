@@ -44,7 +44,7 @@ import numpy as np
 
 from ..context import Operator
 from ..current_rows import contact_bound
-from ..momentum_projection import velocity_correction
+from ..momentum_projection import applies, groups, velocity_correction
 from ..newton import newton_solve
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, weighted
 
@@ -56,6 +56,7 @@ class EnergyMomentum(Scheme):
     energy_definition = "E = 1/2 V.MV + Pi(U) - U.F(t)"
     friction_refusal = None
     finite_strain_refusal = None
+    momentum_projection = True
 
     def operator(self, dt: float) -> Operator:
         return Operator(2.0 / (dt * dt), 0.5)
@@ -133,20 +134,38 @@ class EnergyMomentum(Scheme):
             info.lam_t = np.where((w == 0.5)[:, None], 2.0 * info.lam_t, info.lam_t)
         V = 2.0 * (U - s.U) / dt - s.V
         cache = {}
-        if self.projects_momenta(ctx):
+        if applies(self, ctx):
             f_alg = cache["f_alg"] = el.algorithmic_force(s.U, U)
             f_mean = 0.5 * (products(ctx, s)[1] + cache.setdefault("SU", el.force(U)))  # the new level's f, kept
+            if "R0" in s.extra:  # t = 0: the massless rows' imbalance, not a force
+                f_mean = f_mean - 0.5 * s.extra["R0"]
             h = np.where(ml, f_mean - f_alg, 0.0) - self._pair_force(ctx, s, w, lam)
-            V += velocity_correction(ctx.M, ctx.disc.problem.mesh.points, s.U, U, h, dt, ~ml)
+            mesh = ctx.disc.problem.mesh
+            dV = velocity_correction(ctx.M, mesh.points, s.U, U, h, dt, ~ml, self._groups(ctx, s.lam, lam))
+            V += ctx.comm.bcast(dV)  # on several ranks, rank 0's: their dot products may differ in round-off
         A = (V - s.V) / dt
         ctx.massless_update(V, A, U, s.U)
         return State(t, U, V, A, lam, info, cache=cache)
 
-    def projects_momenta(self, ctx) -> bool:
-        """With finite strain, solver option ``momentum_projection`` (on by default), bodies without a prescribed
-        motion (whose reactions change the momenta anyway)."""
-        return (ctx.elastic.finite and bool(ctx.solver_options.get("momentum_projection", True))
-                and not ctx.has_fixed)  # fmt: skip
+    def _groups(self, ctx, lam0: np.ndarray, lam1: np.ndarray) -> list[np.ndarray] | None:
+        """The groups of bodies of the momentum projection (nodes, bool (N,) each): the bodies a pair row that acts
+        at t_n or t_{n+1} joins are one (:func:`~signorini.dynamics.momentum_projection.groups`); None: one body."""
+        from ...fem.mesh import bodies
+
+        mesh = ctx.disc.problem.mesh
+        if getattr(self, "_labels", (None,))[0] is not mesh:
+            self._labels = (mesh, bodies(mesh))
+        labels = self._labels[1]
+        if labels.max(initial=0) == 0:
+            return None
+        c, d = ctx.disc.contact, mesh.dim
+        joined = np.zeros((0, 2), dtype=np.int64)
+        if c.pair is not None and c.master_dofs is not None and lam1.size:
+            rows = np.flatnonzero((c.pair >= 0) & ((lam1 != 0) | (lam0 != 0 if lam0.size else False)))
+            master = labels[c.master_dofs[rows][:, :, 0] // d]  # (rows, facet nodes) their bodies
+            slave = np.repeat(labels[c.nodes[rows]], master.shape[1])
+            joined = np.unique(np.column_stack([slave, master.ravel()]), axis=0)
+        return groups(labels, joined)
 
     @staticmethod
     def _pair_force(ctx, s: State, w: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -187,9 +206,7 @@ class EnergyMomentum(Scheme):
         rows with mass (V_s = 2 dU/dt - V^n, the scheme's own velocity; 0 without the projection)."""
         Vs = 2.0 * (new.U - old.U) / ctx.dt - old.V
         dV = np.where(self._massless_mask(ctx), 0.0, new.V - Vs)
-        if not dV.any():
-            return 0.0
-        return float((Vs + 0.5 * dV) @ (ctx.M @ dV))
+        return float((Vs + 0.5 * dV) @ (ctx.M @ dV))  # M by rows on several ranks: a product every rank makes
 
     def _prescribed_work(self, ctx, old: State, new: State, w, f0, f1) -> float:
         """dU_D . R_D: the work of the reactions of a prescribed motion, R = M dV/dt + g_w - F_mid - B^T lambda_w

@@ -78,6 +78,41 @@ def _options_text() -> str:
     return ", ".join(given) or "none"
 
 
+#: MUMPS instances of factors released (:meth:`PetscFactor.release`), kept for the next factorization of the
+#: same pattern (a Newton iterate's tangent, finite strain): PETSc 3.25's MUMPS leaks MPI communicators per
+#: instance, and a process that made about 450 of them failed inside MUMPS (MUMPS_LOAD_RECV_MSGS, measured on
+#: 2 ranks with a tridiagonal matrix); a kept instance refactorizes new values on its own analysis (1,000
+#: times measured).  Every rank keeps the same list in the same order (releases are collective), a pattern
+#: is each rank's own rows, so an instance is taken back only where every rank's pattern matches
+#: (:func:`_take_kept`), and the oldest goes beyond :data:`KEPT_MAX`.
+KEPT: list[tuple[tuple, tuple]] = []
+KEPT_MAX = 4
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    return a[:4] == b[:4] and np.array_equal(a[4], b[4]) and np.array_equal(a[5], b[5])
+
+
+def _take_kept(pattern: tuple, comm) -> tuple | None:
+    """The first kept instance whose pattern is this one on every rank (a collective), taken out of the list."""
+    MPI, _ = load()
+    mine = np.array([_same(p, pattern) for p, _ in KEPT] or [False], dtype=np.int32)
+    every = np.empty_like(mine)
+    comm.tompi4py().Allreduce(mine, every, op=MPI.MIN)
+    if not KEPT or not every.any():
+        return None
+    return KEPT.pop(int(np.argmax(every)))[1]
+
+
+def _keep(pattern: tuple, objects: tuple) -> None:
+    _, PETSc = load()
+    KEPT.append((pattern, objects))
+    while len(KEPT) > KEPT_MAX:
+        for obj in KEPT.pop(0)[1]:
+            if not PETSc.Sys.isFinalized():
+                obj.destroy()
+
+
 class PetscFactor(Factor):
     """MUMPS Cholesky of K on every rank of ``COMM_WORLD`` (see the module docstring)."""
 
@@ -99,9 +134,22 @@ class PetscFactor(Factor):
         self.lo, self.hi, self.n = lo, hi, n
         Kr = K.local
         Kr.sort_indices()
+        indptr, indices = Kr.indptr.astype(PETSc.IntType), Kr.indices.astype(PETSc.IntType)
+        self._pattern = (n, lo, hi, _options_text(), indptr, indices)
+        kept = _take_kept(self._pattern, comm)
+        if kept is not None:  # the same pattern factorized before: its MUMPS instance factorizes the new values
+            A, pc, self.x, self.b = kept
+            A.setValuesCSR(indptr, indices, Kr.data.astype(PETSc.ScalarType))
+            A.assemble()
+            pc.setOperators(A)
+            self._set_up(pc)
+            self.A, self.pc = A, pc
+            self.F = pc.getFactorMatrix()
+            self.counts = (np.diff(self.bounds)).astype(np.int64)
+            return
         A = PETSc.Mat().createAIJ(
             size=((hi - lo, n), (hi - lo, n)),
-            csr=(Kr.indptr.astype(PETSc.IntType), Kr.indices.astype(PETSc.IntType), Kr.data.astype(PETSc.ScalarType)),
+            csr=(indptr, indices, Kr.data.astype(PETSc.ScalarType)),
             comm=comm,
         )
         A.setOption(PETSc.Mat.Option.SPD, True)
@@ -122,6 +170,16 @@ class PetscFactor(Factor):
                 f"the petsc backend is a MUMPS Cholesky factorization; the petsc.* options ({_options_text()}) made it "
                 f"{pc.getType()} with {pc.getFactorSolverType()}: leave pc_type and pc_factor_mat_solver_type alone"
             )
+        self._set_up(pc)
+        self.A, self.pc = A, pc
+        self.F = pc.getFactorMatrix()
+        self.x = A.createVecRight()
+        self.b = A.createVecLeft()
+        self.counts = (np.diff(self.bounds)).astype(np.int64)
+
+    def _set_up(self, pc) -> None:
+        """Factorize (MUMPS's analysis once per instance, then its numeric factorization)."""
+        PETSc = self.PETSc
         try:
             pc.setUp()
         except PETSc.Error as exc:
@@ -132,11 +190,14 @@ class PetscFactor(Factor):
                     f"{exc.ierr}; check their names and values, or run without them"
                 ) from None
             raise RuntimeError(f"MUMPS Cholesky failed (PETSc error {exc.ierr})") from None
-        self.A, self.pc = A, pc
-        self.F = pc.getFactorMatrix()
-        self.x = A.createVecRight()
-        self.b = A.createVecLeft()
-        self.counts = (np.diff(self.bounds)).astype(np.int64)
+
+    def release(self) -> None:
+        """No longer of use (a Newton iterate's tangent done with): its MUMPS instance is kept for the next
+        factorization of the same pattern (:data:`KEPT`).  Called on every rank at the same point of the run
+        (a collective: never from a finalizer, whose time differs from rank to rank)."""
+        if self.pc is not None:
+            _keep(self._pattern, (self.A, self.pc, self.x, self.b))
+            self.A = self.pc = self.F = self.x = self.b = None
 
     @property
     def nbytes(self) -> int:
