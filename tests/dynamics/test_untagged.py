@@ -144,3 +144,39 @@ def test_contact_npz_says_the_pair_and_master_facet_of_each_row(tmp_path):
     x = z["coordinates"][rigid:, 0]  # each slave node faces a master facet whose x-range holds it
     lo, hi = p.mesh.points[top[f], 0].min(axis=1), p.mesh.points[top[f], 0].max(axis=1)
     assert np.all((lo <= x + 1e-12) & (x <= hi + 1e-12))
+
+
+def test_the_pair_watch_of_finite_strain_follows_the_current_configuration():
+    """With finite strain the watched nodes are projected on the deformed facing surface at every level
+    (``CurrentPairWatch``).  At U = 0 its gaps are the linearized watch's (the same projections); the upper
+    block pushed 1 cm into the lower one through its sides (nodes of neither tag) is seen 1 cm through, and
+    so it is after the whole scene turns by 90 degrees, where the gaps linearized at t = 0 are wrong by the
+    rotation (a watch that cannot fail to see it would pass this test only by luck)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from signorini.dynamics.untagged import CurrentPairWatch, PairWatch, pair_watch
+    from test_finite_strain import two_neo_hookean_blocks
+
+    p = two_neo_hookean_blocks()
+    mesh = p.mesh
+    n = mesh.points.size
+    lin, cur = pair_watch(mesh, p.pairs, n), pair_watch(mesh, p.pairs, n, current=True)
+    assert isinstance(lin, PairWatch) and isinstance(cur, CurrentPairWatch)
+    common = np.isin(cur.nodes, lin.nodes)
+    at_rest = cur.gaps_at(np.zeros(n))
+    order = np.argsort(lin.nodes)
+    both = cur.nodes[common]
+    lin_rest = lin.gaps_at(np.zeros(n))[order][np.searchsorted(lin.nodes[order], both)]
+    assert np.allclose(at_rest[common], lin_rest, rtol=0.0, atol=1e-12)
+    X = mesh.points
+    upper = X[:, 1] > 0.101
+    down = np.zeros_like(X)
+    down[upper, 1] = -0.062  # the upper block's bottom 6 cm into the lower one: its sides' middle nodes 1 cm
+    c, s = np.cos(np.pi / 2), np.sin(np.pi / 2)
+    R = np.array([[c, -s], [s, c]])
+    for turn in (np.eye(2), R):
+        U = ((X + down) @ turn.T + [0.3, -0.2] - X).ravel()
+        assert cur.gaps_at(U).min() == pytest.approx(-0.01, abs=1e-9)
+    assert abs(lin.gaps_at(U).min() + 0.01) > 1e-3  # linearized at t = 0: not what the turned scene shows

@@ -15,7 +15,9 @@ Contact pairs (two deformable bodies): the boundary nodes of a pair's slave body
 not slave nodes are watched against the master surface, and those of the master body that
 are not master nodes against the slave surface, with the pair's own linearized gap (each
 node projected at t = 0 on the facing surface, :func:`~signorini.contact.pairs.node_to_facet_rows`):
-p = max(0, max_j -(g_j - B_j U)) over the nodes facing the surface.  The master tag's own
+p = max(0, max_j -(g_j - B_j U)) over the nodes facing the surface.  With finite strain each
+watched node is projected on the deformed facing surface at every level instead
+(:class:`CurrentPairWatch`: the pairs slide and turn).  The master tag's own
 nodes entering the slave surface between slave nodes are the node-to-facet method's known
 limit (docs/bodies.md: choose the finer side as slave), not watched.
 
@@ -62,27 +64,70 @@ class PairWatch:
     surface: np.ndarray  # (m,) index in ``names`` of the surface each row faces
     names: list[str]  # the surfaces, e.g. "'plate_ymax' (master of pair 0)"
 
+    def gaps_at(self, U: np.ndarray) -> np.ndarray:
+        """(m,) the watched nodes' gaps at U, linearized at t = 0 [length]."""
+        return self.gaps - self.B @ U
 
-def pair_watch(mesh: Mesh, pairs, n_dofs: int) -> PairWatch | None:
-    """The untagged watch of the contact pairs (module docstring); None without pairs."""
-    from ..contact.pairs import node_to_facet_rows
 
-    if not pairs:
-        return None
+@dataclass
+class CurrentPairWatch:
+    """With finite strain: the watched nodes projected on the facing surface in the current configuration at
+    every level (:class:`~signorini.contact.pairs.CurrentPairing`: large sliding and rotation), a node beyond the
+    surface's rim facing nothing."""
+
+    nodes: np.ndarray  # (m,) watched nodes
+    surface: np.ndarray  # (m,) index in ``names`` of the surface each node is watched against
+    names: list[str]
+    pairings: list  # per surface, its CurrentPairing
+
+    def gaps_at(self, U: np.ndarray) -> np.ndarray:
+        """(m,) the watched nodes' normal gaps at X + U (+inf where a node faces nothing) [length]."""
+        out = np.full(self.nodes.size, np.inf)
+        for k, pairing in enumerate(self.pairings):
+            rows = np.flatnonzero(self.surface == k)
+            proj = pairing(self.nodes[rows], U)
+            out[rows] = np.where(proj.facing, proj.gaps, np.inf)
+        return out
+
+
+def _watched(mesh: Mesh, pairs) -> list[tuple[int, str, str, str, np.ndarray]]:
+    """Per pair and side: (pair index, the watched body's own tag, the surface it is watched against, its role,
+    the watched nodes: the boundary nodes of that body in neither tag)."""
     label = bodies(mesh)
     boundary = boundary_nodes(mesh)
-    parts = []
+    out = []
     for k, pair in enumerate(pairs):
         for own, other, role in ((pair.slave, pair.master, "master"), (pair.master, pair.slave, "slave")):
             mine = mesh.nodes_of(own)
             watched = boundary[np.isin(label[boundary], np.unique(label[mine])) & ~np.isin(boundary, mine)]
-            facets = mesh.facets_of(other)
-            watched = np.setdiff1d(watched, np.unique(facets))
-            if watched.size == 0:
-                continue
-            r = node_to_facet_rows(mesh, watched, facets, n_dofs)
-            if r.nodes.size:  # nodes laterally off the surface face nothing
-                parts.append((r, f"{other!r} ({role} of pair {k})"))
+            watched = np.setdiff1d(watched, np.unique(mesh.facets_of(other)))
+            if watched.size:
+                out.append((k, own, other, role, watched))
+    return out
+
+
+def pair_watch(mesh: Mesh, pairs, n_dofs: int, current: bool = False) -> PairWatch | CurrentPairWatch | None:
+    """The untagged watch of the contact pairs (module docstring); None without pairs; ``current`` (finite
+    strain): in the current configuration (:class:`CurrentPairWatch`)."""
+    from ..contact.pairs import ContactPair, CurrentPairing, node_to_facet_rows
+
+    if not pairs:
+        return None
+    if current:
+        sides = _watched(mesh, pairs)
+        if not sides:
+            return None
+        return CurrentPairWatch(
+            np.concatenate([w for *_, w in sides]),
+            np.concatenate([np.full(w.size, j) for j, (*_, w) in enumerate(sides)]),
+            [f"{other!r} ({role} of pair {k})" for k, _, other, role, _ in sides],
+            [CurrentPairing(mesh, ContactPair(own, other)) for _, own, other, _, _ in sides],
+        )
+    parts = []
+    for k, _, other, role, watched in _watched(mesh, pairs):
+        r = node_to_facet_rows(mesh, watched, mesh.facets_of(other), n_dofs)
+        if r.nodes.size:  # nodes laterally off the surface face nothing
+            parts.append((r, f"{other!r} ({role} of pair {k})"))
     if not parts:
         return None
     return PairWatch(
@@ -108,7 +153,7 @@ class UntaggedContact(Observer):
         rigid = disc.contact.nodes if disc.contact.pair is None else disc.contact.nodes[disc.contact.pair < 0]
         # no rigid obstacle (contact pairs only): nothing to watch against it
         self.nodes = np.setdiff1d(boundary_nodes(mesh), rigid) if disc.problem.obstacle is not None else rigid[:0]
-        self.pair_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs)
+        self.pair_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite)
         extra = self.pair_watch.nodes if self.pair_watch is not None else self.nodes[:0]
         self.all_nodes = np.concatenate([self.nodes, extra])
         self._surface = ""  # the surface the worst node crossed (a pair's tag), "" for the rigid obstacle
@@ -136,7 +181,7 @@ class UntaggedContact(Observer):
             phi = np.zeros(0)
         if self.pair_watch is not None:
             w = self.pair_watch
-            phi = np.concatenate([phi, w.gaps - w.B @ s.U])
+            phi = np.concatenate([phi, w.gaps_at(s.U)])
         if phi.size == 0:
             return
         nodes = self.all_nodes
