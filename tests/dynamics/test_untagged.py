@@ -180,3 +180,25 @@ def test_the_pair_watch_of_finite_strain_follows_the_current_configuration():
         U = ((X + down) @ turn.T + [0.3, -0.2] - X).ravel()
         assert cur.gaps_at(U).min() == pytest.approx(-0.01, rel=0.0, abs=1e-9)
     assert abs(lin.gaps_at(U).min() + 0.01) > 1e-3  # linearized at t = 0: not what the turned scene shows
+
+
+def test_the_current_pair_watch_sees_no_penetration_behind_a_surface_turned_away():
+    """The upper block turned over and lifted clear of the lower one: its tagged bottom now faces up, and the
+    lower block's nodes lie behind it at a negative signed distance without being through it; the watch counts
+    only nodes within a facet's size behind the surface (an adversarial review measured -0.25 m here)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from signorini.dynamics.untagged import pair_watch
+    from test_finite_strain import two_neo_hookean_blocks
+
+    p = two_neo_hookean_blocks()
+    X = p.mesh.points
+    cur = pair_watch(p.mesh, p.pairs, X.size, current=True)
+    upper = X[:, 1] > 0.101
+    c = X[upper].mean(axis=0)
+    Y = X.copy()
+    Y[upper] = 2 * c - X[upper] + [0.0, 0.05]  # turned by 180 degrees about its centre, 5 cm up
+    assert Y[upper, 1].min() > X[~upper, 1].max() + 0.04
+    assert cur.gaps_at((Y - X).ravel()).min() > 0.0

@@ -231,6 +231,20 @@ def test_finite_strain_matches_the_serial_run(tmp_path, ranks):
     assert p["counters"]["factorizations"] > 400 and p["counters"]["tangent_factorizations"] > 400
 
 
+def test_a_kept_mumps_instance_takes_the_petsc_options_again(tmp_path):
+    """A step schedule releases a factor and factorizes another of the same pattern on its kept MUMPS instance
+    (``KEPT``): the ``petsc.*`` options given count as used there too (an adversarial review found the run
+    failing with an internal error on the second factorization)."""
+    text = (Path(__file__).parents[2] / "examples" / "bar2d.toml").read_text()
+    schedule = "dt = [{until = 0.2, dt = 0.0125}, {until = 0.4, dt = 0.00625}, {until = 0.6, dt = 0.0125}]\nT = 0.6"
+    (tmp_path / "case.toml").write_text(text.replace("dt = 0.0125\nT = 1.0", schedule))
+    assert "until = 0.4" in (tmp_path / "case.toml").read_text()
+    r = mpirun(2, ["case.toml", "--out", "par", "--quiet", "--dt-control", "fixed", "--solver-option",
+                   "petsc.mat_mumps_icntl_14=50"], tmp_path)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads((tmp_path / "par" / "summary.json").read_text())["status"] == "finished"
+
+
 def test_friction_on_a_renumbered_grid_is_written_in_the_users_order(references, tmp_path):
     """``node_order=morton`` on the Coulomb side impact (a generated grid, kept in its own
     order under ``auto``): the tangential multipliers, slips, statuses and frames of

@@ -230,8 +230,8 @@ def elasticity(ctx: Context) -> Elasticity:
 
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
-    a Newton step, a 1D bar, contact pairs, an obstacle without normals in the current configuration, friction
-    against an obstacle whose normals turn, an iterative backend, stiffness-proportional damping,
+    a Newton step, a 1D bar, friction on contact pairs, an obstacle without normals in the current configuration,
+    friction against an obstacle whose normals turn, an iterative backend, stiffness-proportional damping,
     a mass that treats the normal apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return

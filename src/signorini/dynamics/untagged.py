@@ -81,12 +81,18 @@ class CurrentPairWatch:
     pairings: list  # per surface, its CurrentPairing
 
     def gaps_at(self, U: np.ndarray) -> np.ndarray:
-        """(m,) the watched nodes' normal gaps at X + U (+inf where a node faces nothing) [length]."""
+        """(m,) the watched nodes' normal gaps at X + U [length]: +inf where a node faces nothing, and where it
+        lies more than its facet's size behind the surface.  A surface is open: a node of the other body behind a
+        part of it that has turned away has a negative signed distance without being through it (an adversarial
+        review: a block flipped over above another, -0.25 m); a node that goes through is seen as it enters,
+        levels before it is that deep."""
         out = np.full(self.nodes.size, np.inf)
         for k, pairing in enumerate(self.pairings):
             rows = np.flatnonzero(self.surface == k)
             proj = pairing(self.nodes[rows], U)
-            out[rows] = np.where(proj.facing, proj.gaps, np.inf)
+            x = pairing.mesh.points + np.asarray(U).reshape(-1, pairing.mesh.dim)
+            size = np.linalg.norm(np.ptp(x[proj.facet_nodes], axis=1), axis=1)
+            out[rows] = np.where(proj.facing & (proj.gaps > -size), proj.gaps, np.inf)
         return out
 
 

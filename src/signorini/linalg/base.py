@@ -171,7 +171,7 @@ class BackendTraits:
     ``friction``: gives the Delassus matrix that friction needs; ``schur``: can compute the
     Schur complement on the contact dofs; ``mixed_meshes``: several cell types;
     ``chooses``: picks another backend (``auto``); ``finite_strain``: factorizes the tangent of
-    every Newton iterate of a finite-strain step (a serial direct factor); ``fallback``: always
+    every Newton iterate of a finite-strain step (a direct factor, serial or petsc's); ``fallback``: always
     there but slow on large 3D systems (a run's summary then names the faster factors)."""
 
     factor: bool = False

@@ -79,14 +79,15 @@ def _options_text() -> str:
 
 
 #: MUMPS instances of factors released (:meth:`PetscFactor.release`), kept for the next factorization of the
-#: same pattern (a Newton iterate's tangent, finite strain): PETSc 3.25's MUMPS leaks MPI communicators per
-#: instance, and a process that made about 450 of them failed inside MUMPS (MUMPS_LOAD_RECV_MSGS, measured on
-#: 2 ranks with a tridiagonal matrix); a kept instance refactorizes new values on its own analysis (1,000
-#: times measured).  Every rank keeps the same list in the same order (releases are collective), a pattern
-#: is each rank's own rows, so an instance is taken back only where every rank's pattern matches
-#: (:func:`_take_kept`), and the oldest goes beyond :data:`KEPT_MAX`.
+#: same pattern (a Newton iterate's tangent, finite strain).  With PETSc 3.25's MUMPS a process that destroyed
+#: each instance right after its last use failed inside MUMPS after 400-500 of them (MUMPS_LOAD_RECV_MSGS,
+#: measured on 2 ranks); destroyed later (an adversarial review: 1,500 instances with one kept) or reused (a
+#: kept instance refactorizes new values on its own analysis, 1,000 times measured) it runs.  Every rank
+#: keeps the same list in the same order (releases are collective), a pattern is each rank's own rows, so an
+#: instance is taken back only where every rank's pattern matches (:func:`_take_kept`), and the oldest goes
+#: beyond :data:`KEPT_MAX` (each holds its factor's memory).
 KEPT: list[tuple[tuple, tuple]] = []
-KEPT_MAX = 4
+KEPT_MAX = 2
 
 
 def _same(a: tuple, b: tuple) -> bool:
@@ -142,6 +143,10 @@ class PetscFactor(Factor):
             A.setValuesCSR(indptr, indices, Kr.data.astype(PETSc.ScalarType))
             A.assemble()
             pc.setOperators(A)
+            db = PETSc.Options()  # the same petsc.* options (part of the pattern), read at its first set-up:
+            for name in db.getAll():  # queried again, so that check_options_used finds them used
+                if name.startswith(PREFIX):
+                    db.getString(name)
             self._set_up(pc)
             self.A, self.pc = A, pc
             self.F = pc.getFactorMatrix()
@@ -190,6 +195,15 @@ class PetscFactor(Factor):
                     f"{exc.ierr}; check their names and values, or run without them"
                 ) from None
             raise RuntimeError(f"MUMPS Cholesky failed (PETSc error {exc.ierr})") from None
+        try:
+            info = int(pc.getFactorMatrix().getMumpsInfog(1))
+        except (AttributeError, PETSc.Error):  # pragma: no cover - an older petsc4py
+            info = 0
+        if info < 0:  # PETSc does not raise when MUMPS fails numerically: its solves would be NaN
+            raise RuntimeError(
+                f"MUMPS Cholesky failed (INFOG(1) = {info}: -9 and -8 are too small a workspace, raise "
+                "petsc.mat_mumps_icntl_14; -10 a singular matrix)"
+            )
 
     def release(self) -> None:
         """No longer of use (a Newton iterate's tangent done with): its MUMPS instance is kept for the next
