@@ -109,7 +109,7 @@ class FiniteStrain(Elasticity):
         self.factorizations = 0
         self.line_search_steps = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
-        self._by_rows: tuple[list, sp.csr_matrix | None, RowBlock] | None = None
+        self._by_rows: list | None = None
 
     def force(self, U: np.ndarray) -> np.ndarray:
         last = self._last
@@ -141,33 +141,31 @@ class FiniteStrain(Elasticity):
         :class:`~signorini.linalg.row_block.RowBlock`, assembled from the cells that touch its own nodes
         (:meth:`_rank_groups`)."""
         self.tangents += 1
-        by_rows = self._rank_groups()
-        groups, S_linear = (self.groups, self.S_linear) if by_rows is None else by_rows[:2]
+        groups = self._rank_groups()
         mats = [tangent_stiffness(self.mesh, law, U, cells) for law, cells in groups if cells is None or cells.size]
-        if S_linear is not None:
-            mats.append(S_linear)
-        K = mats[0]
+        if self.S_linear is not None:
+            mats.append(self.S_linear)
+        n = self.mesh.n_nodes * self.mesh.dim
+        K = mats[0] if mats else sp.csr_matrix((n, n))  # a rank whose nodes touch no cell of a law: no rows of it
         for A in mats[1:]:
             K = K + A
-        if by_rows is None:
-            return K.tocsr()
-        M = by_rows[2]
-        return RowBlock(K.tocsr()[M.lo : M.hi], M.bounds, M.comm)
+        M = self.ctx.M
+        return RowBlock(K.tocsr()[M.lo : M.hi], M.bounds, M.comm) if isinstance(M, RowBlock) else K.tocsr()
 
-    def _rank_groups(self) -> tuple[list, sp.csr_matrix | None, RowBlock] | None:
-        """With M by rows (a distributed backend): each law's cells that touch this rank's own nodes, the linear
-        cells' stiffness and M (its rows' bounds), made once; None otherwise.  A row of K at a node sums the
-        cells around that node only, so these cells give this rank's rows exactly (docs/parallel.md)."""
+    def _rank_groups(self) -> list:
+        """Each law and its cells: with M by rows (a distributed backend) only the cells that touch this rank's
+        own nodes (made once; a row of K at a node sums the cells around that node only, so these cells give
+        this rank's rows exactly, docs/parallel.md), else :attr:`groups`."""
         M = self.ctx.M
         if not isinstance(M, RowBlock):
-            return None
+            return self.groups
         if self._by_rows is None:
             from .owned_rows import cells_near
 
             d = self.mesh.dim
             near = cells_near(self.mesh, np.arange(M.lo // d, M.hi // d), 1)
-            groups = [(law, near if cells is None else np.intersect1d(cells, near)) for law, cells in self.groups]
-            self._by_rows = (groups, self.S_linear, M)
+            self._by_rows = [(law, near if cells is None else np.intersect1d(cells, near))
+                             for law, cells in self.groups]  # fmt: skip
         return self._by_rows
 
     def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:

@@ -65,16 +65,20 @@ def history_columns(dim: int) -> tuple[str, ...]:
             + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS)  # fmt: skip
 
 
-def angular_momentum(points: np.ndarray, U: np.ndarray, MV: np.ndarray) -> np.ndarray:
-    """sum_a x_a x p_a with x = X + U, p = M V per node (3,) in 3D, (1,) (z) in 2D, (0,) in 1D
-    [mass x length^2 / time]."""
-    d = points.shape[1]
+def moment(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """sum_a x_a x p_a of nodal vectors p (N d,) at the points x (N, d): (3,) in 3D, (1,) (z) in 2D, (0,) in 1D."""
+    d = x.shape[1]
     if d == 1:
         return np.zeros(0)
-    x, p = points + U.reshape(-1, d), MV.reshape(-1, d)
+    p = p.reshape(-1, d)
     if d == 2:
         return np.array([float(x[:, 0] @ p[:, 1] - x[:, 1] @ p[:, 0])])
     return np.cross(x, p).sum(axis=0)
+
+
+def angular_momentum(points: np.ndarray, U: np.ndarray, MV: np.ndarray) -> np.ndarray:
+    """sum_a x_a x p_a with x = X + U, p = M V per node (:func:`moment`) [mass x length^2 / time]."""
+    return moment(points + U.reshape(-1, points.shape[1]), MV)
 
 
 #: the counters every summary.json has (a run may add more, e.g. krylov_iterations)

@@ -51,6 +51,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph  # noqa: F401  (sp.csgraph)
 
+from .history import moment
+
 
 def applies(scheme, ctx) -> bool:
     """Whether a run's steps get the projection: a scheme that declares it (``momentum_projection``), finite
@@ -84,15 +86,9 @@ def rigid_fields(x: np.ndarray, keep: np.ndarray, centre: np.ndarray | None = No
 
 
 def momenta(x: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """(k,) sum_a p_a and sum_a x_a x p_a (z only in 2D, none in 1D) of nodal forces or momenta p (N d,) at x (N, d)."""
-    d = x.shape[1]
-    p = p.reshape(-1, d)
-    total = p.sum(axis=0)
-    if d == 1:
-        return total
-    if d == 2:
-        return np.concatenate([total, [float(x[:, 0] @ p[:, 1] - x[:, 1] @ p[:, 0])]])
-    return np.concatenate([total, np.cross(x, p).sum(axis=0)])
+    """(k,) sum_a p_a and sum_a x_a x p_a (:func:`~signorini.dynamics.history.moment`) of nodal forces or momenta
+    p (N d,) at x (N, d)."""
+    return np.concatenate([p.reshape(-1, x.shape[1]).sum(axis=0), moment(x, p)])
 
 
 def groups(labels: np.ndarray, joined: np.ndarray) -> list[np.ndarray]:

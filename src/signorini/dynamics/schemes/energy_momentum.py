@@ -25,8 +25,9 @@ weighted alike, the last but one term its numerical part (0 in linear elasticity
 energy exactly).  Friction (Coulomb, Tresca): the tangential forces of the halved massless rows are halved
 too (Coulomb's cone is invariant; a Tresca threshold is halved with them) and doubled back.
 
-Momenta (finite strain): the massless rows' balance at t_{n+1} and the pairs' lever arms take O(dt^2) of
-the linear and angular momentum; after each step the velocities of the nodes with mass get the rigid motion
+Momenta (finite strain): the massless rows' balance at t_{n+1} takes O(dt^2) of the linear and angular
+momentum, and a pair's forces a moment of their own (:mod:`~signorini.dynamics.momentum_projection`); after
+each step the velocities of the nodes with mass get the rigid motion
 closest in M's norm that gives it back (:mod:`~signorini.dynamics.momentum_projection`, solver option
 ``momentum_projection``), and the kinetic energy that motion changes is part of the numerical term above.
 

@@ -139,7 +139,7 @@ class PetscFactor(Factor):
         self._pattern = (n, lo, hi, _options_text(), indptr, indices)
         kept = _take_kept(self._pattern, comm)
         if kept is not None:  # the same pattern factorized before: its MUMPS instance factorizes the new values
-            A, pc, self.x, self.b = kept
+            A, pc, x, b = kept
             A.setValuesCSR(indptr, indices, Kr.data.astype(PETSc.ScalarType))
             A.assemble()
             pc.setOperators(A)
@@ -147,16 +147,18 @@ class PetscFactor(Factor):
             for name in db.getAll():  # queried again, so that check_options_used finds them used
                 if name.startswith(PREFIX):
                     db.getString(name)
-            self._set_up(pc)
-            self.A, self.pc = A, pc
-            self.F = pc.getFactorMatrix()
-            self.counts = (np.diff(self.bounds)).astype(np.int64)
-            return
-        A = PETSc.Mat().createAIJ(
-            size=((hi - lo, n), (hi - lo, n)),
-            csr=(indptr, indices, Kr.data.astype(PETSc.ScalarType)),
-            comm=comm,
-        )
+        else:
+            A, pc = self._new_instance(indptr, indices, Kr.data.astype(PETSc.ScalarType), lo, hi)
+            x, b = A.createVecRight(), A.createVecLeft()
+        self._set_up(pc)
+        self.A, self.pc, self.x, self.b = A, pc, x, b
+        self.F = pc.getFactorMatrix()
+        self.counts = (np.diff(self.bounds)).astype(np.int64)
+
+    def _new_instance(self, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, lo: int, hi: int) -> tuple:
+        """(A, pc): this rank's rows as an SPD MPIAIJ matrix and a MUMPS Cholesky PC on it, not yet set up."""
+        PETSc, comm, n = self.PETSc, self.comm, self.n
+        A = PETSc.Mat().createAIJ(size=((hi - lo, n), (hi - lo, n)), csr=(indptr, indices, data), comm=comm)
         A.setOption(PETSc.Mat.Option.SPD, True)
         A.assemble()
         pc = PETSc.PC().create(comm=comm)
@@ -175,12 +177,7 @@ class PetscFactor(Factor):
                 f"the petsc backend is a MUMPS Cholesky factorization; the petsc.* options ({_options_text()}) made it "
                 f"{pc.getType()} with {pc.getFactorSolverType()}: leave pc_type and pc_factor_mat_solver_type alone"
             )
-        self._set_up(pc)
-        self.A, self.pc = A, pc
-        self.F = pc.getFactorMatrix()
-        self.x = A.createVecRight()
-        self.b = A.createVecLeft()
-        self.counts = (np.diff(self.bounds)).astype(np.int64)
+        return A, pc
 
     def _set_up(self, pc) -> None:
         """Factorize (MUMPS's analysis once per instance, then its numeric factorization)."""
