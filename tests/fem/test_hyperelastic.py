@@ -335,17 +335,36 @@ def test_a_wrong_tangent_does_not_converge_quadratically():
 
 @pytest.mark.parametrize("law", LAWS)
 @pytest.mark.parametrize("d", [2, 3])
-def test_each_laws_voigt_tangent_is_its_tensor_tangent(law, d):
-    """The laws' own stress_and_voigt_tangent (shared invariants) equal the generic gather of tangent_C to
-    round-off, per cell constants included."""
-    from signorini.fem.hyperelastic import HyperelasticLaw
-
+def test_each_laws_tangent_terms_are_its_tensor_tangent(law, d):
+    """The laws' closed-form dP/dF (TangentTerms, from their invariants) equals F_iI CC_IJKL F_jK + delta_ij S_JL
+    formed from tangent_C and stress_C to round-off, per cell constants included, and P = F S."""
     rng = np.random.default_rng(3)
     F = np.eye(d) + 0.2 * rng.standard_normal((5, 4, d, d))
-    lw = law(np.linspace(1.0, 2.0, 5), np.linspace(0.5, 1.5, 5))
-    S, D = lw.stress_and_voigt_tangent(F)
-    S0, D0 = HyperelasticLaw.stress_and_voigt_tangent(lw, F)
-    assert np.abs(S - S0).max() <= 1e-14 * np.abs(S0).max() and np.abs(D - D0).max() <= 1e-14 * np.abs(D0).max()
+    for lam, mu in ((np.linspace(1.0, 2.0, 5), np.linspace(0.5, 1.5, 5)), (1.3, np.linspace(0.5, 1.5, 5)), (1.3, 0.7)):
+        lw = law(lam, mu)
+        P, A = lw.piola_and_tangent(F)
+        C = np.swapaxes(F, -1, -2) @ F
+        S = lw.stress_C(C)
+        A0 = np.einsum("...iI,...IJKL,...jK->...iJjL", F, lw.tangent_C(C), F)
+        A0 += np.einsum("ij,...JL->...iJjL", np.eye(d), S)
+        assert np.abs(P - F @ S).max() <= 1e-14 * np.abs(P).max()
+        assert np.abs(A - A0).max() <= 1e-14 * np.abs(A0).max()
+
+
+@pytest.mark.parametrize("cells", list(MESHES))
+@pytest.mark.parametrize("law", LAWS)
+def test_the_tangent_of_translated_cells_is_the_general_one(cells, law, monkeypatch):
+    """On cells that are translates of one another the tangent contracts with the first cell's shape gradients
+    (one matrix product for all): it equals the cell-by-cell contraction to round-off, per cell constants too."""
+    import signorini.fem.hyperelastic as hyper
+
+    mesh = MESHES[cells]
+    U, _ = _state(mesh, seed=6)
+    lw = law(np.linspace(1.0, 2.0, mesh.n_cells), 0.8)
+    fast = tangent_stiffness(mesh, lw, U)
+    monkeypatch.setattr(hyper, "uniform_cells", lambda part: False)
+    general = tangent_stiffness(mesh, lw, U)
+    assert abs(fast - general).max() <= 1e-14 * abs(general).max()
 
 
 def test_the_tangent_computed_in_blocks_of_cells_is_the_same(monkeypatch):

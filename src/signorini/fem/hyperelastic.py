@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from ..errors import InputError, NonFiniteError
 from .assembly import assemble_nodal, assemble_vector, geometry, sum_of
 from .elements import determinants, reference_element
-from .mesh import Mesh
+from .mesh import Mesh, uniform_cells
 
 
 def _lame(value, shape: tuple[int, ...]) -> np.ndarray | float:
@@ -50,6 +50,38 @@ class InvertedCellError(NonFiniteError):
     def __init__(self, what: str):
         super().__init__(f"{what}: the deformation is beyond what the mesh can carry; reduce the step")
         self.what = what
+
+
+@dataclass(frozen=True)
+class TangentTerms:
+    """dP/dF of a law at points (...) as the sum of the forms that the tangent assembly contracts with the shape
+    gradients in a few matrix products (:func:`tangent_stiffness`) instead of a 9 x 9 (3D) tensor per point:
+
+        A_iJjL = a M_iJ N_jL  +  c Q_iL R_jJ  +  delta_ij T_JL  +  B_ij delta_JL,
+
+    ``outer`` = (a, M, N), ``crossed`` = (c, Q, R), ``geometric`` = T, ``spatial`` = B; a, c numbers or arrays
+    broadcasting to the points (...), the others (..., d, d) [stress] (T, B: None when absent).  Over a cell,
+    with V^X = X grad N^T (V^X_ia = X_iJ dN_a/dX_J), the block of nodes a, b and components i, j is
+    sum_q w_q [a V^M_ia V^N_jb + c V^Q_ib V^R_ja + delta_ij (G T G^T)_ab + B_ij (G G^T)_ab]."""
+
+    outer: tuple[float | np.ndarray, np.ndarray, np.ndarray]
+    crossed: tuple[float | np.ndarray, np.ndarray, np.ndarray]
+    geometric: np.ndarray | None = None
+    spatial: np.ndarray | None = None
+
+    def tensor(self) -> np.ndarray:
+        """A (..., d, d, d, d), indices i, J, j, L."""
+        (a, M, N), (c, Q, R) = self.outer, self.crossed
+        s = (Ellipsis,) + (None,) * 4
+        A = np.asarray(a)[s] * M[..., :, :, None, None] * N[..., None, None, :, :]
+        A += np.asarray(c)[s] * Q[..., :, None, None, :] * np.swapaxes(R, -1, -2)[..., None, :, :, None]
+        d = M.shape[-1]
+        for i in range(d):
+            if self.geometric is not None:
+                A[..., i, :, i, :] += self.geometric
+            if self.spatial is not None:
+                A[..., :, i, :, i] += self.spatial
+        return A
 
 
 @dataclass(frozen=True)
@@ -83,13 +115,15 @@ class HyperelasticLaw:
         cut = lambda v: v if np.ndim(v) == 0 else np.asarray(v)[lo:hi]  # noqa: E731
         return type(self)(cut(self.lam), cut(self.mu))
 
-    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(S (..., d, d), D (..., m, m)): the stress and the tangent in Voigt's order (:data:`VOIGT`),
-        D_ab = CC_{I_a J_a I_b J_b} (m = 3 in 2D, 6 in 3D); laws override it to share their invariants."""
-        C = _green(F)[0]
-        I, J = VOIGT[F.shape[-1]]
-        CC = self.tangent_C(C)
-        return self.stress_C(C), CC[..., I[:, None], J[:, None], I[None, :], J[None, :]]
+    def tangent_terms(self, F: np.ndarray) -> TangentTerms:
+        """dP/dF, the derivative of the first Piola-Kirchhoff stress P = F S, as :class:`TangentTerms` (laws
+        give it in closed form from their invariants)."""
+        raise NotImplementedError
+
+    def piola_and_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(P (..., d, d), A (..., d, d, d, d)): P and A_iJjL = dP_iJ / dF_jL = F_iI CC_IJKL F_jK + delta_ij S_JL
+        [stress] (major symmetry A_iJjL = A_jLiJ), the tensor of :meth:`tangent_terms`."""
+        return np.matmul(F, self.stress(F)), self.tangent_terms(F).tensor()
 
     def energy_C(self, C: np.ndarray) -> np.ndarray:
         """W as a function of the right Cauchy-Green tensor C (..., d, d)."""
@@ -102,10 +136,6 @@ class HyperelasticLaw:
     def tangent_C(self, C: np.ndarray) -> np.ndarray:
         """CC = 4 d^2W/dC^2 (..., d, d, d, d)."""
         raise NotImplementedError
-
-
-#: the Voigt order of a symmetric tensor's components (I_a, J_a): 11, 22, 12 in 2D; 11, 22, 33, 12, 23, 13 in 3D
-VOIGT = {2: (np.array([0, 1, 0]), np.array([0, 1, 1])), 3: (np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2]))}
 
 
 def _inv(A: np.ndarray) -> np.ndarray:
@@ -124,7 +154,7 @@ def _inv(A: np.ndarray) -> np.ndarray:
 
 def _green(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(C, E): the right Cauchy-Green tensor F^T F and the Green-Lagrange strain (C - I)/2."""
-    C = np.matmul(np.swapaxes(F, -1, -2), F)
+    C = np.matmul(np.ascontiguousarray(np.swapaxes(F, -1, -2)), F)  # (a copy first: numpy's faster product)
     return C, 0.5 * (C - np.eye(F.shape[-1]))
 
 
@@ -164,15 +194,13 @@ class SaintVenantKirchhoffLaw(HyperelasticLaw):
         base = lam * np.einsum("IJ,KL->IJKL", eye, eye) + mu * _symmetric_identity(d)
         return np.broadcast_to(base, shape)
 
-    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d = F.shape[-1]
-        m = 3 * (d - 1)
-        normal = np.zeros((m, m))
-        normal[:d, :d] = 1.0
-        shear = np.diag(np.r_[2.0 * np.ones(d), np.ones(m - d)])  # mu (delta_IK delta_JL + delta_IL delta_JK)
-        shape = F.shape[:-2] + (m, m)
-        lam, mu = _lame(self.lam, shape), _lame(self.mu, shape)
-        return self.stress_C(_green(F)[0]), lam * normal + mu * shear
+    def tangent_terms(self, F: np.ndarray) -> TangentTerms:
+        """A_iJjL = lam F_iJ F_jL + mu F_iL F_jJ + mu b_ij delta_JL + delta_ij S_JL, b = F F^T."""
+        S = self.stress_C(_green(F)[0])
+        lam, mu = _lame(self.lam, F.shape[:-2]), _lame(self.mu, F.shape[:-2])
+        b = np.matmul(F, np.ascontiguousarray(np.swapaxes(F, -1, -2)))
+        spatial = np.asarray(mu)[..., None, None] * b
+        return TangentTerms(outer=(lam, F, F), crossed=(mu, F, F), geometric=S, spatial=spatial)
 
 
 @dataclass(frozen=True)
@@ -229,20 +257,13 @@ class NeoHookeanLaw(HyperelasticLaw):
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
         return lam * outer + (mu - lam * lnJ) * sym
 
-    def stress_and_voigt_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        C = _green(F)[0]
-        Ci = _inv(C)
-        lnJ = 0.5 * np.log(determinants(C))
-        I, J = VOIGT[F.shape[-1]]
-        S = self._stress(Ci, lnJ)
-        c = Ci[..., I, J]  # (..., m)
-        a, b = I[:, None], J[:, None]
-        k, l = I[None, :], J[None, :]  # noqa: E741
-        sym = Ci[..., a, k] * Ci[..., b, l] + Ci[..., a, l] * Ci[..., b, k]
-        lam_m = _lame(self.lam, sym.shape)
-        return S, lam_m * c[..., :, None] * c[..., None, :] + (
-            _lame(self.mu, sym.shape) - lam_m * lnJ[..., None, None]
-        ) * sym
+    def tangent_terms(self, F: np.ndarray) -> TangentTerms:
+        """A_iJjL = lam H_iJ H_jL + (mu - lam ln J) H_iL H_jJ + mu delta_ij delta_JL,
+        H = F^-T (plane strain: F_33 = 1 leaves the in-plane block of the same form)."""
+        H = np.swapaxes(_inv(F), -1, -2)
+        lam, mu = _lame(self.lam, F.shape[:-2]), _lame(self.mu, F.shape[:-2])
+        geometric = np.broadcast_to(np.asarray(mu)[..., None, None] * np.eye(F.shape[-1]), F.shape)
+        return TangentTerms(outer=(lam, H, H), crossed=(mu - lam * np.log(determinants(F)), H, H), geometric=geometric)
 
 
 #: the finite-strain laws by name (``[material] model``; ``linear`` is today's small strain)
@@ -335,39 +356,68 @@ def tangent_stiffness(
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
         e, q, nv, d = G.shape
-        Ke = np.empty((e, nv, nv, d, d))
+        if uniform_cells(part):  # translates of one cell: the shape gradients of the first serve all
+            wdet, G = wdet[:1], G[:1]
+        K = np.empty((e, d, d, nv, nv))
         for lo in range(0, e, TANGENT_CHUNK):  # blocks of cells: temporaries of a few MB, not of the mesh's size
             hi = min(lo + TANGENT_CHUNK, e)
-            Ke[lo:hi] = _tangent_blocks(part_law.take(lo, hi), F[lo:hi], wdet[lo:hi], G[lo:hi])
-        mats.append(assemble_vector(part, Ke))
+            one = slice(0, 1) if G.shape[0] == 1 else slice(lo, hi)
+            terms = part_law.take(lo, hi).tangent_terms(F[lo:hi])
+            _element_tangents(terms, wdet[one], G[one], K[lo:hi])
+        mats.append(assemble_vector(part, K.transpose(0, 3, 4, 1, 2)))
     return sum_of(mats) if len(mats) > 1 else mats[0]
 
 
 #: cells per block of :func:`tangent_stiffness`'s element computation
-TANGENT_CHUNK = 2048
+TANGENT_CHUNK = 512
 
 
-def _tangent_blocks(law: HyperelasticLaw, F: np.ndarray, wdet: np.ndarray, G: np.ndarray) -> np.ndarray:
-    """The element tangents K[e, a, b, i, j] (e, nv, nv, d, d) of cells with deformation gradients F (e, q, d, d),
-    weights w |det J| (e, q) and shape gradients G (e, q, nv, d) (:func:`tangent_stiffness`)."""
-    S, D = law.stress_and_voigt_tangent(F)
-    e, q, nv, d = G.shape
-    I, J = VOIGT[d]
-    m = I.size
-    Ft = np.swapaxes(F, -1, -2)  # Ft[..., I, k] = F_kI
-    Gt = np.swapaxes(G, -1, -2)  # Gt[..., J, b] = dN_b/dX_J
-    # B[e, q, a, b, k] = F_kI G_bJ + F_kJ G_bI for a = (I, J) (the normal rows counted once)
-    B = Ft[:, :, I, None, :] * Gt[:, :, J, :, None]
-    B[:, :, d:] += Ft[:, :, J[d:], None, :] * Gt[:, :, I[d:], :, None]
-    B = B.reshape(e, q, m, nv * d)
-    DB = np.matmul(D, B)  # (e, q, m, nv d)
-    B *= wdet[:, :, None, None]
-    mat = np.matmul(B.reshape(e, q * m, nv * d).transpose(0, 2, 1), DB.reshape(e, q * m, nv * d))  # (e, nv d, nv d)
-    GS = np.matmul(G * wdet[:, :, None, None], S)  # (e, q, nv, d): w G S
-    geo = np.matmul(GS.transpose(0, 2, 1, 3).reshape(e, nv, q * d), Gt.reshape(e, q * d, nv))
-    Ke = mat.reshape(e, nv, d, nv, d).transpose(0, 1, 3, 2, 4)
-    Ke[..., np.arange(d), np.arange(d)] += geo[..., None]
-    return Ke
+def _element_tangents(terms: TangentTerms, w: np.ndarray, G: np.ndarray, out: np.ndarray) -> None:
+    """The element tangents K[e, i, j, a, b] (``out``, (e, d, d, nv, nv)) of cells with dP/dF ``terms`` at their
+    points (e, q, ...), weights w |det J| (e, q) and shape gradients G (e, q, nv, d) (both with e = 1 when the
+    cells are translates of one another: the products with them are then one matrix product for all cells):
+
+        K[e, i, j, a, b] = sum_q w_q [a V^M_ia V^N_jb + c V^Q_ib V^R_ja + delta_ij (G T G^T)_ab + B_ij (G G^T)_ab],
+
+    V^X = X G^T (d x nv per point), :class:`TangentTerms`' notation; each term a product over q per cell and
+    component pair, written in the order the assembly reads (a block (i, j) contiguous per cell)."""
+    (a, M, N), (c, Q, R) = terms.outer, terms.crossed
+    e, q, d = M.shape[0], M.shape[1], M.shape[-1]
+    nv = G.shape[2]
+    Gt = np.swapaxes(G, -1, -2)  # (., q, d, nv)
+    V: dict[int, np.ndarray] = {}
+
+    def columns(X: np.ndarray) -> np.ndarray:  # V^X (e, q, d, nv), once per distinct array of the terms
+        if id(X) not in V:
+            V[id(X)] = np.matmul(X, Gt)
+        return V[id(X)]
+
+    def left(X: np.ndarray, scale) -> np.ndarray:  # scale w V^X as (e, d, nv, q)
+        return (columns(X) * (w * np.broadcast_to(scale, (e, q)))[:, :, None, None]).transpose(0, 2, 3, 1)
+
+    def right(X: np.ndarray) -> np.ndarray:  # V^X as (e, d, q, nv)
+        return columns(X).transpose(0, 2, 1, 3)
+
+    np.matmul(left(M, a)[:, :, None], right(N)[:, None], out=out)
+    out += np.matmul(left(R, c)[:, None], right(Q)[:, :, None])  # [i, j, a, b] = sum_q w c V^R_ja V^Q_ib
+    w4 = w[:, :, None, None]
+    common = G.shape[0] == 1  # the cells' translates: products with G are one matrix product for all
+    if terms.geometric is not None:  # g_ab = sum_q w_q (G T G^T)_ab
+        T = terms.geometric
+        if common:  # sum_(q, J, L) T_qJL P_qJLab, P_qJLab = w_q dN_a/dX_J dN_b/dX_L
+            P = w[0, :, None, None, None, None] * Gt[0, :, :, None, :, None] * Gt[0, :, None, :, None, :]
+            g = T.reshape(e, q * d * d) @ P.reshape(q * d * d, nv * nv)
+        else:
+            GT = np.matmul(G * w4, T)  # (e, q, nv, d)
+            g = np.matmul(GT.transpose(0, 2, 1, 3).reshape(e, nv, q * d), Gt.reshape(e, q * d, nv))
+        g = g.reshape(e, nv, nv)
+        for i in range(d):
+            out[:, i, i] += g
+    if terms.spatial is not None:  # B_ij sum_q w_q (G G^T)_ab
+        lap = np.matmul(G * w4, Gt).reshape(G.shape[0], q, nv * nv)
+        B = terms.spatial.reshape(e, q, d * d).transpose(0, 2, 1)  # (e, d d, q)
+        sB = np.matmul(B.reshape(e * d * d, q), lap[0]) if common else np.matmul(B, lap)
+        out += sB.reshape(e, d, d, nv, nv)
 
 
 #: |dC|^2 relative to |C_mid|^2 below which the discrete gradient is the midpoint stress (its
