@@ -19,8 +19,10 @@ def median_step(stepper: Any, stop: Callable[[Any, int], bool] = lambda s, k: Fa
     return float(np.median(times))
 
 
-def per_call(f: Callable[[], Any], calls: int) -> float:
-    """The mean time of ``calls`` calls of ``f`` [s]."""
+def per_call(f: Callable[[], Any], calls: int, warm: bool = False) -> float:
+    """The mean time of ``calls`` calls of ``f`` [s] (after one untimed call when ``warm``)."""
+    if warm:
+        f()
     t0 = time.perf_counter()
     for _ in range(calls):
         f()

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, InputError
 from ..linalg import total_memory
-from ..linalg.threads import blas_threads
+from ..linalg.threads import blas_controller, blas_threads
 from . import checkpoint as ckpt
 from .checkpointer import Checkpointer
 from .events import StopRun, events_list
@@ -185,6 +185,7 @@ class Stepper:
         #: sets :attr:`in_loop` (:func:`~.simulate.simulate`)
         self.threads = run.ctx.solver_options.get("loop_blas_threads", 1)
         self.in_loop = False
+        self._blas: Any = None
         self._history: History | None = None
         self._base_counters = run.ctx.counters()  # the set-up's (a resumed run adds the loop's only)
         self._counters_before: dict[str, int] = {}
@@ -249,7 +250,9 @@ class Stepper:
             raise RuntimeError(f"the stepper is {self.status} at level {self.n} ({self.message or 'no more steps'})")
         if self.in_loop or self.threads <= 0:
             return self._step()
-        with blas_threads(self.threads):
+        if self._blas is None:  # the libraries loaded after the set-up: found once, not at every step
+            self._blas = blas_controller()
+        with blas_threads(self.threads, self._blas):
             return self._step()
 
     def trial(self, n: int) -> tuple[State | None, str]:

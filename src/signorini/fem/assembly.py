@@ -125,7 +125,7 @@ def assemble_nodal(mesh: Mesh, fe: np.ndarray) -> np.ndarray:
     """The node-major vector (n_nodes d,) of element vectors ``fe`` (n_cells, nv, d) summed over the cells
     (one ``np.bincount``, not ``np.add.at``)."""
     d = fe.shape[-1]
-    idx = DofMap.serial(mesh.n_nodes, d).dofs(mesh.cells.ravel()).ravel()  # (cell, vertex, component) order
+    idx = mesh.cached(f"nodal dofs {d}", lambda: DofMap.serial(mesh.n_nodes, d).dofs(mesh.cells.ravel()).ravel())
     return np.bincount(idx, weights=fe.ravel(), minlength=mesh.n_nodes * d)
 
 

@@ -101,6 +101,10 @@ class HyperelasticLaw:
         """S = dW/dE (..., d, d) [stress]."""
         return self.stress_C(_green(F)[0])
 
+    def piola(self, F: np.ndarray) -> np.ndarray:
+        """The first Piola-Kirchhoff stress P = F S (..., d, d) [stress]; laws override it with a closed form."""
+        return np.matmul(F, self.stress(F))
+
     def tangent(self, F: np.ndarray) -> np.ndarray:
         """CC = dS/dE (..., d, d, d, d) [stress], with the minor and major symmetries."""
         return self.tangent_C(_green(F)[0])
@@ -123,7 +127,7 @@ class HyperelasticLaw:
     def piola_and_tangent(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(P (..., d, d), A (..., d, d, d, d)): P and A_iJjL = dP_iJ / dF_jL = F_iI CC_IJKL F_jK + delta_ij S_JL
         [stress] (major symmetry A_iJjL = A_jLiJ), the tensor of :meth:`tangent_terms`."""
-        return np.matmul(F, self.stress(F)), self.tangent_terms(F).tensor()
+        return self.piola(F), self.tangent_terms(F).tensor()
 
     def energy_C(self, C: np.ndarray) -> np.ndarray:
         """W as a function of the right Cauchy-Green tensor C (..., d, d)."""
@@ -143,13 +147,14 @@ def _inv(A: np.ndarray) -> np.ndarray:
     if A.shape[-1] == 2:
         adj = np.stack([np.stack([A[..., 1, 1], -A[..., 0, 1]], -1), np.stack([-A[..., 1, 0], A[..., 0, 0]], -1)], -2)
         return adj / determinants(A)[..., None, None]
-    c0, c1, c2 = (
-        np.cross(A[..., 1, :], A[..., 2, :]),
-        np.cross(A[..., 2, :], A[..., 0, :]),
-        np.cross(A[..., 0, :], A[..., 1, :]),
-    )
-    adj = np.stack([c0, c1, c2], axis=-1)
-    return adj / np.einsum("...j,...j->...", A[..., 0, :], c0)[..., None, None]
+    (a, b, c), (d, e, f), (g, h, i) = (tuple(A[..., r, k] for k in range(3)) for r in range(3))
+    adj = np.empty(A.shape)  # the cofactors' transpose, row by row
+    adj[..., 0, 0], adj[..., 0, 1], adj[..., 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
+    adj[..., 1, 0], adj[..., 1, 1], adj[..., 1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
+    adj[..., 2, 0], adj[..., 2, 1], adj[..., 2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
+    det = a * adj[..., 0, 0] + b * adj[..., 1, 0] + c * adj[..., 2, 0]
+    adj /= det[..., None, None]
+    return adj
 
 
 def _green(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,6 +262,12 @@ class NeoHookeanLaw(HyperelasticLaw):
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
         return lam * outer + (mu - lam * lnJ) * sym
 
+    def piola(self, F: np.ndarray) -> np.ndarray:
+        """P = mu (F - H) + lam ln(J) H, H = F^-T (no C and no C^-1)."""
+        H = np.swapaxes(_inv(F), -1, -2)
+        lam, mu = _lame(self.lam, F.shape), _lame(self.mu, F.shape)
+        return mu * (F - H) + (lam * np.log(determinants(F))[..., None, None]) * H
+
     def tangent_terms(self, F: np.ndarray) -> TangentTerms:
         """A_iJjL = lam H_iJ H_jL + (mu - lam ln J) H_iL H_jJ + mu delta_ij delta_JL,
         H = F^-T (plane strain: F_33 = 1 leaves the in-plane block of the same form)."""
@@ -302,7 +313,7 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
     work (tetrahedra)."""
     wdet, G = geometry(mesh)
     if reference_element(mesh.cell_type).constant_gradients:  # G and F constant on a cell: one point is exact
-        wdet, G = wdet.sum(axis=1, keepdims=True), G[:, :1]
+        wdet, G = mesh.cached("one-point geometry", lambda: (wdet.sum(axis=1, keepdims=True), G[:, :1].copy()))
     d = mesh.dim
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
     F = np.matmul(u.transpose(0, 2, 1)[:, None], G) + np.eye(d)  # F_iJ = sum_a u_ai dN_a/dX_J
@@ -338,8 +349,12 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
     for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
-        P = np.matmul(F, part_law.stress(F))  # first Piola-Kirchhoff
-        fe = np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(axis=1)  # (e, nv, d)
+        P = part_law.piola(F)
+        wP = wdet[..., None, None] * P
+        if G.shape[1] == 1:  # one point (simplices): f_e = G (w P)^T without the sum over points
+            fe = np.matmul(G[:, 0], np.ascontiguousarray(wP[:, 0].transpose(0, 2, 1)))
+        else:
+            fe = np.matmul(G, wP.transpose(0, 1, 3, 2)).sum(axis=1)  # (e, nv, d)
         f += assemble_nodal(part, fe)
     return f
 

@@ -14,18 +14,26 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager, nullcontext
+from typing import Any
 
 
 @contextmanager
-def blas_threads(n: int) -> Iterator[None]:
+def blas_threads(n: int, controller: Any = None) -> Iterator[None]:
     """Limit the BLAS libraries loaded in the process to ``n`` threads inside the block
-    (``n = 0``: leave them as they are)."""
+    (``n = 0``: leave them as they are).  ``controller``: one made by :func:`blas_controller`
+    before (finding the loaded libraries costs about a millisecond: a stepper driven step by
+    step makes it once); None: made here."""
     if n <= 0:
         with nullcontext():
             yield
         return
+    with (controller or blas_controller()).limit(limits=n):
+        yield
+
+
+def blas_controller() -> Any:
+    """The OpenBLAS and BLIS libraries loaded in the process now, for :func:`blas_threads`
+    (by library, not by API: MKL is also Pardiso's solver, whose threads pay off)."""
     from threadpoolctl import ThreadpoolController
 
-    # by library, not by API: MKL is also Pardiso's solver, whose threads pay off
-    with ThreadpoolController().select(internal_api=["openblas", "blis"]).limit(limits=n):
-        yield
+    return ThreadpoolController().select(internal_api=["openblas", "blis"])
