@@ -14,8 +14,9 @@ process, alternated twice (the best of each):
    operator with that tangent, each timed over a few calls;
 4. ``hertz3d`` at its default level and dt (the ball touching the plane at t = 0: every step inside the
    impact, mass-dominated), Crank-Nicolson and the default mass: the median Neo-Hookean step against the
-   linear one (issue 41 asks at most x3), with the Newton iterations and factorizations per step (needs
-   gmsh: skipped with a message otherwise);
+   linear one (issue 41 asks at most x3), with the Newton iterations and factorizations per step, and the same
+   at dt / 10 and dt / 100, where the mass dominates the step's operator (needs gmsh: skipped with a message
+   otherwise);
 5. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
    hexahedra (about 100k dofs) against the linear stiffness assembly, on the structured grid (whose
    cells are translates: the linear assembly computes one element matrix) and on the same grid with its
@@ -97,8 +98,8 @@ def run(cells: int, steps: int) -> dict:
             "bare_solve_s": bare}  # fmt: skip
 
 
-def hertz(steps: int) -> dict | None:
-    """Item 4 of the module docstring."""
+def hertz(steps: int, divisor: int = 1) -> dict | None:
+    """Item 4 of the module docstring, at the default dt / ``divisor``."""
     import dataclasses
     import importlib.util
 
@@ -111,7 +112,7 @@ def hertz(steps: int) -> dict | None:
     b = get_benchmark("hertz3d")
     n = b.n_default()
     p = b.problem(n)
-    dt, _ = b.run_times(n)
+    dt = b.run_times(n)[0] / divisor
     best: dict[str, float] = {}
     info: dict[str, dict] = {}
     for _ in range(2):
@@ -161,8 +162,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     r = run(args.cells, args.steps)
     h = hertz(args.steps)
+    smaller = [hertz(args.steps, k) for k in (10, 100)] if h is not None else []
     a = assembly(args.assembly) if args.assembly else []
-    print(json.dumps({**r, "hertz3d": h, "assembly": a}, indent=1))
+    print(json.dumps({**r, "hertz3d": h, "hertz3d_smaller_steps": smaller, "assembly": a}, indent=1))
     print(f"{r['case']} ({r['dofs']} dofs, {r['backend']}): a step with tangent=modified is "
           f"x{r['modified_over_full']:.2f} of full's, x{r['finite_over_linear']:.1f} of the linear model's and "
           f"x{r['finite_over_bare_solve']:.0f} of one bare solve; internal force {1e3 * r['internal_force_s']:.1f} ms, "
@@ -171,9 +173,10 @@ def main(argv=None) -> int:
         print("hertz3d: skipped (gmsh not installed: pip install '.[mesh]')")
     else:
         dofs = h["newton"]["linear"]["dofs"]
-        print(f"{h['case']} ({dofs} dofs): a Neo-Hookean step is x{h['finite_over_linear']:.2f} of the linear one"
-              f" ({h['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
-              f"{h['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations)")  # fmt: skip
+        for x in [h, *smaller]:
+            print(f"{x['case']} ({dofs} dofs): a Neo-Hookean step is x{x['finite_over_linear']:.2f} of the linear one"
+                  f" ({x['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
+                  f"{x['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations)")  # fmt: skip
     for x in a:
         print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
               f"linear stiffness assembly ({x['tangent_s']:.3f} against {x['linear_s']:.3f} s)")  # fmt: skip

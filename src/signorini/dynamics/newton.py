@@ -30,6 +30,12 @@ the reference configuration starts with the scheme's linear operator, :data:`REF
 the tangent at U^n, so that a step depends on its starting level only (a checkpoint resumes bit for bit).
 A step that does not converge in ``newton_max`` iterations raises :class:`ConvergenceError` (the run
 fails, exit 3, levels kept; the energy control rejects and halves the step).
+
+On several ranks (``petsc``) the state is replicated but its arithmetic is not bitwise the same on every rank
+(a dot product's round-off can depend on memory alignment), and each iteration's branches (the reference
+start, the residual against the tolerance, a kept tangent renewed, the line search, the gaps settled) decide
+collective factorizations and solves: they are taken on rank 0's values, broadcast (one small message per
+evaluation), so that every rank takes the same branch.
 """
 
 from __future__ import annotations
@@ -157,7 +163,8 @@ def newton_solve(
     through = bound.contact_force if callable(bound) else None
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
-    reference = modified and elastic.displacement_gradient(U) <= REFERENCE_GRADIENT
+    agree = ctx.comm.bcast  # every branch below on rank 0's values (module docstring: several ranks)
+    reference = modified and agree(bool(elastic.displacement_gradient(U) <= REFERENCE_GRADIENT))
     owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's operator
     try:
         for k in range(1, most + 1):
@@ -186,8 +193,8 @@ def newton_solve(
                 ) from exc
             U_new = U + d
             g_new = force(U_new)
-            n_new, scale, floor = residual_norm(
-                ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through
+            n_new, scale, floor = agree(
+                residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through)
             )
             allowed = tol * scale + floor
             if lam is not None and not refactor and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
@@ -199,7 +206,8 @@ def newton_solve(
                     lam_try = 0.5 * (lam + lam_new)
                     lt_try = None if info.lam_t is None else 0.5 * (lam_t + info.lam_t)
                     g_try = force(U_try)
-                    n_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia, through)[0]
+                    r_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia, through)
+                    n_try = agree(r_try[0])
                     elastic.line_search_steps += 1
                     U_new, lam_new, g_new, n_new = U_try, lam_try, g_try, n_try
                     info.lam_t = lt_try
@@ -210,7 +218,7 @@ def newton_solve(
                 full = True
             previous, norm = norm, n_new
             U, lam, lam_t, gU = U_new, lam_new, info.lam_t, g_new
-            gaps_ok = not callable(bound) or bound.converged(U)
+            gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
             if full and norm <= allowed and gaps_ok:
                 info.nonlinear_iterations = k
                 return U, lam, info
