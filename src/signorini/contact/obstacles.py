@@ -290,10 +290,9 @@ class RigidObstacle:
         self.grad = grad
 
     @property
-    def normals_turn(self) -> bool:
-        """Whether the normal a body point meets changes as it moves or as time goes on (a curved
-        obstacle, or a plane that rotates): finite strain's friction frames would turn with it."""
-        return True
+    def rotates(self) -> bool:
+        """Whether the obstacle has a rotation (its ``rotation``; translating or fixed: False)."""
+        return self.motion is not None and self.motion.rotates
 
     def body_normals(self, x: np.ndarray, t: float) -> np.ndarray | None:
         """The outward body normals nu = -grad phi_t / |grad phi_t| (n, d) at the points x (n, d) of the
@@ -379,11 +378,6 @@ class PlaneObstacle(RigidObstacle):
         self.moving = self.motion.moving
         self.point, self.normal = self._at(0.0)
         super().__init__(lambda x: (x - self.point) @ self.normal, lambda x: np.broadcast_to(self.normal, x.shape))
-
-    @property
-    def normals_turn(self) -> bool:
-        """A plane's normal turns only when the plane rotates."""
-        return self.motion is not None and self.motion.rotates
 
     def _at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(p(t), n(t)): a point and the unit normal of the moved plane."""

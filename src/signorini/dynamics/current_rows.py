@@ -16,11 +16,13 @@ bound of its solve; :func:`level_gaps` the gaps of a level for the history.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
 
+from ..contact.solver import ContactLaw
 from ..errors import InputError
 
 #: the gaps of the current configuration are the true ones to this many touch tolerances (1e-10 of the body)
@@ -397,9 +399,19 @@ class FollowingBound:
     Newton iterate U, it moves the rows to U and returns their bound; :meth:`gap_error` is how far the last
     rows' linearized gaps are from the true ones at a new iterate."""
 
-    def __init__(self, ctx: Context, t: float):
+    def __init__(self, ctx: Context, t: float, U0: np.ndarray | None = None, t0: float | None = None):
         self.ctx, self.t = ctx, t
+        #: the level the step starts from (the slip of the step is measured from it)
+        self.U0, self.t0 = U0, t0
         self.bound: np.ndarray | None = None
+
+    def law(self, law: ContactLaw) -> ContactLaw:
+        """``law`` with its slip reference c_t = T U^n + (the obstacle's tangential motion) in the frames of the
+        rows now (they turn with the iterate: a sphere's normal at x, a pair's master facet), so that the slip of
+        the step is v_t = T (U - U^n) - (obstacle motion) in one frame; frictionless: ``law`` itself."""
+        if law.reference is None or self.U0 is None:
+            return law
+        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t).reference)
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         bound, changed = self.ctx.rows.current.follow(U, self.t)
@@ -441,7 +453,7 @@ def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarr
     if current is None:
         return ctx.gaps(t)
     ctx.replace_rows(current.keep_level(t0))
-    return FollowingBound(ctx, t)
+    return FollowingBound(ctx, t, U0, t0)
 
 
 def level_gaps(ctx: Context, U: np.ndarray, t: float) -> np.ndarray:

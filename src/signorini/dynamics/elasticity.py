@@ -235,9 +235,9 @@ def elasticity(ctx: Context) -> Elasticity:
 
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
-    a Newton step, a 1D bar, friction on contact pairs, an obstacle without normals in the current configuration,
-    friction against an obstacle whose normals turn, an iterative backend, stiffness-proportional damping,
-    a mass that treats the normal apart (``seed-normal``)."""
+    a Newton step, a 1D bar, an obstacle without normals in the current configuration, friction against an
+    obstacle that rotates, an iterative backend, stiffness-proportional damping, a mass that treats the normal
+    apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
     from ..errors import InputError
@@ -252,19 +252,16 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     problem = ctx.disc.problem
     if ctx.disc.space.dim == 1:
         raise InputError(f"{what} needs a 2D (plane strain) or 3D mesh, not a 1D bar; use model 'linear'")
-    if problem.pairs and ctx.friction.frictional:
-        raise InputError(f"{what} with friction on contact pairs is not done yet (their frames turn with the master "
-                         "facets in the Newton iterations); use frictionless pairs")  # fmt: skip
     ob = problem.obstacle
     kind = "" if ob is None else type(ob).__name__.removesuffix("Obstacle").lower()
     if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:
         raise InputError(f"{what} against a {kind} obstacle is not done yet (its normals in the current "
                          "configuration); a plane or a sphere, fixed or moving, is")  # fmt: skip
-    turning = ob is not None and ob.normals_turn
-    if turning and ctx.friction.frictional:
-        raise InputError(f"{what} with friction against a {kind} obstacle{' that rotates' if kind == 'plane' else ''} "
-                         "is not done yet (its frames turn in the Newton iterations); friction runs against a "
-                         "plane that does not rotate")  # fmt: skip
+    if ob is not None and ob.rotates and ctx.friction.frictional:
+        raise InputError(f"{what} with friction against a {kind} obstacle that rotates is not done yet (the slip is "
+                         "relative to the obstacle's material points that faced the nodes at t = 0, not to the point "
+                         "each node touches now); friction runs against a fixed or translating plane, sphere or "
+                         "surface, and on contact pairs")  # fmt: skip
     backend = ctx.solver_options.get("backend", "auto")
     if not backend_traits(backend).finite_strain:
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "

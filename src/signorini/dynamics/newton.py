@@ -182,6 +182,8 @@ def newton_solve(
                     current, owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
                     elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
+            if callable(bound):  # the slip measured in the frames of the rows just moved to U
+                law = bound.law(law)
             minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
             try:
                 d, lam_new, info = ctx.solve(current, minus_r, bnd - ctx.B @ U, None if fixed is None else fixed - U[D],

@@ -140,7 +140,7 @@ class EnergyMomentum(Scheme):
             f_mean = 0.5 * (products(ctx, s)[1] + cache.setdefault("SU", el.force(U)))  # the new level's f, kept
             if "R0" in s.extra:  # t = 0: the massless rows' imbalance, not a force
                 f_mean = f_mean - 0.5 * s.extra["R0"]
-            h = np.where(ml, f_mean - f_alg, 0.0) - self._pair_force(ctx, s, w, lam)
+            h = np.where(ml, f_mean - f_alg, 0.0) - self._pair_force(ctx, s, w, lam, info.lam_t)
             mesh = ctx.disc.problem.mesh
             dV = velocity_correction(ctx.M, mesh.points, s.U, U, h, dt, ~ml, self._groups(ctx, s.lam, lam))
             V += ctx.comm.bcast(dV)  # on several ranks, rank 0's: their dot products may differ in round-off
@@ -169,17 +169,24 @@ class EnergyMomentum(Scheme):
         return groups(labels, joined)
 
     @staticmethod
-    def _pair_force(ctx, s: State, w: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """B^T (w lambda^{n+1}) + B_n^T ((1 - w) lambda^n) (n,) on the contact pairs' rows (each level's
-        multipliers through its own rows): the pairs' part of the scheme's contact impulse / dt (0 without
+    def _pair_force(ctx, s: State, w: np.ndarray, lam: np.ndarray, lam_t: np.ndarray | None = None) -> np.ndarray:
+        """B^T (w lambda^{n+1}) + B_n^T ((1 - w) lambda^n) (n,) on the contact pairs' rows, and with friction
+        T^T (w lambda_t^{n+1}) + T_n^T ((1 - w) lambda_t^n) (each level's multipliers through its own rows, as in
+        the energy identity's contact work): the pairs' part of the scheme's contact impulse / dt (0 without
         pairs)."""
         pair = ctx.disc.contact.pair
         if pair is None or not lam.size or not (pair >= 0).any():
             return np.zeros(s.U.size)
         on = pair >= 0
-        f = ctx.contact_force(np.where(on, w * lam, 0.0))
-        if s.lam.size and np.any(w < 1.0):
-            f = f + ctx.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), None, s.t)
+        tangential = weighted(lam_t, None, w)
+        if tangential is not None:
+            tangential = np.where(on[:, None], tangential, 0.0)
+        f = ctx.contact_force(np.where(on, w * lam, 0.0), tangential)
+        old_t = weighted(None, s.lam_t, w)
+        if old_t is not None:
+            old_t = np.where(on[:, None], old_t, 0.0)
+        if s.lam.size and (np.any(w < 1.0) or old_t is not None):
+            f = f + ctx.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), old_t, s.t)
         return f
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
