@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from ..errors import InputError, NonFiniteError
 from .assembly import assemble_nodal, assemble_vector, geometry, sum_of
 from .elements import determinants, reference_element
-from .mesh import Mesh, uniform_cells
+from .mesh import Mesh
 
 
 def _lame(value, shape: tuple[int, ...]) -> np.ndarray | float:
@@ -371,7 +371,7 @@ def tangent_stiffness(
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
         e, q, nv, d = G.shape
-        if uniform_cells(part):  # translates of one cell: the shape gradients of the first serve all
+        if _shared_geometry(part, wdet, G):  # translates of one cell: the shape gradients of the first serve all
             wdet, G = wdet[:1], G[:1]
         K = np.empty((e, d, d, nv, nv))
         for lo in range(0, e, TANGENT_CHUNK):  # blocks of cells: temporaries of a few MB, not of the mesh's size
@@ -381,6 +381,19 @@ def tangent_stiffness(
             _element_tangents(terms, wdet[one], G[one], K[lo:hi])
         mats.append(assemble_vector(part, K.transpose(0, 3, 4, 1, 2)))
     return sum_of(mats) if len(mats) > 1 else mats[0]
+
+
+def _shared_geometry(mesh: Mesh, wdet: np.ndarray, G: np.ndarray) -> bool:
+    """Whether every cell's weights and shape gradients (those the force uses too: the mesh's cached geometry)
+    are the first cell's to 1e-12 (cells that are translates of one another), kept with that geometry."""
+
+    def check() -> bool:
+        if G.shape[0] < 2:
+            return False
+        spread = float(np.ptp(G, axis=0).max()), float(np.ptp(wdet, axis=0).max())
+        return spread[0] <= 1e-12 * float(np.abs(G[0]).max()) and spread[1] <= 1e-12 * float(np.abs(wdet[0]).max())
+
+    return mesh.cached(f"shared geometry {G.shape[1]}", check)
 
 
 #: cells per block of :func:`tangent_stiffness`'s element computation

@@ -27,7 +27,7 @@ def blas_threads(n: int, controller: Any = None) -> Iterator[None]:
         with nullcontext():
             yield
         return
-    with (controller or blas_controller()).limit(limits=n):
+    with (controller if controller is not None else blas_controller()).limit(limits=n):
         yield
 
 
