@@ -131,17 +131,20 @@ class ContactSet:
         i d is then B's row i)."""
         return self._row_frame(np.concatenate([self.normals[:, None, :], self.tangents], axis=1), n_dofs)
 
-    def obstacle_slip(self, t0: float, t1: float) -> np.ndarray:
+    def obstacle_slip(self, t0: float, t1: float, positions: np.ndarray | None = None) -> np.ndarray:
         """Tangential components c_ik (nc, d - 1) of the obstacle's motion from t0 to t1 at each row
         [length]: the displacement of the obstacle's material point X_i that faced node i at t = 0,
         t_ik . (Phi_t1(X_i) - Phi_t0(X_i)) (:mod:`~.obstacles`); without rotation at t0 and t1 the
         translation t_ik . (d(t1) - d(t0)), the same for every row.  Zero on the rows of contact
-        pairs (their slip is relative to the master body)."""
+        pairs (their slip is relative to the master body).  ``positions`` (nc, d): the nodes' positions
+        x_i at t0 (finite strain, large sliding): X_i = Phi_t0^-1(x_i), the obstacle's point each node is at
+        then, instead of the one it faced at t = 0."""
         ob = self.obstacle
         if ob is not None and ob.turns(t0, t1):
             rigid = np.ones(self.size, dtype=bool) if self.pair is None else self.pair < 0
             shift = np.zeros((self.size, self.normals.shape[1]))
-            shift[rigid] = ob.displacement(self.material_points, t0, t1)
+            X = self.material_points if positions is None else ob.motion.to_data(positions[rigid], t0)
+            shift[rigid] = ob.displacement(X, t0, t1)
             slip = np.einsum("ikd,id->ik", self.tangents, shift)
             slip[~rigid] = 0.0
             return slip

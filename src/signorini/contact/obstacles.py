@@ -289,11 +289,6 @@ class RigidObstacle:
         self.phi = phi
         self.grad = grad
 
-    @property
-    def rotates(self) -> bool:
-        """Whether the obstacle has a rotation (its ``rotation``; translating or fixed: False)."""
-        return self.motion is not None and self.motion.rotates
-
     def body_normals(self, x: np.ndarray, t: float) -> np.ndarray | None:
         """The outward body normals nu = -grad phi_t / |grad phi_t| (n, d) at the points x (n, d) of the
         current configuration at time t (finite strain's contact rows), or None when the obstacle does not

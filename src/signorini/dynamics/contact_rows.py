@@ -74,14 +74,19 @@ class ContactRows:
         """The rows of the condensed solve on the free dofs: the frames' H_f with friction, else B_f."""
         return self.Hf if self.components > 1 else self.Bf
 
-    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
+    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI,
+                     current: bool = False) -> ContactLaw:  # fmt: skip
         """``base`` with the run's friction for a position-level step t0 -> t1 from U = U^n:
         the slip of the step is v_t = T U^{n+1} - c_t with c_t = T U^n + T (obstacle
         translation), the tangential part of U^{n+1} - U^n relative to the obstacle.
-        ``base`` itself when the run is frictionless."""
+        ``base`` itself when the run is frictionless.  ``current``: the obstacle's motion taken at the
+        points the nodes are at in U^n (finite strain: large sliding on a rotating obstacle), not at those
+        they faced at t = 0."""
         if self.components == 1:
             return base
-        ref = (self.T @ U).reshape(self.disc.contact.size, -1) + self.disc.contact.obstacle_slip(t0, t1)
+        c = self.disc.contact
+        at = c.points + np.asarray(U)[c.dofs] if current else None
+        ref = (self.T @ U).reshape(c.size, -1) + c.obstacle_slip(t0, t1, at)
         return replace(
             base, friction=self.friction, reference=ref, radius=self._radius(), coefficient=self._coefficients()
         )

@@ -408,10 +408,11 @@ class FollowingBound:
     def law(self, law: ContactLaw) -> ContactLaw:
         """``law`` with its slip reference c_t = T U^n + (the obstacle's tangential motion) in the frames of the
         rows now (they turn with the iterate: a sphere's normal at x, a pair's master facet), so that the slip of
-        the step is v_t = T (U - U^n) - (obstacle motion) in one frame; frictionless: ``law`` itself."""
+        the step is v_t = T (U - U^n) - (obstacle motion) in one frame, the motion of a rotating obstacle taken at
+        the points the nodes are at in U^n (large sliding); frictionless: ``law`` itself."""
         if law.reference is None or self.U0 is None:
             return law
-        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t).reference)
+        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t, current=True).reference)
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         bound, changed = self.ctx.rows.current.follow(U, self.t)

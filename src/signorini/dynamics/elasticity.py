@@ -235,9 +235,8 @@ def elasticity(ctx: Context) -> Elasticity:
 
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
-    a Newton step, a 1D bar, an obstacle without normals in the current configuration, friction against an
-    obstacle that rotates, an iterative backend, stiffness-proportional damping, a mass that treats the normal
-    apart (``seed-normal``)."""
+    a Newton step, a 1D bar, an obstacle without normals in the current configuration, an iterative backend,
+    stiffness-proportional damping, a mass that treats the normal apart (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
     from ..errors import InputError
@@ -257,11 +256,6 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:
         raise InputError(f"{what} against a {kind} obstacle is not done yet (its normals in the current "
                          "configuration); a plane or a sphere, fixed or moving, is")  # fmt: skip
-    if ob is not None and ob.rotates and ctx.friction.frictional:
-        raise InputError(f"{what} with friction against a {kind} obstacle that rotates is not done yet (the slip is "
-                         "relative to the obstacle's material points that faced the nodes at t = 0, not to the point "
-                         "each node touches now); friction runs against a fixed or translating plane, sphere or "
-                         "surface, and on contact pairs")  # fmt: skip
     backend = ctx.solver_options.get("backend", "auto")
     if not backend_traits(backend).finite_strain:
         raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
