@@ -74,18 +74,17 @@ class ContactRows:
         """The rows of the condensed solve on the free dofs: the frames' H_f with friction, else B_f."""
         return self.Hf if self.components > 1 else self.Bf
 
-    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI,
-                     current: bool = False) -> ContactLaw:  # fmt: skip
+    def friction_law(self, U: np.ndarray, t0: float, t1: float, base: ContactLaw = SIGNORINI) -> ContactLaw:
         """``base`` with the run's friction for a position-level step t0 -> t1 from U = U^n:
         the slip of the step is v_t = T U^{n+1} - c_t with c_t = T U^n + T (obstacle
-        translation), the tangential part of U^{n+1} - U^n relative to the obstacle.
-        ``base`` itself when the run is frictionless.  ``current``: the obstacle's motion taken at the
-        points the nodes are at in U^n (finite strain: large sliding on a rotating obstacle), not at those
-        they faced at t = 0."""
+        translation), the tangential part of U^{n+1} - U^n relative to the obstacle, in the frames of
+        the rows now.  With rows of the current configuration (:attr:`current`: finite strain, large
+        sliding) a rotating obstacle's motion is taken at the points the nodes are at in U^n, not at
+        those they faced at t = 0.  ``base`` itself when the run is frictionless."""
         if self.components == 1:
             return base
         c = self.disc.contact
-        at = c.points + np.asarray(U)[c.dofs] if current else None
+        at = c.points + np.asarray(U)[c.dofs] if self.current is not None else None
         ref = (self.T @ U).reshape(c.size, -1) + c.obstacle_slip(t0, t1, at)
         return replace(
             base, friction=self.friction, reference=ref, radius=self._radius(), coefficient=self._coefficients()

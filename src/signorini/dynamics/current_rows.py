@@ -412,7 +412,7 @@ class FollowingBound:
         the points the nodes are at in U^n (large sliding); frictionless: ``law`` itself."""
         if law.reference is None or self.U0 is None:
             return law
-        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t, current=True).reference)
+        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t).reference)
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         bound, changed = self.ctx.rows.current.follow(U, self.t)

@@ -362,10 +362,9 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
 def tangent_stiffness(
     mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
 ) -> sp.csr_matrix:
-    """K(U) = df/dU (n_nodes d)^2, symmetric: the geometric part (grad N_a . S grad N_b) I plus the
-    material part B_a^T D B_b, with B (m x d per node, Voigt's order) the variation of the Green-Lagrange
-    strain, 2 dE_IJ = F_kI dN_b/dX_J + F_kJ dN_b/dX_I (engineering shears) and D the law's tangent
-    CC in Voigt's order [force / length]."""
+    """K(U) = df/dU (n_nodes d)^2, symmetric: K_ai,bj = int dN_a/dX_J A_iJjL dN_b/dX_L dX with A = dP/dF the
+    law's :class:`TangentTerms` (the material part F CC F plus the geometric delta_ij S), contracted per block of
+    cells by :func:`_element_tangents` [force / length]."""
     mats = []
     for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)

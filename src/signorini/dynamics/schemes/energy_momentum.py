@@ -182,10 +182,10 @@ class EnergyMomentum(Scheme):
         if tangential is not None:
             tangential = np.where(on[:, None], tangential, 0.0)
         f = ctx.contact_force(np.where(on, w * lam, 0.0), tangential)
-        old_t = weighted(None, s.lam_t, w)
+        old_t = weighted(None, s.lam_t, w)  # (1 - w) lambda_t^n: 0 where w = 1
         if old_t is not None:
             old_t = np.where(on[:, None], old_t, 0.0)
-        if s.lam.size and (np.any(w < 1.0) or old_t is not None):
+        if s.lam.size and np.any(w < 1.0):
             f = f + ctx.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), old_t, s.t)
         return f
 
