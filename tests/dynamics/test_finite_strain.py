@@ -714,7 +714,7 @@ def test_contact_pairs_beside_a_rigid_obstacle_resume_bit_for_bit(tmp_path):
         assert np.array_equal(full.columns()[k], r.columns()[k]), k
 
 
-def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force():
+def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force(tmp_path):
     """A block sliding off the end of another (gravity, the lower block clamped): the slave nodes that pass the
     master surface's rim face nothing and carry no contact force (before, the last facet's line held them up
     in mid-air and Newton then stalled); the block tips over the edge, no node goes through the surface
@@ -736,6 +736,21 @@ def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force():
     assert H.lam.min() < 0 and H.gap.min() >= -1e-10 * 0.6
     assert np.all(H.lam[-1] == 0.0) and H.columns()["momentum_y"][-1] < 0  # off the edge, falling
     assert slave_x.size == H.lam.shape[1]
+    # the outputs: a node beyond the rim has no gap (+inf, not the solver's far bound), no facet (-1); the mean and
+    # the minimum are over the nodes that face something; the summary counts them at the end
+    off = np.isposinf(H.gap)
+    assert off[-1].any() and not off[0].any() and np.all(off | (np.abs(H.gap) < 0.2))
+    facing = np.where(off, np.nan, H.gap)
+    cols = H.columns()
+    some = ~off.all(axis=1)
+    assert np.array_equal(cols["gap_min"][some], np.nanmin(facing[some], axis=1))
+    assert np.allclose(cols["gap_mean"][some], np.nanmean(facing[some], axis=1), rtol=1e-12, atol=0.0)
+    assert np.all(np.isnan(cols["gap_min"][~some]))
+    (pair,) = H.summary()["pairs"]
+    assert pair["inactive_slave_nodes"] == 0 and pair["slave_nodes_facing_nothing_at_end"] == int(off[-1].sum())
+    H.write_contact_npz(tmp_path / "contact.npz")
+    facet = np.load(tmp_path / "contact.npz")["master_facet"]
+    assert np.all((facet == -1) == off[-1]) and np.all(facet[~off[-1]] >= 0)
 
 
 def test_newtons_branches_take_rank_zeros_values():

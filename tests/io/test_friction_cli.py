@@ -75,6 +75,15 @@ def test_friction_option_overrides_the_case(tmp_path):
     assert json.loads((out / "summary.json").read_text())["friction"] == {"law": "tresca", "threshold": 100.0}
 
 
+def test_friction_option_replaces_a_pairs_own_law(tmp_path):
+    out = tmp_path / "r"
+    case = str(ROOT / "examples" / "block_on_block.toml")  # its pair: coulomb 0.3
+    assert main(["run", case, "--friction", "frictionless", "--T", "0.002", "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "summary.json").read_text())["friction"] == {"law": "frictionless"}
+    cols = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    assert np.all(cols["friction_dissipation"] == 0) and np.all(cols["stick_nodes"] == 0)
+
+
 @pytest.mark.parametrize(
     "friction, message",
     [
@@ -84,6 +93,8 @@ def test_friction_option_overrides_the_case(tmp_path):
         ('{ law = "viscous", coefficient = 0.3 }', "unknown contact law 'viscous'"),
         ('"coulomb"', "needs a value"),
         ("0.3", "must be a table"),
+        ('{ law = "coulomb", coefficient = "0.3" }', "contact.friction.coefficient must be a number, got '0.3'"),
+        ('{ law = "tresca", threshold = true }', "contact.friction.threshold must be a number, got True"),
     ],
 )
 def test_bad_friction_in_a_case_file(tmp_path, capsys, friction, message):
@@ -103,7 +114,7 @@ def test_bad_friction_in_a_case_file(tmp_path, capsys, friction, message):
         (["run", "bar2d", "--friction", "coulomb:0.3", "--scheme", "ps"], "paoli-schatzman cannot carry friction"),
         (["run", "bar2d", "--friction", "coulomb:0.3", "--backend", "cg"], "not cg"),
         (["run", "bar2d", "--friction", "tresca:-1"], "threshold"),
-        (["compare", "bar2d", "--schemes", "cn,ps", "--masses", "seed", "--friction", "coulomb:0.3"],
+        (["compare", "bar2d", "--schemes", "ps", "--masses", "seed", "--friction", "coulomb:0.3"],
          "paoli-schatzman cannot carry friction"),
     ],
 )  # fmt: skip
@@ -116,10 +127,28 @@ def test_bad_friction_options(tmp_path, capsys, argv, message):
 
 def test_compare_with_friction(tmp_path):
     out = tmp_path / "c"
-    argv = ["compare", "bar2d", "--schemes", "cn,be", "--masses", "moment-preserving", "--levels", "1",
+    argv = ["compare", "bar2d", "--schemes", "cn,be,ps", "--masses", "moment-preserving", "--levels", "1",
             "--friction", "coulomb:0.3", "--out", str(out), "--quiet"]  # fmt: skip
     assert main(argv) == 0
     result = json.loads((out / "compare.json").read_text())
     assert result["friction"] == {"law": "coulomb", "coefficient": 0.3}
     assert "Contact law: coulomb (coefficient 0.3) in every run." in (out / "compare.md").read_text()
-    assert all(r["status"] == "finished" for p in result["pairs"] for r in p["runs"])
+    status = {p["scheme"]: {r["status"] for r in p["runs"]} for p in result["pairs"]}
+    assert status == {"crank-nicolson": {"finished"}, "backward-euler": {"finished"}, "paoli-schatzman": {"n/a"}}
+    (why,) = {r["reason"] for p in result["pairs"] if p["scheme"] == "paoli-schatzman" for r in p["runs"]}
+    assert "paoli-schatzman cannot carry friction" in why  # the scheme's own refusal, kept like a mass refusal
+
+
+def test_a_friction_refusal_lists_the_schemes_that_also_run_finite_strain():
+    from signorini.contact.friction import make_friction
+    from signorini.dynamics.problem import check_friction_schemes
+    from signorini.dynamics.schemes import finite_strain_schemes, friction_schemes
+    from signorini.errors import InputError
+
+    law = make_friction("coulomb:0.3")
+    for finite in (False, True):
+        with pytest.raises(InputError) as err:
+            check_friction_schemes(law, ["crank-nicolson", "paoli-schatzman"], finite=finite)
+        listed = str(err.value).split(": ")[-1].split(", ")
+        expected = [s for s in friction_schemes() if not finite or s in finite_strain_schemes()]
+        assert listed == expected and ("moreau-jean" in listed) is not finite

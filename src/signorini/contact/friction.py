@@ -114,7 +114,8 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
             "law": spec.law,
             **({_PARAMETER[spec.law]: getattr(spec, _PARAMETER[spec.law])} if spec.frictional else {}),
         }
-    if isinstance(spec, str):
+    text = isinstance(spec, str)
+    if text:
         name, sep, value = spec.partition(":")
         law = _resolve(name, where)
         if law == "frictionless" and sep:
@@ -124,6 +125,10 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
         spec = {"law": law, **({_PARAMETER[law]: value.strip()} if sep else {})}
     if not isinstance(spec, Mapping):
         raise InputError(f'{where} must be a table such as {{ law = "coulomb", coefficient = 0.3 }}, got {spec!r}')
+    if not text:  # a table's values are numbers (a case file's "0.3" is refused like its other numbers)
+        for key, value in spec.items():
+            if key != "law" and (isinstance(value, bool) or not isinstance(value, int | float)):
+                raise InputError(f"{where}.{key} must be a number, got {value!r}")
     opts = dict(spec)
     if "law" not in opts:
         raise InputError(f"{where}.law is missing; allowed: {', '.join(CONTACT_LAWS.names())}")

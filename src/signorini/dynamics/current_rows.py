@@ -114,8 +114,8 @@ class CurrentRows:
             return 0.0
         return float(self.obstacle.distance_scale(self._points(U)[0], t))
 
-    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
-        """phi_t(X + U) (nc,) of the contact nodes [length] (0 on the rows of others)."""
+    def gaps(self, U: np.ndarray, t: float, outside: float | None = None) -> np.ndarray:
+        """phi_t(X + U) (nc,) of the contact nodes [length] (0 on the rows of others; ``outside``: the pairs')."""
         out = np.zeros(self.contact.size)
         out[self.own] = np.asarray(self.obstacle.gaps(self._points(U)[0], t), dtype=float)
         return out
@@ -276,12 +276,13 @@ class CurrentPairRows:
         """The largest coordinate of the slave and master nodes at U (the gaps' round-off scale) [length]."""
         return max((proj.scale for _, proj in self._project(U)), default=0.0)
 
-    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
+    def gaps(self, U: np.ndarray, t: float, outside: float | None = None) -> np.ndarray:
         """The current normal gaps (x_s - p) . n_m (nc,) at U [length]; a node beyond the master surface's rim
-        (facing nothing) gets the bound :meth:`follow` gives it, so that it never counts as unsettled."""
+        (facing nothing) gets ``outside``, by default the bound :meth:`follow` gives it, so that it never counts
+        as unsettled (the levels' outputs give it +inf: no gap)."""
         out = np.zeros(self.contact.size)
         for r, proj in self._project(U):
-            out[r] = np.where(proj.facing, proj.gaps, self.far)
+            out[r] = np.where(proj.facing, proj.gaps, self.far if outside is None else outside)
         return out
 
     def keep_level(self, t: float) -> np.ndarray:
@@ -379,8 +380,8 @@ class CurrentRowsAndPairs:
                  if K is not None]  # fmt: skip
         return None if not parts else (parts[0] if len(parts) == 1 else (parts[0] + parts[1]).tocsr())
 
-    def gaps(self, U: np.ndarray, t: float) -> np.ndarray:
-        out = self.pairs.gaps(U, t)
+    def gaps(self, U: np.ndarray, t: float, outside: float | None = None) -> np.ndarray:
+        out = self.pairs.gaps(U, t, outside)
         out[self.own] = self.obstacle.gaps(U, t)[self.own]
         return out
 
@@ -458,7 +459,8 @@ def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarr
 
 
 def level_gaps(ctx: Context, U: np.ndarray, t: float) -> np.ndarray:
-    """The gaps (nc,) of a level: g(t) - B U, or phi_t(X + U) in the current configuration [length]."""
+    """The gaps (nc,) of a level: g(t) - B U, or phi_t(X + U) in the current configuration [length]; a pair's
+    slave node beyond the master surface's rim (facing nothing) has none: +inf."""
     if ctx.rows.current is not None:
-        return ctx.rows.current.gaps(U, t)
+        return ctx.rows.current.gaps(U, t, outside=np.inf)
     return ctx.gaps(t) - ctx.B @ U

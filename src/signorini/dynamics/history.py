@@ -265,8 +265,8 @@ class History:
             "energy_increment": self.energy_increment,
             "predicted_increment": self.predicted_increment,
             "lambda_sum": self.lambda_sum,
-            "gap_mean": self.gap.mean(axis=1),
-            "gap_min": self.gap.min(axis=1),
+            "gap_mean": _facing(self.gap, "mean"),
+            "gap_min": _facing(self.gap, "min"),
             "active_contacts": self.active,
             "newton_iterations": self.iterations,
             "complementarity_residual": self.residual,
@@ -320,6 +320,9 @@ class History:
         nc = self.gap.shape[1] if self.gap.ndim == 2 else 0
         extra["pair"] = self.pair if self.pair is not None else np.full(nc, -1, dtype=np.int64)
         extra["master_facet"] = self.master_facet if self.master_facet is not None else np.full(nc, -1, np.int64)
+        if self.master_facet is not None and self.gap.ndim == 2 and self.gap.shape[0]:
+            # a slave node beyond the master surface's rim at the last level (gap +inf) faces no facet
+            extra["master_facet"] = np.where(np.isposinf(self.gap[-1]), -1, self.master_facet)
         if self.lam_t is not None:
             extra.update(lambda_t=self.lam_t, slip=self.slip, status=self.contact_status)
             if self.tangents is not None:
@@ -359,13 +362,25 @@ class History:
             "energy_max_relative_drift": drift,
             "max_complementarity_residual": float(np.max(self.residual)),
             "fallbacks": int(np.sum(self.fallbacks)),
-            "min_gap": float(self.gap.min()) if self.gap.size else None,
+            "min_gap": float(self.gap[np.isfinite(self.gap)].min()) if np.isfinite(self.gap).any() else None,
             "max_lambda": float(self.lam.max()) if self.lam.size else None,
             # the worst (scaled) residual of the contact law of the steps: the Alart-Curnier
             # residual with friction, the complementarity residual of Signorini without
             "cone_residual_max": float(np.max(self.residual)),
+            **self._pairs_at_end(),
             **self.diagnostics(),
         }
+
+    def _pairs_at_end(self) -> dict:
+        """``pairs`` with each pair's ``slave_nodes_facing_nothing_at_end`` when its rows are in the current
+        configuration (finite strain: every slave node has a row, and one beyond the master's rim has the gap
+        +inf); ``inactive_slave_nodes`` is the count at t = 0."""
+        pairs = self.meta.get("pairs")
+        if not pairs or not self.meta.get("finite_strain") or self.pair is None or self.gap.ndim != 2:
+            return {}
+        off = np.isposinf(self.gap[-1])
+        return {"pairs": [dict(p, slave_nodes_facing_nothing_at_end=int(np.sum(off & (self.pair == k))))
+                          for k, p in enumerate(pairs)]}  # fmt: skip
 
     def _untagged_max(self) -> float | None:
         """Largest untagged penetration of the levels kept, or of the level a failure stopped at."""
@@ -403,6 +418,22 @@ class History:
             "impact_oscillation_indices": oscillation_indices(self.lambda_sum),
             "energy_identity_residual": float(np.max(np.abs(dE[ok])) / scale) if ok.any() and scale > 0 else None,
         }
+
+
+def _facing(gap: np.ndarray, how: str) -> np.ndarray:
+    """The ``how`` ("mean" or "min") of each level's gaps (levels, nc) over the rows that face something (a finite
+    gap; a pair's slave node beyond the master's rim has +inf: no gap), NaN at a level where none does (levels,)."""
+    gap = np.asarray(gap, dtype=float)
+    if gap.ndim != 2:
+        return np.zeros(0)
+    facing = np.isfinite(gap)
+    count = facing.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if how == "mean":
+            out = np.where(facing, gap, 0.0).sum(axis=1) / count
+        else:
+            out = np.where(facing, gap, np.inf).min(axis=1, initial=np.inf)
+    return np.where(count > 0, out, np.nan)
 
 
 def _or_nan(a: np.ndarray | None, n: int) -> np.ndarray:

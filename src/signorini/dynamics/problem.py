@@ -209,27 +209,30 @@ def friction_summary(problem: Problem) -> dict:
 
 
 def with_friction(problem: Problem, spec: Friction | str | dict | None, where: str = "--friction") -> Problem:
-    """``problem`` with the contact law ``spec`` (None: unchanged), validated as a new Problem."""
+    """``problem`` with the contact law ``spec`` everywhere (None: unchanged), validated as a new Problem: the
+    run's law and every contact pair's own law are replaced (``--friction`` replaces the case file's laws)."""
     if spec is None:
         return problem
     import dataclasses
 
-    return dataclasses.replace(problem, friction=make_friction(spec, where))
+    law = make_friction(spec, where)
+    pairs = tuple(dataclasses.replace(p, friction=None) for p in problem.pairs)
+    return dataclasses.replace(problem, friction=law, pairs=pairs)
 
 
-def check_friction_schemes(friction: Friction, schemes: Sequence[str]) -> None:
-    """InputError naming the first scheme (registry name) that cannot carry ``friction``."""
+def check_friction_schemes(friction: Friction, schemes: Sequence[str], finite: bool = False) -> None:
+    """InputError naming the first scheme (registry name) that cannot carry ``friction``, with the schemes that
+    can (``finite``: those that also run finite strain)."""
     if not friction.frictional:
         return
-    from .schemes import SCHEMES, friction_schemes
+    from .schemes import SCHEMES, finite_strain_schemes, friction_schemes
 
+    able = [s for s in friction_schemes() if not finite or s in finite_strain_schemes()]
     for name in schemes:
         why = SCHEMES.get(name).obj.friction_refusal
         if why:
-            raise InputError(
-                f"scheme {name} cannot carry friction ({friction.label}): {why}; "
-                f"schemes that do: {', '.join(friction_schemes())}"
-            )
+            which = f"schemes that do{' with finite strain' if finite else ''}: {', '.join(able)}"
+            raise InputError(f"scheme {name} cannot carry friction ({friction.label}): {why}; {which}")
 
 
 def in_node_order(problem: Problem, order: str) -> Problem:

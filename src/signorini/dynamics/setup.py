@@ -32,8 +32,8 @@ from .mass_effect import effect_warning
 from .momentum_projection import applies as momentum_projection_applies
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
-from .problem import Discretization, Problem, discretize, friction_summary, in_node_order
-from .schemes import Scheme, State, damping_schemes, friction_schemes, make_scheme
+from .problem import Discretization, Problem, check_friction_schemes, discretize, friction_summary, in_node_order
+from .schemes import Scheme, State, damping_schemes, make_scheme
 
 DT_RANGE = (1e-150, 1e150)
 MAX_CONTACT_RESIDUAL = 1e-6  # scaled complementarity residual above which a step has failed
@@ -278,13 +278,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     ctx = Context(disc, dt, opts)
     schemes = [s for s in schemes if s is not None]
     ctx.iterative_ok = ctx.iterative_ok and not any(s.needs_condensed_solve for s in schemes)
-    if ctx.friction.frictional:
-        for s in schemes:
-            if s.friction_refusal:
-                raise InputError(
-                    f"scheme {s.name} cannot carry friction ({ctx.friction.label}): {s.friction_refusal}; "
-                    f"schemes that do: {', '.join(friction_schemes())}"
-                )
+    check_friction_schemes(ctx.friction, [s.name for s in schemes], finite=ctx.elastic.finite)
     check_finite_strain(ctx, schemes)
     for s in schemes:
         s.check_context(ctx)

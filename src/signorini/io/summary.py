@@ -180,8 +180,10 @@ def bodies_lines(s: dict) -> str:
     for p in s.get("pairs") or []:
         law = (p.get("friction") or {}).get("law", "frictionless")
         again = f", {p['repaired_rows']} re-paired" if p.get("repaired_rows") else ""
+        end = p.get("slave_nodes_facing_nothing_at_end")
+        end = "" if end is None else f", {end} at the end"
         out.append(f"  pair {p['slave']} / {p['master']}: {p['rows']} rows ({p['inactive_slave_nodes']} slave nodes "
-                   f"facing nothing), {law}{again}\n")  # fmt: skip
+                   f"facing nothing at t = 0{end}), {law}{again}\n")  # fmt: skip
     return "".join(out)
 
 
