@@ -154,6 +154,45 @@ def test_no_mass_variant_couples_two_bodies(mass):
             assert abs(b["mass_effect"]["mass_ratio"] - 1) <= 1e-13
 
 
+def test_body_summaries_in_the_users_order_and_by_products():
+    """summary.json ``bodies``: in the order of each body's first node in the user's numbering, whatever the
+    run's node order (on 2 ranks the Z-ordered mesh listed the blocks of examples/block_on_block.toml the
+    other way round), and each body's ``mass_effect`` from products with M alone (a distributed M) equal to
+    the one from its block (serial)."""
+    from pathlib import Path
+
+    from signorini.dynamics.bodies import body_summaries
+    from signorini.dynamics.problem import discretize
+    from signorini.fem.mesh import read_mesh
+    from signorini.fem.node_order import renumber
+    from signorini.fem.space import Dirichlet
+
+    class ProductsOnly:  # a stand-in for a distributed matrix: products, nothing else
+        def __init__(self, M):
+            self.M, self.shape = M, M.shape
+
+        def __matmul__(self, x):
+            return self.M @ x
+
+    m = read_mesh(Path(__file__).parents[2] / "examples" / "meshes" / "ball_on_plate.msh")
+    flipped = renumber(m, np.arange(m.n_nodes)[::-1].copy())  # the other body's nodes first
+    out = {}
+    for label, mesh in (("mesh", m), ("flipped", flipped)):
+        p = Problem(mesh, IsotropicElastic.from_young(100, 0.3, 1), None, None, dirichlet=[Dirichlet("plate_sides")],
+                    pairs=[ContactPair("ball_skin", "plate_top")])  # fmt: skip
+        D = discretize(p, "moment-preserving")
+        out[label] = body_summaries(mesh, D.M, D.material.rho, None)
+        out[label + " products"] = body_summaries(mesh, ProductsOnly(D.M), D.material.rho, None)
+    order = [b["regions"] for b in out["mesh"]]
+    assert len(order) == 2 and all([b["regions"] for b in x] == order for x in out.values())
+    for x in out.values():
+        for a, b in zip(out["mesh"], x, strict=True):
+            assert b["nodes"] == a["nodes"] and abs(b["mass"] - a["mass"]) <= 1e-12 * a["mass"]
+            ea, eb = a["mass_effect"], b["mass_effect"]
+            assert abs(eb["mass_ratio"] - ea["mass_ratio"]) <= 1e-12 and abs(eb["centre_shift"]) <= 1e-12
+            assert eb["changes_physics"] == ea["changes_physics"] is False
+
+
 def test_a_pair_facing_nothing_or_listed_twice_is_refused():
     """A pair whose slave nodes all lie beside the master surface could never touch (it ran to
     the end and then failed to write its history); a slave node in two pairs makes two equal

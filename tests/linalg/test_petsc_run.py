@@ -138,6 +138,12 @@ def check_summary(ref: Path, par: Path, ranks: int, rtol: float = 1e-8) -> dict:
     body_rtol = max(BODY_RTOL, rtol)
     for a, b in zip(s["bodies"], p["bodies"], strict=True):  # computed on the ranks (reductions), not n/a
         assert b["mass"] is not None and np.isclose(b["mass"], a["mass"], rtol=1e-12, atol=0)
+        assert (b["regions"], b["nodes"]) == (a["regions"], a["nodes"])  # the same bodies in the same order
+        ea, eb = a["mass_effect"], b["mass_effect"]  # by products with the distributed mass
+        assert eb["changes_physics"] == ea["changes_physics"]
+        assert np.isclose(eb["mass_ratio"], ea["mass_ratio"], rtol=1e-12, atol=0)
+        for key in ("centre_shift", "inertia_change"):  # relative figures, round-off when the variant keeps them
+            assert abs(eb[key] - ea[key]) <= 1e-12, key
         if a.get("momentum") is not None:
             scale = max(np.abs(a["momentum"]).max(), np.sqrt(2 * a["mass"] * a["kinetic_energy"]), 1e-300)
             assert np.abs(np.subtract(b["momentum"], a["momentum"])).max() <= body_rtol * scale

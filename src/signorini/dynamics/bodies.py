@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from ..fem.dofmap import DofMap
 from ..fem.mesh import Mesh, bodies
-from .mass_effect import mass_effect
+from .mass_effect import body_mass_effect, mass_effect
 
 
 def body_meshes(mesh: Mesh) -> list[tuple[np.ndarray, np.ndarray, Mesh]]:
@@ -61,14 +61,17 @@ def region_summaries(mesh: Mesh, default, materials: dict) -> list[dict]:
 
 def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None) -> list[dict]:
     """``summary.json`` ``bodies`` (see the module docstring); ``M`` the run's vector mass
-    (a sparse matrix, or a distributed one, whose products are reductions over the ranks and
-    which gives no per-body ``mass_effect``: None), ``rho`` the
+    (a sparse matrix, or a distributed one, whose products are reductions over the ranks: the per-body
+    ``mass_effect`` then by products, :func:`~.mass_effect.body_mass_effect`), ``rho`` the
     density (a number or one per cell), ``V`` the last level's velocity (None: no level)."""
     d = mesh.dim
     out = []
     local = sp.issparse(M)
     MV = M @ V if V is not None else None  # a distributed M (rows per rank): one reduction over the ranks
-    parts = body_meshes(mesh)
+    # in the order of each body's first node in the user's numbering: the same on every rank count and node order
+    # (a renumbered mesh, :mod:`~signorini.fem.node_order`, finds its bodies in its own order)
+    ids = np.arange(mesh.n_nodes) if mesh.node_ids is None else np.asarray(mesh.node_ids)
+    parts = sorted(body_meshes(mesh), key=lambda part: int(ids[part[0]].min()))
     dofmap = DofMap.serial(mesh.n_nodes, d)
     body_dofs = [dofmap.dofs(nodes).ravel() for nodes, _, _ in parts]
     if not local:  # the mass of each body from one product with the bodies' indicators (n, bodies)
@@ -86,9 +89,10 @@ def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None)
             Mb = M[dofs][:, dofs].tocsr()
             entry["mass"] = float(Mb[0::d].sum())
             entry["mass_effect"] = mass_effect(Mb, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells])
-        else:  # sum over the body's x rows of M 1_body = Mb[0::d].sum(); the effect needs the block: not kept
+        else:  # sum over the body's x rows of M 1_body = Mb[0::d].sum(); the effect by products with M
             entry["mass"] = float(ME[dofs[0::d], k].sum())
-            entry["mass_effect"] = None
+            entry["mass_effect"] = body_mass_effect(M, mesh, nodes, sub, rho if np.ndim(rho) == 0 else
+                                                    np.asarray(rho)[cells])  # fmt: skip
         if MV is not None:
             entry["momentum"] = [float(MV[dofs][k::d].sum()) for k in range(d)]
             entry["kinetic_energy"] = 0.5 * float(V[dofs] @ MV[dofs])

@@ -30,6 +30,10 @@ GAP_TOLERANCE = 100.0
 #: the gap given to a pair row whose slave node lies beyond the master surface's rim (faces nothing), in units
 #: of the coordinates' size: large enough never to be reached in a step
 OFF_RIM = 1e6
+#: a pair's row whose facing (its slave node within the master surface's rim or beyond it) changed this many
+#: times between the Newton iterates of a step faces its facet's line for the rest of the step: a node at the
+#: rim that the support pushes out and its loss pulls back in has no consistent state otherwise (Newton cycled)
+RIM_FLIPS = 2
 #: the round-off of a distance relative to the numbers it is computed from (1e3 machine epsilons)
 ROUNDOFF = 1e3 * np.finfo(float).eps
 
@@ -55,6 +59,8 @@ class CurrentRows:
         self.own = np.arange(self.contact.size) if own is None else np.asarray(own, dtype=np.int64)
         #: (t, normals of the own rows) of the level the step in progress starts from
         self._kept: tuple[float, np.ndarray] | None = None
+        #: every row faces the obstacle (:attr:`CurrentPairRows.facing`)
+        self.facing: np.ndarray | None = None
 
     def _points(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x, u) (m, d) of the own rows' nodes at U."""
@@ -189,6 +195,12 @@ class CurrentPairRows:
         self.far = OFF_RIM * (float(np.abs(X).max(initial=0.0)) + float(np.ptp(X, axis=0).max(initial=0.0)) or 1.0)
         self._kept: tuple[float, dict[str, np.ndarray]] | None = None
         self._last: tuple[np.ndarray, np.ndarray, list] | None = None
+        #: (nc,) whether each row faces something at the last :meth:`follow` (the rigid obstacle's rows do)
+        self.facing = np.ones(self.contact.size, dtype=bool)
+        #: (nc,) per step: how often a row's facing changed between iterates, and the rows that face their
+        #: facet's line for the rest of the step (:data:`RIM_FLIPS`)
+        self._flips = np.zeros(self.contact.size, dtype=np.int64)
+        self._sticky = np.zeros(self.contact.size, dtype=bool)
 
     def _dofs(self, nodes: np.ndarray) -> np.ndarray:
         """The dofs (m, k, d) of nodes (m, k)."""
@@ -217,7 +229,11 @@ class CurrentPairRows:
             new["master_facet"][r] = proj.facet
             new["master_shape"][r] = proj.xi
             new["master_dofs"][r] = self._dofs(proj.facet_nodes)
-            gaps[r] = np.where(proj.facing, proj.gaps, self.far)  # beyond the rim: never active
+            facing = proj.facing | self._sticky[r]
+            self._flips[r] += facing != self.facing[r]
+            self._sticky[r] |= self._flips[r] >= RIM_FLIPS
+            self.facing[r] = facing = proj.facing | self._sticky[r]
+            gaps[r] = np.where(facing, proj.gaps, self.far)  # beyond the rim: never active
         changed = self._set(new)
         return gaps + c.B @ U, changed
 
@@ -282,7 +298,7 @@ class CurrentPairRows:
         as unsettled (the levels' outputs give it +inf: no gap)."""
         out = np.zeros(self.contact.size)
         for r, proj in self._project(U):
-            out[r] = np.where(proj.facing, proj.gaps, self.far if outside is None else outside)
+            out[r] = np.where(proj.facing | self._sticky[r], proj.gaps, self.far if outside is None else outside)
         return out
 
     def keep_level(self, t: float) -> np.ndarray:
@@ -293,6 +309,8 @@ class CurrentPairRows:
             changed = self._set(self._kept[1])
         else:
             self._kept = (t, {k: np.array(getattr(c, k), copy=True) for k in self.ARRAYS})
+        self._flips[:] = 0
+        self._sticky[:] = False
         self.rows.keep_level(t)
         return changed
 
@@ -362,6 +380,7 @@ class CurrentRowsAndPairs:
         self.obstacle = CurrentRows(rows, obstacle_rows)
         self.pairs = CurrentPairRows(rows)
         self.own = self.obstacle.own
+        self.facing = self.pairs.facing  # the obstacle's rows: True
 
     def follow(self, U: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         b_obstacle, moved = self.obstacle.follow(U, t)
@@ -411,9 +430,12 @@ class FollowingBound:
         rows now (they turn with the iterate: a sphere's normal at x, a pair's master facet), so that the slip of
         the step is v_t = T (U - U^n) - (obstacle motion) in one frame, the motion of a rotating obstacle taken at
         the points the nodes are at in U^n (large sliding); frictionless: ``law`` itself."""
-        if law.reference is None or self.U0 is None:
-            return law
-        return replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t).reference)
+        if law.reference is not None and self.U0 is not None:
+            law = replace(law, reference=self.ctx.rows.friction_law(self.U0, self.t0, self.t).reference)
+        facing = self.ctx.rows.current.facing
+        if facing is not None and not facing.all():  # a pair's row beyond the rim: no constraint, lambda = 0
+            law = replace(law, subset=facing.copy() if law.subset is None else law.subset & facing)
+        return law
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         bound, changed = self.ctx.rows.current.follow(U, self.t)

@@ -68,6 +68,9 @@ KEPT_ITERATIONS = 10
 #: displacement gradient at its start is at most this (max |F - I| over the quadrature points): its contraction is
 #: then about this times the stiffness's share of the operator (measured in docs/finite_strain.md)
 REFERENCE_GRADIENT = 0.25
+#: an iterate whose residual fell by less than this factor has stalled; it is converged when its residual is below
+#: the round-off of the internal force itself (:meth:`~.elasticity.FiniteStrain.force_noise`)
+STALLED = 0.5
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
@@ -182,12 +185,12 @@ def newton_solve(
                     current, owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
                     elastic.factorizations += 1
             bnd = bound(U) if callable(bound) else bound
-            if callable(bound):  # the slip measured in the frames of the rows just moved to U
-                law = bound.law(law)
+            # the slip measured in the frames of the rows just moved to U; the rows that face nothing left out
+            law_k = bound.law(law) if callable(bound) else law
             minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
             try:
                 d, lam_new, info = ctx.solve(current, minus_r, bnd - ctx.B @ U, None if fixed is None else fixed - U[D],
-                                             _shifted(law, ctx, U))  # fmt: skip
+                                             _shifted(law_k, ctx, U))  # fmt: skip
             except InputError as exc:  # the tangent itself cannot be factorized: not the set-up's input
                 raise ConvergenceError(
                     f"the tangent of Newton iterate {k} cannot be factorized: it is not positive definite (an "
@@ -199,6 +202,12 @@ def newton_solve(
                 residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through)
             )
             allowed = tol * scale + floor
+            if lam is not None and n_new > allowed and n_new > STALLED * norm:
+                # no longer falling: at the internal force's own round-off (a body far from its reference place)
+                # the iterate is converged as far as the force can tell
+                noise = agree(op.stiffness * elastic.force_noise(U_new))
+                if n_new <= noise:
+                    allowed = n_new
             if lam is not None and not refactor and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
                 continue

@@ -158,7 +158,7 @@ def friction_line(H, s: dict) -> str:
         f"  friction {', '.join(f'{k} {v}' for k, v in f.items() if k != 'law')} ({f['law']}): friction_dissipation "
         f"{work}{res_text}, at the end {int(cols['stick_nodes'][-1])} stick / "
         f"{int(cols['slip_nodes'][-1])} slip nodes; {c.get('friction_iterations', 0)} Newton iterations, "
-        f"{c.get('friction_fallbacks', 0)} fallbacks, cone residual max {s['cone_residual_max']:.2e}\n"
+        f"{c.get('friction_fallbacks', 0)} cone solve(s) by the fallback, cone residual max {s['cone_residual_max']:.2e}\n"
     )
 
 
@@ -194,7 +194,7 @@ def one_screen_summary(H) -> str:
         f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs, {s['contact_nodes']} contact nodes\n"
         f"  status {s['status']}{': ' + s['message'] if s['message'] else ''}\n"
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
-        f"fallbacks {s['fallbacks']}\n"
+        f"{s['fallbacks']} step(s) with the contact solver's fallback\n"
         f"{time_lines(s)}"
         f"{energy_line(H, s)}"
         f"{friction_line(H, s)}"
