@@ -158,7 +158,8 @@ def friction_line(H, s: dict) -> str:
         f"  friction {', '.join(f'{k} {v}' for k, v in f.items() if k != 'law')} ({f['law']}): friction_dissipation "
         f"{work}{res_text}, at the end {int(cols['stick_nodes'][-1])} stick / "
         f"{int(cols['slip_nodes'][-1])} slip nodes; {c.get('friction_iterations', 0)} Newton iterations, "
-        f"{c.get('friction_fallbacks', 0)} cone solve(s) by the fallback, cone residual max {s['cone_residual_max']:.2e}\n"
+        f"{c.get('friction_fallbacks', 0)} cone solve(s) by the fallback, "
+        f"cone residual max {s['cone_residual_max']:.2e}\n"
     )
 
 
