@@ -134,3 +134,50 @@ def test_the_spinning_landing_finishes(scheme):
     assert H.status == "finished", H.message
     assert H.lam.min() < 0 and H.gap.min() >= -1e-10 * 0.6
     assert np.mean(H.columns()["nonlinear_iterations"][1:]) <= 7
+
+
+def test_a_rows_facing_flips_are_counted_within_a_step_only():
+    """RIM_FLIPS: a pair row whose facing changes twice between the iterates of one step faces its facet's line
+    for the rest of the step.  The count starts at the step's first iterate: the facing left by the last step
+    (or by a resume, or by a rejected try of the same step) is not a flip, so a step depends on its level alone
+    (a review found a resumed run marking a row sticky one iterate earlier than the continuous one)."""
+    import types
+
+    import scipy.sparse as sp
+
+    from signorini.dynamics.current_rows import RIM_FLIPS, CurrentPairRows
+
+    assert RIM_FLIPS == 2
+
+    def rows(facing_before: bool) -> CurrentPairRows:  # one row, its projection stubbed
+        o = object.__new__(CurrentPairRows)
+        o.contact = types.SimpleNamespace(size=1, B=sp.csr_matrix((1, 2)), normals=np.zeros((1, 2)),
+                                          master_facet=np.zeros(1, int), master_shape=np.zeros((1, 2)),
+                                          master_dofs=np.zeros((1, 2, 2), int))  # fmt: skip
+        o.space = types.SimpleNamespace(dofs=lambda n: np.zeros((n.size, 2), int))
+        o.far, o._kept, o._last, o._first = 1e6, None, None, False
+        o.facing, o._flips, o._sticky = np.array([facing_before]), np.zeros(1, int), np.zeros(1, bool)
+        o._set = lambda new: np.zeros(0, int)
+        o.rows = types.SimpleNamespace(keep_level=lambda t: None)
+        return o
+
+    def stub(f: bool) -> list:
+        proj = types.SimpleNamespace(normals=np.zeros((1, 2)), facet=np.zeros(1, int), xi=np.zeros((1, 2)),
+                                     facet_nodes=np.zeros((1, 2), int), facing=np.array([f]),
+                                     gaps=np.array([0.0]))  # fmt: skip
+        return [(np.array([0]), proj)]
+
+    def gap_after(o: CurrentPairRows, iterates, then: bool) -> float:
+        """The row's gap at a point where it faces ``then``, after a step's iterates facing ``iterates``."""
+        o.keep_level(0.0)
+        for f in iterates:
+            o._project = lambda U, f=f: stub(f)
+            o.follow(np.zeros(2), 0.1)
+        o._project = lambda U: stub(then)
+        return float(o.gaps(np.zeros(2), 0.1)[0])
+
+    # beyond the rim at the level, pulled in at the next iterate (one flip), beyond it again at the test: not
+    # sticky, whatever the facing the previous step (or a resume) left
+    assert gap_after(rows(False), [False, True], False) == gap_after(rows(True), [False, True], False) == 1e6
+    # out, in, out within the step: two flips, the line faced for the rest of the step
+    assert gap_after(rows(True), [False, True, False], False) == 0.0

@@ -152,3 +152,27 @@ def test_a_friction_refusal_lists_the_schemes_that_also_run_finite_strain():
         listed = str(err.value).split(": ")[-1].split(", ")
         expected = [s for s in friction_schemes() if not finite or s in finite_strain_schemes()]
         assert listed == expected and ("moreau-jean" in listed) is not finite
+
+
+def test_a_users_scheme_is_judged_by_its_own_friction_refusal():
+    """A scheme given as a class (``--scheme module:Class``, a subclass passed to ``simulate``) needs no registry
+    name: a subclass of crank-nicolson named otherwise carries friction like it; one that refuses friction is
+    refused by its own name and reason."""
+    from signorini.dynamics.problem import check_friction_schemes, with_friction
+    from signorini.dynamics.schemes import CrankNicolson
+    from signorini.dynamics.simulate import simulate
+    from signorini.errors import InputError
+    from signorini.studies.benchmarks import get_benchmark
+
+    class MyCN(CrankNicolson):
+        name = "my-cn"
+
+    class Frictionless(CrankNicolson):
+        name = "my-frictionless-cn"
+        friction_refusal = "it is a test"
+
+    p = with_friction(get_benchmark("bar2d").problem(4), "coulomb:0.3")
+    H = simulate(p, MyCN, 1e-3, 0.002)
+    assert H.status == "finished" and H.lam_t is not None
+    with pytest.raises(InputError, match="scheme my-frictionless-cn cannot carry friction .*: it is a test"):
+        check_friction_schemes(p.friction, [Frictionless()])

@@ -31,6 +31,7 @@ fallback) and a step that neither solves is a :class:`ConvergenceError`.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -125,10 +126,6 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
         spec = {"law": law, **({_PARAMETER[law]: value.strip()} if sep else {})}
     if not isinstance(spec, Mapping):
         raise InputError(f'{where} must be a table such as {{ law = "coulomb", coefficient = 0.3 }}, got {spec!r}')
-    if not text:  # a table's values are numbers (a case file's "0.3" is refused like its other numbers)
-        for key, value in spec.items():
-            if key != "law" and (isinstance(value, bool) or not isinstance(value, int | float)):
-                raise InputError(f"{where}.{key} must be a number, got {value!r}")
     opts = dict(spec)
     if "law" not in opts:
         raise InputError(f"{where}.law is missing; allowed: {', '.join(CONTACT_LAWS.names())}")
@@ -138,6 +135,10 @@ def make_friction(spec: Friction | str | Mapping[str, Any] | None, where: str = 
     if unknown:
         allowed = ", ".join(p.name for p in entry.parameters) or "none"
         raise InputError(f"{where}: unknown option {unknown[0]!r} for law {law!r}; allowed: {allowed}")
+    if not text:  # a table's values are numbers (a case file's "0.3" is refused like its other numbers)
+        for key, value in opts.items():
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise InputError(f"{where}.{key} must be a number, got {value!r}")
     values = entry.options(opts, where=where)
     missing = [p.name for p in entry.parameters if p.name not in opts]
     if missing:

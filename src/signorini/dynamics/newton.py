@@ -68,9 +68,9 @@ KEPT_ITERATIONS = 10
 #: displacement gradient at its start is at most this (max |F - I| over the quadrature points): its contraction is
 #: then about this times the stiffness's share of the operator (measured in docs/finite_strain.md)
 REFERENCE_GRADIENT = 0.25
-#: an iterate whose residual fell by less than this factor has stalled; it is converged when its residual is below
-#: the round-off of the internal force itself (:meth:`~.elasticity.FiniteStrain.force_noise`)
-STALLED = 0.5
+#: an iterate of a fresh tangent whose residual fell by less than this factor has stalled; it is converged when its
+#: residual is below the round-off of the internal force itself (:meth:`~.elasticity.FiniteStrain.force_noise`)
+STALLED = 0.9
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
@@ -202,7 +202,7 @@ def newton_solve(
                 residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through)
             )
             allowed = tol * scale + floor
-            if lam is not None and n_new > allowed and n_new > STALLED * norm:
+            if lam is not None and refactor and n_new > allowed and n_new > STALLED * norm:
                 # no longer falling: at the internal force's own round-off (a body far from its reference place)
                 # the iterate is converged as far as the force can tell
                 noise = agree(op.stiffness * elastic.force_noise(U_new))

@@ -278,7 +278,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     ctx = Context(disc, dt, opts)
     schemes = [s for s in schemes if s is not None]
     ctx.iterative_ok = ctx.iterative_ok and not any(s.needs_condensed_solve for s in schemes)
-    check_friction_schemes(ctx.friction, [s.name for s in schemes], finite=ctx.elastic.finite)
+    check_friction_schemes(ctx.friction, schemes, finite=ctx.elastic.finite)
     check_finite_strain(ctx, schemes)
     for s in schemes:
         s.check_context(ctx)
