@@ -200,6 +200,21 @@ def test_a_1d_bar_and_contact_pairs_are_refused():
             simulate(p, "crank-nicolson", 0.01, 0.02)
 
 
+def test_a_frozen_pairing_is_refused_with_finite_strain():
+    """``pairing=frozen`` (the linear model's pairing of t = 0) was silently ignored with finite strain, whose
+    pairs follow the current configuration: refused by name (a new user's finding)."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.fem.mesh import join
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 2, 0.6, 0.1)
+    upper.points = upper.points + [0.35, 0.1001]
+    p = Problem(join({"upper": upper, "lower": lower}), NeoHookean.from_young(1e5, 0.3, 1000.0), None, None,
+                pairs=[ContactPair("upper_ymin", "lower_ymax")])  # fmt: skip
+    with pytest.raises(InputError, match="pairing='frozen' does not apply to finite strain"):
+        simulate(p, "crank-nicolson", 2e-4, 4e-4, solver_options={"pairing": "frozen"})
+    assert simulate(p, "crank-nicolson", 2e-4, 4e-4, solver_options={"pairing": "small-sliding"}).status == "finished"
+
+
 def test_angular_momentum_of_a_rigid_rotation_is_the_inertia_times_omega():
     """x x (M V) summed: a rigid rotation of a lumped unit square about the origin (L = I omega, I = sum m r^2)."""
     X = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
@@ -936,3 +951,26 @@ def test_a_block_leaving_the_master_surface_under_backward_euler(tmp_path):
     (pair,) = s["pairs"]
     assert pair["slave_nodes_facing_nothing_at_end"] == pair["rows"]  # the whole block beyond the rim: falling
     assert s["penetration_max"] <= 1e-10 * 0.5
+
+
+def test_the_slave_nodes_facing_nothing_at_t0_are_counted_with_finite_strain():
+    """summary.json ``pairs`` ``inactive_slave_nodes``: the slave nodes that face nothing at t = 0.  With finite
+    strain every slave node has a row (one may come to face the master), and the count said 0 where the linear
+    model's said 40 (a new user's pair with the long side as slave); both now count them, and with finite strain
+    they are the rows whose gap at level 0 is +inf."""
+    from signorini.contact.pairs import ContactPair
+    from signorini.fem.mesh import join
+
+    upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 2, 0.6, 0.1)
+    upper.points = upper.points + [0.35, 0.1001]
+    m = join({"upper": upper, "lower": lower})
+    counts = {}
+    for model in ("linear", "neo-hookean"):
+        p = Problem(m, with_model(NeoHookean.from_young(1e5, 0.3, 1000.0), model), None, None,
+                    pairs=[ContactPair("lower_ymax", "upper_ymin")])  # fmt: skip
+        H = simulate(p, "crank-nicolson", 2e-4, 4e-4)
+        (pair,) = H.summary()["pairs"]
+        counts[model] = pair["inactive_slave_nodes"]
+        if model != "linear":
+            assert counts[model] == int(np.isposinf(H.gap[0]).sum())
+    assert counts["linear"] == counts["neo-hookean"] > 0, counts

@@ -78,8 +78,13 @@ def test_friction_option_overrides_the_case(tmp_path):
 def test_friction_option_replaces_a_pairs_own_law(tmp_path):
     out = tmp_path / "r"
     case = str(ROOT / "examples" / "block_on_block.toml")  # its pair: coulomb 0.3
-    assert main(["run", case, "--friction", "frictionless", "--T", "0.002", "--out", str(out), "--quiet"]) == 0
-    assert json.loads((out / "summary.json").read_text())["friction"] == {"law": "frictionless"}
+    argv = ["run", case, "--friction", "frictionless", "--scheme", "cn", "--T", "0.002", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["friction"] == {"law": "frictionless"}
+    # the summary says what the command line changed (a new user found only --T recorded)
+    assert s["overrides"]["friction"] == {"case_file": "coulomb:0.3", "command_line": "frictionless"}
+    assert s["overrides"]["scheme"] == {"case_file": "backward-euler", "command_line": "crank-nicolson"}
     cols = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     assert np.all(cols["friction_dissipation"] == 0) and np.all(cols["stick_nodes"] == 0)
 

@@ -226,7 +226,7 @@ class FacetRows:
     facet: np.ndarray  # (m,) index of the facet in ``facets``
     xi: np.ndarray  # (m, nfv) the facet's shape functions at the projection
     facet_nodes: np.ndarray  # (m, nfv) the facet's nodes, outward orientation
-    inactive: int  # nodes laterally off the surface: no row
+    inactive: int  # nodes laterally off the surface at t = 0 (no row, unless ``every``)
 
 
 def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int, every: bool = False
@@ -267,7 +267,8 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     gaps = np.einsum("md,md->m", delta, normals_m)
     lateral = np.linalg.norm(delta - gaps[:, None] * normals_m, axis=1)
     size = float(np.linalg.norm(np.ptp(np.vstack([X[nodes], centres]), axis=0))) or 1.0
-    on = (lateral <= OFF_SURFACE * size) | every
+    facing = lateral <= OFF_SURFACE * size
+    on = facing | every
     nodes, facet, N, normals_m, gaps = nodes[on], facet[on], N[on], normals_m[on], gaps[on]
     m, nfv = nodes.size, oriented.shape[1]
     rows = np.repeat(np.arange(m), d * (1 + nfv))
@@ -278,7 +279,7 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     vals = (coef[:, :, None] * normals_m[:, None, :]).reshape(m, (1 + nfv) * d)
     B = sp.csr_matrix((vals.ravel(), (rows, dofs.ravel())), shape=(m, n_dofs))
     B.sum_duplicates()
-    return FacetRows(nodes, normals_m, gaps, B, facet, N, master, int((~on).sum()))
+    return FacetRows(nodes, normals_m, gaps, B, facet, N, master, int((~facing).sum()))
 
 
 #: closest points within this fraction of the pair's size are a tie (a node on a vertex or edge

@@ -254,8 +254,9 @@ def elasticity(ctx: Context) -> Elasticity:
 
 def check_finite_strain(ctx: Context, schemes: list) -> None:
     """Refuse, naming the combination, what finite strain does not carry yet (InputError): a scheme without
-    a Newton step, a 1D bar, an obstacle without normals in the current configuration, an iterative backend,
-    stiffness-proportional damping, a mass that treats the normal apart (``seed-normal``)."""
+    a Newton step, a 1D bar, contact pairs with ``pairing=frozen``, an obstacle without normals in the current
+    configuration, an iterative backend, stiffness-proportional damping, a mass that treats the normal apart
+    (``seed-normal``)."""
     if not ctx.elastic.finite:
         return
     from ..errors import InputError
@@ -270,6 +271,10 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     problem = ctx.disc.problem
     if ctx.disc.space.dim == 1:
         raise InputError(f"{what} needs a 2D (plane strain) or 3D mesh, not a 1D bar; use model 'linear'")
+    if problem.pairs and ctx.solver_options.get("pairing", "small-sliding") == "frozen":
+        raise InputError(f"solver option pairing='frozen' does not apply to {what}: its contact pairs are paired "
+                         "in the current configuration at every Newton iteration (large sliding); leave pairing "
+                         "out, or use model 'linear'")  # fmt: skip
     ob = problem.obstacle
     kind = "" if ob is None else type(ob).__name__.removesuffix("Obstacle").lower()
     if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:

@@ -370,7 +370,12 @@ def _add_compare(sub) -> None:
         help="2D/3D reference run: a level (CN + seed) or scheme:mass:level, a multiple of every level "
         "(default crank-nicolson:seed at 4x the finest level, same dt/h ratio); 1D uses the exact solution",
     )
-    cb.add_argument("--T", type=float, default=None, help="final time (default 3 in 1D, 1 in 2D/3D)")
+    cb.add_argument(
+        "--T",
+        type=float,
+        default=None,
+        help="final time (a benchmark: default 3 in 1D, 1 in 2D/3D; a case file: its own T)",
+    )
     cb.add_argument("--ratio", type=float, default=None, help="dt = ratio h on every level (default 0.5)")
     cb.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     cpo = cp.add_argument_group("execution and output")

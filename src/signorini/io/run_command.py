@@ -307,6 +307,26 @@ def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float,
     return dt, T, overrides
 
 
+def _choice_overrides(args: argparse.Namespace, case, scheme, problem) -> dict:
+    """``--scheme``, ``--mass`` and ``--friction`` over a case file's choices (summary.json ``overrides``), each
+    ``{"case_file": ..., "command_line": ...}`` when it differs from the file's."""
+    from ..dynamics.problem import pair_laws
+
+    def laws(p) -> str:  # the contact laws of a problem's rows, as the --friction spelling
+        used = ([p.friction] if p.obstacle is not None else []) + pair_laws(p)
+        return ", ".join(dict.fromkeys(law.label for law in used)) or "frictionless"
+
+    out: dict[str, dict] = {}
+    name = getattr(scheme, "name", scheme)
+    if args.scheme and name != case.scheme:
+        out["scheme"] = {"case_file": case.scheme, "command_line": str(name)}
+    if args.mass and args.mass != case.mass:
+        out["mass"] = {"case_file": case.mass, "command_line": args.mass}
+    if args.friction is not None and laws(problem) != laws(case.problem):
+        out["friction"] = {"case_file": laws(case.problem), "command_line": laws(problem)}
+    return out
+
+
 def case_spec(args: argparse.Namespace) -> RunSpec:
     from .config import load_case
 
@@ -327,9 +347,10 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
     # a resume checks the steps of its own grid later (the case's mesh is built: its size is the file's)
     check_size(mesh_counts(case.problem), dt, T, limits, sol, steps=1 if getattr(args, "resuming", False) else None)
     meta = {"case_file": str(args.target), "mass_named": bool(args.mass) or case.mass_named}
+    problem = with_friction(case.problem, args.friction)
+    overrides.update(_choice_overrides(args, case, scheme, problem))
     if overrides:
         meta["overrides"] = overrides
-    problem = with_friction(case.problem, args.friction)
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
     control = case_control(args, case.control, scheme, meta, args.mass or case.mass, sch)
     return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
