@@ -727,6 +727,8 @@ def test_contact_pairs_beside_a_rigid_obstacle_resume_bit_for_bit(tmp_path):
     assert full.lam[70, pair < 0].min() < 0 and full.lam[70, pair >= 0].min() < 0  # both contacts press
     for k in ("energy", "lambda_sum", "momentum_y", "angular_momentum_z", "nonlinear_iterations"):
         assert np.array_equal(full.columns()[k], r.columns()[k]), k
+    for k in ("master_penetration_max", "master_penetration_node", "master_penetration_time"):  # kept in the checkpoint
+        assert full.summary()[k] == r.summary()[k], k
 
 
 @pytest.mark.parametrize("friction, scheme", [(None, "crank-nicolson"), ("coulomb:0.1", "backward-euler")])
@@ -756,6 +758,11 @@ def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force(tmp_path, 
     assert slave_x.size == H.lam.shape[1]
     if friction is not None:
         _cone_and_dissipation(H, 0.1)
+    # the lower block's corner pokes into the tipping block's bottom between its slave nodes (5 cm apart): the
+    # node-to-facet method's limit, reported (summary master_penetration_*), not constrained
+    s = H.summary()
+    assert s["master_penetration_max"] > 1e-3 and 0.0 < s["master_penetration_time"] < 0.06
+    assert np.allclose(m.points[s["master_penetration_node"]], [0.6, 0.1], rtol=0.0, atol=1e-12)  # the user's number
     # the outputs: a node beyond the rim has no gap (+inf, not the solver's far bound), no facet (-1); the mean and
     # the minimum are over the nodes that face something; the summary counts them at the end
     off = np.isposinf(H.gap)

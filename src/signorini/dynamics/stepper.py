@@ -383,6 +383,7 @@ class Stepper:
         # every node watched: against the rigid obstacle and against the surfaces of the pairs
         H.meta["untagged_boundary_nodes"] = self.untagged.watched_nodes()
         H.meta["untagged_worst_penetration"] = self.untagged.worst[0]  # the failing level of untagged_contact=fail too
+        H.meta.update(self.untagged.master_summary() or {})  # the master nodes through the slave surface (reported)
         if self.untagged.exceeded():
             H.meta["warnings"].append(self.untagged.message())
         failed = self.status == "failed"

@@ -19,7 +19,10 @@ p = max(0, max_j -(g_j - B_j U)) over the nodes facing the surface.  With finite
 watched node is projected on the deformed facing surface at every level instead
 (:class:`CurrentPairWatch`: the pairs slide and turn).  The master tag's own
 nodes entering the slave surface between slave nodes are the node-to-facet method's known
-limit (docs/bodies.md: choose the finer side as slave), not watched.
+limit (docs/bodies.md: choose the finer side as slave): they are watched the same way but only
+reported (summary.json ``master_penetration_max``, with its node and time, and a line of the
+one-screen summary; no warning, no failure: a master node on a curved or refined slave surface
+enters it by the round-off of the discretization at every contact).
 
 Above :data:`UNTAGGED_TOLERANCE` x the body's size the run warns, or, with the solver
 option ``untagged_contact = fail``, stops with status ``failed`` (the levels computed are
@@ -112,15 +115,28 @@ def _watched(mesh: Mesh, pairs) -> list[tuple[int, str, str, str, np.ndarray]]:
     return out
 
 
-def pair_watch(mesh: Mesh, pairs, n_dofs: int, current: bool = False) -> PairWatch | CurrentPairWatch | None:
+def _masters(mesh: Mesh, pairs) -> list[tuple[int, str, str, str, np.ndarray]]:
+    """Per pair: (pair index, its master tag, its slave tag, "slave", the master tag's nodes that are not slave
+    nodes), watched against the slave surface (:func:`_watched`'s form)."""
+    out = []
+    for k, pair in enumerate(pairs):
+        nodes = np.setdiff1d(mesh.nodes_of(pair.master), mesh.nodes_of(pair.slave))
+        if nodes.size:
+            out.append((k, pair.master, pair.slave, "slave", nodes))
+    return out
+
+
+def pair_watch(mesh: Mesh, pairs, n_dofs: int, current: bool = False, masters: bool = False
+               ) -> PairWatch | CurrentPairWatch | None:  # fmt: skip
     """The untagged watch of the contact pairs (module docstring); None without pairs; ``current`` (finite
-    strain): in the current configuration (:class:`CurrentPairWatch`)."""
+    strain): in the current configuration (:class:`CurrentPairWatch`); ``masters``: the master tags' own nodes
+    against the slave surfaces instead of the untagged nodes."""
     from ..contact.pairs import ContactPair, CurrentPairing, node_to_facet_rows
 
     if not pairs:
         return None
+    sides = (_masters if masters else _watched)(mesh, pairs)
     if current:
-        sides = _watched(mesh, pairs)
         if not sides:
             return None
         return CurrentPairWatch(
@@ -130,7 +146,7 @@ def pair_watch(mesh: Mesh, pairs, n_dofs: int, current: bool = False) -> PairWat
             [CurrentPairing(mesh, ContactPair(own, other)) for _, own, other, _, _ in sides],
         )
     parts = []
-    for k, _, other, role, watched in _watched(mesh, pairs):
+    for k, _, other, role, watched in sides:
         r = node_to_facet_rows(mesh, watched, mesh.facets_of(other), n_dofs)
         if r.nodes.size:  # nodes laterally off the surface face nothing
             parts.append((r, f"{other!r} ({role} of pair {k})"))
@@ -152,6 +168,9 @@ class UntaggedContact(Observer):
         self.mode = mode
         self.series = np.zeros(0)
         self.worst: tuple[float, int, float] = (0.0, -1, 0.0)  # (penetration, node, t)
+        #: the master tags' own nodes through the slave surfaces (reported only): (penetration, node, t)
+        self.master_worst: tuple[float, int, float] = (0.0, -1, 0.0)
+        self.master_watch: PairWatch | CurrentPairWatch | None = None
 
     def start(self, run: Run) -> None:
         disc = run.ctx.disc
@@ -160,6 +179,8 @@ class UntaggedContact(Observer):
         # no rigid obstacle (contact pairs only): nothing to watch against it
         self.nodes = np.setdiff1d(boundary_nodes(mesh), rigid) if disc.problem.obstacle is not None else rigid[:0]
         self.pair_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite)
+        self.master_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite,
+                                       masters=True)  # fmt: skip
         extra = self.pair_watch.nodes if self.pair_watch is not None else self.nodes[:0]
         self.all_nodes = np.concatenate([self.nodes, extra])
         self._surface = ""  # the surface the worst node crossed (a pair's tag), "" for the rigid obstacle
@@ -177,7 +198,20 @@ class UntaggedContact(Observer):
         if self.series.size < size:
             self.series = np.concatenate([self.series, np.zeros(size - self.series.size)])
 
+    def _put_masters(self, s: State) -> None:
+        """The master tags' own nodes through the slave surfaces at the level ``s`` (reported only)."""
+        w = self.master_watch
+        if w is None:
+            return
+        phi = w.gaps_at(s.U)
+        ties = np.flatnonzero(phi <= phi.min() + self.tie)
+        j = int(ties[self.mesh.first_by_id(w.nodes[ties])]) if ties.size else int(np.argmin(phi))
+        p = max(0.0, -float(phi[j]))
+        if p > self.master_worst[0] + self.tie or (p > self.master_worst[0] and self.master_worst[1] < 0):
+            self.master_worst = (p, int(w.nodes[j]), float(s.t))
+
     def _put(self, n: int, s: State) -> None:
+        self._put_masters(s)
         if self.nodes.size == 0 and self.pair_watch is None:
             return
         if self.nodes.size:
@@ -216,7 +250,8 @@ class UntaggedContact(Observer):
     checkpoint_key = "untagged"
 
     def saved(self, n: int) -> dict:
-        return {"series": {"penetration": self.series[: n + 1]}, "worst": list(self.worst), "surface": self._surface}
+        return {"series": {"penetration": self.series[: n + 1]}, "worst": list(self.worst), "surface": self._surface,
+                "master_worst": list(self.master_worst)}  # fmt: skip
 
     def resume(self, run: Run, n: int, state: State, data: dict) -> None:
         series = np.asarray(data.get("series", {}).get("penetration", []))
@@ -229,6 +264,12 @@ class UntaggedContact(Observer):
             raise InputError(f"checkpoint: the untagged watch's worst {data['worst']!r} is not (penetration >= 0, "
                              "a node of the mesh, t)")  # fmt: skip
         self.worst, self._surface = (float(p), int(node), float(t)), str(data["surface"])
+        p, node, t = data.get("master_worst", [0.0, -1, 0.0])  # (a checkpoint written before it: none seen)
+        if not (isinstance(node, int) and -1 <= node < self.mesh.n_nodes and np.isfinite(p) and p >= 0
+                and np.isfinite(t)):  # fmt: skip
+            raise InputError(f"checkpoint: the master watch's worst {data['master_worst']!r} is not (penetration "
+                             ">= 0, a node of the mesh, t)")  # fmt: skip
+        self.master_worst = (float(p), int(node), float(t))
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = self.series[: n_last + 1]
@@ -236,6 +277,15 @@ class UntaggedContact(Observer):
     def watched_nodes(self) -> int:
         """The number of distinct nodes watched (against the rigid obstacle or a pair's surface)."""
         return int(np.unique(getattr(self, "all_nodes", np.zeros(0, dtype=int))).size)
+
+    def master_summary(self) -> dict | None:
+        """summary.json ``master_penetration_max`` [length], ``master_penetration_node`` (the user's number) and
+        ``master_penetration_time``; None without contact pairs."""
+        if self.master_watch is None:
+            return None
+        p, node, t = self.master_worst
+        return {"master_penetration_max": p, "master_penetration_node": self.mesh.node_id(node) if node >= 0 else None,
+                "master_penetration_time": t if node >= 0 else None}  # fmt: skip
 
     def exceeded(self) -> bool:
         return self.worst[0] > self.tolerance

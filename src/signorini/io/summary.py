@@ -178,6 +178,10 @@ def bodies_lines(s: dict) -> str:
             end = (f", at the end momentum [{', '.join(f'{x:.4g}' for x in b['momentum'])}], "
                    f"kinetic energy {b['kinetic_energy']:.4g}")  # fmt: skip
         out.append(f"  body {k}{regions}: {b['nodes']} nodes, {mass}{end}\n")
+    if s.get("master_penetration_max"):  # node-to-facet: the master nodes are free to enter the slave surface
+        out.append(f"  master nodes through the slave surface: at most {s['master_penetration_max']:.3g} (node "
+                   f"{s['master_penetration_node']} at t = {s['master_penetration_time']:.6g}); contact constrains "
+                   "the slave nodes only (docs/bodies.md: the finer side as slave)\n")  # fmt: skip
     for p in s.get("pairs") or []:
         law = (p.get("friction") or {}).get("law", "frictionless")
         again = f", {p['repaired_rows']} re-paired" if p.get("repaired_rows") else ""
