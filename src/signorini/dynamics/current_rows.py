@@ -468,11 +468,12 @@ class FollowingBound:
         if self.bound is None or not self.bound.size:
             return 0.0
         current = self.ctx.rows.current
-        g, linear = current.gaps(U, self.t, outside=np.nan), self.bound - self.ctx.B @ U
-        facing, now = current.facing, np.isfinite(g)
-        if facing is None or (facing.all() and now.all()):
-            return float(np.max(np.abs(g - linear)))
-        err = np.where(facing & now, np.abs(np.where(now, g, 0.0) - linear), np.where(facing | now, np.inf, 0.0))
+        g = current.gaps(U, self.t, outside=np.nan)  # nan beyond the rim at U
+        err = np.abs(g - (self.bound - self.ctx.B @ U))
+        if current.facing is not None:
+            now = ~np.isnan(g)
+            err[current.facing != now] = np.inf  # crossed the rim between the rows' iterate and U
+            err[~current.facing & ~now] = 0.0  # beyond it at both: out of the solve
         return float(np.max(err))
 
     def converged(self, U: np.ndarray) -> bool:

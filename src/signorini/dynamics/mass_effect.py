@@ -72,13 +72,14 @@ def _moments_one_type(mesh: Mesh, rho: float | np.ndarray, chunk: int) -> np.nda
     return Q
 
 
-def moments(M: sp.spmatrix, mesh: Mesh) -> np.ndarray:
-    """(d, d+1, d+1) moments Q^k of the vector mass ``M`` (node-major dofs), one per component.
+def moments(M: sp.spmatrix, mesh: Mesh, P: np.ndarray | None = None) -> np.ndarray:
+    """(d, d+1, d+1) moments Q^k of the vector mass ``M`` (node-major dofs), one per component; ``P`` (n_nodes,
+    d+1) the nodal monomials (default the mesh's, :func:`_monomials`).
 
     ``M`` must not couple different components (true of every registered variant).
     """
     d = mesh.dim
-    P = _monomials(mesh)
+    P = _monomials(mesh) if P is None else P
     # every registered variant is block diagonal in the components (no entry couples
     # component k of a node with component l != k of another): one product with the
     # monomials repeated on every component gives Y[k::d] = M_k P for all k at once
@@ -119,12 +120,9 @@ def body_mass_effect(M, mesh: Mesh, nodes: np.ndarray, body: Mesh, rho: float | 
     ``rho`` on its cells) from the whole mesh's vector mass ``M``, by products only (a distributed M, rows per
     rank, whose products gather over the ranks): M does not couple bodies, so M applied to the body's monomials
     (zero on the other bodies) is its own block's product."""
-    d = mesh.dim
-    P = np.zeros((mesh.n_nodes, d + 1))
+    P = np.zeros((mesh.n_nodes, mesh.dim + 1))
     P[nodes] = _monomials(body)
-    Y = M @ np.repeat(P, d, axis=0)
-    Qs = np.stack([P[nodes].T @ Y[k::d][nodes] for k in range(d)])
-    return _effect(Qs, body, rho)
+    return _effect(moments(M, mesh, P), body, rho)
 
 
 def _effect(Qs: np.ndarray, mesh: Mesh, rho: float | np.ndarray) -> dict:

@@ -198,16 +198,24 @@ class UntaggedContact(Observer):
         if self.series.size < size:
             self.series = np.concatenate([self.series, np.zeros(size - self.series.size)])
 
+    def _deepest(self, phi: np.ndarray, nodes: np.ndarray) -> tuple[float, int]:
+        """(max(0, -min phi), the position of that node in ``nodes``) of the gaps ``phi`` (m,) of ``nodes``: at a
+        tie (to TIE x the body's size: round-off differs between node orders and ranks) the node the user numbered
+        first, so that a message does not depend on them; (0, -1) without gaps."""
+        if phi.size == 0:
+            return 0.0, -1
+        ties = np.flatnonzero(phi <= phi.min() + self.tie)
+        j = int(ties[self.mesh.first_by_id(nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
+        return max(0.0, -float(phi[j])), j
+
     def _put_masters(self, s: State) -> None:
         """The master tags' own nodes through the slave surfaces at the level ``s`` (reported only)."""
         w = self.master_watch
         if w is None:
             return
-        phi = w.gaps_at(s.U)
-        ties = np.flatnonzero(phi <= phi.min() + self.tie)
-        j = int(ties[self.mesh.first_by_id(w.nodes[ties])]) if ties.size else int(np.argmin(phi))
-        p = max(0.0, -float(phi[j]))
-        if p > self.master_worst[0] + self.tie or (p > self.master_worst[0] and self.master_worst[1] < 0):
+        p, j = self._deepest(w.gaps_at(s.U), w.nodes)
+        worst, node = self.master_worst[:2]
+        if j >= 0 and (p > worst + self.tie or (p > worst and node < 0)):  # beyond a tie only, as the untagged's
             self.master_worst = (p, int(w.nodes[j]), float(s.t))
 
     def _put(self, n: int, s: State) -> None:
@@ -225,11 +233,7 @@ class UntaggedContact(Observer):
         if phi.size == 0:
             return
         nodes = self.all_nodes
-        # at a tie (to TIE x the body's size: round-off differs between node orders and ranks),
-        # the node the user numbered first, so that the message does not depend on them
-        ties = np.flatnonzero(phi <= phi.min() + self.tie)
-        j = int(ties[self.mesh.first_by_id(nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
-        p = max(0.0, -float(phi[j]))
+        p, j = self._deepest(phi, nodes)
         self.series[n] = p
         if p > self.worst[0]:  # the largest value; its node and time change beyond a tie only
             if p > self.worst[0] + self.tie or self.worst[1] < 0:

@@ -186,10 +186,10 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
 def _check_friction(problem, pairs: list[Pair]) -> None:
     """Refuse the comparison (InputError) only when no compared scheme carries the run's friction; a scheme that
     cannot is kept as "n/a: <its refusal>" by its own run, like a scheme that refuses a mass."""
-    refusals = []
+    law, refusals = run_friction(problem), []
     for p in pairs:
         try:
-            check_friction_schemes(run_friction(problem), [p.scheme.name])
+            check_friction_schemes(law, [p.scheme.name])
         except InputError as exc:
             refusals.append(exc)
     if refusals and len(refusals) == len(pairs):
