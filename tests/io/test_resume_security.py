@@ -207,6 +207,9 @@ FORGED = {
     "series-layout": (lambda a: a["series"]["layout"][0].__setitem__(2, [10**15]), "series file"),
     "negative-counter": (lambda a: a["counters"].__setitem__("linear_solves", -5), "counter"),
     "untagged-worst-node": (_set(["observers/untagged/worst"], [1.0, 999999, 0.1]), "untagged watch"),
+    "untagged-worst-text": (_set(["observers/untagged/worst"], ["a", 3, 0.0]), "untagged watch"),
+    "master-worst-short": (_set(["observers/untagged/master_worst"], [1.0, 2]), "master watch"),
+    "master-worst-nested": (_set(["observers/untagged/master_worst"], [[1], 3, 0.0]), "master watch"),
 }
 
 

@@ -31,6 +31,7 @@ kept).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,18 +263,19 @@ class UntaggedContact(Observer):
         if series.shape != (n + 1,) or series.dtype != self.series.dtype:
             raise InputError(f"checkpoint: the untagged series has shape {series.shape}, expected {(n + 1,)}")
         self.series[: n + 1] = series
-        p, node, t = data["worst"]
-        node_ok = isinstance(node, int) and -1 <= node < self.mesh.n_nodes
-        if not (node_ok and np.isfinite(p) and p >= 0 and np.isfinite(t)):
-            raise InputError(f"checkpoint: the untagged watch's worst {data['worst']!r} is not (penetration >= 0, "
-                             "a node of the mesh, t)")  # fmt: skip
-        self.worst, self._surface = (float(p), int(node), float(t)), str(data["surface"])
-        p, node, t = data.get("master_worst", [0.0, -1, 0.0])  # (a checkpoint written before it: none seen)
-        if not (isinstance(node, int) and -1 <= node < self.mesh.n_nodes and np.isfinite(p) and p >= 0
-                and np.isfinite(t)):  # fmt: skip
-            raise InputError(f"checkpoint: the master watch's worst {data['master_worst']!r} is not (penetration "
-                             ">= 0, a node of the mesh, t)")  # fmt: skip
-        self.master_worst = (float(p), int(node), float(t))
+        self.worst = self._checked(data.get("worst"), "untagged watch")
+        self._surface = str(data["surface"])
+        # a checkpoint written before the master watch: none seen before the resume
+        self.master_worst = self._checked(data.get("master_worst", [0.0, -1, 0.0]), "master watch")
+
+    def _checked(self, value, what: str) -> tuple[float, int, float]:
+        """A checkpoint's (penetration, node, t) of a watch, checked (a forged file: a one-line InputError)."""
+        numbers = isinstance(value, list) and len(value) == 3 and all(
+            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)  # fmt: skip
+        if not (numbers and value[0] >= 0 and isinstance(value[1], int) and -1 <= value[1] < self.mesh.n_nodes):
+            raise InputError(f"checkpoint: the {what}'s worst {value!r} is not [penetration >= 0, a node of the "
+                             "mesh or -1, t]")  # fmt: skip
+        return float(value[0]), int(value[1]), float(value[2])
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = self.series[: n_last + 1]
