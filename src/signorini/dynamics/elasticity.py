@@ -60,8 +60,8 @@ class Elasticity:
         """Pi(U) [energy]; ``fU``: f(U) when already computed (linear: 1/2 U.fU)."""
         return 0.5 * float(U @ (self.force(U) if fU is None else fU))
 
-    def tangent(self, U: np.ndarray) -> Any:
-        """K(U) = df/dU (n, n) [force / length]."""
+    def tangent(self, U: np.ndarray, project: bool = False) -> Any:
+        """K(U) = df/dU (n, n) [force / length] (positive semi-definite already: ``project`` changes nothing)."""
         return self.ctx.S
 
     def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
@@ -108,11 +108,13 @@ class FiniteStrain(Elasticity):
         if linear.size:
             part = material.take(linear) if isinstance(material, CellMaterial) else material
             self.S_linear = stiffness_matrix(sub_mesh(mesh, linear), part).tocsr()
-        #: counts: force evaluations, tangents assembled, tangents factorized (:mod:`~.newton`), halvings
+        #: counts: force evaluations, tangents assembled, tangents factorized (:mod:`~.newton`), line-search
+        #: halvings, tangents corrected (each cell's tangent made positive semi-definite)
         self.evaluations = 0
         self.tangents = 0
         self.factorizations = 0
         self.line_search_steps = 0
+        self.tangent_corrections = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         #: the last two (U, energy) pairs
         self._energies: list[tuple[np.ndarray, float]] = []
@@ -162,13 +164,16 @@ class FiniteStrain(Elasticity):
             out = max(out, float(np.abs(F - np.eye(F.shape[-1])).max(initial=0.0)))
         return out
 
-    def tangent(self, U: np.ndarray) -> sp.csr_matrix | RowBlock:
-        """K(U) (n, n); on the ranks of a distributed backend (M and S by rows) this rank's rows of it, a
+    def tangent(self, U: np.ndarray, project: bool = False) -> sp.csr_matrix | RowBlock:
+        """K(U) (n, n), or with ``project`` its convexified form: each hyperelastic cell's tangent with its negative
+        eigenvalues set to 0 (:func:`~signorini.fem.hyperelastic.tangent_stiffness`); on the ranks of a distributed
+        backend (M and S by rows) this rank's rows of it, a
         :class:`~signorini.linalg.row_block.RowBlock`, assembled from the cells that touch its own nodes
         (:meth:`_rank_groups`)."""
         self.tangents += 1
         groups = self._rank_groups()
-        mats = [tangent_stiffness(self.mesh, law, U, cells) for law, cells in groups if cells is None or cells.size]
+        mats = [tangent_stiffness(self.mesh, law, U, cells, project) for law, cells in groups
+                if cells is None or cells.size]  # fmt: skip
         if self.S_linear is not None:
             mats.append(self.S_linear)
         n = self.mesh.n_nodes * self.mesh.dim
@@ -240,8 +245,16 @@ class FiniteStrain(Elasticity):
         return {"cauchy_stress": sig, "green_lagrange": E, "strain_energy_density": W}
 
     def counters(self) -> dict[str, int]:
-        """``tangent_factorizations`` and ``line_search_steps`` of the run (summary.json ``counters``)."""
-        return {"tangent_factorizations": self.factorizations, "line_search_steps": self.line_search_steps}
+        """The run's counts (summary.json ``counters``): ``tangent_factorizations``, ``line_search_backtracks`` (the
+        halvings of the line searches; ``line_search_steps``, its earlier name, kept) and ``tangent_corrections`` (the
+        tangents made positive semi-definite per cell because the plain one could not be factorized or did not give
+        a descent direction)."""
+        return {
+            "tangent_factorizations": self.factorizations,
+            "line_search_steps": self.line_search_steps,
+            "line_search_backtracks": self.line_search_steps,
+            "tangent_corrections": self.tangent_corrections,
+        }
 
 
 def elasticity(ctx: Context) -> Elasticity:

@@ -19,10 +19,15 @@ measures the distance to the step's solution.  With rows of the current configur
 (:mod:`~.current_rows`) B in r is that of the iterate itself, B(U^{k+1}), and the tangent gains the derivative
 of B(U)^T lambda at fixed lambda (the rows' own turning, ``geometric_stiffness``), so that Newton converges
 quadratically where the normals turn under the force; the iterations stop when |r|_inf <= ``newton_tol`` times
-the largest of the step's forces plus the round-off of its own terms (:func:`residual_norm`).  When a
-full step does not reduce |r| (far from the solution), the step is halved along the segment from U^k
-(a line search, at most :data:`LINE_SEARCH_HALVINGS` times; only a full step, which solved the contact
-problem, may end the iterations).
+the largest of the step's forces plus the round-off of its own terms (:func:`residual_norm`).  The unknown is
+the step's increment X = U - U^n, so that the residual's precision is that of the forces at any step size.
+
+Globalization (``../shared`` spec section 15, issue 51): a full step that does not lower |r| is searched along
+its direction, by Armijo backtracking on the step's incremental potential Pi (:class:`_Potential`; the schemes
+whose step minimizes one pass the stored energy W, ``energy``) or, for energy-momentum, by halving on |r|; a
+trial that inverts a cell is halved.  A tangent that cannot be factorized, or has a negative curvature along a
+direction that did not lower |r|, is rebuilt with each cell's matrix positive semi-definite, then shifted
+(:class:`_Factor`).  Only a full step, which solved the contact problem, may end the iterations.
 
 ``tangent=modified`` keeps G of the step's first iterate while |r| falls fast enough to reach the tolerance in a
 few more iterations (:func:`_renew`) and refactorizes at the iterate where it does not (a step that starts near
@@ -49,6 +54,7 @@ import scipy.sparse as sp
 
 from ..contact.solver import ContactLaw, StepInfo
 from ..errors import ConvergenceError, InputError
+from ..fem.hyperelastic import InvertedCellError
 from ..linalg.row_block import RowBlock
 from .context import Operator, Tangent
 
@@ -76,20 +82,21 @@ STALLED = 0.9
 KEPT_CONTRACTION = 0.5
 
 
-def residual_norm(ctx: Context, op: Operator, base: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
+def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
                   lam: np.ndarray, lam_t: np.ndarray | None, inertia: np.ndarray | None = None,
                   contact_force: Callable | None = None) -> tuple[float, float, float]:  # fmt: skip
     """(|r|_inf, scale, floor) of the step's force residual on the free dofs [force], in increments:
 
-        r = c_M M (U - U_base) + c_S g(U) - rest - B^T lambda - T^T lambda_t,   rest = rhs - c_M M U_base,
+        r = c_M M X + c_S g(U) - rest - B^T lambda - T^T lambda_t,   X = U - U_base,   rest = rhs - c_M M U_base,
 
-    so that its precision is that of the step's forces, not of the displacement (a body that has travelled
-    far).  The scale is the largest of the step's forces: the inertia c_M M (U - U_base) - M q (``inertia``:
-    the inertial part M q of ``rest``; 0 when None), the internal force, the loads and the contact force;
-    ``floor`` the round-off of r's largest terms (:data:`ROUNDOFF` of them).  ``contact_force(U, lam, lam_t)``:
-    the contact force through the rows of U itself (rows of the current configuration); else B^T lambda +
-    T^T lambda_t through the rows of the last solve."""
-    MdU = _mass_part(ctx, op, U - base)
+    with the increment X kept as the unknown itself (not formed as U - U_base), so that the residual's precision is
+    that of the step's forces, not of the displacement (a body that has travelled far: at a step of 1e-7 s, c_M M
+    times one ulp of |U| is above newton_tol, measured on a spinning puck).  The scale is the largest of the
+    step's forces: the inertia c_M M X - M q (``inertia``: the inertial part M q of ``rest``; 0 when None), the
+    internal force, the loads and the contact force; ``floor`` the round-off of r's largest terms
+    (:data:`ROUNDOFF` of them).  ``contact_force(U, lam, lam_t)``: the contact force through the rows of U itself
+    (rows of the current configuration); else B^T lambda + T^T lambda_t through the rows of the last solve."""
+    MdU = _mass_part(ctx, op, X)
     contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
     r = MdU + op.stiffness * gU - rest - contact
     f = ctx.free
@@ -126,39 +133,84 @@ def _shifted(law: ContactLaw, ctx: Context, U: np.ndarray) -> ContactLaw:
     return replace(law, reference=law.reference - (ctx.T @ U).reshape(law.reference.shape))
 
 
+def start_increment(ctx: Context, base: np.ndarray, fixed: np.ndarray | None) -> np.ndarray:
+    """The first iterate X^0 of the increment (n,): 0 (the level itself), the prescribed increment on the Dirichlet
+    dofs, so that no iterate, full or partial, moves them off their values.  (A Taylor predictor dt V + dt^2/2 A was
+    measured and left out: 5.5 against 5.9 iterations per step on a spinning puck, but on a block turning a quarter
+    turn in 6 steps it led the iterates into an inverted cell, docs/finite_strain.md.)"""
+    X = np.zeros_like(base)
+    if fixed is not None:
+        X[ctx.fixed] = fixed - base[ctx.fixed]
+    return X
+
+
+class _Potential:
+    """phi(a) = Pi(X + a d) - Pi(X) of a minimizing step (module docstring) along one direction d [energy]:
+
+        Pi(X) = 1/2 X.(c_M M + c C) X + c_S W(U_base + X) - rest.X,
+
+    the mass part from the products M X and M d (exact in the increment), W the stored energy (``energy``)."""
+
+    def __init__(self, ctx: Context, op: Operator, energy: Callable, base: np.ndarray, X: np.ndarray,
+                 d: np.ndarray, rest: np.ndarray, gU: np.ndarray):  # fmt: skip
+        self.energy, self.base, self.X, self.d, self.c = energy, base, X, d, op.stiffness
+        Md = _mass_part(ctx, op, d)
+        self.linear = float(d @ _mass_part(ctx, op, X)) - float(rest @ d)  # the slope's part outside W
+        self.quadratic = 0.5 * float(d @ Md)
+        #: grad Pi . d, the slope at a = 0 (negative for a descent direction)
+        self.slope = self.linear + self.c * float(gU @ d)
+        self.W0 = energy(base + X)
+
+    def __call__(self, a: float) -> tuple[float, float]:
+        """(phi(a), its round-off) [energy]; +inf where a cell inverts."""
+        try:
+            Wa = self.energy(self.base + self.X + a * self.d)
+        except InvertedCellError:
+            return np.inf, 0.0
+        value = a * self.linear + a * a * self.quadratic + self.c * (Wa - self.W0)
+        noise = ROUNDOFF * (self.c * (abs(Wa) + abs(self.W0)) + abs(a * self.linear) + a * a * abs(self.quadratic))
+        return value, noise
+
+
 def newton_solve(
     ctx: Context,
     op: Operator,
     base: np.ndarray,
     rest: np.ndarray,
     force: Callable[[np.ndarray], np.ndarray],
-    tangent: Callable[[np.ndarray], object],
+    tangent: Callable[..., object],
     bound: np.ndarray | Callable[[np.ndarray], np.ndarray],
     fixed: np.ndarray | None,
     law: ContactLaw,
     inertia: np.ndarray | None = None,
+    *,
+    energy: Callable[[np.ndarray], float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
     """Solve the nonlinear step of the module docstring, whose right-hand side is c_M M U_base + ``rest``, from
-    the iterate ``base`` = U_base (n,: the level the step starts from).
+    the level ``base`` = U_base (n,).
 
-    Each iteration solves for the increment d = U^{k+1} - U^k, (c_M M + c_S G_k) d = -r(U^k) + B^T lambda with
-    B d <= bound - B U^k (the same contact problem; lambda the whole multiplier), so that the iterates keep
-    the precision of the step's forces (:func:`residual_norm`).  ``op``: the step's linear operator (its
-    coefficients c_M, c_S; its S is replaced by each tangent); ``force(U)`` g(U) (n,) and ``tangent(U)``
-    dg/dU (sparse, n x n).  ``bound``: the gaps, or (contact in the current configuration,
-    :class:`~.current_rows.FollowingBound`) a function that moves the rows to the iterate and returns their
-    bound; then the iterations also wait for the linearized gaps to be the true ones (to ``GAP_TOLERANCE``
-    touch tolerances, or their round-off).  ``inertia``: the inertial part M q of ``rest``.  Returns U (n,),
-    lambda (nc,) and the last contact solve's info with ``nonlinear_iterations`` (the Newton iterations) set."""
+    The unknown is the increment X = U - U_base (:func:`residual_norm`), started at 0 (:func:`start_increment`).
+    Each iteration solves for the direction d, (c_M M + c_S G_k) d = -r(U^k) + B^T lambda with
+    B d <= bound - B U^k (the same contact problem; lambda the whole multiplier).  ``op``: the step's
+    linear operator (its coefficients c_M, c_S; its S is replaced by each tangent); ``force(U)`` g(U) (n,)
+    and ``tangent(U, project=False)`` dg/dU (sparse, n x n; ``project``: each cell's tangent made positive
+    semi-definite).  ``energy(U)``: the stored energy W whose gradient g is (a step that minimizes Pi,
+    :class:`_Potential`: Armijo backtracking on Pi), or None (energy-momentum: backtracking on |r|).  ``bound``:
+    the gaps, or (contact in the current configuration, :class:`~.current_rows.FollowingBound`) a function that
+    moves the rows to the iterate and returns their bound; then the iterations also wait for the linearized
+    gaps to be the true ones (to ``GAP_TOLERANCE`` touch tolerances, or their round-off).  ``inertia``: the
+    inertial part M q of ``rest``.  Returns U (n,), lambda (nc,) and the last contact solve's info with
+    ``nonlinear_iterations`` (the Newton iterations) set."""
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
     modified = opts.get("tangent", "modified") == "modified"
-    U = np.array(base, dtype=float, copy=True)
+    elastic = ctx.elastic
+    agree = ctx.comm.bcast  # every branch below on rank 0's values (module docstring: several ranks)
+    X = start_increment(ctx, base, fixed)
+    U = base + X
     gU = force(U)
     lam = lam_t = None
     previous = np.inf
-    current: Operator | None = None
-    elastic = ctx.elastic
     norm = scale = allowed = np.nan
     full = True
     D = ctx.fixed
@@ -166,76 +218,94 @@ def newton_solve(
     through = bound.contact_force if callable(bound) else None
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
-    agree = ctx.comm.bcast  # every branch below on rank 0's values (module docstring: several ranks)
-    reference = modified and agree(bool(elastic.displacement_gradient(U) <= REFERENCE_GRADIENT))
-    owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's operator
+    reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
+    # |r| at the first iterate (no contact force yet): a first step that does not lower it is searched too
+    norm0 = agree(residual_norm(ctx, op, X, rest, gU, U, np.zeros(ctx.B.shape[0]), None, inertia, through)[0])
+    factor = _Factor(ctx, op, tangent, bound, elastic)
+    levels = [0.0]  # Pi of the iterates, relative to the first (the non-monotone search's reference)
+    keep = False  # the operator was just corrected at this iterate: no renewal before its direction
     try:
         for k in range(1, most + 1):
-            refactor = current is None or not modified or not full or _renew(norm, previous, allowed)
-            if refactor:
-                if owned:
-                    ctx.factors.release(current)
-                if k == 1 and reference:
-                    current, owned = op, False
-                else:
-                    G = tangent(U)
-                    Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
-                    if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
-                        G = _plus(G, Kc / op.stiffness)
-                    current, owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
-                    elastic.factorizations += 1
+            if keep:  # corrected at this iterate already (a fresh operator)
+                refactor, keep = True, False
+            else:
+                refactor = factor.current is None or not modified or not full or _renew(norm, previous, allowed)
+                if refactor:
+                    factor.renew(U, lam, use_reference=k == 1 and reference)
             bnd = bound(U) if callable(bound) else bound
             # the slip measured in the frames of the rows just moved to U; the rows that face nothing left out
-            law_k = bound.law(law) if callable(bound) else law
-            minus_r = rest - _mass_part(ctx, op, U - base) - op.stiffness * gU
-            try:
-                d, lam_new, info = ctx.solve(current, minus_r, bnd - ctx.B @ U, None if fixed is None else fixed - U[D],
-                                             _shifted(law_k, ctx, U))  # fmt: skip
-            except InputError as exc:  # the tangent itself cannot be factorized: not the set-up's input
-                raise ConvergenceError(
-                    f"the tangent of Newton iterate {k} cannot be factorized: it is not positive definite (an "
-                    "unstable state: buckling, or a material driven beyond its stability); reduce the step"
-                ) from exc
-            U_new = U + d
-            g_new = force(U_new)
-            n_new, scale, floor = agree(
-                residual_norm(ctx, op, base, rest, g_new, U_new, lam_new, info.lam_t, inertia, through)
-            )
+            law_k = _shifted(bound.law(law) if callable(bound) else law, ctx, U)
+            minus_r = rest - _mass_part(ctx, op, X) - op.stiffness * gU
+            slack = bnd - ctx.B @ U
+            feasible = energy is not None and agree(bool(np.all(slack >= -ctx.touch_tolerance)))
+            fixed_d = None if fixed is None else np.zeros(D.size)
+            d, lam_new, info, renewed = factor.direction(k, minus_r, slack, fixed_d, law_k, U, lam)
+            fresh = refactor or renewed
+            phi = _Potential(ctx, op, energy, base, X, d, rest, gU) if feasible else None
+            lam0 = np.zeros_like(lam_new) if lam is None else lam
+            lt0 = None if info.lam_t is None else (np.zeros_like(info.lam_t) if lam_t is None else lam_t)
+            lt1 = info.lam_t
+
+            def at(a: float, d=d, lam0=lam0, lam1=lam_new, lt0=lt0, lt1=lt1, X=X):
+                """(X, U, g, lambda, lambda_t, |r|, scale, floor) a along d, or None where a cell inverts."""
+                Xa = X + d if a == 1.0 else X + a * d
+                Ua = base + Xa
+                try:
+                    ga = force(Ua)
+                except InvertedCellError:
+                    return None
+                la = lam1 if a == 1.0 else lam0 + a * (lam1 - lam0)
+                lta = lt1 if a == 1.0 or lt0 is None else lt0 + a * (lt1 - lt0)
+                norms = agree(residual_norm(ctx, op, Xa, rest, ga, Ua, la, lta, inertia, through))
+                return (Xa, Ua, ga, la, lta, *norms)
+
+            a, trial = 1.0, at(1.0)
+            while trial is None:  # the full step inverts a cell: back along d until none is
+                if a < 0.5**BACKTRACKS:
+                    force(base + X + a * d)  # raises the inverted cell's error, naming it
+                a *= 0.5
+                elastic.line_search_steps += 1
+                trial = at(a)
+            n_new, scale, floor = trial[5:]
             allowed = tol * scale + floor
-            if lam is not None and refactor and n_new > allowed and n_new > STALLED * norm:
+            if lam is not None and fresh and n_new > allowed and n_new > STALLED * norm:
                 # no longer falling: at the internal force's own round-off (a body far from its reference place)
                 # the iterate is converged as far as the force can tell
-                noise = agree(op.stiffness * elastic.force_noise(U_new))
+                noise = agree(op.stiffness * elastic.force_noise(trial[1]))
                 if n_new <= noise:
                     allowed = n_new
-            if lam is not None and not refactor and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
+            if lam is not None and not fresh and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
                 continue
-            if lam is not None and not n_new < norm and n_new > allowed:  # no decrease: halve the step
-                for _ in range(LINE_SEARCH_HALVINGS):
-                    U_try = U + 0.5 * (U_new - U)
-                    lam_try = 0.5 * (lam + lam_new)
-                    lt_try = None if info.lam_t is None else 0.5 * (lam_t + info.lam_t)
-                    g_try = force(U_try)
-                    r_try = residual_norm(ctx, op, base, rest, g_try, U_try, lam_try, lt_try, inertia, through)
-                    n_try = agree(r_try[0])
-                    elastic.line_search_steps += 1
-                    U_new, lam_new, g_new, n_new = U_try, lam_try, g_try, n_try
-                    info.lam_t = lt_try
-                    if n_try < norm:
-                        break
-                full = False
-            else:
-                full = True
+            if n_new > allowed and not n_new < (norm if lam is not None else norm0):  # |r| does not fall: search
+                if phi is not None and factor.owned and not agree(factor.convex_along(d)):
+                    # a tangent with a negative curvature along d (an indefinite cell): corrected at U, and the
+                    # direction taken again
+                    factor.correct(k, "has a negative curvature along its Newton direction", U, lam)
+                    keep, full = True, True
+                    continue
+                if phi is not None:
+                    b = _armijo(phi, elastic, a, max(levels[-NONMONOTONE:]) - levels[-1])
+                elif lam is not None:  # energy-momentum: halvings on |r|
+                    b = _halvings(lambda b: np.inf if (x := at(b)) is None else x[5], norm, elastic, a)
+                else:
+                    b = a
+                if b < a:
+                    shorter = at(b)
+                    if shorter is not None:
+                        a, trial = b, shorter
+            full = a == 1.0
+            if phi is not None:  # Pi of the new iterate, relative to the step's first one
+                levels.append(levels[-1] + phi(a)[0])
+            X_new, U_new, g_new, lam_new, info.lam_t, n_new = trial[:6]
             previous, norm = norm, n_new
-            U, lam, lam_t, gU = U_new, lam_new, info.lam_t, g_new
+            X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
             if full and norm <= allowed and gaps_ok:
                 info.nonlinear_iterations = k
                 return U, lam, info
     finally:
-        if owned:
-            ctx.factors.release(current)
+        factor.release()
     if norm <= allowed:  # the forces balance; the rows of the current configuration did not settle
         raise ConvergenceError(
             f"Newton's method did not converge in {most} iterations: the forces balance (residual {norm / scale:.3g} "
@@ -243,10 +313,153 @@ def newton_solve(
             "(their linearized gaps are not the true ones: a node alternating between facets, or a large rotation "
             "within the step); reduce the step, or raise newton_max"
         )
+    rate = norm / previous if np.isfinite(previous) and previous > 0 else np.nan
     raise ConvergenceError(
         f"Newton's method did not converge in {most} iterations (force residual {norm:.3g}, {norm / scale:.3g} of "
-        f"its scale against newton_tol = {tol:g}); reduce the step, or raise newton_max"
+        f"its scale against newton_tol = {tol:g}, falling by a factor {rate:.3g} in the last iteration); "
+        + _remedy(ctx, rate)
     )
+
+
+def _remedy(ctx: Context, rate: float) -> str:
+    """What to change after a step that did not converge: the cause the residual's last rate points to."""
+    free_massless = np.setdiff1d(ctx.massless, ctx.fixed).size
+    n_free = ctx.free.size
+    if np.isfinite(rate) and rate > STALLED:
+        why = "the residual stalled (not a slow convergence: more iterations will not help)"
+        if free_massless and free_massless > n_free // 2:
+            return (f"{why}; the mass {ctx.disc.mass_name!r} leaves {free_massless} of {n_free} free dofs without "
+                    "inertia: use mass 'lumped' or 'standard', or refine the mesh under the contact skin")  # fmt: skip
+        return f"{why}; raise newton_tol to the residual's level, or reduce the step"
+    return "the residual was still falling: raise newton_max, or reduce the step"
+
+
+#: Armijo's sufficient decrease phi(a) <= c a phi'(0)
+ARMIJO = 1e-4
+#: the most halvings of a line search
+BACKTRACKS = 12
+#: the line search's reference is the largest Pi of the last NONMONOTONE iterates (Grippo, Lampariello and Lucidi
+#: 1986): a full Newton step may raise Pi above the last iterate's on its way to a minimum (a large rotation)
+NONMONOTONE = 4
+
+
+def _armijo(phi: _Potential, elastic, a: float = 1.0, allowance: float = 0.0) -> float:
+    """The step length a of a backtracking line search on the potential: the first of a, a/2, a/4, ... with
+    phi(a) <= ARMIJO a phi'(0) (or, when the decrease is below the potential's round-off, the first that does not
+    raise it beyond that round-off); 1 when d is not a descent direction (the caller corrects the tangent)."""
+    if not phi.slope < 0.0:
+        return a
+    for _ in range(BACKTRACKS):
+        value, noise = phi(a)
+        if value <= allowance + ARMIJO * a * phi.slope or (abs(a * phi.slope) <= noise and value <= noise):
+            return a
+        a *= 0.5
+        elastic.line_search_steps += 1
+    return a
+
+
+def _halvings(norm_at: Callable[[float], float], norm: float, elastic, a: float = 1.0) -> float:
+    """The step length of at most :data:`LINE_SEARCH_HALVINGS` halvings of ``a`` that lowers |r| below ``norm`` (a
+    step that does not minimize a potential: energy-momentum)."""
+    for _ in range(LINE_SEARCH_HALVINGS):
+        a *= 0.5
+        elastic.line_search_steps += 1
+        if norm_at(a) < norm:
+            break
+    return a
+
+
+class _Factor:
+    """The operator of a step's Newton directions: the scheme's own (reference) operator, a kept tangent or a fresh
+    one; corrected (each cell's tangent positive semi-definite, then a diagonal shift) when it cannot be factorized
+    or gives a direction that does not lower the potential."""
+
+    #: shifts tau of the corrected tangent's diagonal shift tau diag(S) (S the reference stiffness)
+    SHIFTS = (1e-3, 1e-1, 1e1)
+
+    def __init__(self, ctx: Context, op: Operator, tangent: Callable, bound, elastic):
+        self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
+        self.current: Operator | None = None
+        self.owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's
+        self.corrected = False  # the step's tangents are projected from now on
+        self.shift = 0
+
+    def renew(self, U: np.ndarray, lam: np.ndarray | None, use_reference: bool = False,
+              corrected: bool = False) -> None:  # fmt: skip
+        """A new operator at U (the reference one when ``use_reference``); ``corrected``: the corrected tangent
+        (else the plain one: a correction holds for the operator it was made for, so that Newton converges
+        quadratically again where the tangent is definite)."""
+        self.release()
+        if not corrected:
+            self.corrected, self.shift = False, 0
+        if use_reference:
+            self.current, self.owned = self.op, False
+            return
+        G = self.tangent(U, project=True) if self.corrected else self.tangent(U)
+        if self.corrected:
+            self.elastic.tangent_corrections += 1
+        bound = self.bound
+        Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
+        if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
+            G = _plus(G, Kc / self.op.stiffness)
+        if self.shift:
+            G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(_diagonal(self.ctx.S)))
+        op = self.op
+        self.current, self.owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
+        self.elastic.factorizations += 1
+
+    def release(self) -> None:
+        if self.owned:
+            self.ctx.factors.release(self.current)
+        self.current, self.owned = None, False
+
+    def correct(self, k: int, why: str, U: np.ndarray, lam: np.ndarray | None) -> None:
+        """Renew the operator at U, corrected one degree further (projection, then shifts)."""
+        if not self.corrected:
+            self.corrected = True
+        elif self.shift < len(self.SHIFTS):
+            self.shift += 1
+        else:
+            raise ConvergenceError(
+                f"the tangent of Newton iterate {k} {why}, even with each cell's tangent made positive "
+                "semi-definite and a diagonal shift (an unstable state: buckling, or a material driven beyond its "
+                "stability); reduce the step"
+            )
+        self.renew(U, lam, corrected=True)
+
+    def convex_along(self, d: np.ndarray) -> bool:
+        """Whether d.H d > 0 for the operator H = c_M M + c C + c_S G (d = 0 counts as convex), G the tangent of
+        :attr:`current` (a distributed tangent by rows is not checked: its factorization fails when it is
+        indefinite, a Cholesky one)."""
+        G = None if self.current.tangent is None else self.current.tangent.matrix
+        if G is None or isinstance(G, RowBlock) or not np.any(d):
+            return True
+        curvature = float(d @ _mass_part(self.ctx, self.op, d)) + self.op.stiffness * float(d @ (G @ d))
+        return curvature > 0.0
+
+    def direction(self, k: int, minus_r: np.ndarray, slack: np.ndarray, fixed_d: np.ndarray | None,
+                  law: ContactLaw, U: np.ndarray, lam: np.ndarray | None):  # fmt: skip
+        """(d, lambda, info, renewed): the Newton direction d (n,), the whole multiplier and the solve's info, the
+        operator corrected (renewed at U) until it factorizes."""
+        renewed = False
+        while True:
+            try:
+                d, lam_new, info = self.ctx.solve(self.current, minus_r, slack, fixed_d, law)
+            except (InputError, np.linalg.LinAlgError, ArithmeticError):  # the tangent (or its Delassus operator)
+                # cannot be factorized: not the set-up's input
+                if not self.owned:
+                    raise
+                self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
+                renewed = True
+                continue
+            return d, lam_new, info, renewed
+
+
+def _diagonal(S) -> np.ndarray:
+    """The diagonal of S (n,); S by rows (a distributed backend): the whole diagonal, gathered."""
+    if isinstance(S, RowBlock):
+        return np.concatenate(S.comm.gather(S.local[:, S.lo : S.hi].diagonal()))
+    return S.diagonal()
 
 
 def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:

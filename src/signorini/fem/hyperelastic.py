@@ -360,11 +360,13 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
 
 
 def tangent_stiffness(
-    mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
+    mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None, project: bool = False
 ) -> sp.csr_matrix:
     """K(U) = df/dU (n_nodes d)^2, symmetric: K_ai,bj = int dN_a/dX_J A_iJjL dN_b/dX_L dX with A = dP/dF the
     law's :class:`TangentTerms` (the material part F CC F plus the geometric delta_ij S), contracted per block of
-    cells by :func:`_element_tangents` [force / length]."""
+    cells by :func:`_element_tangents` [force / length].  ``project``: each cell's matrix K_e (nv d x nv d) made
+    positive semi-definite, V max(Lambda, 0) V^T from its eigen-decomposition K_e = V Lambda V^T
+    (:func:`project_psd`; Teran et al. 2005), so that the assembled K is too."""
     mats = []
     for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
@@ -378,8 +380,26 @@ def tangent_stiffness(
             one = slice(0, 1) if G.shape[0] == 1 else slice(lo, hi)
             terms = part_law.take(lo, hi).tangent_terms(F[lo:hi])
             _element_tangents(terms, wdet[one], G[one], K[lo:hi])
+            if project:
+                project_psd(K[lo:hi])
         mats.append(assemble_vector(part, K.transpose(0, 3, 4, 1, 2)))
     return sum_of(mats) if len(mats) > 1 else mats[0]
+
+
+def project_psd(K: np.ndarray) -> int:
+    """Make each cell's tangent positive semi-definite, in place: K (e, d, d, nv, nv) as the (nv d)-square matrix
+    of each cell, its eigenvalues below 0 set to 0 (the nearest PSD matrix in the Frobenius norm).  Only the cells
+    with an eigenvalue below -1e-12 of their largest are rewritten; returns their number."""
+    e, d, _, nv, _ = K.shape
+    A = K.transpose(0, 3, 1, 4, 2).reshape(e, nv * d, nv * d)  # rows (a, i), columns (b, j)
+    A = 0.5 * (A + np.swapaxes(A, 1, 2))
+    w, V = np.linalg.eigh(A)
+    bad = w[:, 0] < -1e-12 * np.abs(w).max(axis=1)
+    if bad.any():
+        Vb = V[bad]
+        fixed = np.matmul(Vb * np.maximum(w[bad], 0.0)[:, None, :], np.swapaxes(Vb, 1, 2))
+        K[bad] = fixed.reshape(-1, nv, d, nv, d).transpose(0, 2, 4, 1, 3)
+    return int(bad.sum())
 
 
 def _shared_geometry(mesh: Mesh, wdet: np.ndarray, G: np.ndarray) -> bool:

@@ -121,8 +121,8 @@ class EnergyMomentum(Scheme):
             def force(U):  # g with 1/2 g = f_alg on rows m, 1/2 f on rows l
                 return np.where(ml, el.force(U), 2.0 * el.algorithmic_force(U0, U))
 
-            def tangent(U):
-                return el.tangent(0.5 * (U0 + U))
+            def tangent(U, project=False):
+                return el.tangent(0.5 * (U0 + U), project)
 
             bound = contact_bound(ctx, s.U, s.t, t)
             U, mu, info = newton_solve(ctx, op, s.U, Mq + Fw, force, tangent, bound, fixed, law, Mq)

@@ -138,7 +138,8 @@ class Newmark(Scheme):
             rest = rest - ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
         el = ctx.elastic
         return newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent,
-                            contact_bound(ctx, s.U, s.t, t), fixed, law, Mq)  # fmt: skip
+                            contact_bound(ctx, s.U, s.t, t), fixed, law, Mq,
+                            energy=el.energy)  # fmt: skip
 
     def increment_predictor(self, ctx, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """q = p - U^n/(beta dt^2) = V/(beta dt) + (1/(2 beta) - 1) A, without the cancellation of p's U^n

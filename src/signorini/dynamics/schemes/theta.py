@@ -90,7 +90,7 @@ class Theta(Scheme):
             if ctx.damping is not None:  # and C q less C U^n / (theta dt)
                 rest += ctx.damping.force(ctx, (1 - th) / th * Vd0)
             U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), s.U, rest, el.force, el.tangent, bound, fixed,
-                                        law, Mq)  # fmt: skip
+                                        law, Mq, energy=el.energy)  # fmt: skip
         else:
             p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
             rhs = ctx.Mop @ p + ctx.load(t)

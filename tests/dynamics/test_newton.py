@@ -1,0 +1,123 @@
+"""The finite-strain step's Newton (``dynamics/newton.py``): the increment as the unknown, the tangent's correction
+per cell, the line search on the step's potential (issue 51)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import signorini.dynamics.newton as newton
+from signorini.contact.obstacles import PlaneObstacle
+from signorini.dynamics.problem import Problem
+from signorini.dynamics.simulate import simulate
+from signorini.fem.hyperelastic import project_psd
+from signorini.fem.material import NeoHookean
+from signorini.fem.mesh import box, read_mesh
+
+CYLINDER = Path(__file__).resolve().parents[2] / "examples" / "meshes" / "cylinder.msh"
+
+
+def far_cylinder() -> Problem:
+    """The examples' gmsh cylinder (365 nodes, 274 on its tagged skin: 822 of 1,095 dofs massless with the
+    default mass), rubber, spinning at 20 rad/s and falling at 1 m/s, 1 m from its reference place."""
+    m = read_mesh(CYLINDER)
+    c, w = m.points.mean(axis=0), np.array([0.0, 0.0, 20.0])
+    return Problem(m, NeoHookean.from_young(5e6, 0.45, 1100.0), "skin", PlaneObstacle([0, 0, -0.02], [0.2, 0, 1.0]),
+                   v0=lambda x: np.cross(w, x - c) + [0.0, 0.0, -1.0], u0=np.array([1.0, 0.0, 0.0]))  # fmt: skip
+
+
+@pytest.mark.parametrize("dt", [1e-5, 1e-7])
+def test_a_part_far_from_its_place_converges_at_small_steps(dt):
+    """The increment is Newton's unknown: a part 1 m from its reference place, most of its nodes massless, at
+    steps of 1e-5 and 1e-7 s (the steps the energy control takes to locate an event).  With U itself as the
+    unknown, c_M M times one ulp of |U| (1e-16 m) was above newton_tol: both failed at step 1 with a residual
+    of the size of its scale (measured before the change); now 1-5 iterations per step."""
+    H = simulate(far_cylinder(), "crank-nicolson", dt, 5 * dt)
+    assert H.status == "finished", H.summary().get("message")
+    assert H.nonlinear_iterations[1:].max() <= 6
+
+
+def test_project_psd_clamps_the_negative_eigenvalues_of_each_cell_only():
+    """Each cell's (nv d)-square tangent: an indefinite one becomes its PSD part V max(L, 0) V^T (the nearest PSD
+    matrix), a PSD one is left bit for bit."""
+    rng = np.random.default_rng(3)
+    e, d, nv = 5, 3, 4
+    A = rng.standard_normal((e, nv * d, nv * d))
+    A = A @ np.swapaxes(A, 1, 2)  # PSD
+    A[1] -= 2.0 * np.eye(nv * d) * np.linalg.eigvalsh(A[1])[2]  # indefinite: three eigenvalues below 0
+    A[3] = -A[3]  # negative definite
+    K = A.reshape(e, nv, d, nv, d).transpose(0, 2, 4, 1, 3).copy()
+    before = K.copy()
+    assert project_psd(K) == 2
+    B = K.transpose(0, 3, 1, 4, 2).reshape(e, nv * d, nv * d)
+    for c in range(e):
+        w = np.linalg.eigvalsh(B[c])
+        assert w.min() >= -1e-12 * np.abs(w).max()
+        if c in (1, 3):
+            w0, V0 = np.linalg.eigh(A[c])
+            assert np.allclose(B[c], (V0 * np.maximum(w0, 0.0)) @ V0.T, atol=1e-12 * np.abs(w0).max())
+        else:
+            assert np.array_equal(K[c], before[c])
+    assert np.abs(B[3]).max() <= 1e-12 * np.abs(A[3]).max()
+
+
+def spinning_block(E: float = 1e3) -> Problem:
+    """A soft Neo-Hookean block 1 x 0.5 x 0.5 spinning at 5 rad/s about a skew axis, far above its floor."""
+    mesh, c = box(2, 2, 2, 1.0, 0.5, 0.5), np.array([0.5, 0.25, 0.25])
+    w = 5.0 * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    return Problem(mesh, NeoHookean.from_young(E, 0.3, 1.0), "zmin", PlaneObstacle([0, 0, -50.0], [0, 0, 1.0]),
+                   v0=lambda x: np.cross(w, x - c) + [0.3, 0.0, 0.0])  # fmt: skip
+
+
+def test_the_line_search_on_the_potential_carries_a_step_of_a_third_of_a_turn(monkeypatch):
+    """Backward Euler, dt = 0.4 (2 rad per step), the full tangent: the full Newton steps raise the step's
+    potential and |r| alike; backtracking on Pi (Armijo, non-monotone over 4 iterates) converges, while full
+    steps only (the search removed) do not in 25 iterations (measured: residual 1e-2 of its scale)."""
+
+    def run():
+        return simulate(spinning_block(), "backward-euler", 0.4, 0.8, mass="standard",
+                        solver_options={"tangent": "full"})  # fmt: skip
+
+    H = run()
+    assert H.status == "finished", H.summary().get("message")
+    assert H.counters["line_search_backtracks"] > 0
+    assert H.counters["line_search_backtracks"] == H.counters["line_search_steps"]
+    monkeypatch.setattr(newton, "_armijo", lambda phi, elastic, a=1.0, allowance=0.0: a)
+    assert run().status == "failed"
+
+
+def test_an_indefinite_tangent_is_corrected_where_the_factorization_fails(monkeypatch):
+    """A tangent that a Cholesky factorization refuses (here: every plain tangent, made indefinite by hand) is
+    replaced by the per-cell PSD one, counted in ``tangent_corrections``; without the correction the step
+    fails naming the tangent that cannot be factorized."""
+    from signorini.dynamics.elasticity import FiniteStrain
+
+    pytest.importorskip("cvxopt", reason="the cholmod backend (a Cholesky factorization) needs cvxopt")
+    original = FiniteStrain.tangent
+
+    def indefinite(self, U, project=False):
+        K = original(self, U, project)
+        return K if project else K - 10.0 * abs(K).max() * _identity(K.shape[0])
+
+    monkeypatch.setattr(FiniteStrain, "tangent", indefinite)
+    options = {"tangent": "full", "backend": "cholmod"}
+    H = simulate(spinning_block(), "backward-euler", 0.05, 0.2, mass="standard", solver_options=options)
+    assert H.status == "finished", H.summary().get("message")
+    assert H.counters["tangent_corrections"] >= H.steps
+    monkeypatch.setattr(newton._Factor, "correct", _refuse)
+    H = simulate(spinning_block(), "backward-euler", 0.05, 0.2, mass="standard", solver_options=options)
+    assert H.status == "failed" and "cannot be factorized" in H.summary()["message"]
+
+
+def _identity(n: int):
+    import scipy.sparse as sp
+
+    return sp.identity(n, format="csr")
+
+
+def _refuse(self, k, why, U, lam):
+    from signorini.errors import ConvergenceError
+
+    raise ConvergenceError(f"the tangent of Newton iterate {k} {why}")
