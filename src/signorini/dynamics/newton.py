@@ -285,7 +285,7 @@ def newton_solve(
                     keep, full = True, True
                     continue
                 if phi is not None:
-                    b = _armijo(phi, elastic, a, max(levels[-NONMONOTONE:]) - levels[-1])
+                    b = _armijo(phi, elastic, a, max(levels[-NONMONOTONE:]) - levels[-1], agree)
                 elif lam is not None:  # energy-momentum: halvings on |r|
                     b = _halvings(lambda b: np.inf if (x := at(b)) is None else x[5], norm, elastic, a)
                 else:
@@ -343,15 +343,15 @@ BACKTRACKS = 12
 NONMONOTONE = 4
 
 
-def _armijo(phi: _Potential, elastic, a: float = 1.0, allowance: float = 0.0) -> float:
+def _armijo(phi: _Potential, elastic, a: float = 1.0, allowance: float = 0.0, agree: Callable = lambda x: x) -> float:
     """The step length a of a backtracking line search on the potential: the first of a, a/2, a/4, ... with
     phi(a) <= ARMIJO a phi'(0) (or, when the decrease is below the potential's round-off, the first that does not
     raise it beyond that round-off); 1 when d is not a descent direction (the caller corrects the tangent)."""
-    if not phi.slope < 0.0:
+    if not agree(bool(phi.slope < 0.0)):  # each decision on rank 0's values (several ranks)
         return a
     for _ in range(BACKTRACKS):
         value, noise = phi(a)
-        if value <= allowance + ARMIJO * a * phi.slope or (abs(a * phi.slope) <= noise and value <= noise):
+        if agree(bool(value <= allowance + ARMIJO * a * phi.slope or (abs(a * phi.slope) <= noise and value <= noise))):
             return a
         a *= 0.5
         elastic.line_search_steps += 1
