@@ -149,10 +149,12 @@ class _Potential:
 
         Pi(X) = 1/2 X.(c_M M + c C) X + c_S W(U_base + X) - rest.X,
 
-    the mass part from the products M X and M d (exact in the increment), W the stored energy (``energy``)."""
+    the mass part from the products M X and M d (exact in the increment), W the stored energy (``energy``).  Made
+    only for a line search: W is evaluated there, not at every iteration."""
 
     def __init__(self, ctx: Context, op: Operator, energy: Callable, base: np.ndarray, X: np.ndarray,
                  d: np.ndarray, rest: np.ndarray, gU: np.ndarray):  # fmt: skip
+        self.ctx, self.op, self.rest = ctx, op, rest
         self.energy, self.base, self.X, self.d, self.c = energy, base, X, d, op.stiffness
         Md = _mass_part(ctx, op, d)
         self.linear = float(d @ _mass_part(ctx, op, X)) - float(rest @ d)  # the slope's part outside W
@@ -160,6 +162,11 @@ class _Potential:
         #: grad Pi . d, the slope at a = 0 (negative for a descent direction)
         self.slope = self.linear + self.c * float(gU @ d)
         self.W0 = energy(base + X)
+
+    def total(self, X: np.ndarray) -> float:
+        """Pi(X) itself [energy] (the non-monotone search's reference: the largest over the last iterates)."""
+        inertia = 0.5 * float(X @ _mass_part(self.ctx, self.op, X))
+        return inertia + self.c * self.energy(self.base + X) - float(self.rest @ X)
 
     def __call__(self, a: float) -> tuple[float, float]:
         """(phi(a), its round-off) [energy]; +inf where a cell inverts."""
@@ -219,10 +226,8 @@ def newton_solve(
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
-    # |r| at the first iterate (no contact force yet): a first step that does not lower it is searched too
-    norm0 = agree(residual_norm(ctx, op, X, rest, gU, U, np.zeros(ctx.B.shape[0]), None, inertia, through)[0])
     factor = _Factor(ctx, op, tangent, bound, elastic)
-    levels = [0.0]  # Pi of the iterates, relative to the first (the non-monotone search's reference)
+    recent = [X]  # the last iterates (the non-monotone search's reference: the largest Pi among them)
     keep = False  # the operator was just corrected at this iterate: no renewal before its direction
     try:
         for k in range(1, most + 1):
@@ -241,14 +246,13 @@ def newton_solve(
             fixed_d = None if fixed is None else np.zeros(D.size)
             d, lam_new, info, renewed = factor.direction(k, minus_r, slack, fixed_d, law_k, U, lam)
             fresh = refactor or renewed
-            phi = _Potential(ctx, op, energy, base, X, d, rest, gU) if feasible else None
             lam0 = np.zeros_like(lam_new) if lam is None else lam
             lt0 = None if info.lam_t is None else (np.zeros_like(info.lam_t) if lam_t is None else lam_t)
             lt1 = info.lam_t
 
             def at(a: float, d=d, lam0=lam0, lam1=lam_new, lt0=lt0, lt1=lt1, X=X):
                 """(X, U, g, lambda, lambda_t, |r|, scale, floor) a along d, or None where a cell inverts."""
-                Xa = X + d if a == 1.0 else X + a * d
+                Xa = X + a * d
                 Ua = base + Xa
                 try:
                     ga = force(Ua)
@@ -277,15 +281,20 @@ def newton_solve(
             if lam is not None and not fresh and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
                 continue
-            if n_new > allowed and not n_new < (norm if lam is not None else norm0):  # |r| does not fall: search
-                if phi is not None and factor.owned and not agree(factor.convex_along(d)):
+            # |r| does not fall (at the first iterate: below |r| there, without contact force): a line search
+            if n_new > allowed and not n_new < (norm if lam is not None else agree(residual_norm(
+                    ctx, op, X, rest, gU, U, np.zeros(ctx.B.shape[0]), None, inertia, through)[0])):  # fmt: skip
+                if feasible and factor.owned and not agree(factor.convex_along(d)):
                     # a tangent with a negative curvature along d (an indefinite cell): corrected at U, and the
                     # direction taken again
                     factor.correct(k, "has a negative curvature along its Newton direction", U, lam)
                     keep, full = True, True
                     continue
-                if phi is not None:
-                    b = _armijo(phi, elastic, a, max(levels[-NONMONOTONE:]) - levels[-1], agree)
+                if feasible:
+                    phi = _Potential(ctx, op, energy, base, X, d, rest, gU)
+                    here = phi.total(X)
+                    allowance = max([0.0] + [phi.total(Y) - here for Y in recent[:-1]])
+                    b = _armijo(phi, elastic, a, allowance, agree)
                 elif lam is not None:  # energy-momentum: halvings on |r|
                     b = _halvings(lambda b: np.inf if (x := at(b)) is None else x[5], norm, elastic, a)
                 else:
@@ -295,11 +304,10 @@ def newton_solve(
                     if shorter is not None:
                         a, trial = b, shorter
             full = a == 1.0
-            if phi is not None:  # Pi of the new iterate, relative to the step's first one
-                levels.append(levels[-1] + phi(a)[0])
             X_new, U_new, g_new, lam_new, info.lam_t, n_new = trial[:6]
             previous, norm = norm, n_new
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
+            recent = [*recent[1 - NONMONOTONE :], X]
             gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
             if full and norm <= allowed and gaps_ok:
                 info.nonlinear_iterations = k
@@ -346,7 +354,8 @@ NONMONOTONE = 4
 def _armijo(phi: _Potential, elastic, a: float = 1.0, allowance: float = 0.0, agree: Callable = lambda x: x) -> float:
     """The step length a of a backtracking line search on the potential: the first of a, a/2, a/4, ... with
     phi(a) <= ARMIJO a phi'(0) (or, when the decrease is below the potential's round-off, the first that does not
-    raise it beyond that round-off); 1 when d is not a descent direction (the caller corrects the tangent)."""
+    raise it beyond that round-off); ``a`` itself when d is not a descent direction.  ``allowance``: how far phi
+    may rise above the last iterate's Pi (the non-monotone reference)."""
     if not agree(bool(phi.slope < 0.0)):  # each decision on rank 0's values (several ranks)
         return a
     for _ in range(BACKTRACKS):
@@ -372,7 +381,7 @@ def _halvings(norm_at: Callable[[float], float], norm: float, elastic, a: float 
 class _Factor:
     """The operator of a step's Newton directions: the scheme's own (reference) operator, a kept tangent or a fresh
     one; corrected (each cell's tangent positive semi-definite, then a diagonal shift) when it cannot be factorized
-    or gives a direction that does not lower the potential."""
+    or has a negative curvature along a direction that did not lower |r|."""
 
     #: shifts tau of the corrected tangent's diagonal shift tau diag(S) (S the reference stiffness)
     SHIFTS = (1e-3, 1e-1, 1e1)
@@ -381,7 +390,7 @@ class _Factor:
         self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
         self.current: Operator | None = None
         self.owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's
-        self.corrected = False  # the step's tangents are projected from now on
+        self.corrected = False  # whether ``current`` is the corrected tangent (projected per cell, maybe shifted)
         self.shift = 0
 
     def renew(self, U: np.ndarray, lam: np.ndarray | None, use_reference: bool = False,
@@ -403,7 +412,7 @@ class _Factor:
         if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
             G = _plus(G, Kc / self.op.stiffness)
         if self.shift:
-            G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(_diagonal(self.ctx.S)))
+            G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(self.ctx.S.diagonal()))
         op = self.op
         self.current, self.owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
         self.elastic.factorizations += 1
@@ -453,13 +462,6 @@ class _Factor:
                 renewed = True
                 continue
             return d, lam_new, info, renewed
-
-
-def _diagonal(S) -> np.ndarray:
-    """The diagonal of S (n,); S by rows (a distributed backend): the whole diagonal, gathered."""
-    if isinstance(S, RowBlock):
-        return np.concatenate(S.comm.gather(S.local[:, S.lo : S.hi].diagonal()))
-    return S.diagonal()
 
 
 def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:
