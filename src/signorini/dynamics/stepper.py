@@ -47,6 +47,7 @@ from .history import History
 from .observers import grow_observers
 from .problem import Discretization, Problem
 from .restart import SolverStates
+from .rotation_watch import RotationWatch
 from .run_options import RunOptions
 from .schemes import Scheme, State, make_scheme
 from .setup import (
@@ -164,6 +165,8 @@ class Stepper:
             self.energies.check = run.ctx.solver_options.get("energy_check", "warn")
         self.untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
         obs.insert(1, self.untagged)
+        self.rotation = RotationWatch()
+        obs.insert(2, self.rotation)
         self.watch = None
         if events:
             from .events import EventWatch
@@ -386,6 +389,7 @@ class Stepper:
         H.meta.update(self.untagged.master_summary() or {})  # the master nodes through the slave surface (reported)
         if self.untagged.exceeded():
             H.meta["warnings"].append(self.untagged.message())
+        self.rotation.summary(H.meta)
         failed = self.status == "failed"
         if self.energies is not None:
             self.energies.report(H.meta, H.lam, H.t, run, failed, self.adaptive is not None)
