@@ -109,12 +109,14 @@ class FiniteStrain(Elasticity):
             part = material.take(linear) if isinstance(material, CellMaterial) else material
             self.S_linear = stiffness_matrix(sub_mesh(mesh, linear), part).tocsr()
         #: counts: force evaluations, tangents assembled, tangents factorized (:mod:`~.newton`), line-search
-        #: halvings, tangents corrected (each cell's tangent made positive semi-definite)
+        #: halvings, tangents corrected (each cell's tangent made positive semi-definite), directions of the plain
+        #: tangent with the active set held (:meth:`~.newton._Factor.kkt`)
         self.evaluations = 0
         self.tangents = 0
         self.factorizations = 0
         self.line_search_steps = 0
         self.tangent_corrections = 0
+        self.kkt_directions = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         #: the last two (U, energy) pairs
         self._energies: list[tuple[np.ndarray, float]] = []
@@ -248,12 +250,14 @@ class FiniteStrain(Elasticity):
         """The run's counts (summary.json ``counters``): ``tangent_factorizations``, ``line_search_backtracks`` (the
         halvings of the line searches; ``line_search_steps``, its earlier name, kept) and ``tangent_corrections`` (the
         tangents made positive semi-definite per cell because the plain one could not be factorized or did not give
-        a descent direction)."""
+        a descent direction) and ``kkt_directions`` (Newton directions of the plain indefinite tangent with the
+        active contact rows held, where the corrected one converges slowly)."""
         return {
             "tangent_factorizations": self.factorizations,
             "line_search_steps": self.line_search_steps,
             "line_search_backtracks": self.line_search_steps,
             "tangent_corrections": self.tangent_corrections,
+            "kkt_directions": self.kkt_directions,
         }
 
 

@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401  (sp.linalg.spsolve)
 
 from ..contact.solver import ContactLaw, StepInfo
 from ..errors import ConvergenceError, InputError
@@ -309,7 +310,8 @@ def newton_solve(
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
             gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
-            if full and norm <= allowed and gaps_ok:
+            solved = not info.residual > _max_contact_residual()  # a contact solve short of complementarity: go on
+            if full and norm <= allowed and gaps_ok and solved:
                 info.nonlinear_iterations = k
                 return U, lam, info
     finally:
@@ -461,7 +463,83 @@ class _Factor:
                 self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
                 renewed = True
                 continue
+            if self.corrected and lam is not None and _kkt_ok(self.ctx, law, info):
+                kkt = self.kkt(U, lam, lam_new, minus_r, slack, fixed_d, law)
+                if kkt is not None:
+                    d, lam_new = kkt
             return d, lam_new, info, renewed
+
+    def kkt(self, U: np.ndarray, lam: np.ndarray, lam_new: np.ndarray, minus_r: np.ndarray, slack: np.ndarray,
+            fixed_d: np.ndarray | None, law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+        """The Newton direction of the plain (indefinite) tangent with the active set held, (d, lambda), when the
+        corrected direction's active set is the last iterate's and not empty; None when it is not, or the answer
+        leaves the contact conditions (a multiplier that pulls, a free row through its bound).
+
+        Where the step's Hessian H = c_M M + c_S G is indefinite at the solution (a body compressed against an
+        obstacle whose contact face has no inertia: the geometric stiffness of its compressed cells), the corrected
+        tangent converges at a linear rate (measured: 0.5 on ``bar3d`` with Neo-Hookean) and the plain one cannot
+        be condensed (its Delassus operator B H^-1 B^T is indefinite); the active rows hold the directions of
+        negative curvature, so the equality-constrained problem
+
+            [ H_ff   -B_Af^T ] [ d_f      ]   [ -r_f     ]
+            [ B_Af    0      ] [ lambda_A ] = [ slack_A  ]
+
+        is regular, and its sparse LU gives Newton's quadratic convergence back (once the active set has settled)."""
+        ctx = self.ctx
+        active = np.flatnonzero(lam_new < 0.0)
+        if not active.size or not np.array_equal(active, np.flatnonzero(lam < 0.0)):  # no rows: no constraint holds
+            # a direction of negative curvature (the corrected direction is the one that descends)
+            return None
+        G = self.tangent(U)
+        Kc = self.bound.geometric_stiffness(U, lam) if callable(self.bound) else None
+        if Kc is not None:
+            G = _plus(G, Kc / self.op.stiffness)
+        H = self.op.mass * ctx.M + self.op.stiffness * G
+        if self.op.viscous is not None:
+            H = H + self.op.viscous.coefficient * self.op.viscous.matrix
+        H, B = sp.csr_matrix(H), sp.csr_matrix(ctx.B)
+        f, D = ctx.free, ctx.fixed
+        d = np.zeros_like(minus_r)
+        if D.size and fixed_d is not None:
+            d[D] = fixed_d
+        rhs = minus_r[f] - H[f][:, D] @ d[D] if D.size else minus_r[f]
+        BA = B[active]
+        gA = slack[active] - (BA[:, D] @ d[D] if D.size else 0.0)
+        Hff, BAf = (H[f][:, f], BA[:, f]) if D.size else (H, BA)
+        A = sp.bmat([[Hff, -BAf.T], [BAf, None]], format="csc")
+        try:
+            x = sp.linalg.spsolve(A, np.concatenate([rhs, gA]))
+        except (RuntimeError, np.linalg.LinAlgError, ArithmeticError):
+            return None
+        if not np.all(np.isfinite(x)):
+            return None
+        d[f] = x[: f.size]
+        out = np.zeros_like(lam_new)
+        out[active] = x[f.size :]
+        scale = float(np.max(np.abs(lam_new), initial=0.0))
+        rows = np.ones(out.size, dtype=bool) if law.subset is None else np.asarray(law.subset, dtype=bool).copy()
+        rows[active] = False
+        through = B[rows] @ d - slack[rows]
+        if np.any(out[active] > ROUNDOFF * scale) or np.any(through > ctx.touch_tolerance):
+            return None
+        self.elastic.kkt_directions += 1
+        return d, out
+
+
+def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo) -> bool:
+    """Whether a step's direction may be taken from the plain tangent with the active set held (:meth:`_Factor.kkt`):
+    frictionless exact contact on one process (a distributed or frictional system is not assembled whole), after a
+    contact solve that reached complementarity (its active set is the one to hold)."""
+    return (ctx.components == 1 and law.compliance is None and info.lam_t is None
+            and not isinstance(ctx.M, RowBlock) and ctx.B.shape[0] > 0
+            and bool(info.residual <= _max_contact_residual()))  # fmt: skip
+
+
+def _max_contact_residual() -> float:
+    """The stepper's bound on a contact solve's complementarity residual (a step above it has failed)."""
+    from .setup import MAX_CONTACT_RESIDUAL
+
+    return MAX_CONTACT_RESIDUAL
 
 
 def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:
