@@ -79,6 +79,8 @@ def test_a_slow_bar_is_silent_and_its_rotation_scales_with_its_speed():
     assert np.isclose(slow["rotation_max"], 0.1 * fast["rotation_max"], rtol=1e-9, atol=0.0)
     assert (slow["rotation_cell"], slow["rotation_time"]) == (fast["rotation_cell"], fast["rotation_time"])
     assert 0 < slow["rotation_max"] < ROTATION_LIMIT and not [w for w in slow["warnings"] if "small strains" in w]
+    H = simulate(b.problem(4, {}), "crank-nicolson", dt, T, solver_options={"rotation_limit": 0.2})
+    assert H.meta["rotation_max"] == fast["rotation_max"] and not [w for w in H.meta["warnings"] if "small" in w]
 
 
 def test_finite_strain_is_not_watched():

@@ -35,7 +35,7 @@ from .observers import Observer, Run
 from .schemes import State
 
 #: the largest mean cell rotation [rad] within the small-rotation range of the linear model (the stretch it makes,
-#: about theta^2 / 2, is then 1.25e-3)
+#: about theta^2 / 2, is then 1.25e-3); the solver option ``rotation_limit`` sets another
 ROTATION_LIMIT = 0.05
 
 
@@ -150,9 +150,8 @@ class RotationWatch(Observer):
         if self.first[1] >= 0:
             v1, c1, t1 = self.first
             meta["warnings"].append(
-                f"the linear model (small strains) is outside its range: cell {c1} (centre {self._centre(c1)}) rotated "
-                f"{v1:.3g} rad at "
-                f"t = {t1:.6g} (above {self.limit:g} rad; the largest, {value:.3g} rad, at t = {t:.6g}); a linear "
-                'model takes a rotation for a stretch and does not keep a spin: use model = "neo-hookean" '
-                "(finite strain, docs/finite_strain.md)"
+                f"the linear model (small strains) is outside its range: cell {c1} (centre {self._centre(c1)}) "
+                f"rotated {v1:.3g} rad at t = {t1:.6g} (above rotation_limit = {self.limit:g} rad; the largest, "
+                f"{value:.3g} rad, at t = {t:.6g}); a linear model takes a rotation for a stretch and does not keep a "
+                'spin: use model = "neo-hookean" (finite strain, docs/finite_strain.md)'
             )

@@ -47,7 +47,7 @@ from .history import History
 from .observers import grow_observers
 from .problem import Discretization, Problem
 from .restart import SolverStates
-from .rotation_watch import RotationWatch
+from .rotation_watch import ROTATION_LIMIT, RotationWatch
 from .run_options import RunOptions
 from .schemes import Scheme, State, make_scheme
 from .setup import (
@@ -165,7 +165,7 @@ class Stepper:
             self.energies.check = run.ctx.solver_options.get("energy_check", "warn")
         self.untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
         obs.insert(1, self.untagged)
-        self.rotation = RotationWatch()
+        self.rotation = RotationWatch(float(run.ctx.solver_options.get("rotation_limit", ROTATION_LIMIT)))
         obs.insert(2, self.rotation)
         self.watch = None
         if events:

@@ -302,6 +302,17 @@ SOLVER_OPTIONS = (
         choices=("warn", "fail"),
     ),
     Parameter(
+        "rotation_limit",
+        0.05,
+        "linear model (small strains), 2D and 3D: the largest mean rotation of a cell [rad], |axial(skew grad u)|, "
+        "within its range; the first level above it warns once (summary.json and stderr) naming the cell, the "
+        'rotation, the time and model = "neo-hookean" (a linear model takes a rotation for a stretch of about '
+        "rotation^2 / 2 and does not keep a spin); summary.json rotation_max, rotation_cell and rotation_time",
+        float,
+        0.0,
+        open_low=True,
+    ),
+    Parameter(
         "energy_check",
         "warn",
         "the scheme's energy identity (E^{n+1} - E^n equals the work and dissipation it predicts), checked at every "
