@@ -244,8 +244,8 @@ def test_the_case_file_model_runs_and_the_summary_says_so(tmp_path):
     assert s["counters"]["tangent_factorizations"] >= 0  # near the reference: the scheme's own factor may serve
     rows = (tmp_path / "o" / "history.csv").read_text().splitlines()
     header = rows[0].split(",")
-    assert header[-2:] == ["angular_momentum_z", "nonlinear_iterations"]
-    assert sum(float(r.split(",")[-1]) for r in rows[2:]) >= 2 * (len(rows) - 2)  # Newton: >= 2 iterations a step
+    assert header[-3:] == ["angular_momentum_z", "nonlinear_iterations", "solver_work"]
+    assert sum(float(r.split(",")[-2]) for r in rows[2:]) >= 2 * (len(rows) - 2)  # Newton: >= 2 iterations a step
     bad = case.read_text().replace('model = "neo-hookean"', 'model = "mooney"')
     case.write_text(bad)
     assert main(["run", str(case), "--out", str(tmp_path / "bad"), "--quiet"]) == 2

@@ -48,10 +48,10 @@ STEP_COLUMNS = ("dt",)
 #: after the step: minus the cumulative work of the damping forces (0 undamped)
 DAMPING_COLUMNS = ("damping_dissipation",)
 #: after the damping: the angular momentum sum_a x_a x (M V)_a about the origin, x = X + U (3D: x, y, z;
-#: 2D: z only; none in 1D), then the Newton iterations of the step (finite strain; 0 when linear), then
-#: the reactions
+#: 2D: z only; none in 1D), then the Newton iterations of the step (finite strain; 0 when linear) and the
+#: cumulative work of the residual Newton left (a term of the energy identity; 0 when linear), then the reactions
 ANGULAR_COLUMNS = ("angular_momentum_x", "angular_momentum_y", "angular_momentum_z")
-NONLINEAR_COLUMNS = ("nonlinear_iterations",)
+NONLINEAR_COLUMNS = ("nonlinear_iterations", "solver_work")
 
 
 def angular_columns(dim: int) -> tuple[str, ...]:
@@ -158,6 +158,9 @@ class History:
     friction_work: np.ndarray | None = None
     #: (N+1,) cumulative work of the damping forces C V (<= 0); ``damping_dissipation`` = minus it
     damping_work: np.ndarray | None = None
+    #: (N+1,) cumulative work of the force residual a finite-strain step's Newton left at its solution, a term of
+    #: the energy identity (0 when linear; ``solver_work``)
+    solver_work: np.ndarray | None = None
     load_potential: np.ndarray | None = None
     momentum: np.ndarray | None = None
     #: (N+1, 3 | 1 | 0) the angular momentum about the origin (:func:`angular_momentum`)
@@ -246,6 +249,7 @@ class History:
                       else np.full(self.t.size, np.nan)) for k, name in enumerate(angular_columns(self.dim))},
             "nonlinear_iterations": (self.nonlinear_iterations if self.nonlinear_iterations is not None
                                      else np.zeros(self.t.size, dtype=np.int64)),
+            "solver_work": _or_nan(self.solver_work, self.t.size),
             **self._reaction_columns(),
         }  # fmt: skip
 

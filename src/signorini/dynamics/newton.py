@@ -108,6 +108,16 @@ def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, g
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
 
 
+def _force_residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
+                    lam: np.ndarray, lam_t: np.ndarray | None,
+                    contact_force: Callable | None) -> np.ndarray:  # fmt: skip
+    """r (n,) of :func:`residual_norm` at the solution, 0 on the Dirichlet dofs (their reactions balance them)."""
+    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
+    r = _mass_part(ctx, op, X) + op.stiffness * gU - rest - contact
+    r[ctx.fixed] = 0.0
+    return r
+
+
 def _renew(norm: float, previous: float, allowed: float) -> bool:
     """Whether a kept tangent should be renewed: its rate |r_k| / |r_k-1| is above :data:`MODIFIED_CONTRACTION`,
     or it would take more than :data:`KEPT_ITERATIONS` more iterations at that rate to reach ``allowed``."""
@@ -313,6 +323,7 @@ def newton_solve(
             solved = not info.residual > _max_contact_residual()  # a contact solve short of complementarity: go on
             if full and norm <= allowed and gaps_ok and solved:
                 info.nonlinear_iterations = k
+                info.force_residual = _force_residual(ctx, op, X, rest, gU, U, lam, lam_t, through)
                 return U, lam, info
     finally:
         factor.release()

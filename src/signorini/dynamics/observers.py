@@ -240,14 +240,16 @@ class EnergyRecorder(Observer):
     obstacle_moves = False
 
     KEYS = ("kinetic_energy", "elastic_energy", "load_potential", "predicted_increment", "external", "contact",
-            "numerical", "friction", "damping")  # fmt: skip
-    PARTS = ("external", "contact", "numerical", "friction", "damping")
+            "numerical", "friction", "damping", "solver")  # fmt: skip
+    PARTS = ("external", "contact", "numerical", "friction", "damping", "solver")
     checkpoint_key = "energy"
 
     def resume(self, run: Run, n: int, state: State, data: dict[str, Any]) -> None:
         saved = dict(data.get("series", {}))
         if "damping" not in saved and "friction" in saved:  # a checkpoint of a version without damping
             saved["damping"] = np.zeros(n + 1)  # (whose runs were undamped)
+        if "solver" not in saved and "friction" in saved:  # a checkpoint of before the solver's work: its levels'
+            saved["solver"] = np.zeros(n + 1)  # residuals' work was not counted (nor is it known)
         _restore_series(self.series, saved, n, "energy")
         self._scale, self.worst = 0.0, (0.0, -1)
         self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
@@ -348,6 +350,7 @@ class EnergyRecorder(Observer):
             S["numerical"][n] = S["numerical"][n - 1] + parts.numerical
             S["friction"][n] = S["friction"][n - 1] + parts.friction
             S["damping"][n] = S["damping"][n - 1] + parts.damping
+            S["solver"][n] = S["solver"][n - 1] + parts.solver
         else:
             for k in self.PARTS:
                 S[k][n] = S[k][n - 1]

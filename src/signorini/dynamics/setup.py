@@ -443,6 +443,7 @@ def assemble_history(
         work = {"external_work": E["external"], "contact_work": E["contact"], "numerical_dissipation": E["numerical"]}
         work["friction_work"] = E["friction"]  # zeros without friction
         work["damping_work"] = E["damping"]  # zeros without damping
+        work["solver_work"] = E["solver"]  # zeros when linear
     else:
         nan = np.full(n_last + 1, np.nan)
         series.update(kinetic_energy=nan, elastic_energy=nan.copy(), predicted_increment=nan.copy())

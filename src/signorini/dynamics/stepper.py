@@ -319,8 +319,13 @@ class Stepper:
         run = self.run
         self.use_segment(n)
         if n == 1 and self.starter is not None:
-            return run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
-        return run.scheme.step(run.ctx, self.state)
+            new = run.scheme.start(run.ctx, self.state, self.starter.step(run.ctx, self.state))
+        else:
+            new = run.scheme.step(run.ctx, self.state)
+        r = None if new.info is None else new.info.force_residual
+        if r is not None:  # Newton's residual at the level: its work is a term of the energy identity (solver_work)
+            new.extra["newton_residual"] = r
+        return new
 
     def use_segment(self, n: int) -> None:
         """The step and time origin of level n's segment in the context (a new step factorized)."""

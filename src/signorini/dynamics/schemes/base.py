@@ -98,7 +98,10 @@ STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
 #: (:func:`~signorini.dynamics.setup.initial_state`); in a damped run (:mod:`~signorini.dynamics.damping`)
 #: ``damping_velocity`` and ``damping_acceleration``, the scheme's own V and A that the level's
 #: damping force C V_d is made of (:func:`damping_velocity`, :func:`damping_force`)
-COMMON_STATE_FIELDS = {"R0": "dofs", "damping_velocity": "dofs", "damping_acceleration": "dofs"}
+#: ``newton_residual``: the force residual r (n,) a finite-strain step's Newton left at its solution
+#: (:attr:`~signorini.contact.solver.StepInfo.force_residual`), whose work is the next steps' ``solver`` part too
+COMMON_STATE_FIELDS = {"R0": "dofs", "damping_velocity": "dofs", "damping_acceleration": "dofs",
+                       "newton_residual": "dofs"}  # fmt: skip
 
 
 @dataclass
@@ -110,10 +113,11 @@ class EnergyParts:
     numerical: float = 0.0  # the scheme's own dissipation / start-up relaxation
     friction: float = 0.0  # work of the tangential contact forces (<= 0 when it dissipates)
     damping: float = 0.0  # work of the damping forces C V (<= 0: Rayleigh damping dissipates)
+    solver: float = 0.0  # work of the force residual a finite-strain step's Newton left (0 when linear)
 
     @property
     def total(self) -> float:
-        return self.external + self.contact + self.numerical + self.friction + self.damping
+        return self.external + self.contact + self.numerical + self.friction + self.damping + self.solver
 
 
 class Scheme:
@@ -453,3 +457,30 @@ def damping_split(ctx: Context, dU: np.ndarray, old: State, new: State, w_new: f
     h = new.t - old.t
     mean = -float(dU @ ctx.damping.force(ctx, dU)) / h if h > 0 else exact
     return mean, exact - mean
+
+
+def newton_residual(s: State) -> np.ndarray | None:
+    """The force residual r (n,) the Newton iterations of the step to level ``s`` left (None: a linear step, level 0
+    or a step solved exactly)."""
+    return s.extra.get("newton_residual")
+
+
+def solver_work(ctx: Context, dU: np.ndarray, old: State, new: State, w_old: float, w_new: float,
+                massless_old: float | None = None) -> float:  # fmt: skip
+    """The step's ``solver`` part of the energy identity [energy]: dU.(w_old r^n + w_new r^{n+1}), r the levels' force
+    residuals left by Newton (:func:`newton_residual`; a level without one counts 0), the weights of each level's
+    balance in the scheme's identity (Crank-Nicolson: 1/2, 1/2; theta: 1 - theta, theta); ``massless_old``: the
+    weight of r^n on the massless dofs when it differs (a scheme that balances its rows with mass at t_{n+1} only).
+    With it the identity closes to round-off whatever ``newton_tol`` (tests/dynamics/test_solver_work.py)."""
+    r0, r1 = newton_residual(old), newton_residual(new)
+    out = 0.0
+    if r1 is not None:
+        out += w_new * float(dU @ r1)
+    if r0 is not None:
+        if massless_old is None:
+            out += w_old * float(dU @ r0)
+        else:
+            ml = ctx.massless
+            full = w_old * float(dU @ r0)
+            out += full + (massless_old - w_old) * float(dU[ml] @ r0[ml])
+    return out

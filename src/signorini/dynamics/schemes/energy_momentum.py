@@ -47,7 +47,7 @@ from ..context import Operator
 from ..current_rows import contact_bound
 from ..momentum_projection import applies, groups, velocity_correction
 from ..newton import newton_solve
-from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, weighted
+from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, solver_work, weighted
 
 
 class EnergyMomentum(Scheme):
@@ -206,8 +206,11 @@ class EnergyMomentum(Scheme):
             f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
             numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
             numerical += self._projection_work(ctx, old, new)
+        # Newton's r of the halved balance: its work r^{n+1} on the rows with mass; the massless rows' balances at
+        # both levels (each 2 r, averaged)
         return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, f0, f1),
-                           contact=contact, numerical=numerical, friction=friction)  # fmt: skip
+                           contact=contact, numerical=numerical, friction=friction,
+                           solver=solver_work(ctx, dU, old, new, 0.0, 1.0, massless_old=1.0))  # fmt: skip
 
     def _projection_work(self, ctx, old: State, new: State) -> float:
         """(V + dV/2) . M dV: the kinetic energy the momentum projection gave the step, dV = V^{n+1} - V_s on the

@@ -58,6 +58,7 @@ from .base import (
     load_work,
     products,
     reaction_work,
+    solver_work,
     weighted,
 )
 from .newmark import Newmark
@@ -159,8 +160,11 @@ class GeneralizedAlpha(Newmark):
         lam_t_w = weighted(new.lam_t, old.lam_t, 1 - af)
         normal, tangential = contact_works(ctx, dU, old, new, 1 - af, af)
         damping, rest = damping_split(ctx, dU, old, new, 1 - af)
+        # Newton's r is the weighted balance over (1 - a_f): its work (1 - a_f) r^{n+1}; the massless rows' balances
+        # at both levels, weighted as their forces (measured: tests/dynamics/test_solver_work.py)
         parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential,
-                            damping=damping, numerical=rest)  # fmt: skip
+                            damping=damping, numerical=rest,
+                            solver=solver_work(ctx, dU, old, new, 0.0, 1 - af, massless_old=af))  # fmt: skip
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:

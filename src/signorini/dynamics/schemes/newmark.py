@@ -51,6 +51,7 @@ from .base import (
     load_work,
     mechanical_energy,
     reaction_work,
+    solver_work,
 )
 
 
@@ -199,6 +200,7 @@ class Newmark(Scheme):
             numerical=dR_free + rest,
             friction=tangential,
             damping=damping,
+            solver=solver_work(ctx, dU, old, new, 0.5, 0.5),
         )
         if ctx.elastic.finite:  # Delta Pi - dU.(f^n + f^{n+1})/2: the trapezoid's error on f (0 when linear)
             parts.numerical += elastic_work_error(ctx, dU, old, new, 0.5)

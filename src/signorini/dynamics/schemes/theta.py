@@ -45,6 +45,7 @@ from .base import (
     load_work,
     products,
     reaction_work,
+    solver_work,
 )
 
 
@@ -136,6 +137,7 @@ class Theta(Scheme):
             numerical=numerical + rest,
             friction=tangential,
             damping=damping,
+            solver=solver_work(ctx, dU, old, new, 1.0 - th, th),
         )
 
 
