@@ -22,6 +22,7 @@ The laws take the Lamé constants as numbers or one value per cell (regions: a
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -30,6 +31,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError, NonFiniteError
 from .assembly import assemble_nodal, assemble_vector, geometry, sum_of
+from .dofmap import blocked
 from .elements import determinants, reference_element
 from .mesh import Mesh
 
@@ -297,8 +299,9 @@ def _parts(mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
             keep = np.isin(ids, cells)
             if not keep.any():
                 continue
-            if not keep.all():
-                part, ids = Mesh(part.points, part.cells[keep], part.cell_type), ids[keep]
+            if not keep.all():  # kept with the mesh (its geometry and gradient operator are built once)
+                key = f"law part {cut.start} " + hashlib.blake2b(np.ascontiguousarray(cells).tobytes()).hexdigest()
+                part, ids = mesh.cached(key, lambda p=part, k=keep: Mesh(p.points, p.cells[k], p.cell_type)), ids[keep]
         lam = law.lam if np.ndim(law.lam) == 0 else np.asarray(law.lam)[ids]
         mu = law.mu if np.ndim(law.mu) == 0 else np.asarray(law.mu)[ids]
         out.append((part, type(law)(lam, mu), ids))
@@ -315,9 +318,39 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
     if reference_element(mesh.cell_type).constant_gradients:  # G and F constant on a cell: one point is exact
         wdet, G = mesh.cached("one-point geometry", lambda: (wdet.sum(axis=1, keepdims=True), G[:, :1].copy()))
     d = mesh.dim
+    e, q, nv, _ = G.shape
+    if q == 1:  # F_iJ = delta_iJ + (D U)_eiJ: one sparse product (measured: 0.37 against 1.0 ms on 5,740 tetrahedra)
+        D = _gradient_operator(mesh, G)
+        return (D @ np.asarray(U, dtype=float)).reshape(e, 1, d, d) + np.eye(d), wdet, G
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
-    F = np.matmul(u.transpose(0, 2, 1)[:, None], G) + np.eye(d)  # F_iJ = sum_a u_ai dN_a/dX_J
+    Gr = _gradients_by_cell(mesh, G)
+    # F_iJ = sum_a u_ai dN_a/dX_J at every point: one (d, nv) x (nv, q d) product per cell (measured: 1.5 against 2.9
+    # ms with a product per point, 5,120 hexahedra)
+    F = np.matmul(u.transpose(0, 2, 1), Gr).reshape(e, d, q, d).transpose(0, 2, 1, 3) + np.eye(d)
     return F, wdet, G
+
+
+def _gradients_by_cell(mesh: Mesh, G: np.ndarray) -> np.ndarray:
+    """(e, nv, q d) the shape gradients of ``G`` (e, q, nv, d) by cell, [a, (q, J)], kept with the mesh."""
+    e, q, nv, d = G.shape
+    return mesh.cached("gradients by cell", lambda: np.ascontiguousarray(G.transpose(0, 2, 1, 3).reshape(e, nv, q * d)))
+
+
+def _gradient_operator(mesh: Mesh, G: np.ndarray) -> sp.csr_matrix:
+    """D of a one-point (P1) mesh, kept with it: D (e d d, n_nodes d) with (D U)_(e,i,J) = sum_a u_ai dN_a/dX_J on
+    cell e [1/length]: the deformation gradient's F - I, and D^T (w P) the internal force; ``G`` (e, 1, nv, d) its
+    shape gradients.  36 nonzeros per tetrahedron (12 per triangle); D^T is applied as D.T (not stored: 0.23
+    against 0.17 ms on 5,740 tetrahedra, half the memory)."""
+
+    def build() -> sp.csr_matrix:
+        e, _, nv, d = G.shape
+        E, A, i, J = np.meshgrid(np.arange(e), np.arange(nv), np.arange(d), np.arange(d), indexing="ij")
+        rows = (E * d + i) * d + J
+        cols = blocked(mesh.cells[E, A].ravel(), d, None)[np.arange(E.size), i.ravel()]
+        D = sp.csr_matrix((G[E, 0, A, J].ravel(), (rows.ravel(), cols)), shape=(e * d * d, mesh.n_nodes * d))
+        return D
+
+    return mesh.cached("gradient operator", build)
 
 
 def check_orientation(mesh: Mesh, F: np.ndarray, ids: np.ndarray | slice) -> None:
@@ -351,11 +384,13 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
         check_orientation(part, F, cut)
         P = part_law.piola(F)
         wP = wdet[..., None, None] * P
-        if G.shape[1] == 1:  # one point (simplices): f_e = G (w P)^T without the sum over points
-            fe = np.matmul(G[:, 0], np.ascontiguousarray(wP[:, 0].transpose(0, 2, 1)))
-        else:
-            fe = np.matmul(G, wP.transpose(0, 1, 3, 2)).sum(axis=1)  # (e, nv, d)
-        f += assemble_nodal(part, fe)
+        e, q, nv, _ = G.shape
+        if q == 1:  # one point (simplices): f = D^T (w P), the gradient operator's transpose
+            f += _gradient_operator(part, G).T @ wP.ravel()
+            continue
+        # f_e,ai = sum_q,J dN_a/dX_J (w P)_iJ: one (nv, q d) x (q d, d) product per cell
+        Gr = _gradients_by_cell(part, G)
+        f += assemble_nodal(part, np.matmul(Gr, np.ascontiguousarray(wP.transpose(0, 1, 3, 2).reshape(e, q * d, d))))
     return f
 
 
