@@ -266,3 +266,19 @@ def test_a_changed_scheme_file_is_refused_on_resume(tmp_path, plugin_run):
     r = _cli("resume", "a", "--scheme", "alt/my_schemes.py:MyTheta", "--T", "0.6", "--out", "b", cwd=tmp_path)
     _refused(r, tmp_path)
     assert "the source file of the scheme of your own" in r.stderr
+
+
+def test_a_dt_schedule_under_the_energy_control_resumes_bit_for_bit(tmp_path):
+    """Issue 52: a case with a dt schedule under the energy control could not be resumed ("internal error:
+    TypeError": the resume's step count divided by the schedule).  Run to T = 3e-5 (inside the second piece of the
+    schedule, after the impact), resumed to 6e-5: the history of one run to 6e-5, byte for byte."""
+    text = (ROOT / "examples" / "steel_block_drop.toml").read_text()
+    text = text.replace("dt = 5e-6", "dt = [{until = 2e-5, dt = 5e-6}, {until = 1e-4, dt = 2.5e-6}]")
+    text = text.replace("T = 5e-5", "T = 6e-5")
+    (tmp_path / "case.toml").write_text(text)
+    assert _cli("run", "case.toml", "--T", "3e-5", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    r = _cli("resume", "a", "--T", "6e-5", "--quiet", "--out", "b", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert _cli("run", "case.toml", "--quiet", "--out", "c", cwd=tmp_path).returncode == 0
+    assert json.loads((tmp_path / "b/summary.json").read_text())["time_control"]["control"] == "energy"
+    assert (tmp_path / "b/history.csv").read_text() == (tmp_path / "c/history.csv").read_text()

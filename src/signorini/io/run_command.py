@@ -677,9 +677,10 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
         from ..dynamics.stepper import adaptive_grid
 
         grid = adaptive_grid(spec.dt, spec.T, meta, str(where))
-        # its size at its largest step (the grid's own count continues the refined step it was on:
-        # a resume inside an impact was refused as 1.5 million steps)
-        steps = int(meta["level"]) + math.ceil((spec.T - t_ckpt) / spec.dt - 1e-9)
+        # its size at its largest steps, piece by piece of its plan (a dt schedule too; the grid's own count continues
+        # the refined step it was on: a resume inside an impact was refused as 1.5 million steps)
+        spans = [(max(begin, t_ckpt), min(end, spec.T), dt) for begin, end, dt in grid.plan]
+        steps = int(meta["level"]) + sum(math.ceil((b - a) / dt - 1e-9) for a, b, dt in spans if b > a)
     else:
         grid = TimeGrid.build(spec.dt, spec.T, int(meta["level"]), t_ckpt, meta.get("segment"))  # T, --dt
         steps = grid.n_steps
