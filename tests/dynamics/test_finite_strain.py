@@ -351,6 +351,34 @@ def test_ball_contact_resumes_bit_for_bit(tmp_path):
     assert np.array_equal(a.lam, b.lam) and np.array_equal(a.energy, b.energy) and np.array_equal(a.gap, b.gap)
 
 
+@pytest.mark.parametrize(
+    "forge, words",
+    [
+        (lambda n: n * np.nan, "hold non-finite values"),
+        (lambda n: 5.0 * n, "are not unit vectors"),
+        (lambda n: n[:-1], "have shape"),
+    ],  # fmt: skip
+    ids=["nan", "not-unit", "shape"],
+)
+def test_a_checkpoint_with_forged_contact_normals_is_refused_by_name(tmp_path, forge, words):
+    """Issue 52: NaN normals were refused as "have shape (5, 2), expected (5, 2)"; normals of length 5 were taken."""
+    import signorini.dynamics.checkpoint as ckpt
+    from signorini.dynamics.run_options import CheckpointPolicy
+    from signorini.dynamics.simulate import Stepper
+
+    part = Stepper(
+        block_on_ball(), "crank-nicolson", (2e-5, 0.006), {"checkpoint": CheckpointPolicy(tmp_path / "c.h5", 20)}
+    )
+    for _ in range(20):
+        part.step()
+    part.finish()
+    contents = ckpt.read(tmp_path / "c.h5")
+    contents["arrays"]["pairing/normals"] = forge(contents["arrays"]["pairing/normals"])
+    ckpt.write(tmp_path / "c.h5", {"arrays": contents["arrays"], "attrs": contents["attrs"]})
+    with pytest.raises(InputError, match=f"checkpoint: the contact normals {words}"):
+        Stepper.resume(tmp_path / "c.h5", block_on_ball(), "crank-nicolson", (2e-5, 0.006))
+
+
 def test_ball_contact_under_the_energy_control_puts_the_rows_back_on_a_rejection():
     """dt = 1e-4 (the contact lasts about 7e-4): the control rejects steps (7 measured) and tries them again
     from the level's rows (not the rejected trial's); the identity closes at every accepted step."""

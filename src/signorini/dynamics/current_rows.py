@@ -149,8 +149,12 @@ class CurrentRows:
         """Put back :meth:`saved` (a resumed run, before its first step); the rows it changed."""
         c = self.contact
         new = np.asarray(data.get("normals"), dtype=float)
-        if new.shape != c.normals.shape or not np.all(np.isfinite(new)):
+        if new.shape != c.normals.shape:
             raise InputError(f"checkpoint: the contact normals have shape {new.shape}, expected {c.normals.shape}")
+        if not np.all(np.isfinite(new)):
+            raise InputError("checkpoint: the contact normals hold non-finite values")
+        if not np.allclose(np.linalg.norm(new, axis=1), 1.0, rtol=0.0, atol=1e-9):
+            raise InputError("checkpoint: the contact normals are not unit vectors")
         rows = np.flatnonzero(np.any(new != c.normals, axis=1))
         self._set(rows, new[rows])
         return rows
@@ -332,6 +336,8 @@ class CurrentPairRows:
             old = getattr(c, k)
             if a.shape != old.shape:
                 raise InputError(f"checkpoint: the pairing field {k!r} has shape {a.shape}, expected {old.shape}")
+            if a.dtype.kind not in "biuf" or (a.dtype.kind == "f" and not np.all(np.isfinite(a))):
+                raise InputError(f"checkpoint: the pairing field {k!r} holds non-finite or non-numeric values")
             new[k] = a.astype(old.dtype, copy=True)
         return self._set(new)
 
