@@ -282,3 +282,38 @@ def test_a_dt_schedule_under_the_energy_control_resumes_bit_for_bit(tmp_path):
     assert _cli("run", "case.toml", "--quiet", "--out", "c", cwd=tmp_path).returncode == 0
     assert json.loads((tmp_path / "b/summary.json").read_text())["time_control"]["control"] == "energy"
     assert (tmp_path / "b/history.csv").read_text() == (tmp_path / "c/history.csv").read_text()
+
+
+def _time_control(key, value):
+    def edit(attrs):
+        if value is _DELETE:
+            del attrs[key]
+        else:
+            attrs["time_control"][key] = value(attrs["time_control"][key]) if callable(value) else value
+
+    return edit
+
+
+_DELETE = object()
+#: forged states of the energy control (re-signed checkpoints) and what the refusal names (issue 52)
+FORGED_CONTROL = {
+    "plan-string": (_time_control("plan_dt", "5e-6"), "plan_dt '5e-6' is not a positive number"),
+    "plan-list": (_time_control("plan_dt", [5e-6]), "is not a positive number"),
+    "plan-true": (_time_control("plan_dt", True), "is not a positive number"),
+    "plan-doubled": (_time_control("plan_dt", lambda v: 2 * v), "is not the energy control's largest step"),
+    "state-deleted": (_time_control("time_control", _DELETE), "the energy control's state is missing"),
+    "accepted-beyond-levels": (_time_control("accepted", 10**6), "'accepted' = 1000000 is more than its"),
+}
+
+
+@pytest.mark.parametrize("forge", FORGED_CONTROL, ids=list(FORGED_CONTROL))
+def test_a_forged_energy_control_state_is_refused(tmp_path, forge):
+    """Issue 52: a re-signed checkpoint whose control's largest step was a string, a list, true or another number, or
+    whose control state was deleted, was accepted and the resume computed another history."""
+    edit, words = FORGED_CONTROL[forge]
+    (tmp_path / "case.toml").write_text((ROOT / "examples" / "steel_block_drop.toml").read_text())
+    assert _cli("run", "case.toml", "--T", "3e-5", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    _forge(tmp_path / "a/checkpoint.h5", edit)
+    r = _cli("resume", "a", "--T", "6e-5", "--quiet", "--out", "b", cwd=tmp_path)
+    _refused(r, tmp_path)
+    assert words in r.stderr, r.stderr

@@ -170,7 +170,7 @@ class Checkpointer:
         self.solvers.where = where
         self.solvers.resume({**ckpt.unflatten("solvers", saved), "count": int(attrs.get("n_solvers", 0))})
         if s.adaptive is not None and "time_control" in attrs:
-            s.adaptive.control.restore(dict(attrs["time_control"]))
+            s.adaptive.control.restore(dict(attrs["time_control"]), n, t)
         self.pairing.t = t
         self.pairing.resume(ckpt.unflatten("pairing", saved))
         info = attrs.get("series", {})

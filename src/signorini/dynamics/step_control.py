@@ -253,8 +253,10 @@ class EnergyControl:
                 "refined_levels": [list(map(int, r)) for r in self.refined_levels],
                 "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess]}  # fmt: skip
 
-    def restore(self, data: dict[str, Any]) -> None:
-        """Take back :meth:`state` (types checked: a checkpoint is data from outside)."""
+    def restore(self, data: dict[str, Any], level: int | None = None, t: float | None = None) -> None:
+        """Take back :meth:`state` (types checked: a checkpoint is data from outside), and, given the checkpoint's
+        ``level`` and time ``t``, checked against them (at most ``level`` steps accepted, the refined spans and
+        levels within the run so far, the smallest step at most the largest): a forged state is refused."""
         ints = ("k", "calm", "accepted", "rejected", "failed_trials", "event_refinements")
         for key in ints:
             v = data.get(key, 0 if key == "event_refinements" else None)
@@ -272,6 +274,17 @@ class EnergyControl:
         self.unresolved_excess = _rows(data, "unresolved_excess", 2, float, "[t, excess]")
         if self.k > MAX_LEVELS:
             raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond the ladder (at most {MAX_LEVELS})")
+        if level is None or t is None:
+            return
+        span = 1e-9 * max(abs(t), 1e-300)
+        if self.accepted > level:
+            raise InputError(f"checkpoint: time control 'accepted' = {self.accepted} is more than its {level} levels")
+        if any(not (0 <= a <= b <= level) for a, b in self.refined_levels):
+            raise InputError(f"checkpoint: time control 'refined_levels' reach beyond its {level} levels")
+        if any(not (-span <= a <= b <= t + span and 0 < dt) for a, b, dt in self.refined):
+            raise InputError(f"checkpoint: time control 'refined' spans reach beyond its t = {t:.10g}")
+        if math.isfinite(self.smallest) and not 0 < self.smallest <= self.largest:
+            raise InputError("checkpoint: time control 'smallest' and 'largest' steps are not 0 < smallest <= largest")
 
 
 def _rows(data: dict[str, Any], key: str, width: int, kind: type, what: str) -> list[list]:

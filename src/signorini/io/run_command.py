@@ -664,8 +664,10 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
         spec.dt = check_positive("--dt", args.dt)
     elif not isinstance(spec.dt, (list, tuple)):  # one step: the checkpoint's (a resume --dt goes on with its own)
         # an adaptive run's: its largest step (the checkpoint's dt is the refined step it was on)
-        plan = meta.get("time_control", {}).get("plan_dt") if isinstance(meta.get("time_control"), dict) else None
-        spec.dt = float(plan) if isinstance(plan, (int, float)) and not isinstance(plan, bool) else float(meta["dt"])
+        spec.dt = _plan_dt(meta, where) if "time_control" in meta else float(meta["dt"])
+    if _control_name(spec.control) == "energy" and not isinstance(meta.get("time_control"), dict):
+        raise InputError(f"checkpoint {str(where)!r}: the energy control's state is missing or malformed (a run under "
+                         "the control keeps it in every checkpoint); resume from an intact checkpoint")  # fmt: skip
     if not spec.T > t_ckpt:
         if args.T is None:
             raise InputError(f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
@@ -694,6 +696,26 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
     spec.invocation["T"] = spec.T  # a resume of this run's result continues to this T
     spec.meta["resumed_from_directory"] = str(result)
     return spec
+
+
+def _plan_dt(meta: dict[str, Any], where: Any) -> float:
+    """The energy control's largest step (``time_control.plan_dt``) of a checkpoint, checked: a positive number whose
+    dyadic ladder holds the checkpoint's step (segment step = plan_dt / 2^k, k the control's level)."""
+    tc = meta["time_control"]
+    plan = tc.get("plan_dt") if isinstance(tc, dict) else None
+    if isinstance(plan, bool) or not isinstance(plan, (int, float)) or not (math.isfinite(plan) and plan > 0):
+        raise InputError(f"checkpoint {str(where)!r}: the energy control's largest step plan_dt {plan!r} is not a "
+                         "positive number")  # fmt: skip
+    k, segment = tc.get("k"), meta.get("segment")
+    try:
+        step = float(segment[1])
+    except (TypeError, ValueError, IndexError):
+        raise InputError(f"checkpoint {str(where)!r}: its segment {segment!r} is malformed") from None
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= 64 or not (
+            abs(step - plan / 2**k) <= 1e-12 * plan):  # fmt: skip
+        raise InputError(f"checkpoint {str(where)!r}: its step {step:g} is not the energy control's largest step "
+                         f"plan_dt = {plan:g} / 2^k at its level k = {k!r}")  # fmt: skip
+    return float(plan)
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
