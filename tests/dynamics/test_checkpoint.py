@@ -370,6 +370,9 @@ def test_resume_with_another_step(tmp_path):
         ([{"until": 0.31, "dt": 0.0125}], "not an integer multiple"),
         ([{"until": 1.0}], "exactly the keys until and dt"),
         ([], "empty schedule"),
+        # issue 52: a piece's dt beyond doubles' range was an internal OverflowError (dt^2) or a huge step count
+        ([{"until": 0.2, "dt": 0.025}, {"until": 1e200, "dt": 1e199}], r"dt\[1\]\.dt' must be between"),
+        ([{"until": 0.2, "dt": 0.025}, {"until": 0.4, "dt": 1e-300}], r"dt\[1\]\.dt' must be between"),
     ],
 )
 def test_bad_schedules_are_refused(schedule, match):

@@ -64,6 +64,11 @@ def parse_schedule(dt: Any, where: str = "dt") -> list[tuple[float, float]]:
                 if isinstance(v, bool) or not isinstance(v, (int, float)):
                     raise InputError(f"'{where}[{k}].{name}' must be a number, got {v!r}")
             out.append((check_positive(f"{where}[{k}].until", until), check_positive(f"{where}[{k}].dt", step)))
+            from .setup import DT_RANGE
+
+            if not DT_RANGE[0] <= out[-1][1] <= DT_RANGE[1]:  # as one dt: dt^2 a normal double
+                raise InputError(f"'{where}[{k}].dt' must be between {DT_RANGE[0]:g} and {DT_RANGE[1]:g} (dt^2 must be "
+                                 f"a normal double), got {out[-1][1]:g}")  # fmt: skip
         for k in range(1, len(out)):
             if out[k][0] <= out[k - 1][0]:
                 raise InputError(f"'{where}': the until values must increase, got {out[k - 1][0]:g} then "
