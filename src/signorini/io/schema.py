@@ -299,8 +299,10 @@ def _cli_lines() -> list[str]:
         "",
         "`signorini run CASE.toml` reads everything from the file.  These options override the file: "
         "`--scheme`, `--scheme-option`, `--mass`, `--backend`, `--solver-option`, `--snapshot-every`, `--out`, "
-        "`--overwrite`, `--quiet`, `--max-steps`, `--max-memory`, `--yes`.  These apply to benchmarks only "
-        "and are errors with a case file (set them in the file): `--n`, `--dt`, `--T`, `--set`.",
+        "`--overwrite`, `--quiet`, `--max-steps`, `--max-memory`, `--yes`, and `--dt`, `--T`, `--dt-control` (the "
+        "summary's `overrides` records `--dt` and `--T` against the file's values, its `time_control` the control "
+        "that ran).  These apply to benchmarks only and are "
+        "errors with a case file (set them in the file): `--n`, `--set`.",
         "",
         "`signorini template --dim D` prints a commented starting case (D = 1, 2, 3) that runs as it is.",
         "",
