@@ -244,8 +244,8 @@ def test_the_case_file_model_runs_and_the_summary_says_so(tmp_path):
     assert s["counters"]["tangent_factorizations"] >= 0  # near the reference: the scheme's own factor may serve
     rows = (tmp_path / "o" / "history.csv").read_text().splitlines()
     header = rows[0].split(",")
-    assert header[-3:] == ["angular_momentum_z", "nonlinear_iterations", "solver_work"]
-    assert sum(float(r.split(",")[-2]) for r in rows[2:]) >= 2 * (len(rows) - 2)  # Newton: >= 2 iterations a step
+    assert header[-4:] == ["angular_momentum_z", "nonlinear_iterations", "solver_work", "master_penetration"]
+    assert sum(float(r.split(",")[-3]) for r in rows[2:]) >= 2 * (len(rows) - 2)  # Newton: >= 2 iterations a step
     bad = case.read_text().replace('model = "neo-hookean"', 'model = "mooney"')
     case.write_text(bad)
     assert main(["run", str(case), "--out", str(tmp_path / "bad"), "--quiet"]) == 2
@@ -753,7 +753,7 @@ def test_contact_pairs_beside_a_rigid_obstacle_resume_bit_for_bit(tmp_path):
 
     pair = Stepper(p, "crank-nicolson", (2e-4, 0.02)).run.ctx.disc.contact.pair
     assert full.lam[70, pair < 0].min() < 0 and full.lam[70, pair >= 0].min() < 0  # both contacts press
-    for k in ("energy", "lambda_sum", "momentum_y", "angular_momentum_z", "nonlinear_iterations"):
+    for k in ("energy", "lambda_sum", "momentum_y", "angular_momentum_z", "nonlinear_iterations", "master_penetration"):
         assert np.array_equal(full.columns()[k], r.columns()[k]), k
     for k in ("master_penetration_max", "master_penetration_node", "master_penetration_time"):  # kept in the checkpoint
         assert full.summary()[k] == r.summary()[k], k
@@ -790,6 +790,8 @@ def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force(tmp_path, 
     # node-to-facet method's limit, reported (summary master_penetration_*), not constrained
     s = H.summary()
     assert s["master_penetration_max"] > 1e-3 and 0.0 < s["master_penetration_time"] < 0.06
+    column = H.columns()["master_penetration"]  # history.csv's per level (issue 52): its largest is the summary's
+    assert column.max() == s["master_penetration_max"] and H.t[np.argmax(column)] == s["master_penetration_time"]
     assert np.allclose(m.points[s["master_penetration_node"]], [0.6, 0.1], rtol=0.0, atol=1e-12)  # the user's number
     # the outputs: a node beyond the rim has no gap (+inf, not the solver's far bound), no facet (-1); the mean and
     # the minimum are over the nodes that face something; the summary counts them at the end

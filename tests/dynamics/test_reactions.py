@@ -59,7 +59,7 @@ def test_a_dof_fixed_by_two_tags_counts_once_and_columns_follow_the_tags(tmp_pat
     assert main(["run", "bar2d", "--n", "1", "--T", "0.1", "--quiet", "--out", str(tmp_path / "o")]) == 0
     header = (tmp_path / "o" / "history.csv").read_text().splitlines()[0].split(",")
     assert header[-2:] == ["reaction_ymax_x", "reaction_ymax_y"]
-    assert header[-9:-2] == [
+    assert header[-10:-2] == [
         "momentum_x",
         "momentum_y",
         "dt",
@@ -67,4 +67,5 @@ def test_a_dof_fixed_by_two_tags_counts_once_and_columns_follow_the_tags(tmp_pat
         "angular_momentum_z",
         "nonlinear_iterations",
         "solver_work",
+        "master_penetration",
     ]

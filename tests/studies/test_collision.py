@@ -88,6 +88,7 @@ def test_the_run_prints_the_exact_values(tmp_path, capsys):
     assert len(s["bodies"]) == 2 and s["bodies"][0]["nodes"] == 21 and abs(s["bodies"][1]["mass"] - 1) < 1e-12
     header = next(csv.reader(open(tmp_path / "o" / "history.csv")))
     assert (
-        header[-5:] == ["momentum_x", "dt", "damping_dissipation", "nonlinear_iterations", "solver_work"]
+        header[-6:]
+        == ["momentum_x", "dt", "damping_dissipation", "nonlinear_iterations", "solver_work", "master_penetration"]
         and "load_potential" in header
     )

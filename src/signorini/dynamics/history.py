@@ -52,6 +52,9 @@ DAMPING_COLUMNS = ("damping_dissipation",)
 #: cumulative work of the residual Newton left (a term of the energy identity; 0 when linear), then the reactions
 ANGULAR_COLUMNS = ("angular_momentum_x", "angular_momentum_y", "angular_momentum_z")
 NONLINEAR_COLUMNS = ("nonlinear_iterations", "solver_work")
+#: after those: the largest penetration of a contact pair's master nodes into its slave surface at each level
+#: (node-to-facet's known limit: reported, not constrained; 0 without pairs)
+PAIR_COLUMNS = ("master_penetration",)
 
 
 def angular_columns(dim: int) -> tuple[str, ...]:
@@ -62,7 +65,7 @@ def angular_columns(dim: int) -> tuple[str, ...]:
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
     return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
-            + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS)  # fmt: skip
+            + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS + PAIR_COLUMNS)  # fmt: skip
 
 
 def moment(x: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -151,6 +154,8 @@ class History:
     numerical_dissipation: np.ndarray | None = None
     impulse: np.ndarray | None = None
     untagged_penetration: np.ndarray | None = None
+    #: (N+1,) the largest penetration of the pairs' master nodes into the slave surfaces (``master_penetration``)
+    master_penetration: np.ndarray | None = None
     contact_force: np.ndarray | None = None
     lam_t: np.ndarray | None = None
     slip: np.ndarray | None = None
@@ -250,6 +255,7 @@ class History:
             "nonlinear_iterations": (self.nonlinear_iterations if self.nonlinear_iterations is not None
                                      else np.zeros(self.t.size, dtype=np.int64)),
             "solver_work": _or_nan(self.solver_work, self.t.size),
+            "master_penetration": _or_nan(self.master_penetration, self.t.size),
             **self._reaction_columns(),
         }  # fmt: skip
 

@@ -388,6 +388,7 @@ class Stepper:
             H.meta["events"] = self.watch.met
             H.meta["stop_at"] = [e.name for e in getattr(self.watch, "events", []) if e.terminal]
         H.untagged_penetration = self.untagged.series
+        H.master_penetration = self.untagged.master_series
         # every node watched: against the rigid obstacle and against the surfaces of the pairs
         H.meta["untagged_boundary_nodes"] = self.untagged.watched_nodes()
         H.meta["untagged_worst_penetration"] = self.untagged.worst[0]  # the failing level of untagged_contact=fail too

@@ -168,6 +168,8 @@ class UntaggedContact(Observer):
     def __init__(self, mode: str = "warn"):
         self.mode = mode
         self.series = np.zeros(0)
+        #: per level, the largest penetration of the master tags' own nodes into the slave surfaces (0 without pairs)
+        self.master_series = np.zeros(0)
         self.worst: tuple[float, int, float] = (0.0, -1, 0.0)  # (penetration, node, t)
         #: the master tags' own nodes through the slave surfaces (reported only): (penetration, node, t)
         self.master_worst: tuple[float, int, float] = (0.0, -1, 0.0)
@@ -192,12 +194,15 @@ class UntaggedContact(Observer):
         self.tie = TIE * body_size(mesh)
         self.obstacle = disc.problem.obstacle
         self.series = np.zeros(run.n_steps + 1)
+        self.master_series = np.zeros(run.n_steps + 1)
         self._put(0, run.initial)
 
     def grow(self, size: int) -> None:
         """Room for levels 0 .. size - 1 (an adaptive run's levels are not known in advance)."""
         if self.series.size < size:
             self.series = np.concatenate([self.series, np.zeros(size - self.series.size)])
+        if self.master_series.size < size:
+            self.master_series = np.concatenate([self.master_series, np.zeros(size - self.master_series.size)])
 
     def _deepest(self, phi: np.ndarray, nodes: np.ndarray) -> tuple[float, int]:
         """(max(0, -min phi), the position of that node in ``nodes``) of the gaps ``phi`` (m,) of ``nodes``: at a
@@ -209,18 +214,19 @@ class UntaggedContact(Observer):
         j = int(ties[self.mesh.first_by_id(nodes[ties])]) if ties.size else int(np.argmin(phi))  # NaN: argmin
         return max(0.0, -float(phi[j])), j
 
-    def _put_masters(self, s: State) -> None:
+    def _put_masters(self, n: int, s: State) -> None:
         """The master tags' own nodes through the slave surfaces at the level ``s`` (reported only)."""
         w = self.master_watch
         if w is None:
             return
         p, j = self._deepest(w.gaps_at(s.U), w.nodes)
+        self.master_series[n] = p
         worst, node = self.master_worst[:2]
         if j >= 0 and (p > worst + self.tie or (p > worst and node < 0)):  # beyond a tie only, as the untagged's
             self.master_worst = (p, int(w.nodes[j]), float(s.t))
 
     def _put(self, n: int, s: State) -> None:
-        self._put_masters(s)
+        self._put_masters(n, s)
         if self.nodes.size == 0 and self.pair_watch is None:
             return
         if self.nodes.size:
@@ -255,7 +261,8 @@ class UntaggedContact(Observer):
     checkpoint_key = "untagged"
 
     def saved(self, n: int) -> dict:
-        return {"series": {"penetration": self.series[: n + 1]}, "worst": list(self.worst), "surface": self._surface,
+        return {"series": {"penetration": self.series[: n + 1], "master_penetration": self.master_series[: n + 1]},
+                "worst": list(self.worst), "surface": self._surface,
                 "master_worst": list(self.master_worst)}  # fmt: skip
 
     def resume(self, run: Run, n: int, state: State, data: dict) -> None:
@@ -263,6 +270,11 @@ class UntaggedContact(Observer):
         if series.shape != (n + 1,) or series.dtype != self.series.dtype:
             raise InputError(f"checkpoint: the untagged series has shape {series.shape}, expected {(n + 1,)}")
         self.series[: n + 1] = series
+        masters = np.asarray(data.get("series", {}).get("master_penetration", np.full(n + 1, np.nan)))
+        if masters.shape != (n + 1,) or masters.dtype != self.master_series.dtype:  # (nan: a checkpoint of before it)
+            raise InputError(f"checkpoint: the master penetration series has shape {masters.shape}, expected "
+                             f"{(n + 1,)}")  # fmt: skip
+        self.master_series[: n + 1] = masters
         self.worst = self._checked(data.get("worst"), "untagged watch")
         self._surface = str(data["surface"])
         # a checkpoint written before the master watch: none seen before the resume
@@ -279,6 +291,7 @@ class UntaggedContact(Observer):
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = self.series[: n_last + 1]
+        self.master_series = self.master_series[: n_last + 1]
 
     def watched_nodes(self) -> int:
         """The number of distinct nodes watched (against the rigid obstacle or a pair's surface)."""
