@@ -108,7 +108,7 @@ def test_an_energy_identity_that_does_not_close_warns_or_fails(tmp_path, capsys,
 
 
 def test_a_file_size_limit_at_the_final_write_keeps_a_resumable_result(tmp_path):
-    """ulimit -f between the checkpoint.s files (73 KiB at most) and history.csv (96 KiB): the run
+    """ulimit -f between the checkpoint.s files (91 KiB at most) and history.csv (128 KiB): the run
     used to lose everything, its complete checkpoint included, with a message naming no file.
     Now exit 4 naming history.csv; --out holds the checkpoint and a summary saying what failed,
     and `signorini resume` continues it."""
@@ -118,7 +118,7 @@ def test_a_file_size_limit_at_the_final_write_keeps_a_resumable_result(tmp_path)
     import sys
 
     def limit():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (90 * 1024, 90 * 1024))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (110 * 1024, 110 * 1024))
 
     args = [sys.executable, "-m", "signorini", "run", "bar2d", "--n", "4", "--T", "4", "--quiet", "--out"]
     r = subprocess.run([*args, str(tmp_path / "a")], capture_output=True, text=True, preexec_fn=limit, timeout=300)

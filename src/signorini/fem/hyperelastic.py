@@ -345,9 +345,9 @@ def _gradient_operator(mesh: Mesh, G: np.ndarray) -> sp.csr_matrix:
     def build() -> sp.csr_matrix:
         e, _, nv, d = G.shape
         E, A, i, J = np.meshgrid(np.arange(e), np.arange(nv), np.arange(d), np.arange(d), indexing="ij")
-        rows = (E * d + i) * d + J
+        rows = np.ravel_multi_index((E.ravel(), i.ravel(), J.ravel()), (e, d, d))  # (e, i, J): F's entries, not dofs
         cols = blocked(mesh.cells[E, A].ravel(), d, None)[np.arange(E.size), i.ravel()]
-        D = sp.csr_matrix((G[E, 0, A, J].ravel(), (rows.ravel(), cols)), shape=(e * d * d, mesh.n_nodes * d))
+        D = sp.csr_matrix((G[E, 0, A, J].ravel(), (rows, cols)), shape=(e * d * d, mesh.n_nodes * d))
         return D
 
     return mesh.cached("gradient operator", build)
