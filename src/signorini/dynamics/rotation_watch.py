@@ -34,6 +34,8 @@ from ..fem.dofmap import blocked
 from .observers import Observer, Run
 from .schemes import State
 
+#: rotations within this fraction of the largest are a tie for the cell (and level) a message names
+TIE = 1e-9
 #: the largest mean cell rotation [rad] within the small-rotation range of the linear model (the stretch it makes,
 #: about theta^2 / 2, is then 1.25e-3); the solver option ``rotation_limit`` sets another
 ROTATION_LIMIT = 0.05
@@ -103,10 +105,16 @@ class RotationWatch(Observer):
             theta, ids = theta[self.linear], self.linear
         else:
             ids = None
-        k = int(np.argmax(theta))
-        value, cell = float(theta[k]), int(k if ids is None else ids[k])
-        if value > self.worst[0] or self.worst[1] < 0:  # the first level seen names a cell, rotated or not
+        value = float(theta.max(initial=0.0))
+        tie = TIE * value
+        # among the cells within a tie of the largest (mirror cells of a symmetric body: their round-off differs
+        # between ranks and node orders) the first, so that the cell named does not depend on them
+        k = int(np.flatnonzero(theta >= value - tie)[0])
+        cell = int(k if ids is None else ids[k])
+        if self.worst[1] < 0 or value > self.worst[0] + TIE * self.worst[0]:  # its cell and time beyond a tie only
             self.worst = (value, cell, float(s.t))
+        elif value > self.worst[0]:
+            self.worst = (value, *self.worst[1:])
         if value > self.limit and self.first[1] < 0:
             self.first = (value, cell, float(s.t))
 
