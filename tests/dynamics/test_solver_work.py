@@ -18,20 +18,20 @@ from signorini.studies.benchmarks import get_benchmark
 IDENTITY = {"energy-momentum": 2e-11}
 
 
-def _hertz2d_neo_hookean(n: int = 4):
-    b = get_benchmark("hertz2d")
+def _bar2d_neo_hookean(n: int = 4):
+    """The paper's 2D bar with Neo-Hookean (no gmsh: the plain install runs it), its contact end massless, to
+    t = 0.4375: three steps into its contact (energy-momentum's tangent fails the fourth, docs/finite_strain.md)."""
+    b = get_benchmark("bar2d")
     p = b.params()
-    problem = b.build(n, p)
-    m = problem.material
-    dt, T = b.run_times(n, p)
-    return dataclasses.replace(problem, material=NeoHookean(m.lam, m.mu, m.rho)), dt, T
+    dt, _ = b.run_times(n, p)
+    return dataclasses.replace(b.build(n, p), material=NeoHookean(p["lam"], p["mu"], p["rho"])), dt, 35 * dt
 
 
 @pytest.mark.parametrize("scheme", finite_strain_schemes())
 def test_the_identity_closes_at_a_loose_newton_tolerance(scheme):
-    """hertz2d with Neo-Hookean (the disc hits the plane: its contact nodes massless), newton_tol = 1e-5: the
+    """bar2d with Neo-Hookean (the bar hits the obstacle: its contact nodes massless), newton_tol = 1e-5: the
     identity with the residual's work closes to round-off; without it, it is off by the tolerance's share."""
-    problem, dt, T = _hertz2d_neo_hookean()
+    problem, dt, T = _bar2d_neo_hookean()
     H = simulate(problem, scheme, dt, T, solver_options={"newton_tol": 1e-5})
     assert H.status == "finished", H.summary().get("message")
     c = H.columns()
@@ -47,15 +47,15 @@ def test_the_identity_closes_at_a_loose_newton_tolerance(scheme):
 def test_a_linear_run_has_no_solver_work_and_a_resumed_run_continues_it(tmp_path):
     """Linear: the column is 0 at every level.  Finite strain at a loose tolerance: a run resumed from a checkpoint
     inside the contact (the level's residual is state, saved) gives the same column and identity bit for bit."""
-    b = get_benchmark("hertz2d")
+    b = get_benchmark("bar2d")
     p = b.params()
     dt, T = b.run_times(4, p)
     H = simulate(b.build(4, p), "crank-nicolson", dt, T)
     assert np.all(H.columns()["solver_work"] == 0.0)
-    problem, dt, T = _hertz2d_neo_hookean()
+    problem, dt, T = _bar2d_neo_hookean()
     opts = {"newton_tol": 1e-5}
     full = simulate(problem, "crank-nicolson", dt, T, solver_options=opts)
-    k = int(np.argmax(np.abs(full.columns()["lambda_sum"]) > 0)) + 2  # two levels into the contact
+    k = int(np.argmax(np.abs(full.columns()["lambda_sum"]) > 0)) + 1  # a level into the contact
     simulate(problem, "crank-nicolson", dt, k * dt, solver_options=opts, checkpoint=tmp_path / "c.h5")
     r = simulate(problem, "crank-nicolson", dt, T, solver_options=opts, resume=tmp_path / "c.h5")
     for key in ("solver_work", "energy", "predicted_increment"):
