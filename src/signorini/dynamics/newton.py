@@ -97,9 +97,7 @@ def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, g
     internal force, the loads and the contact force; ``floor`` the round-off of r's largest terms
     (:data:`ROUNDOFF` of them).  ``contact_force(U, lam, lam_t)``: the contact force through the rows of U itself
     (rows of the current configuration); else B^T lambda + T^T lambda_t through the rows of the last solve."""
-    MdU = _mass_part(ctx, op, X)
-    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
-    r = MdU + op.stiffness * gU - rest - contact
+    r, MdU, contact = _residual(ctx, op, X, rest, gU, U, lam, lam_t, contact_force)
     f = ctx.free
     q = 0.0 if inertia is None else inertia
     terms = (MdU - q, op.stiffness * gU, rest - q, contact)
@@ -108,12 +106,20 @@ def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, g
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
 
 
+def _residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
+              lam: np.ndarray, lam_t: np.ndarray | None,
+              contact_force: Callable | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """(r, c_M M X, the contact force), r (n,) the residual of :func:`residual_norm` on every dof [force]."""
+    MdU = _mass_part(ctx, op, X)
+    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
+    return MdU + op.stiffness * gU - rest - contact, MdU, contact
+
+
 def _force_residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
                     lam: np.ndarray, lam_t: np.ndarray | None,
                     contact_force: Callable | None) -> np.ndarray:  # fmt: skip
     """r (n,) of :func:`residual_norm` at the solution, 0 on the Dirichlet dofs (their reactions balance them)."""
-    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
-    r = _mass_part(ctx, op, X) + op.stiffness * gU - rest - contact
+    r = _residual(ctx, op, X, rest, gU, U, lam, lam_t, contact_force)[0]
     r[ctx.fixed] = 0.0
     return r
 
@@ -405,6 +411,7 @@ class _Factor:
         self.owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's
         self.corrected = False  # whether ``current`` is the corrected tangent (projected per cell, maybe shifted)
         self.shift = 0
+        self._plain: tuple[np.ndarray, sp.csr_matrix | RowBlock] | None = None  # (U, the plain tangent at U)
 
     def renew(self, U: np.ndarray, lam: np.ndarray | None, use_reference: bool = False,
               corrected: bool = False) -> None:  # fmt: skip
@@ -417,18 +424,29 @@ class _Factor:
         if use_reference:
             self.current, self.owned = self.op, False
             return
-        G = self.tangent(U, project=True) if self.corrected else self.tangent(U)
+        G = self.assembled(U, lam, project=self.corrected)
         if self.corrected:
             self.elastic.tangent_corrections += 1
-        bound = self.bound
-        Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
-        if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
-            G = _plus(G, Kc / self.op.stiffness)
         if self.shift:
             G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(self.ctx.S.diagonal()))
         op = self.op
         self.current, self.owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
         self.elastic.factorizations += 1
+
+    def assembled(self, U: np.ndarray, lam: np.ndarray | None, project: bool = False) -> sp.csr_matrix | RowBlock:
+        """G(U) (``project``: each cell's part PSD) plus the rows' own turning under the multipliers ``lam`` of the
+        iterate, Kc / c_S; the plain one is kept for its iterate (the KKT direction asks for it again after a
+        correction at the same U)."""
+        if not project and self._plain is not None and self._plain[0] is U:
+            return self._plain[1]
+        G = self.tangent(U, project=True) if project else self.tangent(U)
+        bound = self.bound
+        Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
+        if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
+            G = _plus(G, Kc / self.op.stiffness)
+        if not project:
+            self._plain = (U, G)
+        return G
 
     def release(self) -> None:
         if self.owned:
@@ -501,11 +519,7 @@ class _Factor:
         if not active.size or not np.array_equal(active, np.flatnonzero(lam < 0.0)):  # no rows: no constraint holds
             # a direction of negative curvature (the corrected direction is the one that descends)
             return None
-        G = self.tangent(U)
-        Kc = self.bound.geometric_stiffness(U, lam) if callable(self.bound) else None
-        if Kc is not None:
-            G = _plus(G, Kc / self.op.stiffness)
-        H = self.op.mass * ctx.M + self.op.stiffness * G
+        H = self.op.mass * ctx.M + self.op.stiffness * self.assembled(U, lam)
         if self.op.viscous is not None:
             H = H + self.op.viscous.coefficient * self.op.viscous.matrix
         H, B = sp.csr_matrix(H), sp.csr_matrix(ctx.B)
@@ -513,10 +527,13 @@ class _Factor:
         d = np.zeros_like(minus_r)
         if D.size and fixed_d is not None:
             d[D] = fixed_d
-        rhs = minus_r[f] - H[f][:, D] @ d[D] if D.size else minus_r[f]
         BA = B[active]
-        gA = slack[active] - (BA[:, D] @ d[D] if D.size else 0.0)
-        Hff, BAf = (H[f][:, f], BA[:, f]) if D.size else (H, BA)
+        if D.size:
+            Hf = H[f]
+            rhs, gA = minus_r[f] - Hf[:, D] @ d[D], slack[active] - BA[:, D] @ d[D]
+            Hff, BAf = Hf[:, f], BA[:, f]
+        else:
+            rhs, gA, Hff, BAf = minus_r[f], slack[active], H, BA
         A = sp.bmat([[Hff, -BAf.T], [BAf, None]], format="csc")
         try:
             x = sp.linalg.spsolve(A, np.concatenate([rhs, gA]))

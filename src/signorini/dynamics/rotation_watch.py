@@ -29,8 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..fem.assembly import geometry
-from ..fem.dofmap import blocked
+from ..fem.assembly import geometry, gradient_operator
 from .observers import Observer, Run
 from .schemes import State
 
@@ -48,19 +47,17 @@ def rotation_operator(mesh) -> sp.csr_matrix:
     w_(ij) = 1/2 sum_a (u_ai Gbar_eaj - u_aj Gbar_eai).  ``U`` node-major."""
     d = mesh.dim
     pairs = [(0, 1)] if d == 2 else [(1, 2), (0, 2), (0, 1)]
-    rows, cols, vals = [], [], []
-    for part, cut in mesh.parts():
+    blocks = []
+    for part, _ in mesh.parts():
         wdet, G = geometry(part)
         Gbar = np.einsum("eq,eqad->ead", wdet, G) / wdet.sum(axis=1)[:, None, None]
-        e = np.arange(cut.start, cut.stop)[:, None]
-        for c, (i, j) in enumerate(pairs):
-            row = np.broadcast_to(e * len(pairs) + c, part.cells.shape)
-            rows += [row, row]
-            cols += [blocked(part.cells.ravel(), d, [i])[:, 0], blocked(part.cells.ravel(), d, [j])[:, 0]]
-            vals += [0.5 * Gbar[:, :, j], -0.5 * Gbar[:, :, i]]
-    shape = (mesh.n_cells * len(pairs), mesh.n_nodes * d)
-    data = [np.concatenate([a.ravel() for a in x]) for x in (vals, rows, cols)]
-    return sp.csr_matrix((data[0], (data[1], data[2])), shape=shape)
+        D = gradient_operator(part.cells, Gbar, mesh.n_nodes)  # the cells' mean grad u, rows (e, i, J)
+        e = np.arange(part.n_cells)
+        # rows (e, c): 1/2 (D_(e,i,j) - D_(e,j,i)) for the component c = (i, j), 2 nv nonzeros each
+        ij = [np.ravel_multi_index((e, np.full_like(e, i), np.full_like(e, j)), (e.size, d, d)) for i, j in pairs]
+        ji = [np.ravel_multi_index((e, np.full_like(e, j), np.full_like(e, i)), (e.size, d, d)) for i, j in pairs]
+        blocks.append(0.5 * (D[np.column_stack(ij).ravel()] - D[np.column_stack(ji).ravel()]))
+    return sp.vstack(blocks, format="csr")
 
 
 def cell_rotations(R: sp.csr_matrix, U: np.ndarray, n_cells: int) -> np.ndarray:

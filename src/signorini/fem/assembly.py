@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
-from ..fem.dofmap import DofMap
+from ..fem.dofmap import DofMap, blocked
 from ..fem.elements import determinants, jacobians, reference_element
 from ..fem.material import Material
 from ..fem.mesh import Mesh, facet_type, one_type, over_blocks, uniform_cells
@@ -382,6 +382,18 @@ def surface_load(mesh: Mesh, tag: str, traction: np.ndarray | Callable[[np.ndarr
     for i in range(mesh.dim):
         F[:, i] = np.bincount(facets.ravel(), weights=fe[..., i].ravel(), minlength=mesh.n_nodes)
     return F.ravel()
+
+
+def gradient_operator(cells: np.ndarray, grads: np.ndarray, n_nodes: int) -> sp.csr_matrix:
+    """D (e d d, n_nodes d) [1/length] with (D U)_(e,i,J) = sum_a u_ai grads_eaJ, u_ai = U[d cells_ea + i]: each
+    cell's displacement gradient from one set of shape gradients per cell, ``grads`` (e, nv, d) (a P1 cell's
+    constant ones, or a cell's mean).  Rows numbered by (e, i, J) (the gradient's entries, not dofs); nv d
+    nonzeros per row."""
+    e, nv, d = grads.shape
+    E, A, i, J = np.meshgrid(np.arange(e), np.arange(nv), np.arange(d), np.arange(d), indexing="ij")
+    rows = np.ravel_multi_index((E.ravel(), i.ravel(), J.ravel()), (e, d, d))
+    cols = blocked(cells[E, A].ravel(), d, None)[np.arange(E.size), i.ravel()]
+    return sp.csr_matrix((grads[E, A, J].ravel(), (rows, cols)), shape=(e * d * d, n_nodes * d))
 
 
 # ----------------------------------------------------------------------------- post-processing
