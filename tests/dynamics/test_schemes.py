@@ -1,5 +1,6 @@
 """The scheme contract: registry entries, schemes written outside the package, equivalences."""
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -13,6 +14,7 @@ from distinct_schemes import REPEATS
 from signorini.dynamics.schemes import SCHEMES, make_scheme
 from signorini.dynamics.simulate import simulate
 from signorini.errors import InputError
+from signorini.fem.material import NeoHookean
 from signorini.io.cli import main
 from signorini.io.plugins import load_scheme
 from signorini.studies.benchmarks import get_benchmark
@@ -20,6 +22,7 @@ from signorini.studies.benchmarks import get_benchmark
 #: the scheme of your own of the README and docs/schemes.md, imported from its file
 EXAMPLE = Path(__file__).parents[2] / "examples" / "my_schemes.py"
 MyTheta = load_scheme(f"{EXAMPLE}:MyTheta")
+MyThetaAnyModel = load_scheme(f"{EXAMPLE}:MyThetaAnyModel")
 
 
 def _bar2d(n=2):
@@ -41,6 +44,25 @@ def test_external_scheme_matches_builtin_theta(mass):
     H_reg = simulate(p, "theta", dt, 1.0, mass=mass, scheme_options={"theta": 0.6})
     _same(H_ext, H_reg)
     assert H_ext.lam.min() < 0  # there was contact
+
+
+@pytest.mark.parametrize("model", ["linear", "neo-hookean"])
+def test_a_scheme_of_your_own_stated_as_a_step_problem_runs_any_material_model(model):
+    """The example's theta stated as a StepProblem: the package's solver runs it linear (one solve) and with
+    finite strain (Newton) and it reproduces the registered theta, which states its step the same way."""
+    p, dt = _bar2d()
+    if model != "linear":
+        b = get_benchmark("bar2d")
+        prm = b.params()
+        p = dataclasses.replace(p, material=NeoHookean(prm["lam"], prm["mu"], prm["rho"]))
+    T = 40 * dt  # into the contact
+    H_ext = simulate(p, MyThetaAnyModel, dt, T, scheme_options={"theta": 0.6})
+    H_reg = simulate(p, "theta", dt, T, scheme_options={"theta": 0.6})
+    assert H_ext.status == H_reg.status == "finished"
+    _same(H_ext, H_reg, tol=1e-13)
+    assert H_ext.lam.min() < 0  # there was contact
+    iterations = H_ext.columns()["nonlinear_iterations"]
+    assert (iterations.max() > 1) == (model != "linear")  # Newton iterated only with finite strain
 
 
 # What the installed ``signorini`` console script does: its own directory, not the working

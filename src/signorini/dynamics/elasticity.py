@@ -68,6 +68,21 @@ class Elasticity:
         """f(U) on the dofs ``rows`` (the reactions of the Dirichlet dofs); ``S_rows``: S[rows] taken once."""
         return (self.ctx.S[rows] if S_rows is None else S_rows) @ U
 
+    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None,
+                          f1: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """The energy-momentum force (n,): S (U0 + U1)/2 = (f0 + f1)/2, so that f . (U1 - U0) = Pi(U1) - Pi(U0)
+        [force]; ``f0``, ``f1``: f(U0), f(U1) when already computed."""
+        if f0 is not None and f1 is not None:
+            return 0.5 * (f0 + f1)
+        return self.force(0.5 * (U0 + U1))
+
+    def work_error(self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray,
+                   w: float) -> float:  # fmt: skip
+        """Delta Pi - dU . (w f1 + (1 - w) f0) [energy]: what a scheme's weighting of the internal force misses of
+        the stored energy's change between U0 and U1 = U0 + dU (f0, f1 their forces).  Linear:
+        (1/2 - w) dU . S dU = (1/2 - w) dU . (f1 - f0), zero for w = 1/2 (the trapezoid is exact)."""
+        return 0.0 if w == 0.5 else (0.5 - w) * float(dU @ (f1 - f0))
+
     def counters(self) -> dict[str, int]:
         """The run's counters of the nonlinear solve (none when linear)."""
         return {}
@@ -201,9 +216,11 @@ class FiniteStrain(Elasticity):
                              for law, cells in self.groups]  # fmt: skip
         return self._by_rows
 
-    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray) -> np.ndarray:
+    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None,
+                          f1: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         """The energy-momentum force (n,): Gonzalez's discrete gradient on the hyperelastic cells,
-        S (U0 + U1)/2 on the linear ones, so that f . (U1 - U0) = Pi(U1) - Pi(U0) [force]."""
+        S (U0 + U1)/2 on the linear ones, so that f . (U1 - U0) = Pi(U1) - Pi(U0) [force] (``f0``, ``f1``
+        unused: the discrete gradient is not their mean)."""
         f = np.zeros(U0.size) if self.S_linear is None else self.S_linear @ (0.5 * (U0 + U1))
         for law, cells in self.groups:
             f += algorithmic_force(self.mesh, law, U0, U1, cells)
@@ -211,6 +228,11 @@ class FiniteStrain(Elasticity):
 
     def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
         return self.force(U)[rows]
+
+    def work_error(self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray,
+                   w: float) -> float:  # fmt: skip
+        """Delta Pi - dU . (w f1 + (1 - w) f0) from the stored energies (third order in dU for w = 1/2)."""
+        return self.energy(U1, f1) - self.energy(U0, f0) - float(dU @ (w * f1 + (1 - w) * f0))
 
     def cell_fields(self, U: np.ndarray) -> dict[str, np.ndarray]:
         """Per cell: ``cauchy_stress`` (n_cells, 3, 3) in the current configuration, ``green_lagrange`` (n_cells,

@@ -19,6 +19,7 @@ from .moreau_jean import EnergyConserving, MoreauJean
 from .newmark import CrankNicolson, Newmark
 from .paoli_schatzman import PaoliSchatzman
 from .penalty import PenaltyCN
+from .step_problem import StepProblem, solve_step
 from .theta import BackwardEuler, Theta
 
 SCHEMES = Registry("scheme")
@@ -87,9 +88,11 @@ __all__ = [
     "PaoliSchatzman",
     "Scheme",
     "State",
+    "StepProblem",
     "Theta",
     "damping_schemes",
     "friction_schemes",
     "make_scheme",
     "register_scheme",
+    "solve_step",
 ]

@@ -299,11 +299,10 @@ def products(ctx: Context, s: State) -> tuple[np.ndarray, np.ndarray]:
 
 def elastic_work_error(ctx: Context, dU: np.ndarray, old: State, new: State, w_new: float) -> float:
     """Delta Pi - dU . (w f^{n+1} + (1 - w) f^n) [energy]: what a scheme's weighting of the internal force
-    f misses of the stored energy's change, a numerical term of its identity with finite strain (zero to
-    round-off in linear elasticity for w = 1/2; third order in dU otherwise)."""
+    f misses of the stored energy's change, a numerical term of its identity: (1/2 - w) dU.S dU in linear
+    elasticity (zero for w = 1/2), third order in dU with finite strain for w = 1/2."""
     (_, f0), (_, f1) = products(ctx, old), products(ctx, new)
-    dPi = ctx.elastic.energy(new.U, f1) - ctx.elastic.energy(old.U, f0)
-    return dPi - float(dU @ (w_new * f1 + (1 - w_new) * f0))
+    return ctx.elastic.work_error(dU, old.U, new.U, f0, f1, w_new)
 
 
 def mechanical_energy(ctx: Context, s: State) -> tuple[float, float]:

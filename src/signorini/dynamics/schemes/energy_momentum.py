@@ -38,16 +38,14 @@ rows' equations halved so that the tangent stays symmetric (their multipliers ar
 
 from __future__ import annotations
 
-import functools
 from dataclasses import replace
 
 import numpy as np
 
 from ..context import Operator
-from ..current_rows import contact_bound
 from ..momentum_projection import applies, groups, velocity_correction
-from ..newton import newton_solve
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, solver_work, weighted
+from .step_problem import StepProblem, solve_step
 
 
 class EnergyMomentum(Scheme):
@@ -106,30 +104,22 @@ class EnergyMomentum(Scheme):
         F0, F1 = ctx.load(s.t), ctx.load(t)
         ml = self._massless_mask(ctx)
         Fw = np.where(ml, 0.5 * F1, 0.5 * (F0 + F1))
-        op = self.step_operator(ctx, dt)
-        Mq = (2.0 / dt) * (ctx.Mop @ s.V)  # the inertia of the step less 2/dt^2 M U^n
-        rhs = (2.0 / (dt * dt)) * (ctx.Mop @ s.U) + Mq + Fw
-        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         w = self.row_weights(ctx)
         law = ctx.friction_law(s.U, s.t, t)
         if law.radius is not None:  # Tresca: the halved rows' multipliers are half the forces, so is their bound
             law = replace(law, radius=law.radius * w)
-        el = ctx.elastic
-        if el.finite:
-            U0 = s.U
+        el, U0 = ctx.elastic, s.U
 
-            def force(U):  # g with 1/2 g = f_alg on rows m, 1/2 f on rows l
-                return np.where(ml, el.force(U), 2.0 * el.algorithmic_force(U0, U))
+        def force(U):  # g with 1/2 g = f_alg on rows with mass, 1/2 f on the massless rows l
+            return np.where(ml, el.force(U), 2.0 * el.algorithmic_force(U0, U))
 
-            def tangent(U, project=False):
-                return el.tangent(0.5 * (U0 + U), project)
+        def tangent(U, project=False):
+            return el.tangent(0.5 * (U0 + U), project)
 
-            bound = contact_bound(ctx, s.U, s.t, t)
-            U, mu, info = newton_solve(ctx, op, s.U, Mq + Fw, force, tangent, bound, fixed, law, Mq)
-        else:  # g(U) = S U + (S U^n on rows m): one solve
-            SU0 = products(ctx, s)[1]
-            U, mu, info = ctx.solve(op, rhs - 0.5 * np.where(ml, 0.0, SU0), ctx.gaps(t), fixed, law,
-                                    functools.partial(self.taylor_guess, ctx, s))  # fmt: skip
+        f0 = products(ctx, s)[1]  # f_alg(U^n, U^n) = f(U^n): g(U^n) without evaluating it
+        step = StepProblem(self, s, t, (2.0 / dt) * s.V, Fw, law, force=force, tangent=tangent,
+                           force_start=np.where(ml, f0, 2.0 * f0), potential=False)  # fmt: skip
+        U, mu, info = solve_step(ctx, step)
         lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu
         if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike
             info.lam_t = np.where((w == 0.5)[:, None], 2.0 * info.lam_t, info.lam_t)
@@ -202,9 +192,10 @@ class EnergyMomentum(Scheme):
         numerical = dR_free
         el, ml = ctx.elastic, ctx.massless
         f0, f1 = products(ctx, old)[1], products(ctx, new)[1]
-        if el.finite:
-            f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U))
-            numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
+        # the massless rows balance f, not f_alg: dU.(f_alg - <f>) on them (0 when linear: f_alg = <f>)
+        f_alg = new.product("f_alg", lambda: el.algorithmic_force(old.U, new.U, f0, f1))
+        numerical += float(dU[ml] @ (f_alg[ml] - 0.5 * (f0[ml] + f1[ml])))
+        if applies(self, ctx):
             numerical += self._projection_work(ctx, old, new)
         # Newton's r of the halved balance: its work r^{n+1} on the rows with mass; the massless rows' balances at
         # both levels (each 2 r, averaged)
@@ -225,10 +216,8 @@ class EnergyMomentum(Scheme):
         if not (ctx.has_fixed and ctx.disc.dirichlet_varies):
             return 0.0
         D, dt = ctx.fixed, new.t - old.t
-        g = 0.5 * (f0 + f1)
-        if ctx.elastic.finite:
-            f_alg = new.product("f_alg", lambda: ctx.elastic.algorithmic_force(old.U, new.U))
-            g = np.where(self._massless_mask(ctx), g, f_alg)
+        f_alg = new.product("f_alg", lambda: ctx.elastic.algorithmic_force(old.U, new.U, f0, f1))
+        g = np.where(self._massless_mask(ctx), 0.5 * (f0 + f1), f_alg)
         contact = 0.0
         if new.lam.size:  # each level's weighted forces through its own rows
             contact = ctx.contact_force(w * new.lam, weighted(new.lam_t, None, w) if new.lam_t is not None else None)

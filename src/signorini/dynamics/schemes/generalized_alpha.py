@@ -41,8 +41,6 @@ a_m = a_f = 1/2 every numerical term vanishes: the CN identity.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from ...errors import InputError
@@ -62,6 +60,7 @@ from .base import (
     weighted,
 )
 from .newmark import Newmark
+from .step_problem import StepProblem, solve_step
 
 
 class GeneralizedAlpha(Newmark):
@@ -116,7 +115,6 @@ class GeneralizedAlpha(Newmark):
     def step(self, ctx, s: State) -> State:
         am, af = self.alphas()
         t = ctx.next_time(s.t)
-        pred = self.predictor(ctx, s)  # A^{n+1} = U^{n+1}/(beta dt^2) - pred
         Fd0 = damping_force(ctx, s)
         lagged = 0.0
         if af:
@@ -125,27 +123,13 @@ class GeneralizedAlpha(Newmark):
                 lagged -= af * Fd0
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
-        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         law = ctx.friction_law(s.U, s.t, t)
-        if ctx.elastic.finite:  # (1 - a_f) f(U^{n+1}) + a_f f(U^n): Newton on f(U^{n+1}) (:mod:`~..newton`)
-            Mq = ctx.M @ ((1 - am) * self.increment_predictor(ctx, s.V, s.A) - am * s.A) / (1 - af)
-            U, lam, info = self.newton_step(ctx, s, t, Mq, Mq + ctx.load(t) + lagged / (1 - af), fixed, law)
-        else:
-            rhs = ctx.M @ ((1 - am) * pred - am * s.A)
-            if af:
-                rhs += lagged
-            rhs = rhs / (1 - af) + ctx.load(t)
-            if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q (Newmark's V)
-                rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
-            U, lam, info = ctx.solve(
-                self.step_operator(ctx, ctx.dt),
-                rhs,
-                ctx.gaps(t),
-                fixed,
-                law,
-                functools.partial(self.taylor_guess, ctx, s),
-            )
-        return self.update(ctx, s, t, U, lam, info, pred)
+        # (1 - a_m) M A^{n+1} + a_m M A^n + (1 - a_f) f(U^{n+1}) + a_f f(U^n) = ..., over (1 - a_f)
+        q = ((1 - am) * self.increment_predictor(ctx, s.V, s.A) - am * s.A) / (1 - af)
+        damping = None if ctx.damping is None else self.damping_offset_increment(ctx, s)
+        forces = ctx.load(t) + lagged / (1 - af) if af else ctx.load(t)
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, forces, law, damping))
+        return self.update(ctx, s, t, U, lam, info, self.predictor(ctx, s))  # A^{n+1} = U^{n+1}/(beta dt^2) - p
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
         """dt lambda_{a_f}, the contact term of the weighted balance (exact momentum for a_m = a_f)."""
@@ -170,15 +154,14 @@ class GeneralizedAlpha(Newmark):
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             A_w = (1 - am) * new.A + am * old.A
-            U_w = (1 - af) * new.U + af * old.U
             F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
             if ctx.rows_of(old.t)[0] is ctx.B:
                 on_fixed = ctx.contact_on_fixed(lam_w, lam_t_w)
             else:  # a contact pair re-paired between the levels: each level through its own rows
                 on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
                     old.lam, old.lam_t, old.t)  # fmt: skip
-            f_w = (1 - af) * products(ctx, new)[1] + af * products(ctx, old)[1] if ctx.elastic.finite else None
-            RD = ctx.M[D] @ A_w + (ctx.S[D] @ U_w if f_w is None else f_w[D]) - F_w[D] - on_fixed
+            f_w = (1 - af) * products(ctx, new)[1][D] + af * products(ctx, old)[1][D]
+            RD = ctx.M[D] @ A_w + f_w - F_w[D] - on_fixed
             Fd0, Fd1 = damping_force(ctx, old), damping_force(ctx, new)
             if Fd0 is not None or Fd1 is not None:  # the weighted damping force on the Dirichlet dofs
                 RD = RD + (0.0 if Fd1 is None else (1 - af) * Fd1[D]) + (0.0 if Fd0 is None else af * Fd0[D])
@@ -187,13 +170,10 @@ class GeneralizedAlpha(Newmark):
             dA = new.A - old.A
             MdA = new.product("MA", lambda: ctx.M @ new.A) - old.product("MA", lambda: ctx.M @ old.A)
             vbar = 0.5 * (old.V + new.V)
-            if ctx.elastic.finite:  # -(1/2 - a_f)|dU|_S^2 becomes Delta Pi - dU.f_{a_f}
-                parts.numerical -= (0.5 - af) * dt * float(vbar @ MdA)
-            else:
-                parts.numerical -= (0.5 - af) * (dt * float(vbar @ MdA) + float(dU @ (ctx.S @ dU)))
+            parts.numerical -= (0.5 - af) * dt * float(vbar @ MdA)
             parts.numerical -= 2 * self._extra(ctx) * (0.5 - am) * float(dA @ MdA)
-        if ctx.elastic.finite:
-            parts.numerical += elastic_work_error(ctx, dU, old, new, 1 - af)
+        # Delta Pi - dU.f_{a_f}: -(1/2 - a_f)|dU|_S^2 when linear
+        parts.numerical += elastic_work_error(ctx, dU, old, new, 1 - af)
         return parts
 
 

@@ -31,15 +31,11 @@ For CN the A.MA and dA terms vanish: the seed's identity with a plus sign.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
-from ...contact.solver import SIGNORINI, ContactLaw, StepInfo
+from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
 from ..context import Operator
-from ..current_rows import contact_bound
-from ..newton import newton_solve
 from .base import (
     EnergyParts,
     Scheme,
@@ -53,6 +49,7 @@ from .base import (
     reaction_work,
     solver_work,
 )
+from .step_problem import StepProblem, solve_step
 
 
 class Newmark(Scheme):
@@ -71,15 +68,8 @@ class Newmark(Scheme):
         return Operator(1.0 / (self.beta * dt * dt), 1.0)
 
     def damping_coefficient(self, dt: float) -> float:
-        """gamma / (beta dt): V^{n+1} = gamma / (beta dt) U^{n+1} + q (:meth:`damping_offset`)."""
+        """gamma / (beta dt): V^{n+1} = gamma / (beta dt) dU + d (:meth:`damping_offset_increment`)."""
         return self.gamma / (self.beta * dt)
-
-    def damping_offset(self, ctx, s: State) -> np.ndarray:
-        """q = V_d^n + dt (1 - gamma) A_d^n - gamma dt p_d, the part of Newmark's V_d^{n+1} that does
-        not depend on U^{n+1} (:func:`~.base.damping_velocity`: p_d is the predictor of (U^n, V_d^n, A_d^n))."""
-        dt, g = ctx.dt, self.gamma
-        Vd, Ad = damping_velocity(s)
-        return Vd + (dt * (1 - g)) * Ad - (g * dt) * self._predictor(ctx, s.U, Vd, Ad)
 
     def _damping_level(self, ctx, s: State, U: np.ndarray) -> dict[str, np.ndarray]:
         """The new level's damping data: Newmark's update of (V_d, A_d) on every dof."""
@@ -111,45 +101,22 @@ class Newmark(Scheme):
 
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
-        p = self.predictor(ctx, s)
-        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
-        if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
-            Mq = ctx.Mop @ self.increment_predictor(ctx, s.V, s.A)
-            U, lam, info = self.newton_step(ctx, s, t, Mq, Mq + ctx.load(t), fixed, law)
-        else:
-            rhs = ctx.Mop @ p + ctx.load(t)
-            if ctx.damping is not None:  # M A + C V + S U: C V^{n+1} = c C U^{n+1} + C q
-                rhs -= ctx.damping.force(ctx, self.damping_offset(ctx, s))
-            U, lam, info = ctx.solve(
-                self.step_operator(ctx, ctx.dt),
-                rhs,
-                ctx.gaps(t),
-                fixed,
-                law,
-                functools.partial(self.taylor_guess, ctx, s),
-            )
-        return self.update(ctx, s, t, U, lam, info, p)
-
-    def newton_step(self, ctx, s: State, t: float, Mq: np.ndarray, rest: np.ndarray, fixed: np.ndarray | None,
-                    law: ContactLaw) -> tuple[np.ndarray, np.ndarray, StepInfo]:  # fmt: skip
-        """The finite-strain step (:func:`~..newton.newton_solve`) from the level ``s`` to t: ``rest`` the
-        right-hand side less c_M M U^n (and less Newmark's damping force), ``Mq`` its inertial part."""
-        if ctx.damping is not None:  # C V^{n+1} = gamma / (beta dt) C U^{n+1} + C q: its part not in U^n
-            rest = rest - ctx.damping.force(ctx, self.damping_offset_increment(ctx, s))
-        el = ctx.elastic
-        return newton_solve(ctx, self.step_operator(ctx, ctx.dt), s.U, rest, el.force, el.tangent,
-                            contact_bound(ctx, s.U, s.t, t), fixed, law, Mq,
-                            energy=el.energy)  # fmt: skip
+        q = self.increment_predictor(ctx, s.V, s.A)  # M A^{n+1} = M (dU/(beta dt^2) - q)
+        damping = None if ctx.damping is None else self.damping_offset_increment(ctx, s)
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping))
+        return self.update(ctx, s, t, U, lam, info, self.predictor(ctx, s))
 
     def increment_predictor(self, ctx, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """q = p - U^n/(beta dt^2) = V/(beta dt) + (1/(2 beta) - 1) A, without the cancellation of p's U^n
-        (a finite-strain step solves in increments, :mod:`~..newton`)."""
+        (the step is a problem in the increment, :mod:`~.step_problem`)."""
         b, dt = self.beta, ctx.dt
         return V / (b * dt) + (0.5 / b - 1.0) * A
 
     def damping_offset_increment(self, ctx, s: State) -> np.ndarray:
-        """:meth:`damping_offset` less its part in U^n, - gamma U^n/(beta dt)."""
+        """d = V_d^n + dt (1 - gamma) A_d^n - gamma dt q_d, the part of Newmark's V_d^{n+1} = gamma dU/(beta dt) + d
+        that does not depend on U^{n+1} (:func:`~.base.damping_velocity`: q_d the increment predictor of
+        (V_d^n, A_d^n))."""
         dt, g = ctx.dt, self.gamma
         Vd, Ad = damping_velocity(s)
         return Vd + (dt * (1 - g)) * Ad - (g * dt) * self.increment_predictor(ctx, Vd, Ad)
@@ -202,8 +169,8 @@ class Newmark(Scheme):
             damping=damping,
             solver=solver_work(ctx, dU, old, new, 0.5, 0.5),
         )
-        if ctx.elastic.finite:  # Delta Pi - dU.(f^n + f^{n+1})/2: the trapezoid's error on f (0 when linear)
-            parts.numerical += elastic_work_error(ctx, dU, old, new, 0.5)
+        # Delta Pi - dU.(f^n + f^{n+1})/2: the trapezoid's error on f (0 when linear)
+        parts.numerical += elastic_work_error(ctx, dU, old, new, 0.5)
         if self.gamma != 0.5:
             MA0 = old.product("MA", lambda: ctx.M @ old.A)
             MA1 = new.product("MA", lambda: ctx.M @ new.A)

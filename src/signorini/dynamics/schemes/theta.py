@@ -26,14 +26,10 @@ the seed's identity with a plus sign on the contact term).
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from ...registry import Parameter
 from ..context import Operator
-from ..current_rows import contact_bound
-from ..newton import newton_solve
 from .base import (
     EnergyParts,
     Scheme,
@@ -47,6 +43,7 @@ from .base import (
     reaction_work,
     solver_work,
 )
+from .step_problem import StepProblem, solve_step
 
 
 class Theta(Scheme):
@@ -81,30 +78,11 @@ class Theta(Scheme):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         Vd0 = damping_velocity(s)[0]
-        fixed = ctx.dirichlet(t) if ctx.has_fixed else None
-        if ctx.elastic.finite:  # M A^{n+1} + f(U^{n+1}) = ...: Newton from U^n (:mod:`~..newton`)
-            el = ctx.elastic
-            bound = contact_bound(ctx, s.U, s.t, t)
-            law = ctx.friction_law(s.U, s.t, t)
-            Mq = ctx.Mop @ (s.V / (th * th * dt) + (1 - th) / th * s.A)  # M p less M U^n / (theta dt)^2
-            rest = Mq + ctx.load(t)
-            if ctx.damping is not None:  # and C q less C U^n / (theta dt)
-                rest += ctx.damping.force(ctx, (1 - th) / th * Vd0)
-            U, lam, info = newton_solve(ctx, self.step_operator(ctx, dt), s.U, rest, el.force, el.tangent, bound, fixed,
-                                        law, Mq, energy=el.energy)  # fmt: skip
-        else:
-            p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A
-            rhs = ctx.Mop @ p + ctx.load(t)
-            if ctx.damping is not None:  # C V_d^{n+1} = C U^{n+1} / (theta dt) + C q
-                rhs += ctx.damping.force(ctx, (s.U + dt * (1 - th) * Vd0) / (th * dt))
-            U, lam, info = ctx.solve(
-                self.step_operator(ctx, dt),
-                rhs,
-                ctx.gaps(t),
-                fixed,
-                ctx.friction_law(s.U, s.t, t),
-                functools.partial(self.taylor_guess, ctx, s),
-            )
+        law = ctx.friction_law(s.U, s.t, t)
+        q = s.V / (th * th * dt) + (1 - th) / th * s.A  # M A^{n+1} = M (dU / (theta dt)^2 - q)
+        # C V_d^{n+1} = C dU / (theta dt) - C (1 - theta)/theta V_d^n
+        damping = None if ctx.damping is None else -(1 - th) / th * Vd0
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping))
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
         extra = {}
@@ -121,14 +99,12 @@ class Theta(Scheme):
     def energy_increment(self, ctx, old: State, new: State) -> EnergyParts:
         th = self.theta
         dU, dV = new.U - old.U, new.V - old.V
-        MV0, SU0 = products(ctx, old)
-        MV1, SU1 = products(ctx, new)
+        MV0, MV1 = products(ctx, old)[0], products(ctx, new)[0]
         dR_fixed, dR_free = reaction_work(ctx, old, new, th)
-        numerical = dR_free
-        if ctx.elastic.finite:  # Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (the trapezoid's error of f)
-            numerical += elastic_work_error(ctx, dU, old, new, th) - (th - 0.5) * float(dV @ (MV1 - MV0))
-        elif th != 0.5:
-            numerical -= (th - 0.5) * float(dV @ (MV1 - MV0) + dU @ (SU1 - SU0))
+        # Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (-(theta - 1/2)(|dV|_M^2 + |dU|_S^2) when linear)
+        numerical = dR_free + elastic_work_error(ctx, dU, old, new, th)
+        if th != 0.5:
+            numerical -= (th - 0.5) * float(dV @ (MV1 - MV0))
         normal, tangential = contact_works(ctx, dU, old, new, th)
         damping, rest = damping_split(ctx, dU, old, new, th)
         return EnergyParts(
