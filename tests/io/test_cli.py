@@ -255,3 +255,24 @@ def test_progress_lines_are_bounded_in_rate(monkeypatch):
     lines = out.getvalue().splitlines()
     assert len(lines) == 4 and lines[-1].endswith("done") and lines[0].startswith("job: set-up 0.1 s; step 101/")
     assert "step 402/1000 (40%), 40 s elapsed, ETA 60 s" in lines[1]
+
+
+def test_progress_under_the_energy_control_states_its_total_as_an_estimate(monkeypatch):
+    """The control changes the step total as it goes (400, then 1,389, then 658 on a case of issue 52): the line
+    says it is an estimate; a fixed step's total is exact and said plainly."""
+    import io
+
+    from signorini.io import summary
+
+    monkeypatch.setenv("SIGNORINI_PROGRESS_EVERY", "0")
+    lines = {}
+    for estimated in (False, True):
+        clock = iter(np.linspace(0.0, 10.0, 10))
+        monkeypatch.setattr(summary.time, "perf_counter", lambda c=clock: float(next(c)))
+        out = io.StringIO()
+        p = summary.Progress(False, "job", stream=out, estimated=estimated)
+        for i, n in ((1, 400), (2, 1389), (3, 658)):
+            p(i, n)
+        lines[estimated] = out.getvalue().splitlines()
+    assert "step 2/1389 (0%)" in lines[False][1] and "~" not in lines[False][1]
+    assert "step 2/~1389 (estimated)" in lines[True][1]

@@ -114,6 +114,9 @@ class Problem:
     damping : Rayleigh damping C = alpha M + beta S, a :class:`~signorini.dynamics.damping.Rayleigh`
         or ``{"alpha": ..., "beta": ...}`` (None, or both zero: undamped) [``[material] damping``]; per
         region, a :class:`~signorini.dynamics.damping.RegionalRayleigh` [``[material] regions[k].damping``].
+    initial_equilibrium : the bodies held by supports or resting in contact start in static equilibrium under
+        the loads at t = 0 (:mod:`~signorini.dynamics.initial_equilibrium`; free bodies keep ``u0``)
+        [``[initial] equilibrium``].
     """
 
     mesh: Mesh
@@ -135,6 +138,7 @@ class Problem:
     initial_regions: Sequence[RegionInitial] = ()
     gravity: Value | Callable | None = None
     damping: Rayleigh | RegionalRayleigh | dict | None = None
+    initial_equilibrium: bool = False
 
     def __post_init__(self) -> None:
         from .validate import check_problem

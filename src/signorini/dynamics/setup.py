@@ -117,7 +117,15 @@ def initial_state(ctx: Context) -> State:
         vD, aD = disc.dirichlet_rates(ctx.dt / 4)
         V[ctx.fixed], A[ctx.fixed] = vD, aD
     F = ctx.load(0.0)
+    lam0 = np.zeros(disc.contact.size)
+    if disc.problem.initial_equilibrium:  # the held bodies' U0 in static equilibrium, lambda_0 its multipliers
+        from .initial_equilibrium import static_equilibrium
+
+        _initial_force(ctx, U)  # an initial displacement that inverts a cell: refused as input first
+        U, lam0, ctx.initial_equilibrium = static_equilibrium(ctx, U, F)
     r = F - (_initial_force(ctx, U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
+    if lam0.any():
+        r += ctx.contact_force(lam0, None, 0.0)
     Fd = ctx.damping.force(ctx, V) if ctx.damping is not None else None
     if Fd is not None:  # damped: M A0 = F(0) - S U0 - C V0
         r -= Fd
@@ -150,7 +158,7 @@ def initial_state(ctx: Context) -> State:
                 ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
     lam_t = np.zeros((disc.contact.size, ctx.components - 1)) if ctx.components > 1 else None
-    state = State(0.0, U, V, A, np.zeros(disc.contact.size), lam_t=lam_t)
+    state = State(0.0, U, V, A, lam0, lam_t=lam_t)
     R0 = np.zeros(n)
     ml = np.setdiff1d(ctx.massless, ctx.fixed)
     R0[ml] = -r[ml]
@@ -222,6 +230,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "total_memory_bytes": memory_info()[0],
         "total_memory_source": memory_info()[1],
         "initial_acceleration": getattr(ctx, "initial_acceleration", "none"),
+        # [initial] equilibrium = true: the static solve of the held bodies at t = 0 (what was held, solved, left)
+        "initial_equilibrium": getattr(ctx, "initial_equilibrium", {"solved": False, "reason": "not asked"}),
         "conventions": {
             "follow_mass": bool(disc.problem.follow_mass),
             "body_force": _body_force_convention(disc),

@@ -156,6 +156,8 @@ def check_problem(problem) -> None:
         vector_value(f"tractions[{k!r}]", v, dim)
     if not isinstance(problem.follow_mass, (bool, np.bool_)):
         raise InputError(f"follow_mass must be True or False, got {_short(problem.follow_mass)}")
+    if not isinstance(problem.initial_equilibrium, bool):
+        raise InputError(f"initial_equilibrium must be True or False, got {_short(problem.initial_equilibrium)}")
     if problem.initial_acceleration not in INITIAL_ACCELERATIONS:
         raise InputError(f"initial_acceleration must be one of {', '.join(INITIAL_ACCELERATIONS)}, "
                          f"got {_short(problem.initial_acceleration)}")  # fmt: skip

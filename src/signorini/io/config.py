@@ -641,6 +641,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     if acceleration not in INITIAL_ACCELERATIONS:
         raise InputError(f"'initial.acceleration' must be one of {', '.join(map(repr, INITIAL_ACCELERATIONS))}, "
                          f"got {acceleration!r}")  # fmt: skip
+    equilibrium = _bool("initial.equilibrium", init.get("equilibrium", False))
     loads = data.get("loads", {})
     _keys("loads", loads, SECTIONS["loads"])
     body = vector_field("loads.body_force", loads["body_force"], dim) if "body_force" in loads else None
@@ -657,6 +658,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
         mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
         friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
         materials=materials, initial_regions=initial_regions, gravity=gravity, damping=damping,
+        initial_equilibrium=equilibrium,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
     from ..dynamics.events import parse_stop_at

@@ -456,7 +456,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
                     spec.dt,
                     spec.T,
                     mass=spec.mass,
-                    progress=Progress(args.quiet, spec.label),
+                    progress=Progress(args.quiet, spec.label, estimated=_control_name(spec.control) != "fixed"),
                     scheme_options=spec.scheme_options,
                     solver_options=spec.solver_options,
                     observers=observers,

@@ -164,6 +164,11 @@ SECTIONS: tuple[Section, ...] = (
                 _ex('["-0.5"]', "[0.0, -0.5]", "[0.0, 0.0, -0.5]")),
             Key("acceleration", '"equilibrium" or "zero"', "equilibrium", "",
                 "A0: from M A0 = F(0) - S U0, or zero (GetFEM's Newmark start); summary.json conventions"),
+            Key("equilibrium", "true or false", "false", "",
+                "true: the bodies held by supports or resting in contact (gap 0 at t = 0) start in static "
+                "equilibrium under the loads at t = 0 (a static contact solve of the linear model, frictionless; "
+                "free bodies keep their displacement; docs/initial_equilibrium.md); summary.json "
+                "initial_equilibrium says what was solved"),
             Key("regions", "array of inline tables", "none", "",
                 "per region of cells: [{ tag = \"ball\", velocity = [...], displacement = [...] }, ...] (either "
                 "optional; expressions of x, y, z) on the nodes of the region's cells, over the section's values; "

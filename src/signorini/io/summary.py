@@ -17,9 +17,11 @@ class Progress:
     """Progress on stderr, unless quiet: a one-line bar redrawn in place when stderr is a
     terminal; otherwise (a batch job's log) plain lines at a bounded rate, the first after
     :data:`LOG_FIRST` s with the set-up time, then at most one per :data:`LOG_EVERY` s (step,
-    time, elapsed, ETA), and a last one when the loop ends (only if one was printed)."""
+    time, elapsed, ETA), and a last one when the loop ends (only if one was printed).  ``estimated``: the
+    step total is an estimate that changes as the run goes (the energy control refines and coarsens the
+    step): it is shown as ``~n``, "estimated"."""
 
-    def __init__(self, quiet: bool, label: str, stream=None):
+    def __init__(self, quiet: bool, label: str, stream=None, estimated: bool = False):
         import os
 
         self.stream = stream if stream is not None else sys.stderr
@@ -38,6 +40,10 @@ class Progress:
         if self.log_every is None or not self.log_every >= 0:
             self.log_first, self.log_every = LOG_FIRST, LOG_EVERY
         self.lines = 0
+        self.estimated = estimated
+
+    def _total(self, n: int) -> str:
+        return f"~{n} (estimated)" if self.estimated else str(n)
 
     def __call__(self, i: int, n: int) -> None:
         if not self.enabled:
@@ -53,7 +59,7 @@ class Progress:
         self.last = now
         frac = i / n
         bar = "#" * int(30 * frac)
-        self.stream.write(f"\r{self.label} [{bar:<30}] {i}/{n} steps, {self._eta(now, i, n):5.1f}s left")
+        self.stream.write(f"\r{self.label} [{bar:<30}] {i}/{self._total(n)} steps, {self._eta(now, i, n):5.1f}s left")
         if i == n:
             self.stream.write("\n")
         self.stream.flush()
@@ -77,8 +83,8 @@ class Progress:
         self.last = now
         self.lines += 1
         state = "done" if i == n else f"ETA {self._eta(now, i, n):.0f} s"
-        self.stream.write(f"{self.label}: {first}step {i}/{n} ({100 * i / n:.0f}%), {now - self.t0:.0f} s elapsed, "
-                          f"{state}\n")  # fmt: skip
+        self.stream.write(f"{self.label}: {first}step {i}/{self._total(n)} ({100 * i / n:.0f}%), "
+                          f"{now - self.t0:.0f} s elapsed, {state}\n")  # fmt: skip
         self.stream.flush()
 
 
@@ -201,6 +207,7 @@ def one_screen_summary(H) -> str:
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
         f"{s['fallbacks']} step(s) with the contact solver's fallback\n"
         f"{time_lines(s)}"
+        f"{equilibrium_line(s)}"
         f"{energy_line(H, s)}"
         f"{friction_line(H, s)}"
         f"{damping_line(H, s)}"
@@ -211,6 +218,18 @@ def one_screen_summary(H) -> str:
         f"  setup {s['setup_seconds']:.3g}s, {1e3 * s['step_seconds']:.3g} ms/step ({s['backend']}), "
         f"{c.get('factorizations', 0)} factorization(s), {c.get('linear_solves', 0)} solves" + factorization_tip(s)
     )
+
+
+def equilibrium_line(s: dict) -> str:
+    """What ``[initial] equilibrium = true`` solved at t = 0 (nothing when it was not asked)."""
+    e = s.get("initial_equilibrium") or {}
+    if e.get("reason") == "not asked" or not e:
+        return ""
+    if not e.get("solved"):
+        return f"  initial equilibrium not solved: {e.get('reason', '')}\n"
+    free = f", free bodies {e['free_bodies']} keep their state" if e.get("free_bodies") else ""
+    return (f"  initial equilibrium: bodies {e['held_bodies']} start in static equilibrium ({e['iterations']} "
+            f"iteration(s), force left {e['force_left']:.2g} of {e['scale']:.3g}){free}\n")  # fmt: skip
 
 
 def time_lines(s: dict) -> str:
