@@ -228,3 +228,34 @@ def _static_solve(S, F, cons):
     rhs = F[f] - S[f][:, D] @ u[D]
     u[f] = spla.spsolve(sp.csc_matrix(S[f][:, f]), rhs)
     return u
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_cell_tensors_of_a_homogeneous_strain_are_the_laws_stress_everywhere(dim):
+    """u = G x (G symmetric): every cell's mean strain is G and its stress C G as 3 x 3 tensors (plane strain's
+    sigma_zz = lam tr G in 2D, the bar's E G_xx alone in 1D), to round-off; the von Mises stress of the same cells
+    agrees with the tensor's."""
+    from signorini.fem.assembly import cell_tensors, von_mises
+    from signorini.fem.material import IsotropicElastic
+    from signorini.fem.mesh import box, interval, rectangle
+
+    mesh = interval(5) if dim == 1 else rectangle(3, 2, cell="triangle") if dim == 2 else box(2, 2, 2, cell="tetra")
+    mat = IsotropicElastic.from_young(2.0e11, 0.3, 7800.0)
+    G = np.array([[1.0, 0.4, -0.2], [0.4, -0.5, 0.3], [-0.2, 0.3, 0.7]])[:dim, :dim] * 1e-3
+    u = (mesh.points @ G.T).ravel()
+    eps, sig = cell_tensors(mesh, mat, u)
+    E3 = np.zeros((3, 3))
+    E3[:dim, :dim] = G
+    if dim == 1:
+        S3 = np.zeros((3, 3))
+        S3[0, 0] = mat.young * G[0, 0]
+    else:
+        S3 = mat.lam * np.trace(G) * np.eye(3) + 2 * mat.mu * E3
+        if dim == 2:
+            S3[2, 2] = mat.lam * np.trace(G)  # plane strain: eps_zz = 0
+    assert eps.shape == sig.shape == (mesh.n_cells, 3, 3)
+    assert np.allclose(eps, E3, rtol=0, atol=1e-15)
+    assert np.allclose(sig, S3, rtol=1e-12, atol=1e-12 * np.abs(S3).max())
+    dev = S3 - np.trace(S3) / 3 * np.eye(3)
+    vm = abs(S3[0, 0]) if dim == 1 else np.sqrt(1.5 * np.sum(dev * dev))
+    assert np.allclose(von_mises(mesh, mat, u, nodal=False), vm, rtol=1e-12, atol=0)

@@ -1,5 +1,6 @@
 import meshio
 import numpy as np
+import pytest
 
 from signorini.dynamics.simulate import simulate
 from signorini.io.output import FieldWriter
@@ -60,3 +61,54 @@ def test_the_contact_pressure_of_a_pair_is_written_on_both_sides(tmp_path):
             assert abs(ps - pm) <= 1e-12 * scale and np.abs(fs + fm).max() <= 1e-12 * np.abs(fs).max(initial=1e-300)
             seen += ps > 0
     assert seen >= 2  # the blocks press on each other at the snapshots (levels 0, 3, .., 12)
+
+
+def _field_run(tmp_path):
+    b = get_benchmark("bar2d")
+    p = b.problem(2)
+    simulate(p, "cn", b.h(2) / 2, 0.6, snapshot_every=4, observers=[FieldWriter(tmp_path / "f.xdmf", 4)])
+    return p
+
+
+def test_a_linear_run_writes_the_stress_and_strain_tensors_of_its_cells(tmp_path):
+    """Issue 52, item 5: ``cauchy_stress`` and ``strain`` (n_cells, 9) at every time, the cell means of
+    :func:`~signorini.fem.assembly.cell_tensors` of the written displacement (plane strain's zz included)."""
+    from signorini.fem.assembly import cell_tensors
+
+    p = _field_run(tmp_path)
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "f.xdmf")) as r:
+        r.read_points_cells()
+        t, pd, cd = r.read_data(r.num_steps - 1)
+    eps, sig = cell_tensors(p.mesh, p.material, pd["displacement"][:, :2].ravel())
+    assert np.allclose(cd["cauchy_stress"][0], sig.reshape(-1, 9), rtol=1e-12, atol=1e-12 * np.abs(sig).max())
+    assert np.allclose(cd["strain"][0], eps.reshape(-1, 9), rtol=1e-12, atol=1e-12 * np.abs(eps).max())
+    assert np.abs(sig[:, 2, 2]).max() > 0 and np.all(eps[:, 2, 2] == 0.0)  # plane strain
+
+
+def test_the_xdmf_index_is_one_grid_that_vtk_reads_as_one_mesh(tmp_path):
+    """Issue 52, item 5: meshio's index held the mesh twice (a grid of its own beside the time series), which
+    VTK's XDMF reader (ParaView's, pyvista's) read as a multiblock of two meshes.  Now the domain holds the time
+    series only, each step with the mesh's geometry and topology; meshio still reads it, and VTK (when
+    installed: the ``vtk`` extra) reads one unstructured grid with every time step."""
+    import xml.etree.ElementTree as ET
+
+    p = _field_run(tmp_path)
+    domain = ET.parse(tmp_path / "f.xdmf").getroot()[0]
+    assert [g.get("GridType") for g in domain] == ["Collection"]
+    for step in domain[0]:
+        assert {e.tag for e in step} >= {"Geometry", "Topology", "Time", "Attribute"}
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "f.xdmf")) as r:
+        points, cells = r.read_points_cells()
+        assert np.array_equal(points[:, :2], p.mesh.points) and r.num_steps == len(domain[0])
+    vtk = pytest.importorskip("vtkmodules.vtkIOXdmf2", reason="VTK's XDMF reader: pip install '.[vtk]'")
+    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
+
+    reader = vtk.vtkXdmfReader()
+    reader.SetFileName(str(tmp_path / "f.xdmf"))
+    reader.UpdateInformation()
+    reader.Update()
+    out = reader.GetOutputDataObject(0)
+    assert out.GetClassName() == "vtkUnstructuredGrid"
+    assert (out.GetNumberOfPoints(), out.GetNumberOfCells()) == (p.mesh.n_nodes, p.mesh.n_cells)
+    times = reader.GetOutputInformation(0).Get(vtkStreamingDemandDrivenPipeline.TIME_STEPS())
+    assert len(times) == len(domain[0])

@@ -434,6 +434,25 @@ def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True)
     return nodal_average(mesh, cell) if nodal else cell
 
 
+def cell_tensors(mesh: Mesh, material: Material, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cell means of the small strain and of the Cauchy stress of ``u``, (n_cells, 3, 3) each [-, Pa]: the
+    3D tensors (plane strain in 2D: eps_zz = 0, sigma_zz = lam tr(eps); in 1D the bar's axial eps_xx and
+    sigma_xx = E eps_xx, the other components 0)."""
+
+    def one(part: Mesh, cut: slice) -> np.ndarray:
+        wdet, _ = geometry(part)
+        eps = strain(part, u)
+        d = eps.shape[-1]
+        e3 = np.zeros(eps.shape[:-2] + (3, 3))
+        e3[..., :d, :d] = eps
+        sig = part_material(material, cut).stress3(eps)
+        w = wdet / wdet.sum(axis=1)[:, None]
+        return np.stack([np.einsum("eq,eqij->eij", w, e3), np.einsum("eq,eqij->eij", w, sig)], axis=1)
+
+    both = over_blocks(mesh, one, np.concatenate)  # (n_cells, 2, 3, 3)
+    return both[:, 0], both[:, 1]
+
+
 def stress(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
 

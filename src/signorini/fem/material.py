@@ -87,6 +87,10 @@ class IsotropicElastic:
         """Cauchy stress from strain tensors ``eps`` of shape (..., d, d)."""
         return _stress(self.lam, self.mu, self.young, eps)
 
+    def stress3(self, eps: np.ndarray) -> np.ndarray:
+        """The 3 x 3 Cauchy stress (..., 3, 3) of strains (..., d, d): plane strain's sigma_zz in 2D, uniaxial in 1D."""
+        return _stress3(self.lam, self.mu, self.young, eps)
+
     def von_mises(self, eps: np.ndarray) -> np.ndarray:
         """von Mises stress sqrt(3/2 s:s), s the deviator of the 3D stress.
 
@@ -141,17 +145,25 @@ def _stress(lam, mu, young, eps: np.ndarray) -> np.ndarray:
     return (lam * tr)[..., None, None] * np.eye(d) + 2 * mu[..., None, None] * eps
 
 
-def _von_mises(lam, mu, young, eps: np.ndarray) -> np.ndarray:
-    """von Mises stress of :func:`_stress` (plane strain's sigma_zz = lam tr(eps) in 2D)."""
+def _stress3(lam, mu, young, eps: np.ndarray) -> np.ndarray:
+    """The 3 x 3 Cauchy stress (..., 3, 3) of :func:`_stress`: plane strain's sigma_zz = lam tr(eps) in 2D, the
+    bar's axial stress E eps_xx alone in 1D (uniaxial)."""
     d = eps.shape[-1]
     sig = _stress(lam, mu, young, eps)
-    if d == 1:
-        return np.abs(sig[..., 0, 0])
+    if d == 3:
+        return sig
+    s3 = np.zeros(sig.shape[:-2] + (3, 3))
+    s3[..., :d, :d] = sig
     if d == 2:
-        s3 = np.zeros(sig.shape[:-2] + (3, 3))
-        s3[..., :2, :2] = sig
         s3[..., 2, 2] = np.asarray(lam) * np.trace(eps, axis1=-2, axis2=-1)
-        sig = s3
+    return s3
+
+
+def _von_mises(lam, mu, young, eps: np.ndarray) -> np.ndarray:
+    """von Mises stress of :func:`_stress` (plane strain's sigma_zz = lam tr(eps) in 2D)."""
+    if eps.shape[-1] == 1:
+        return np.abs(_stress(lam, mu, young, eps)[..., 0, 0])
+    sig = _stress3(lam, mu, young, eps)
     tr = np.trace(sig, axis1=-2, axis2=-1)
     dev = sig - tr[..., None, None] / 3.0 * np.eye(3)
     return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))
@@ -199,6 +211,11 @@ class CellMaterial:
         """Cauchy stress (n_cells, ..., d, d) of strains ``eps`` (n_cells, ..., d, d)."""
         c = self._per_cell
         return _stress(c(eps, self.lam), c(eps, self.mu), c(eps, self.young), eps)
+
+    def stress3(self, eps: np.ndarray) -> np.ndarray:
+        """The 3 x 3 Cauchy stress (n_cells, ..., 3, 3) (as :meth:`IsotropicElastic.stress3`)."""
+        c = self._per_cell
+        return _stress3(c(eps, self.lam), c(eps, self.mu), c(eps, self.young), eps)
 
     def von_mises(self, eps: np.ndarray) -> np.ndarray:
         """von Mises stress (n_cells, ...) of strains ``eps`` (n_cells, ..., d, d)."""

@@ -35,6 +35,8 @@ def _serve(conn, path: str) -> None:
     try:
         os.chdir(target.parent)  # meshio names the HDF5 file relative to the working directory
         import meshio
+
+        from .xdmf_index import one_grid
     except BaseException:  # noqa: BLE001 - the run stopped and removed its directory: nothing to do
         os._exit(0)  # silently: the parent reports what happened, never the child
 
@@ -54,6 +56,7 @@ def _serve(conn, path: str) -> None:
             elif msg[0] == "close":
                 if writer is not None:
                     writer.__exit__(None, None, None)
+                    one_grid(target)  # one mesh for ParaView/pyvista (:mod:`~.xdmf_index`)
                 conn.send(("ok",))
                 os._exit(0)
             conn.send(("ok",))

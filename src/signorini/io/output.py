@@ -17,11 +17,13 @@ bodies), and ``contact_status`` (n_nodes,), of the contact and slave nodes:
 contact, nothing holds it tangentially).  Cell data per time: ``region`` (n_cells,): k + 1
 for the k-th region tag in sorted order (``summary.json`` ``regions``), 0 for none, and
 ``body`` (n_cells,): the body of the cell (``summary.json`` ``bodies``, numbered from 0).
-With finite strain (``[material] model`` not linear) ``von_mises`` is the current configuration's
-(of the Cauchy stress), and each time adds the cell data ``cauchy_stress`` and ``green_lagrange``
-(n_cells, 9: xx, xy, xz, yx, ... row by row; plane strain's zz included) and ``strain_energy_density``
-(n_cells,: the stored energy W per unit reference volume), cell means; the fields stay on the reference
-mesh with the ``displacement`` (ParaView's Warp By Vector shows the current shape).
+Each time also has the cell data ``cauchy_stress`` (n_cells, 9: xx, xy, xz, yx, ... row by row; plane strain's
+zz included; 1D: the bar's axial component) and a strain tensor, cell means: the linear model's small strain
+``strain``; with finite strain (``[material] model`` not linear) ``green_lagrange`` and
+``strain_energy_density`` (n_cells,: the stored energy W per unit reference volume), and ``von_mises`` is the
+current configuration's (of the Cauchy stress); the fields stay on the reference mesh with the ``displacement``
+(ParaView's Warp By Vector shows the current shape).  The XDMF index holds one grid, the time series, with the
+mesh in every time step (:mod:`~.xdmf_index`): ParaView, pyvista and VTK read one mesh.
 
 HDF5 runs in a child process (:mod:`signorini.io.field_process`): a crash inside it, which
 a disk filled by another program during a write can cause, ends the run with exit 4 in
@@ -46,7 +48,7 @@ import numpy as np
 
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
-from ..fem.assembly import nodal_average, von_mises
+from ..fem.assembly import cell_tensors, nodal_average, von_mises
 from ..fem.mesh import bodies, region_ids
 from ..fem.node_order import to_user_nodes
 
@@ -198,8 +200,11 @@ class FieldWriter(Observer):
             cell_data = {**cell_data, "cauchy_stress": per_block(f["cauchy_stress"].reshape(-1, 9)),
                          "green_lagrange": per_block(f["green_lagrange"].reshape(-1, 9)),
                          "strain_energy_density": per_block(f["strain_energy_density"])}  # fmt: skip
-        else:
+        else:  # the small strain and the Cauchy stress of the linear model, cell means
             vm = von_mises(mesh, self._material, s.U)
+            eps, sig = cell_tensors(mesh, self._material, s.U)
+            cell_data = {**cell_data, "cauchy_stress": [sig.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks],
+                         "strain": [eps.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
         c = self._contact
         traction = np.zeros((mesh.n_nodes, 3))
         force = c.normals * s.lam[:, None]

@@ -104,8 +104,9 @@ class Newmark(Scheme):
         law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
         q = self.increment_predictor(ctx, s.V, s.A)  # M A^{n+1} = M (dU/(beta dt^2) - q)
         damping = None if ctx.damping is None else self.damping_offset_increment(ctx, s)
-        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping))
-        return self.update(ctx, s, t, U, lam, info, self.predictor(ctx, s))
+        p = self.predictor(ctx, s)  # q + U^n/(beta dt^2), as the linear solve rounds it
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping, total=p))
+        return self.update(ctx, s, t, U, lam, info, p)
 
     def increment_predictor(self, ctx, V: np.ndarray, A: np.ndarray) -> np.ndarray:
         """q = p - U^n/(beta dt^2) = V/(beta dt) + (1/(2 beta) - 1) A, without the cancellation of p's U^n

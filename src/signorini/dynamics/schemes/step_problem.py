@@ -19,7 +19,10 @@ The linear case is Newton's first iteration written for U^{n+1} itself (not the 
 backend's relative tolerance applies to the whole right-hand side, as before the step had this form, and
 the histories keep their round-off,
 
-    (c_M M + c_C C + c_S S) U^{n+1} = M (q + c_M U^n) + F - C (d - c_C U^n) - c_S (g(U^n) - S U^n).
+    (c_M M + c_C C + c_S S) U^{n+1} = M (q + c_M U^n) + F - C (d - c_C U^n) - c_S (g(U^n) - S U^n)
+
+(q + c_M U^n in the scheme's own form when it gives one, ``StepProblem.total``: Newmark's and theta's
+predictor p, so that their linear histories are those of before, bit for bit).
 """
 
 from __future__ import annotations
@@ -58,6 +61,10 @@ class StepProblem:
         the level's f(U^n) without evaluating g).
     potential : whether g is the gradient of the body's stored energy (Newton's line search on the step's
         incremental potential); False: a merit function on the residual (energy-momentum).
+    total : (n,) q + c_M U^n as the scheme computes it in its own form (Newmark's and theta's predictor p), for
+        the linear solve; None: q + c_M U^n.  The same vector to round-off: the linear histories keep the
+        rounding they had before the steps were stated this way (a run that reaches its obstacle exactly at a
+        level, as the paper's bars do, is a tie that round-off decides).
     """
 
     scheme: Scheme
@@ -71,6 +78,7 @@ class StepProblem:
     tangent: Callable[..., object] | None = None
     force_start: np.ndarray | None = None
     potential: bool = True
+    total: np.ndarray | None = None
 
 
 def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, StepInfo]:
@@ -91,7 +99,7 @@ def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, St
         energy = el.energy if p.potential else None
         bound = contact_bound(ctx, s.U, s.t, p.t)
         return newton_solve(ctx, op, s.U, rest, force, tangent, bound, fixed, p.law, inertia, energy=energy)
-    rhs = ctx.Mop @ (p.q + weights.mass * s.U) + p.forces
+    rhs = ctx.Mop @ (p.q + weights.mass * s.U if p.total is None else p.total) + p.forces
     if p.damping is not None:
         rhs -= ctx.damping.force(ctx, p.damping - scheme.damping_coefficient(dt) * s.U)
     if p.force_start is not None:  # g(U) = S U + (g(U^n) - S U^n)

@@ -82,7 +82,8 @@ class Theta(Scheme):
         q = s.V / (th * th * dt) + (1 - th) / th * s.A  # M A^{n+1} = M (dU / (theta dt)^2 - q)
         # C V_d^{n+1} = C dU / (theta dt) - C (1 - theta)/theta V_d^n
         damping = None if ctx.damping is None else -(1 - th) / th * Vd0
-        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping))
+        p = (s.U + dt * s.V) / (th * dt) ** 2 + (1 - th) / th * s.A  # q + U^n/(theta dt)^2, as the linear solve
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), law, damping, total=p))
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
         extra = {}
