@@ -193,6 +193,25 @@ def _restore_series(series: dict[str, np.ndarray], data: dict[str, Any], n: int,
         v[: n + 1] = a
 
 
+def _restored_rows(value: Any, size: int) -> np.ndarray:
+    """A checkpoint's open contact cycles (size,): finite numbers, or refused (InputError)."""
+    a = np.asarray(value, dtype=float) if value is not None else np.zeros(size)
+    if a.shape != (size,) or not np.all(np.isfinite(a)):
+        raise InputError(f"checkpoint: the energy's open contact cycles must be {size} finite numbers")
+    return a
+
+
+def _non_negative(value: Any, key: str) -> float:
+    """A checkpoint's cumulative created or destroyed energy: a finite number >= 0, or refused (InputError)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not (np.isfinite(v) and v >= 0):
+        raise InputError(f"checkpoint: the energy's {key} must be a finite number >= 0, got {value!r}")
+    return v
+
+
 def _finite_energy(parts: tuple[float, float], n: int) -> tuple[float, float]:
     """(kinetic, potential) if both are finite; else :class:`NonFiniteError` (values beyond doubles)."""
     if not (np.isfinite(parts[0]) and np.isfinite(parts[1])):
@@ -233,6 +252,15 @@ class EnergyRecorder(Observer):
     #: twice); and the level where it first exceeded :data:`SPURIOUS_TOLERANCE` of the scale
     spurious: float = 0.0
     spurious_first: int = -1
+    #: the unexplained energy created and destroyed so far (both >= 0) [energy]: the contact rows' cycles (each
+    #: row's net work of a fixed obstacle or of a pair, with a penalty's springs, from the step it starts acting
+    #: to the step it lets go: positive nets created, negative destroyed, the cycles still open counted as they
+    #: stand) plus the numerical part's net (its running maximum created, its running minimum's depth destroyed).
+    #: Unlike :attr:`spurious`, energy created after earlier losses shows (a body chattering at rest after its
+    #: impact lost energy); a release that gives back what its entry took is not counted as created.
+    created: float = 0.0
+    destroyed: float = 0.0
+    created_first: int = -1
     #: the run's energy scale: max(|E^0|, the largest kinetic energy, |the loads' work|) so far
     energy_scale: float = 0.0
     #: whether the rigid obstacle moves (its contact work is then physical: only the numerical
@@ -253,6 +281,15 @@ class EnergyRecorder(Observer):
         _restore_series(self.series, saved, n, "energy")
         self._scale, self.worst = 0.0, (0.0, -1)
         self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
+        self._reset_cycles(run)
+        if "cycles_open" in data:  # a checkpoint of before the cycles: they count from the resume
+            self._open = _restored_rows(data["cycles_open"], self._open.size)
+            self._rows_created = _non_negative(data.get("cycles_created"), "created")
+            self._rows_destroyed = _non_negative(data.get("cycles_destroyed"), "destroyed")
+            first = data.get("cycles_first", -1)
+            if not (isinstance(first, (int, np.integer)) and -1 <= int(first) <= n):
+                raise InputError(f"checkpoint: the energy's first level above the tolerance {first!r} is not a level")
+            self.created_first = int(first)
         for k in range(n + 1):  # the check's running figures, from the levels restored
             self._check(run, k, check=False)
         self._prev = state
@@ -261,7 +298,34 @@ class EnergyRecorder(Observer):
             raise InputError(f"checkpoint: the energy's step {self._dt!r} is not a positive number")
 
     def saved(self, n: int) -> dict[str, Any]:
-        return {"series": {k: v[: n + 1] for k, v in self.series.items()}, "dt": float(self._dt)}
+        return {"series": {k: v[: n + 1] for k, v in self.series.items()}, "dt": float(self._dt),
+                "cycles_open": self._open.copy(), "cycles_created": float(self._rows_created),
+                "cycles_destroyed": float(self._rows_destroyed), "cycles_first": int(self.created_first)}  # fmt: skip
+
+    def _reset_cycles(self, run: Run) -> None:
+        self._open = np.zeros(run.ctx.disc.contact.size)  # each row's net work of its open cycle
+        self._rows_created = self._rows_destroyed = 0.0
+        self._num_high = self._num_low = self._num_net = 0.0
+        self.created = self.destroyed = 0.0
+        self.created_first = -1
+
+    def _cycles(self, run: Run, state: State) -> None:
+        """Each contact row's work of the step (kept by the scheme's ``contact_works`` with the level), added to
+        its open cycle; the rows that let go at this level close theirs (:attr:`created`)."""
+        rows = state.cache.get("contact_rows")
+        if rows is None or self.obstacle_moves or rows.size != self._open.size:
+            return
+        stored = run.scheme.contact_energy_rows(run.ctx, state)
+        if stored is not None:  # a penalty's springs: the contact work they keep is not unexplained
+            before = run.scheme.contact_energy_rows(run.ctx, self._prev)
+            rows = rows + (stored - before)
+        self._open += rows
+        closed = (state.lam == 0.0) & (self._open != 0.0)
+        if closed.any():
+            net = self._open[closed]
+            self._rows_created += float(net[net > 0].sum())
+            self._rows_destroyed -= float(net[net < 0].sum())
+            self._open[closed] = 0.0
 
     def start(self, run: Run) -> None:
         n = run.n_steps + 1
@@ -272,6 +336,7 @@ class EnergyRecorder(Observer):
         self.spurious, self.spurious_first, self.energy_scale, self._net = 0.0, -1, 0.0, 0.0
         obstacle = run.ctx.disc.problem.obstacle
         self.obstacle_moves = bool(getattr(obstacle, "moving", False))
+        self._reset_cycles(run)
         rtol = run.ctx.solver_options.get("rtol")
         iterative = any(getattr(solver, "uses_guess", False) for solver in run.ctx.solvers)  # CG solves
         loose = 100.0 * float(rtol) if iterative and isinstance(rtol, (int, float)) else 0.0
@@ -354,6 +419,8 @@ class EnergyRecorder(Observer):
         else:
             for k in self.PARTS:
                 S[k][n] = S[k][n - 1]
+        if parts is not None:
+            self._cycles(run, state)
         self._prev.cache.clear()  # release the old level's products
         self._prev = state
         self._check(run, n)
@@ -370,13 +437,22 @@ class EnergyRecorder(Observer):
         scale = max(abs(float(e0)), float(S["kinetic_energy"][n]), abs(float(S["external"][n])))
         self.energy_scale = max(self.energy_scale, scale if np.isfinite(scale) else 0.0)
         if n > 0 and np.isfinite(S["predicted_increment"][n]):
-            self._net += float(S["numerical"][n] - S["numerical"][n - 1])
+            numerical = float(S["numerical"][n] - S["numerical"][n - 1])
+            self._net += numerical
             if not self.obstacle_moves:
                 self._net += float(S["contact"][n] - S["contact"][n - 1])
             if self._net > self.spurious:
                 self.spurious = self._net
-                if self.spurious_first < 0 and self.spurious_exceeded():
+                if self.spurious_first < 0 and self.spurious_relative() > SPURIOUS_TOLERANCE:
                     self.spurious_first = n
+            self._num_net += numerical
+            self._num_high, self._num_low = max(self._num_high, self._num_net), min(self._num_low, self._num_net)
+            opened = self._open[self._open > 0].sum() if self._open.size else 0.0
+            closing = self._open[self._open < 0].sum() if self._open.size else 0.0
+            self.created = self._rows_created + float(opened) + self._num_high
+            self.destroyed = self._rows_destroyed - float(closing) - self._num_low
+            if self.created_first < 0 and self.spurious_exceeded():
+                self.created_first = n
             if check and self.check == "fail" and self.spurious_exceeded():
                 raise ConvergenceError(self.spurious_message())
         if n == 0 or not np.isfinite(S["predicted_increment"][n]) or self._scale == 0.0:
@@ -398,8 +474,12 @@ class EnergyRecorder(Observer):
     def spurious_relative(self) -> float:
         return self.spurious / self.energy_scale if self.energy_scale > 0 else 0.0
 
+    def created_relative(self) -> float:
+        return self.created / self.energy_scale if self.energy_scale > 0 else 0.0
+
     def spurious_exceeded(self) -> bool:
-        return self.spurious_relative() > SPURIOUS_TOLERANCE
+        """Whether the energy created (:attr:`created`) exceeds :data:`SPURIOUS_TOLERANCE` of the scale."""
+        return self.created_relative() > SPURIOUS_TOLERANCE
 
     def spurious_message(self, single_level: int = 0, t_first: float | None = None,
                          duration: float | None = None, dt: float | None = None, controlled: bool = False,
@@ -407,9 +487,9 @@ class EnergyRecorder(Observer):
         """The warning of a run whose scheme created more than :data:`SPURIOUS_TOLERANCE` of its
         energy scale: how much, from which level, the contact episodes a single level long, and the fix."""
         where = ""
-        if self.spurious_first >= 0:
+        if self.created_first >= 0:
             at = f", t = {t_first:.6g}" if t_first is not None else ""
-            where = f"; above {100 * SPURIOUS_TOLERANCE:g}% from level {self.spurious_first}{at} on"
+            where = f"; above {100 * SPURIOUS_TOLERANCE:g}% from level {self.created_first}{at} on"
         single = (f"; {single_level} contact episode(s) lasted a single level: the step does not resolve the "
                   "contact") if single_level else ""  # fmt: skip
         fix = "a smaller time step"
@@ -425,7 +505,7 @@ class EnergyRecorder(Observer):
         else:
             fix = f'the energy control ([time] control = "energy", --dt-control energy) or {fix}'
         return (
-            f"the scheme created {self.spurious:.4g} of energy, {100 * self.spurious_relative():.3g}% of the run's "
+            f"the scheme created {self.created:.4g} of energy, {100 * self.created_relative():.3g}% of the run's "
             f"energy scale {self.energy_scale:.4g}{where} (work that a fixed obstacle and the contact between bodies "
             f"cannot do, and the scheme's numerical part){single}: the result gains energy that is not physics; "
             f"use {fix}"
@@ -458,9 +538,12 @@ class EnergyRecorder(Observer):
         single = single_level_contacts(lam)
         meta["single_level_contacts"] = single
         meta["spurious_energy"] = {"absolute": self.spurious, "relative": self.spurious_relative(),
-                                   "scale": self.energy_scale, "first_level": self.spurious_first}  # fmt: skip
+                                   "scale": self.energy_scale, "first_level": self.spurious_first,
+                                   "created": self.created, "destroyed": self.destroyed,
+                                   "created_relative": self.created_relative(),
+                                   "created_first_level": self.created_first}  # fmt: skip
         if self.spurious_exceeded() and not failed:
-            first = self.spurious_first
+            first = self.created_first
             t_first = float(t[first]) if 0 <= first < t.size else None
             duration = contact_duration_estimate(run.ctx.disc.problem)
             meta["warnings"].append(

@@ -415,7 +415,11 @@ class AdaptiveSteps:
         if ctl.k == 0 or ctl.calm < ctl.grow_after:
             return
         r = (s.t - begin) / (2.0 * h)
-        if abs(r - round(r)) > 1e-6 * max(1.0, abs(r)):  # not on the grid of 2h yet
+        # not on the grid of 2h yet: r's round-off is eps |r| (t and h exact to a few ulps), far below 1e-6; a
+        # tolerance relative to r (1e-6 |r|, before) took half a step for a whole one beyond 5e5 steps of 2h
+        # into the piece, and the next segment could not divide the rest of the piece (a steel block at rest,
+        # 0.025 s at 2.5e-5 / 512: exit 2 midway, its levels lost)
+        if abs(r - round(r)) > 1e-6 + 1e-12 * abs(r):
             return
         ctl.k -= 1
         ctl.calm = 0

@@ -257,6 +257,10 @@ class Scheme:
         0 for exact contact.  The energy control counts the contact work net of its change."""
         return 0.0
 
+    def contact_energy_rows(self, ctx: Context, state: State) -> np.ndarray | None:
+        """:meth:`contact_energy` row by row (nc,) [energy], or None when it is 0 (exact contact)."""
+        return None
+
     def local_error(self, ctx: Context, old: State, new: State) -> np.ndarray | None:
         """An estimate of the step's local error in the displacement (n,), or None when the
         scheme has none (the energy control then judges the step by its energy alone)."""
@@ -375,9 +379,13 @@ def contact_works(
     """(normal, tangential) work of the contact forces w lambda^{n+1} + w_old lambda^n (w_old
     = 1 - w by default) over dU, each level's multipliers through its own rows
     (:meth:`Context.rows_of`: they differ after a contact pair re-paired a slave node between
-    the levels) [energy].  ``w_new``: one weight, or one per contact row (nc,) (energy-momentum)."""
+    the levels) [energy].  ``w_new``: one weight, or one per contact row (nc,) (energy-momentum).
+    The normal work row by row (nc,) is kept in ``new.cache["contact_rows"]``."""
     w_old = 1 - w_new if w_old is None else w_old
     B0, T0 = ctx.rows_of(old.t)
+    if new.lam.size:  # row by row (kept with the new level: the spurious energy's contact cycles, EnergyRecorder)
+        BdU = ctx.B @ dU
+        new.cache["contact_rows"] = BdU * (w_new * new.lam) + (BdU if B0 is ctx.B else B0 @ dU) * (w_old * old.lam)
     if np.ndim(w_new):  # per row: each level's forces weighted through its own rows
         normal = float((ctx.B @ dU) @ (w_new * new.lam) + (B0 @ dU) @ (w_old * old.lam)) if new.lam.size else 0.0
         tangential = 0.0
