@@ -306,3 +306,25 @@ def test_resume_inside_an_impact_sizes_the_run_at_its_largest_step(tmp_path):
     assert main(["resume", str(tmp_path / "o"), "--T", "0.005", "--out", str(tmp_path / "r"), "--quiet"]) == 0
     r = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert r["status"] == "finished" and r["steps"] < 5000
+
+
+def test_a_grid_the_control_cannot_build_fails_the_run_with_its_levels_kept(steel, monkeypatch):
+    """A segment the control asks for that the grid refuses (the grown step off its grid, issue 52) was an
+    InputError midway: exit 2, nothing written.  Now halving fails the run with the reason and the levels kept,
+    and a growth that cannot be taken is not taken."""
+    from signorini.dynamics.time_grid import TimeGrid
+
+    real = TimeGrid.continue_with
+    calls = {"n": 0}
+
+    def refusing(self, *args, **kwargs):  # the control's first four segments, then none
+        calls["n"] += 1
+        if calls["n"] > 4:
+            raise InputError("a length of 1 is not an integer multiple of dt (forced by the test)")
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(TimeGrid, "continue_with", refusing)
+    H = _run(steel, control="energy")
+    assert calls["n"] > 4 and H.status == "failed" and H.t.size > 1
+    assert "could not halve its step" in H.summary()["message"]
+    monkeypatch.setattr(TimeGrid, "continue_with", real)

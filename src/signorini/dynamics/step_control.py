@@ -388,7 +388,10 @@ class AdaptiveSteps:
             ctl.rejected += 1
             ctl.k += 1
             ctl.calm = 0
-            grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+            try:
+                grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+            except InputError as exc:  # the control's own grid (a bug if it happens): the levels are kept
+                return None, f"step {n}: the energy control could not halve its step: {exc}"
 
     def accepted(self, t0: float) -> None:
         """The control's count of the level just accepted; the step grows by 2 after
@@ -426,7 +429,10 @@ class AdaptiveSteps:
         if at_T:  # T reached: the grown step is where a resume to a later T goes on (:meth:`grid_attrs`)
             self.next_segment = [float(s.t), dt_piece / 2**ctl.k, s.n]
             return
-        grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+        try:
+            grid.continue_with(s.n, s.t, dt_piece / 2**ctl.k)
+        except InputError:  # the control's own grid cannot take the grown step here (a bug if it happens):
+            ctl.k += 1  # keep the step, the run goes on
 
     def grid_attrs(self) -> dict[str, Any]:
         """The segment of the next level, the step factorized now and the control's state (a
