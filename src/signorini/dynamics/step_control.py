@@ -138,6 +138,10 @@ class EnergyControl:
     refined_levels: list[list[int]] = field(default_factory=list)
     #: relative change of the total contact force over a step below which it is steady
     force_change: float = 0.01
+    #: the contact force's sum at the level before the last accepted one, and whether its acting rows were the
+    #: same as the last level's (:meth:`resting`)
+    prev_sum: float | None = None
+    persistent: bool = False
     #: the smallest step allowed: dt_min, or the smallest piece's dt / 2^DEFAULT_LEVELS (the Stepper sets it)
     dt_min_used: float = 0.0
     #: a test hook: every step is rejected once and tried again at the same step
@@ -186,6 +190,24 @@ class EnergyControl:
         its history must stay resolved (the step that resolved the onset is kept to the release)."""
         a, b = float(np.sum(before)), float(np.sum(after))
         return abs(b - a) <= self.force_change * max(abs(a), abs(b))
+
+    def resting(self, before: np.ndarray | None, after: np.ndarray) -> bool:
+        """Whether the contact rests over the last two steps (levels n-1, n, n+1): the same rows act at the three
+        levels and the contact force averaged over consecutive levels is steady,
+        |<lambda>_{n+1/2} - <lambda>_{n-1/2}| <= force_change max(...) with <lambda>_{n+1/2} = sum (lambda^n +
+        lambda^{n+1})/2.  A body at rest whose force alternates from level to level (Crank-Nicolson's undamped
+        (-1)^n mode of the damping velocity on its massless contact dofs: 38% of the weight on a damped steel
+        block) rests; an impact's force, which follows the body's waves, does not.  Called once per accepted
+        level (it keeps the level before's sum and whether its rows persisted)."""
+        if before is None or before.size != after.size or not after.size:
+            self.prev_sum, self.persistent = None, False
+            return False
+        same = bool(np.array_equal(before != 0, after != 0) and np.any(after != 0))
+        a, b = float(np.sum(before)), float(np.sum(after))
+        ok = same and self.persistent and self.prev_sum is not None and self.steady_force(
+            np.array([0.5 * (self.prev_sum + a)]), np.array([0.5 * (a + b)]))  # fmt: skip
+        self.prev_sum, self.persistent = a, same
+        return ok
 
     def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0,
                       excess: float = 0.0) -> None:  # fmt: skip
@@ -251,7 +273,8 @@ class EnergyControl:
                 "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
                 "refined": [list(map(float, r)) for r in self.refined],
                 "refined_levels": [list(map(int, r)) for r in self.refined_levels],
-                "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess]}  # fmt: skip
+                "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess],
+                "prev_sum": self.prev_sum, "persistent": self.persistent}  # fmt: skip
 
     def restore(self, data: dict[str, Any], level: int | None = None, t: float | None = None) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside), and, given the checkpoint's
@@ -272,6 +295,14 @@ class EnergyControl:
         self.refined = _rows(data, "refined", 3, float, "[t_start, t_end, dt]")
         self.refined_levels = _rows(data, "refined_levels", 2, int, "[first, last] levels")
         self.unresolved_excess = _rows(data, "unresolved_excess", 2, float, "[t, excess]")
+        prev, persistent = data.get("prev_sum"), data.get("persistent", False)  # (a checkpoint of before: none)
+        if prev is not None and (
+            isinstance(prev, bool) or not isinstance(prev, (int, float)) or not math.isfinite(prev)
+        ):
+            raise InputError(f"checkpoint: time control 'prev_sum' must be a finite number or null, got {prev!r}")
+        if not isinstance(persistent, bool):
+            raise InputError(f"checkpoint: time control 'persistent' must be true or false, got {persistent!r}")
+        self.prev_sum, self.persistent = (None if prev is None else float(prev)), persistent
         if self.k > MAX_LEVELS:
             raise InputError(f"checkpoint: time control 'k' = {self.k} is beyond the ladder (at most {MAX_LEVELS})")
         if level is None or t is None:
@@ -409,12 +440,14 @@ class AdaptiveSteps:
         s, ctl = self.stepper, self.control
         grid = s.grid
         at_T = s.n >= grid.n_steps
+        resting = ctl.resting(self.force_before, s.state.lam)  # every accepted level: it keeps the level before's
         begin, end, dt_piece_next = grid.piece(s.t)
         if not at_T and (dt_piece_next != dt_piece or begin >= s.t - 1e-12 * max(abs(s.t), h)):  # a new piece
             ctl.k, ctl.calm = 0, 0  # its own dt
             return
         calm = ctl.calm_step(delta, s.run.scheme.conserving, scale, h, dt_piece, eta)
-        ctl.calm = ctl.calm + 1 if calm and ctl.steady_force(self.force_before, s.state.lam) else 0
+        steady = resting or ctl.steady_force(self.force_before, s.state.lam)
+        ctl.calm = ctl.calm + 1 if calm and steady else 0
         if ctl.k == 0 or ctl.calm < ctl.grow_after:
             return
         r = (s.t - begin) / (2.0 * h)
