@@ -315,9 +315,9 @@ class EnergyRecorder(Observer):
         rows = state.cache.get("contact_rows")
         if rows is None or self.obstacle_moves or rows.size != self._open.size:
             return
-        stored = run.scheme.contact_energy_rows(run.ctx, state)
+        stored = run.scheme.contact_energy(run.ctx, state, by_row=True)
         if stored is not None:  # a penalty's springs: the contact work they keep is not unexplained
-            before = run.scheme.contact_energy_rows(run.ctx, self._prev)
+            before = run.scheme.contact_energy(run.ctx, self._prev, by_row=True)
             rows = rows + (stored - before)
         self._open += rows
         closed = (state.lam == 0.0) & (self._open != 0.0)

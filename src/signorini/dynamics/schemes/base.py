@@ -252,14 +252,11 @@ class Scheme:
             return f"it cannot change its step ({self.variable_step_refusal})"
         return ""
 
-    def contact_energy(self, ctx: Context, state: State) -> float:
+    def contact_energy(self, ctx: Context, state: State, by_row: bool = False) -> Any:
         """Energy stored in the contact law at ``state``, outside E (a penalty's springs) [energy];
-        0 for exact contact.  The energy control counts the contact work net of its change."""
-        return 0.0
-
-    def contact_energy_rows(self, ctx: Context, state: State) -> np.ndarray | None:
-        """:meth:`contact_energy` row by row (nc,) [energy], or None when it is 0 (exact contact)."""
-        return None
+        0 for exact contact.  The energy control counts the contact work net of its change.
+        ``by_row``: row by row (nc,), or None when it is 0 (exact contact)."""
+        return None if by_row else 0.0
 
     def local_error(self, ctx: Context, old: State, new: State) -> np.ndarray | None:
         """An estimate of the step's local error in the displacement (n,), or None when the

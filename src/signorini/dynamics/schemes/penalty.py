@@ -56,10 +56,9 @@ class PenaltyCN(CrankNicolson):
     def contact_law(self, ctx) -> ContactLaw:
         return ContactLaw(compliance=self.compliance(ctx))
 
-    def contact_energy(self, ctx, state) -> float:
-        """The springs' stored energy 1/2 sum c_i lambda_i^2 = 1/2 sum k_i max(0, nu.u_i - g_i)^2."""
+    def contact_energy(self, ctx, state, by_row: bool = False):
+        """The springs' stored energy 1/2 sum c_i lambda_i^2 = 1/2 sum k_i max(0, nu.u_i - g_i)^2 (``by_row``:
+        each spring's, (nc,))."""
+        if by_row:
+            return 0.5 * self.compliance(ctx) * state.lam**2
         return 0.5 * float(np.sum(self.compliance(ctx) * state.lam**2))
-
-    def contact_energy_rows(self, ctx, state) -> np.ndarray:
-        """Each spring's stored energy 1/2 c_i lambda_i^2 (nc,)."""
-        return 0.5 * self.compliance(ctx) * state.lam**2
