@@ -143,6 +143,20 @@ def test_case_file(tmp_path):
     assert len(rows) == 4 and all(r[0].isdigit() for r in rows)
     first = dict(zip(("rank", "scheme", "mass"), rows[0][:3], strict=True))
     assert (first["scheme"], first["mass"]) == ("crank-nicolson", "seed")  # smallest drift, as in the paper
+    # each pair with the control `signorini run` takes for the file (issue 52): the energy control, except the
+    # standard mass (its contact chatters at every step: the steps asked for, as run says)
+    control = {(p["scheme"], p["mass"]): p["metrics"]["time_control"] for p in res["pairs"]}
+    assert control == {("crank-nicolson", "seed"): "energy", ("backward-euler", "seed"): "energy",
+                       ("crank-nicolson", "standard"): "fixed", ("backward-euler", "standard"): "fixed"}  # fmt: skip
+    runs = {(p["scheme"], p["mass"]): p["runs"][0]["summary"] for p in res["pairs"]}
+    for (scheme, mass), summary in runs.items():  # the numbers of `signorini run` on the same file
+        rc = main(["run", case, "--scheme", scheme, "--mass", mass, "--out", str(tmp_path / f"{scheme}-{mass}"),
+                   "--quiet"])  # fmt: skip
+        alone = json.loads((tmp_path / f"{scheme}-{mass}" / "summary.json").read_text())
+        assert rc == 0 and alone["steps"] == summary["steps"] and alone["warnings"] == summary["warnings"]
+        assert alone["energy_final"] == summary["energy_final"]
+    warned = [w for s in runs.values() for w in s["warnings"]]
+    assert ("## Warnings" in (out / "compare.md").read_text()) == bool(warned)
 
 
 def test_pair_the_problem_refuses_is_reported_not_raised(tmp_path):

@@ -107,9 +107,18 @@ def compare_plan(args: argparse.Namespace):
         case = load_case(args.target, limits, check_size, args.backend)
         load = functools.partial(case_problem, str(args.target))
         _, sol = _options(args, {}, case.solver_options)
+        from types import SimpleNamespace
+
+        from .run_command import case_control
+
+        controls = []  # each pair's control as `signorini run FILE --scheme S --mass M` takes it
+        for pair in pairs:
+            control = case_control(SimpleNamespace(dt_control=None), case.control, pair.scheme.name, {}, pair.mass,
+                                   pair.scheme.option_dict)  # fmt: skip
+            controls.append(((pair.scheme.label, pair.mass), control))
         target = cmp.CaseTarget(
             Path(args.target).name, load, case.dt, case.T, tuple(sorted(_checked(sol).items())),
-            friction=args.friction,
+            friction=args.friction, controls=tuple(controls),
         )  # fmt: skip
         plan = cmp.plan_case(target, pairs, case.problem)
         check_compare_size(plan, args.jobs, _limits(args, case.limits))

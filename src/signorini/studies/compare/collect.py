@@ -140,6 +140,8 @@ def _pair_entry(plan: Plan, pair: Pair, runs: list[dict], finest: int, contact_n
         "step_ms": 1e3 * s["step_seconds"],
         "step_over_bare": s["step_seconds"] / bare if bare else None,
         "bare_op": ("solve" if s.get("bare_solve_seconds") else "SpMV") if bare else None,
+        "time_control": (s.get("time_control") or {}).get("control", "fixed"),
+        "warnings": list(s.get("warnings") or []),
     }
     rates = {}
     if plan.has_errors:

@@ -54,6 +54,10 @@ class BenchmarkTarget:
     def problem(self, level: int | None):
         return with_friction(self.bench.problem(level, self.params), self.friction)
 
+    def control(self, scheme_label: str, mass: str) -> Any:
+        """The time control of a pair's run: None (fixed; the paper's benchmarks keep their grids, as ``run``)."""
+        return None
+
 
 @dataclass(frozen=True)
 class CaseTarget:
@@ -67,9 +71,16 @@ class CaseTarget:
     solver_options: tuple[tuple[str, Any], ...] = ()
     kind: str = "case"
     friction: str | None = None  # --friction, None: the case file's
+    #: ((scheme label, mass), control) of every pair: the control ``signorini run`` takes for the file with that
+    #: scheme and mass (its ``[time] control``, else the energy control, else fixed where that cannot run)
+    controls: tuple = ()
 
     def problem(self, level: int | None):
         return with_friction(self.load(), self.friction)
+
+    def control(self, scheme_label: str, mass: str) -> Any:
+        """The time control of the pair's run (:attr:`controls`; fixed for a pair not listed)."""
+        return dict(self.controls).get((scheme_label, mass))
 
 
 @dataclass

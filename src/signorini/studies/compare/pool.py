@@ -40,6 +40,9 @@ SUMMARY_FIELDS = (
     "impact_impulses",
     "energy_identity_residual",
     "max_complementarity_residual",
+    "warnings",
+    "time_control",
+    "spurious_energy",
     "setup_seconds",
     "loop_seconds",
     "step_seconds",
@@ -94,6 +97,7 @@ def execute_job(job: Job) -> Outcome:
             snapshot_every=1 if job.snapshots else 0,
             scheme_options=job.scheme.option_dict,
             solver_options=dict(job.solver_options),
+            control=job.target.control(job.scheme.label, job.mass),
         )
     except InputError as exc:
         return Outcome(job.key, "n/a", str(exc))

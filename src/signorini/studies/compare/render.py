@@ -75,8 +75,11 @@ def table_markdown(result: dict) -> list[str]:
         decided = RANK_LABELS.get(p["decided_by"], p["decided_by"] or "(last)")
         kept = f"{100 * m['mass_kept']:.4g}%" if _finite(m.get("mass_kept")) else "n/a"
         untagged = m.get("untagged_penetration_max") or 0.0
+        warned = m.get("warnings") or []
         notes = (
             p["reason"],
+            f"{m['time_control']} steps" if m.get("time_control", "fixed") != "fixed" else "",
+            f"{len(warned)} warning(s), in the section Warnings" if warned else "",
             "the mass changes the body's inertia" if m.get("changes_physics") else "",
             f"untagged boundary nodes {untagged:.3g} inside the obstacle"
             if m.get("violates_contact") and untagged
@@ -101,7 +104,9 @@ COLUMN_NOTES = (
     "penetration = max over levels and contact nodes of max(0, -gap); ms / step = loop time per step at the finest "
     "level (contact columns computed lazily are set-up work, left out), and its ratio to one bare solve with the "
     "same factor (SpMV for CG); decided by = the first ranking key "
-    "that separates the pair from the next one."
+    "that separates the pair from the next one.  A case file's pair runs with the time control `signorini run` "
+    "takes for the file with that scheme and mass (its `[time] control`, else the energy control, else the steps "
+    "asked for; the note says `energy steps`); what a run warned of is listed under Warnings."
 )
 
 
@@ -123,6 +128,9 @@ def report_markdown(result: dict, figures: Sequence[tuple[str, str]] = ()) -> st
         COLUMN_NOTES,
         "",
     ]
+    warned = [(p["label"], w) for p in ranked_pairs(result) if p["available"] for w in p["metrics"].get("warnings", [])]
+    if warned:  # what each run warned of, as `signorini run` prints it
+        lines += ["## Warnings", ""] + [f"- {label}: {w}" for label, w in warned] + [""]
     if figures:
         lines += ["## Figures", ""]
         for name, caption in figures:
