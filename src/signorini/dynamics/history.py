@@ -359,6 +359,11 @@ class History:
         E = self.energy
         finite = E[np.isfinite(E)]
         drift = float(np.max(np.abs(finite - E[0])) / abs(E[0])) if E[0] and finite.size else None
+        undamped = drift  # the drift less the damping's work: Rayleigh damping's dissipation is physics, not drift
+        if drift is not None and self.damping_work is not None:
+            net = E - self.damping_work
+            net = net[np.isfinite(net)]
+            undamped = float(np.max(np.abs(net - E[0])) / abs(E[0])) if net.size else None
         return {
             **self.meta,
             "status": self.status,
@@ -370,6 +375,9 @@ class History:
             "energy_initial": float(E[0]),
             "energy_final": float(E[-1]),
             "energy_max_relative_drift": drift,
+            # max |E^n - E^0 - W_damping^n| / |E^0|: the drift without the damping's (physical) work; = the drift
+            # when undamped (compare ranks by it)
+            "energy_max_relative_drift_undamped": undamped,
             "max_complementarity_residual": float(np.max(self.residual)),
             "fallbacks": int(np.sum(self.fallbacks)),
             "min_gap": float(self.gap[np.isfinite(self.gap)].min()) if np.isfinite(self.gap).any() else None,

@@ -32,6 +32,7 @@ SUMMARY_FIELDS = (
     "energy_initial",
     "energy_final",
     "energy_max_relative_drift",
+    "energy_max_relative_drift_undamped",
     "penetration_max",
     "penetration_time_integral",
     "oscillation_index",

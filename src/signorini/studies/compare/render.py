@@ -99,7 +99,9 @@ def _cell(text: str) -> str:
 COLUMN_NOTES = (
     "Columns: errors are relative, at the finest level (u in L2(0,T; H1), v in L2(0,T; L2)); rates are the "
     "least-squares slopes of log(error) against log(h) over the levels (n/a with fewer than two levels); energy "
-    "drift = max_n |E^n - E^0| / |E^0| with the scheme's own energy (summary.json `energy_definition`); oscillation "
+    "drift = max_n |E^n - E^0| / |E^0| with the scheme's own energy (summary.json `energy_definition`), less the "
+    "damping's work when the run is damped (`energy_max_relative_drift_undamped`: physical dissipation is not "
+    "drift); oscillation "
     "index of the first impact (1 = one monotone rise and fall of the total contact force, 0 = no contact); max "
     "penetration = max over levels and contact nodes of max(0, -gap); ms / step = loop time per step at the finest "
     "level (contact columns computed lazily are set-up work, left out), and its ratio to one bare solve with the "
