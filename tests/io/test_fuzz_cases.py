@@ -1012,7 +1012,13 @@ def read_results(o: Outcome) -> None:
 # null in summary.json: the relative energy drift when E0 = 0 (the CLI prints "E0 = 0"),
 # min_gap and max_lambda without contact nodes, energy_identity_residual when the energy
 # is zero at every level or no step has an identity (History.summary / diagnostics)
-NULLABLE = {"energy_max_relative_drift", "min_gap", "max_lambda", "energy_identity_residual"}
+NULLABLE = {
+    "energy_max_relative_drift",
+    "energy_max_relative_drift_undamped",
+    "min_gap",
+    "max_lambda",
+    "energy_identity_residual",
+}  # the drifts: null when E0 = 0 (relative to nothing)
 # nan in history.csv: energy_increment and impulse at level 0, predicted_increment at level 0 and
 # wherever the scheme has no energy identity (History docstring)
 NAN_COLUMNS = {"predicted_increment"}
@@ -1092,7 +1098,7 @@ def check_finished(case: Case, o: Outcome, info: str) -> None:
     for key, v in _numbers(s):
         if v is None:
             assert key in NULLABLE, f"summary.json: {key} is null{info}"
-            if key == "energy_max_relative_drift":
+            if key in ("energy_max_relative_drift", "energy_max_relative_drift_undamped"):
                 assert s["energy_initial"] == 0, f"summary.json: drift null with E0 != 0{info}"
             elif key == "energy_identity_residual":
                 no_identity = not any(math.isfinite(float(r["predicted_increment"])) for r in H[1:])
