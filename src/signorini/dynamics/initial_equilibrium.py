@@ -89,17 +89,6 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
     docstring)."""
     from .context import Operator
 
-    mesh = ctx.disc.problem.mesh
-    d = mesh.dim
-    held, labels, nb = held_nodes(ctx, U0)
-    held_dofs = np.repeat(held, d)
-    held_bodies = sorted({int(b) for b in labels[held]})
-    report: dict[str, Any] = {"solved": True, "held_bodies": held_bodies,
-                              "free_bodies": [b for b in range(nb) if b not in held_bodies]}  # fmt: skip
-    lam = np.zeros(ctx.disc.contact.size)
-    if not held.any():
-        report.update(solved=False, reason="no body is held by a support or rests in contact")
-        return U0.copy(), lam, report
     M, S, el = ctx.M, ctx.S, ctx.elastic
     if el.finite:
         raise InputError(
@@ -112,6 +101,17 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
             "[initial] equilibrium = true with friction is not supported: the static solve is frictionless and a "
             "frictional support's tangential forces at rest are not unique; start from rest without it"
         )
+    mesh = ctx.disc.problem.mesh
+    d = mesh.dim
+    held, labels, nb = held_nodes(ctx, U0)
+    held_dofs = np.repeat(held, d)
+    held_bodies = np.unique(labels[held])
+    report: dict[str, Any] = {"solved": True, "held_bodies": held_bodies.tolist(),
+                              "free_bodies": np.setdiff1d(np.arange(nb), held_bodies).tolist()}  # fmt: skip
+    lam = np.zeros(ctx.disc.contact.size)
+    if not held.any():
+        report.update(solved=False, reason="no body is held by a support or rests in contact")
+        return U0.copy(), lam, report
     delta = PROXIMAL * float(S.diagonal().sum()) / float(M.diagonal().sum())
     op = Operator(delta, 1.0)
     U = U0.copy()
@@ -120,20 +120,13 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
         U[ctx.fixed] = fixed
     f = el.force(U)
     scale = max(np.abs(F).max(initial=0.0), np.abs(f).max(initial=0.0))
-    left = np.inf
-    for k in range(1, MAX_ITERATIONS + 1):
-        # the free bodies' rows balance themselves at their own U0 (no load, no motion)
-        r = np.where(held_dofs, F - f, 0.0)
-        dU, lam, _ = ctx.solve(op, r, ctx.gaps(0.0) - ctx.B @ U, None if fixed is None else 0.0 * fixed)
-        U = U + dU
-        f = el.force(U)
-        scale = max(scale, np.abs(f).max(initial=0.0))
-        left = delta * float(np.abs(M @ dU).max(initial=0.0))
-        if not np.isfinite(left) or left > 1e6 * max(scale, 1e-300):
-            break
-        if left <= TOLERANCE * max(scale, 1e-300):
-            report.update(iterations=k, force_left=float(left), scale=float(scale), proximal_weight=float(delta))
-            return U, lam, report
+    try:
+        U, lam, k, left, scale = _proximal(ctx, op, U, F, f, held_dofs, fixed, scale)
+    finally:
+        ctx.factors.release(op)  # the static operator is of no use to the steps
+    if left <= TOLERANCE * max(scale, 1e-300):
+        report.update(iterations=k, force_left=float(left), scale=float(scale), proximal_weight=float(delta))
+        return U, lam, report
     moved = np.abs((U - U0).reshape(-1, d)).max(axis=1)
     node = int(np.argmax(np.where(held, moved, -1.0)))
     raise InputError(
@@ -142,3 +135,24 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
         f"{moved[node]:.3g}): a rigid motion of it that its supports and contacts do not hold (it would slide or "
         "fall); support it, or leave equilibrium off"
     )
+
+
+def _proximal(ctx: Context, op: Any, U: np.ndarray, F: np.ndarray, f: np.ndarray, held_dofs: np.ndarray,
+              fixed: np.ndarray | None, scale: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:  # fmt: skip
+    """The proximal iterations of the module docstring from U (f = S U): (U, lambda, iterations, the force
+    |delta M dU| left, the load scale), stopped at :data:`TOLERANCE`, at a motion that runs away, or after
+    :data:`MAX_ITERATIONS`."""
+    M, el, delta = ctx.M, ctx.elastic, op.mass
+    k, left, lam = 0, np.inf, np.zeros(ctx.disc.contact.size)
+    while k < MAX_ITERATIONS:
+        k += 1
+        # the free bodies' rows balance themselves at their own U0 (no load, no motion)
+        r = np.where(held_dofs, F - f, 0.0)
+        dU, lam, _ = ctx.solve(op, r, ctx.gaps(0.0) - ctx.B @ U, None if fixed is None else 0.0 * fixed)
+        U = U + dU
+        f = el.force(U)
+        scale = max(scale, np.abs(f).max(initial=0.0))
+        left = delta * float(np.abs(M @ dU).max(initial=0.0))
+        if not np.isfinite(left) or left > 1e6 * max(scale, 1e-300) or left <= TOLERANCE * max(scale, 1e-300):
+            break
+    return U, lam, k, left, scale

@@ -121,7 +121,6 @@ def initial_state(ctx: Context) -> State:
     if disc.problem.initial_equilibrium:  # the held bodies' U0 in static equilibrium, lambda_0 its multipliers
         from .initial_equilibrium import static_equilibrium
 
-        _initial_force(ctx, U)  # an initial displacement that inverts a cell: refused as input first
         U, lam0, ctx.initial_equilibrium = static_equilibrium(ctx, U, F)
     r = F - (_initial_force(ctx, U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
     if lam0.any():

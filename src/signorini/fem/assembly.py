@@ -421,45 +421,49 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
     return out.reshape((mesh.n_nodes,) + cell_values.shape[1:])
 
 
-def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
-    """von Mises stress of the displacement ``u``: per cell (mean over quadrature
-    points) or, with ``nodal=True``, averaged at the nodes."""
-
-    def one(part: Mesh, cut: slice) -> np.ndarray:
-        wdet, _ = geometry(part)
-        vm = part_material(material, cut).von_mises(strain(part, u))  # (ne, nq)
-        return (vm * wdet).sum(axis=1) / wdet.sum(axis=1)
-
-    cell = over_blocks(mesh, one, np.concatenate)
-    return nodal_average(mesh, cell) if nodal else cell
-
-
-def cell_tensors(mesh: Mesh, material: Material, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The cell means of the small strain and of the Cauchy stress of ``u``, (n_cells, 3, 3) each [-, Pa]: the
-    3D tensors (plane strain in 2D: eps_zz = 0, sigma_zz = lam tr(eps); in 1D the bar's axial eps_xx and
-    sigma_xx = E eps_xx, the other components 0)."""
+def cell_means(mesh: Mesh, material: Material, u: np.ndarray,
+               tensors: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:  # fmt: skip
+    """The cell means (over the quadrature points, weighted by |J| w) of the von Mises stress (n_cells,) and, with
+    ``tensors``, of the small strain and the Cauchy stress of ``u`` as 3D tensors (n_cells, 3, 3) each (plane
+    strain in 2D: eps_zz = 0, sigma_zz = lam tr(eps); in 1D the bar's axial eps_xx and sigma_xx = E eps_xx, the
+    other components 0) [Pa, -, Pa]; (vm, None, None) without.  One strain per quadrature point for all three."""
 
     def one(part: Mesh, cut: slice) -> np.ndarray:
         wdet, _ = geometry(part)
         eps = strain(part, u)
+        mat = part_material(material, cut)
+        vol = wdet.sum(axis=1)
+        vm = ((mat.von_mises(eps) * wdet).sum(axis=1) / vol)[:, None]
+        if not tensors:
+            return vm
         d = eps.shape[-1]
         e3 = np.zeros(eps.shape[:-2] + (3, 3))
         e3[..., :d, :d] = eps
-        sig = part_material(material, cut).stress3(eps)
-        w = wdet / wdet.sum(axis=1)[:, None]
-        return np.stack([np.einsum("eq,eqij->eij", w, e3), np.einsum("eq,eqij->eij", w, sig)], axis=1)
+        mean = lambda a: (np.einsum("eq,eqij->eij", wdet, a) / vol[:, None, None]).reshape(-1, 9)  # noqa: E731
+        return np.hstack([vm, mean(e3), mean(mat.stress3(eps))])
 
-    both = over_blocks(mesh, one, np.concatenate)  # (n_cells, 2, 3, 3)
-    return both[:, 0], both[:, 1]
+    out = over_blocks(mesh, one, np.concatenate)
+    if not tensors:
+        return out[:, 0], None, None
+    return out[:, 0], out[:, 1:10].reshape(-1, 3, 3), out[:, 10:].reshape(-1, 3, 3)
+
+
+def von_mises(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
+    """von Mises stress of the displacement ``u``: per cell (mean over quadrature
+    points) or, with ``nodal=True``, averaged at the nodes."""
+    cell = cell_means(mesh, material, u, tensors=False)[0]
+    return nodal_average(mesh, cell) if nodal else cell
+
+
+def cell_tensors(mesh: Mesh, material: Material, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cell means of the small strain and of the Cauchy stress of ``u``, (n_cells, 3, 3) each [-, Pa]
+    (:func:`cell_means`)."""
+    _, eps, sig = cell_means(mesh, material, u)
+    return eps, sig
 
 
 def stress(mesh: Mesh, material: Material, u: np.ndarray, nodal: bool = True) -> np.ndarray:
     """Cauchy stress: cell means (n_cells, d, d) or nodal averages (n_nodes, d, d)."""
-
-    def one(part: Mesh, cut: slice) -> np.ndarray:
-        wdet, _ = geometry(part)
-        sig = part_material(material, cut).stress(strain(part, u))
-        return np.einsum("eq,eqij->eij", wdet, sig) / wdet.sum(axis=1)[:, None, None]
-
-    cell = over_blocks(mesh, one, np.concatenate)
+    d = mesh.dim
+    cell = cell_means(mesh, material, u)[2][:, :d, :d]
     return nodal_average(mesh, cell) if nodal else cell

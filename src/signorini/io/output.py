@@ -48,7 +48,7 @@ import numpy as np
 
 from ..dynamics.observers import Observer, Run
 from ..dynamics.schemes import State
-from ..fem.assembly import cell_tensors, nodal_average, von_mises
+from ..fem.assembly import cell_means, nodal_average
 from ..fem.mesh import bodies, region_ids
 from ..fem.node_order import to_user_nodes
 
@@ -201,8 +201,8 @@ class FieldWriter(Observer):
                          "green_lagrange": per_block(f["green_lagrange"].reshape(-1, 9)),
                          "strain_energy_density": per_block(f["strain_energy_density"])}  # fmt: skip
         else:  # the small strain and the Cauchy stress of the linear model, cell means
-            vm = von_mises(mesh, self._material, s.U)
-            eps, sig = cell_tensors(mesh, self._material, s.U)
+            vm, eps, sig = cell_means(mesh, self._material, s.U)
+            vm = nodal_average(mesh, vm)
             cell_data = {**cell_data, "cauchy_stress": [sig.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks],
                          "strain": [eps.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
         c = self._contact

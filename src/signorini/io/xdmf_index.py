@@ -45,6 +45,10 @@ def one_grid(path: str | Path) -> bool:
         step.set("Name", "mesh")
     domain.remove(meshes[0])
     tmp = path.with_name(path.name + ".tmp")
-    tree.write(tmp, encoding="utf-8", xml_declaration=False)
-    os.replace(tmp, path)
+    try:
+        tree.write(tmp, encoding="utf-8", xml_declaration=False)
+        os.replace(tmp, path)
+    except BaseException:  # a full disk: the index meshio wrote stays, the half-written one goes
+        tmp.unlink(missing_ok=True)
+        raise
     return True

@@ -380,11 +380,12 @@ def contact_works(
     The normal work row by row (nc,) is kept in ``new.cache["contact_rows"]``."""
     w_old = 1 - w_new if w_old is None else w_old
     B0, T0 = ctx.rows_of(old.t)
+    BdU = ctx.B @ dU
+    B0dU = BdU if B0 is ctx.B else B0 @ dU
     if new.lam.size:  # row by row (kept with the new level: the spurious energy's contact cycles, EnergyRecorder)
-        BdU = ctx.B @ dU
-        new.cache["contact_rows"] = BdU * (w_new * new.lam) + (BdU if B0 is ctx.B else B0 @ dU) * (w_old * old.lam)
+        new.cache["contact_rows"] = BdU * (w_new * new.lam) + B0dU * (w_old * old.lam)
     if np.ndim(w_new):  # per row: each level's forces weighted through its own rows
-        normal = float((ctx.B @ dU) @ (w_new * new.lam) + (B0 @ dU) @ (w_old * old.lam)) if new.lam.size else 0.0
+        normal = float(BdU @ (w_new * new.lam) + B0dU @ (w_old * old.lam)) if new.lam.size else 0.0
         tangential = 0.0
         if ctx.T is not None:
             if new.lam_t is not None:
@@ -393,9 +394,9 @@ def contact_works(
                 tangential += float((T0 @ dU) @ weighted(None, old.lam_t, w_new).ravel())
         return normal, tangential
     if B0 is ctx.B:
-        normal = float((ctx.B @ dU) @ (w_new * new.lam + w_old * old.lam))
+        normal = float(BdU @ (w_new * new.lam + w_old * old.lam))
         return normal, friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, w_new))
-    normal = w_new * float((ctx.B @ dU) @ new.lam) + w_old * float((B0 @ dU) @ old.lam)
+    normal = w_new * float(BdU @ new.lam) + w_old * float(B0dU @ old.lam)
     tangential = 0.0
     if ctx.T is not None:
         if new.lam_t is not None:
