@@ -303,6 +303,18 @@ FORGED_CONTROL = {
     "plan-doubled": (_time_control("plan_dt", lambda v: 2 * v), "is not the energy control's largest step"),
     "state-deleted": (_time_control("time_control", _DELETE), "the energy control's state is missing"),
     "accepted-beyond-levels": (_time_control("accepted", 10**6), "'accepted' = 1000000 is more than its"),
+    # the resting-contact memory and the spurious energy's cycles (added by the same issue)
+    "prev-sum-string": (_time_control("prev_sum", "1.0"), "'prev_sum' must be a finite number or null"),
+    "persistent-int": (_time_control("persistent", 1), "'persistent' must be true or false"),
+    "created-negative": (
+        lambda a: a.__setitem__("observers/energy/cycles_created", -1.0),
+        "the energy's created must be a finite number >= 0",
+    ),
+    "destroyed-string": (
+        lambda a: a.__setitem__("observers/energy/cycles_destroyed", "x"),
+        "the energy's destroyed must be a finite number >= 0",
+    ),
+    "first-beyond-levels": (lambda a: a.__setitem__("observers/energy/cycles_first", 10**6), "is not a level"),
 }
 
 
