@@ -22,6 +22,7 @@ from ..fem.assembly import stiffness_matrix
 from ..fem.hyperelastic import (
     HYPERELASTIC_LAWS,
     algorithmic_force,
+    algorithmic_tangent,
     cell_fields,
     deformation_gradients,
     internal_force,
@@ -132,6 +133,7 @@ class FiniteStrain(Elasticity):
         self.line_search_steps = 0
         self.tangent_corrections = 0
         self.kkt_directions = 0
+        self.exact_directions = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         #: the last two (U, energy) pairs
         self._energies: list[tuple[np.ndarray, float]] = []
@@ -226,6 +228,17 @@ class FiniteStrain(Elasticity):
             f += algorithmic_force(self.mesh, law, U0, U1, cells)
         return f
 
+    def algorithmic_tangent(self, U0: np.ndarray, U1: np.ndarray) -> sp.csr_matrix:
+        """The exact Jacobian d f_alg / d U1 (n, n) of :meth:`algorithmic_force` at fixed U0 (not symmetric:
+        :func:`~signorini.fem.hyperelastic.algorithmic_tangent`; S / 2 on the linear cells) [force / length].
+        On one process (the direction it serves is assembled whole, :mod:`~.newton`)."""
+        self.tangents += 1
+        n = U0.size
+        K = sp.csr_matrix((n, n)) if self.S_linear is None else 0.5 * self.S_linear
+        for law, cells in self.groups:
+            K = K + algorithmic_tangent(self.mesh, law, U0, U1, cells)
+        return K.tocsr()
+
     def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
         return self.force(U)[rows]
 
@@ -273,13 +286,15 @@ class FiniteStrain(Elasticity):
         halvings of the line searches; ``line_search_steps``, its earlier name, kept) and ``tangent_corrections`` (the
         tangents made positive semi-definite per cell because the plain one could not be factorized or did not give
         a descent direction) and ``kkt_directions`` (Newton directions of the plain indefinite tangent with the
-        active contact rows held, where the corrected one converges slowly)."""
+        active contact rows held, where the corrected one converges slowly) and ``exact_directions`` (Newton
+        directions of a scheme's exact Jacobian where its symmetric tangent approximates it: energy-momentum)."""
         return {
             "tangent_factorizations": self.factorizations,
             "line_search_steps": self.line_search_steps,
             "line_search_backtracks": self.line_search_steps,
             "tangent_corrections": self.tangent_corrections,
             "kkt_directions": self.kkt_directions,
+            "exact_directions": self.exact_directions,
         }
 
 

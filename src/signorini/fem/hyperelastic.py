@@ -536,6 +536,65 @@ def algorithmic_force(
     return f
 
 
+def algorithmic_tangent(
+    mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray, cells: np.ndarray | None = None
+) -> sp.csr_matrix:
+    """The exact Jacobian J = d f / d U1 (n_nodes d)^2 of :func:`algorithmic_force` at fixed U0 [force / length];
+    not symmetric (Gonzalez's correction and the mixed F_mid, F1 below).  With P_alg = F_mid S_alg, C = F^T F,
+    C_mid = (C0 + C1)/2, dC = C1 - C0, S_alg = S(C_mid) + phi dC, phi = 2 gap / (dC:dC),
+    gap = W(C1) - W(C0) - S(C_mid):dC/2 (:func:`algorithmic_stress`), and dC1 = 2 sym(F1^T dF1):
+
+        dP_alg/dF1 = 1/2 delta_ij S_alg,JL + 2 F_mid,iI A_IJKL F1,jK,
+        A = CC(C_mid)/4 + phi I_sym + dC (x) h,
+        h = (2 / dC:dC) [(S(C1) - S(C_mid))/2 - CC(C_mid):dC/8] - (4 gap / (dC:dC)^2) dC,
+
+    CC = dS/dE the law's tangent, I_sym the symmetric fourth-order identity (h = 0 where the correction is cut
+    off, :data:`GONZALEZ_FLOOR`; A = CC/4 for Saint Venant-Kirchhoff).  At U1 = U0 it is half the tangent
+    stiffness.  A dense dP/dF per point contracted with the shape gradients (a Newton step's direction once its
+    approximate tangent converges slowly: docs/finite_strain.md)."""
+    mats = []
+    for part, part_law, cut in _parts(mesh, law, cells):
+        F0, wdet, G = deformation_gradients(part, U0)
+        F1, _, _ = deformation_gradients(part, U1)
+        check_orientation(part, F0, cut)
+        check_orientation(part, F1, cut)
+        e, q, nv, d = G.shape
+        K = np.empty((e, d, d, nv, nv))
+        half_sym = 0.5 * _symmetric_identity(d)
+        for lo in range(0, e, TANGENT_CHUNK):
+            hi = min(lo + TANGENT_CHUNK, e)
+            sub = part_law.take(lo, hi)
+            a0, a1 = F0[lo:hi], F1[lo:hi]
+            C0, C1 = _green(a0)[0], _green(a1)[0]
+            Cm, dC = 0.5 * (C0 + C1), C1 - C0
+            Sm, CC = sub.stress_C(Cm), sub.tangent_C(Cm)
+            A = 0.25 * CC
+            S_alg = Sm
+            if not isinstance(sub, SaintVenantKirchhoffLaw):
+                dd = np.einsum("...IJ,...IJ->...", dC, dC)
+                gap = sub.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", Sm, dC)
+                small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
+                safe = np.where(small, 1.0, dd)
+                phi = np.where(small, 0.0, 2.0 * gap / safe)
+                h = (2.0 / safe)[..., None, None] * (
+                    0.5 * (sub.stress_C(C1) - Sm) - 0.125 * np.einsum("...IJKL,...KL->...IJ", CC, dC)
+                )
+                h -= (4.0 * gap / (safe * safe))[..., None, None] * dC
+                h = np.where(small[..., None, None], 0.0, h)
+                S_alg = Sm + phi[..., None, None] * dC
+                A = A + phi[..., None, None, None, None] * half_sym
+                A = A + dC[..., :, :, None, None] * h[..., None, None, :, :]
+            Fm = 0.5 * (a0 + a1)
+            T = 2.0 * np.einsum("...iI,...IJKL,...jK->...iJjL", Fm, A, a1)
+            for i in range(d):
+                T[..., i, :, i, :] += 0.5 * S_alg
+            w = wdet[lo:hi]
+            g = G[lo:hi]
+            K[lo:hi] = np.einsum("eq,eqaJ,eqiJjL,eqbL->eijab", w, g, T, g, optimize=True)
+        mats.append(assemble_vector(part, K.transpose(0, 3, 4, 1, 2)))
+    return sum_of(mats) if len(mats) > 1 else mats[0]
+
+
 def _out_of_plane_stress(law: HyperelasticLaw, C: np.ndarray) -> np.ndarray:
     """S_33 (...) of plane strain (F_33 = 1, E_33 = 0) [stress]: lam tr E (Saint Venant-Kirchhoff),
     lam ln J (Neo-Hookean)."""

@@ -41,6 +41,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..context import Operator
 from ..momentum_projection import applies, groups, velocity_correction
@@ -116,9 +117,14 @@ class EnergyMomentum(Scheme):
         def tangent(U, project=False):
             return el.tangent(0.5 * (U0 + U), project)
 
+        def jacobian(U):  # dg/dU exactly: K(U) on the massless rows, 2 d f_alg / dU on the others
+            J = sp.diags(2.0 * (~ml)) @ el.algorithmic_tangent(U0, U)
+            return (J + sp.diags(ml.astype(float)) @ el.tangent(U) if ml.any() else J).tocsr()
+
         f0 = products(ctx, s)[1]  # f_alg(U^n, U^n) = f(U^n): g(U^n) without evaluating it
         step = StepProblem(self, s, t, (2.0 / dt) * s.V, Fw, law, force=force, tangent=tangent,
-                           force_start=np.where(ml, f0, 2.0 * f0), potential=False)  # fmt: skip
+                           force_start=np.where(ml, f0, 2.0 * f0), potential=False,
+                           jacobian=jacobian if el.finite else None)  # fmt: skip
         U, mu, info = solve_step(ctx, step)
         lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu
         if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike

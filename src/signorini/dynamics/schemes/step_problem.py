@@ -61,6 +61,9 @@ class StepProblem:
         the level's f(U^n) without evaluating g).
     potential : whether g is the gradient of the body's stored energy (Newton's line search on the step's
         incremental potential); False: a merit function on the residual (energy-momentum).
+    jacobian : the exact dg/dU(U) (n, n), not symmetric, when ``tangent`` is a symmetric approximation of it
+        (energy-momentum: K(U_mid) for the discrete gradient's Jacobian); Newton takes its directions from it
+        where it needed a tangent of its own (:meth:`~..newton._Factor.exact`); None: ``tangent`` is exact.
     total : (n,) q + c_M U^n as the scheme computes it in its own form (Newmark's and theta's predictor p), for
         the linear solve; None: q + c_M U^n.  The same vector to round-off: the linear histories keep the
         rounding they had before the steps were stated this way (a run that reaches its obstacle exactly at a
@@ -79,6 +82,7 @@ class StepProblem:
     force_start: np.ndarray | None = None
     potential: bool = True
     total: np.ndarray | None = None
+    jacobian: Callable[[np.ndarray], object] | None = None
 
 
 def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, StepInfo]:
@@ -98,7 +102,9 @@ def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, St
         tangent = el.tangent if p.tangent is None else p.tangent
         energy = el.energy if p.potential else None
         bound = contact_bound(ctx, s.U, s.t, p.t)
-        return newton_solve(ctx, op, s.U, rest, force, tangent, bound, fixed, p.law, inertia, energy=energy)
+        return newton_solve(
+            ctx, op, s.U, rest, force, tangent, bound, fixed, p.law, inertia, energy=energy, jacobian=p.jacobian
+        )
     rhs = ctx.Mop @ (p.q + weights.mass * s.U if p.total is None else p.total) + p.forces
     if p.damping is not None:
         rhs -= ctx.damping.force(ctx, p.damping - scheme.damping_coefficient(dt) * s.U)
