@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from signorini.errors import MeshError
-from signorini.fem.mesh import Mesh, box, interval, read_mesh, rectangle, uniform_cells, write_mesh
+from signorini.fem.mesh import Mesh, box, interval, join, read_mesh, rectangle, uniform_cells, write_mesh
 
 
 @pytest.mark.parametrize(
@@ -272,3 +272,20 @@ def test_tetrahedra_glued_to_a_hexahedron_face_are_refused(tmp_path):
     _write_3d(tmp_path / "m.msh", blocks, [np.array([1]), np.array([1, 1])], {"body": np.array([1, 3])})
     with pytest.raises(MeshError, match=r"2 face\(s\) of tetrahedra lie on a face of a hexahedron.*pyramids"):
         read_mesh(tmp_path / "m.msh")
+
+
+def test_resolution_is_the_finest_bodys_median_cell_over_its_extent():
+    """h / L: a bar of n cells along its length 1 / n (whatever its width); a box of 4 cells a side 1 / 4; two bodies,
+    the finer one's (a beam 0.1 long of 50 x 4 cells, 1.25 mm thick rows: 0.0125, beside a block of 10 x 5 cells
+    of 2 mm: 0.1); a graded bar (cells 1 to 3 units, the median 2 over 30) its median, not its smallest."""
+    from signorini.fem.mesh import resolution
+
+    assert resolution(rectangle(1, 80, 0.002, 0.01)) == pytest.approx(1 / 80, rel=1e-12)
+    assert resolution(interval(40)) == pytest.approx(1 / 40, rel=1e-12)
+    assert resolution(box(4, 4, 4)) == pytest.approx(1 / 4, rel=1e-12)
+    beam, block = rectangle(50, 4, 0.1, 0.005), rectangle(10, 5, 0.02, 0.01)
+    block.points = block.points + [0.04, 0.005 + 1e-6]
+    assert resolution(join({"beam": beam, "block": block})) == pytest.approx(0.0125, rel=1e-12)
+    graded = interval(15, 1.0)
+    graded.points = np.concatenate([[0.0], np.cumsum(np.linspace(1.0, 3.0, 15))])[:, None]
+    assert resolution(graded) == pytest.approx(2.0 / 30.0, rel=1e-12)

@@ -142,8 +142,9 @@ def simulate(
     control : the time-step control (:mod:`~.step_control`): ``"fixed"`` (None, the default
         here: the steps asked for) or ``"energy"`` (dt as the largest step; steps rejected and
         halved where the energy identity shows energy no physical work explains, down to
-        dt_min), or ``{"control": "energy", "tolerance": 1e-3, "dt_min": ..., "grow_after": 4}``;
-        ``meta['time_control']`` says what ran.
+        dt_min), or ``{"control": "energy", "tolerance": ..., "dt_min": ..., "grow_after": 4}`` (the
+        tolerance made from the mesh when absent or 0: min(1e-3, 0.025 (h/L)^2)); ``meta['time_control']``
+        says what ran.
 
     Returns
     -------

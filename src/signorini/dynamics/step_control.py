@@ -71,17 +71,50 @@ TIME_CONTROLS.register(
     parameters=(
         Parameter(
             "tolerance",
-            1e-3,
-            "energy a contact episode may create, relative to the energy scale",
+            0.0,
+            "energy a contact episode may create, relative to the energy scale (0: from the mesh, "
+            "min(1e-3, 0.025 (h/L)^2), docs/schemes.md)",
             float,
             0.0,
             1.0,
-            open_low=True,
         ),  # fmt: skip
         Parameter("dt_min", 0.0, "smallest step [s] (0: dt / 2^10)", float, 0.0),
         Parameter("grow_after", 4, "accepted calm steps before the step grows by 2", int, 1, 10**6),
     ),
 )
+
+
+#: the tolerance of a coarse mesh (h / L >= 0.2), and the rule's coefficient: tolerance = min(1e-3, 0.025 (h / L)^2)
+COARSE_TOLERANCE = 1e-3
+RESOLUTION_COEFFICIENT = 0.025
+
+
+def mesh_tolerance(mesh: Any) -> tuple[float, float | None]:
+    """(tolerance, h / L) of a run that gives none: min(1e-3, 0.025 (h / L)^2) with h / L the mesh's resolution
+    (:func:`~signorini.fem.mesh.resolution`: a body's median cell size over its extent, the finest body's).
+
+    Why the square: the control bounds each contact step's error estimate in energy (its elastic energy
+    1/2 e.S e) by a fraction ``tolerance`` of the energy scale, so the error of the motion, |e| in the energy norm
+    relative to the motion's, is of the order of sqrt(tolerance); linear elements resolve the motion to O(h / L) in
+    that norm.  A time error below the mesh's own needs sqrt(tolerance) ~ h / L: measured on a nu = 0 steel column
+    (a bar, whose exact rebound is its velocity reversed), 0.025 (h / L)^2 puts the rebound error at the fixed
+    fine step's at 20, 40 and 80 cells (docs/schemes.md), where 1e-3 stalled at 2%.  (1e-3, None) without a
+    mesh."""
+    if mesh is None:
+        return COARSE_TOLERANCE, None
+    from ..fem.mesh import resolution
+
+    r = resolution(mesh)
+    return min(COARSE_TOLERANCE, RESOLUTION_COEFFICIENT * r * r), r
+
+
+def default_levels(tolerance: float) -> int:
+    """The deepest refinement of a step without a dt_min: DEFAULT_LEVELS (dt / 1024) at a tolerance of 1e-3 or
+    more, one level more per factor 4 below it (an onset's energy error falls as h^2: a tolerance 4 times smaller
+    needs a step half as long), at most MAX_LEVELS."""
+    if tolerance >= COARSE_TOLERANCE:
+        return DEFAULT_LEVELS
+    return min(MAX_LEVELS, DEFAULT_LEVELS + math.ceil(0.5 * math.log2(COARSE_TOLERANCE / tolerance) - 1e-9))
 
 
 def control_spec(control: Any, key: str = "control", prefix: str = "control") -> tuple[str, dict[str, Any]]:
@@ -142,8 +175,13 @@ class EnergyControl:
     #: same as the last level's (:meth:`resting`)
     prev_sum: float | None = None
     persistent: bool = False
-    #: the smallest step allowed: dt_min, or the smallest piece's dt / 2^DEFAULT_LEVELS (the Stepper sets it)
+    #: the smallest step allowed: dt_min, or the smallest piece's dt / 2^default_levels (the Stepper sets it)
     dt_min_used: float = 0.0
+    #: the deepest refinement without a dt_min: DEFAULT_LEVELS, one more per factor 4 of the tolerance below 1e-3
+    #: (:func:`default_levels`)
+    default_levels: int = DEFAULT_LEVELS
+    #: h / L of the mesh when the tolerance was made from it (:func:`mesh_tolerance`), else None (given)
+    mesh_resolution: float | None = None
     #: a test hook: every step is rejected once and tried again at the same step
     force_reject_once: bool = False
     _forced: bool = False
@@ -151,7 +189,7 @@ class EnergyControl:
     def k_max(self, dt_piece: float) -> int:
         """The deepest refinement of a piece of step dt_piece: dt_piece / 2^k >= dt_min."""
         if self.dt_min <= 0.0:
-            return DEFAULT_LEVELS
+            return self.default_levels
         ratio = dt_piece / self.dt_min
         if not math.isfinite(ratio):
             return MAX_LEVELS
@@ -231,6 +269,8 @@ class EnergyControl:
         return {
             "control": "energy",
             "tolerance": self.tolerance,
+            "tolerance_from_mesh": self.mesh_resolution is not None,
+            "mesh_resolution": self.mesh_resolution,
             "dt_min": self.dt_min_used,
             "dt_smallest_used": None if self.accepted == 0 else self.smallest,
             "dt_largest_used": None if self.accepted == 0 else self.largest,
@@ -355,16 +395,22 @@ class AdaptiveSteps:
         self.force_before: np.ndarray | None = None
 
     @classmethod
-    def build(cls, stepper: Any, scheme: Any, grid: Any, energy: bool, options: dict[str, Any]) -> AdaptiveSteps:
+    def build(cls, stepper: Any, scheme: Any, grid: Any, energy: bool, options: dict[str, Any],
+              mesh: Any = None) -> AdaptiveSteps:  # fmt: skip
         """The control of ``options`` (:func:`control_spec`) for ``scheme`` on ``grid``; an
         InputError for a scheme that refuses it, a run without energy, or a dt_min outside
-        [dt / 2^MAX_LEVELS, dt]."""
+        [dt / 2^MAX_LEVELS, dt].  A tolerance of 0 (the default) is made from ``mesh``
+        (:func:`mesh_tolerance`; 1e-3 without a mesh)."""
         why = scheme.step_control_refusal() if hasattr(scheme, "step_control_refusal") else ""
         if why:
             raise InputError(f"control 'energy' cannot run scheme {scheme.label}: {why}; use control 'fixed'")
         if not energy:
             raise InputError("control 'energy' judges each step by the energy identity: it needs energy=True")
-        ctl = EnergyControl(**options)
+        options = dict(options)
+        resolution = None
+        if not options.get("tolerance"):
+            options["tolerance"], resolution = mesh_tolerance(mesh)
+        ctl = EnergyControl(**options, mesh_resolution=resolution, default_levels=default_levels(options["tolerance"]))
         smallest = min(piece[2] for piece in grid.plan)
         ctl.dt_min_used = ctl.dt_min or smallest / 2 ** ctl.k_max(smallest)
         if ctl.dt_min > smallest:

@@ -141,7 +141,8 @@ class Stepper:
         sch = make_scheme(scheme, o.scheme_options)
         self.adaptive: AdaptiveSteps | None = None
         if control_name == "energy":
-            self.adaptive = AdaptiveSteps.build(self, sch, self.grid, o.energy, control_options)
+            mesh = problem.problem.mesh if hasattr(problem, "problem") else problem.mesh
+            self.adaptive = AdaptiveSteps.build(self, sch, self.grid, o.energy, control_options, mesh)
         steps = {s.dt for s in self.grid.segments} | ({float(saved["attrs"]["dt"])} if saved is not None else set())
         if len(steps) > 1 and not getattr(sch, "variable_step", True):
             raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "

@@ -455,6 +455,38 @@ def bodies(mesh: Mesh) -> np.ndarray:
     return np.argsort(np.argsort(first))[label]
 
 
+def resolution(mesh: Mesh) -> float:
+    """h / L [-], what the mesh resolves of its bodies: for each body (:func:`bodies`) the median over its cells of
+    the cell's shortest distance between two of its nodes (an edge on the cells signorini meshes) over the largest
+    extent of the body's bounding box; the smallest over the bodies (the finest-meshed body sets it).  A bar of n
+    cells along its length: 1 / n."""
+    label = bodies(mesh)
+    nb = int(label.max(initial=0)) + 1
+    short = []
+    for b in mesh.blocks:  # a few cell types; per type a loop over the pairs of a cell's nodes (at most 28)
+        x = mesh.points[b.cells]
+        nv = b.cells.shape[1]
+        h = np.full(b.cells.shape[0], np.inf)
+        for i in range(nv):
+            for j in range(i + 1, nv):
+                np.minimum(h, np.linalg.norm(x[:, i] - x[:, j], axis=1), out=h)
+        short.append(h)
+    h = np.concatenate(short)
+    body = label[mesh.first_nodes()]
+    order = np.lexsort((h, body))
+    counts = np.bincount(body, minlength=nb)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    hs = h[order]
+    median = 0.5 * (hs[start + (counts - 1) // 2] + hs[start + counts // 2])
+    lo = np.full((nb, mesh.dim), np.inf)
+    hi = np.full((nb, mesh.dim), -np.inf)
+    np.minimum.at(lo, label, mesh.points)
+    np.maximum.at(hi, label, mesh.points)
+    extent = (hi - lo).max(axis=1)
+    used = counts > 0
+    return float(np.min(median[used] / extent[used]))
+
+
 def region_ids(mesh: Mesh) -> np.ndarray:
     """The region number of every cell (n_cells,) int: k + 1 for the k-th region in sorted tag
     order (a cell in several regions: the first of them), 0 for a cell of no region."""

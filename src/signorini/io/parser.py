@@ -167,7 +167,8 @@ def _add_run(sub) -> None:
         default=None,
         choices=TIME_CONTROL_NAMES,
         help="time-step control: energy (dt is the largest step; steps that create or destroy energy no physical "
-        "work explains are rejected and halved, down to dt/1024: impacts resolved in time; the default for a case "
+        "work explains are rejected and halved, down to dt/1024 (deeper on a fine mesh, whose tolerance is finer: "
+        "docs/schemes.md): impacts resolved in time; the default for a case "
         "file, except with a mass that keeps the contact inertia or a scheme that cannot change its step) or fixed "
         "(the steps asked for; the default for a benchmark); case file: [time] control",
     )

@@ -206,9 +206,11 @@ SECTIONS: tuple[Section, ...] = (
                 "physical work explains is rejected and halved, down to dt_min; docs/schemes.md) or fixed (the "
                 "steps asked for); a scheme that cannot change its step (paoli-schatzman) runs fixed, and says so"),
             Key("dt_min", "number > 0", "dt / 1024", "time", "smallest step of control = energy"),
-            Key("tolerance", "number in (0, 1]", "1e-3", "",
+            Key("tolerance", "number in [0, 1]", "from the mesh", "",
                 "control = energy: the energy a contact episode may create or destroy, relative to the run's "
-                "energy scale (summary.json spurious_energy.scale)"),
+                "energy scale (summary.json spurious_energy.scale); 0 or absent: min(1e-3, 0.025 (h/L)^2) with h/L "
+                "the mesh's resolution (a body's median cell size over its extent; summary.json "
+                "time_control.mesh_resolution), so that a finer mesh gets a finer answer (docs/schemes.md)"),
         ),
         required=True,
         open_keys="the parameters of the chosen scheme",
