@@ -388,7 +388,7 @@ def test_case_file_schedule(tmp_path):
     case.write_text(
         text.replace("dt = 0.0125\nT = 1.0", "dt = [{ until = 0.3, dt = 0.0125 }, { until = 0.5, dt = 0.00625 }]")
     )
-    r = _cli("run", str(case), "--quiet", "--out", "a", cwd=tmp_path)
+    r = _cli("run", str(case), "--quiet", "--out", "a", "--dt-control", "fixed", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     s = json.loads((tmp_path / "a/summary.json").read_text())
     assert s["T"] == 0.5 and s["steps"] == 24 + 32 and len(s["dt_schedule"]) == 2
