@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         K = principal_combination(op.mass, ctx.M, op.stiffness, ctx.S, f, ctx.fixed)[0].tocsr()
     else:
         K = op.matrix(ctx.M, ctx.S).tocsr()
-    B = ctx.Bf.tocsr()
+    B = ctx.rows.Bf.tocsr()
     B.data[np.abs(B.data) < 1e-14] = 0.0  # the tangential components of an axis normal
     B.eliminate_zeros()
     nodes = disc.space.dofmap.nodes_of(f)

@@ -44,7 +44,7 @@ class MyThetaAnyModel(MyTheta):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         q = s.V / (th * th * dt) + (1 - th) / th * s.A  # M A^{n+1} = M ((U^{n+1} - U^n) / (theta dt)^2 - q)
-        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), ctx.friction_law(s.U, s.t, t)))
+        U, lam, info = solve_step(ctx, StepProblem(self, s, t, q, ctx.load(t), ctx.rows.friction_law(s.U, s.t, t)))
         V = (U - s.U - dt * (1 - th) * s.V) / (th * dt)
         A = (V - s.V - dt * (1 - th) * s.A) / (th * dt)
         V[ctx.massless] = (U - s.U)[ctx.massless] / dt

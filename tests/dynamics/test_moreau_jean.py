@@ -33,10 +33,10 @@ def test_velocity_level_complementarity_on_the_index_set():
 
     class Velocities(Observer):
         def start(self, run):
-            self.rows = [(run.ctx.B @ run.initial.V, np.zeros(run.ctx.B.shape[0]))]
+            self.rows = [(run.ctx.rows.B @ run.initial.V, np.zeros(run.ctx.rows.B.shape[0]))]
 
         def record(self, run, n, state):
-            self.rows.append((run.ctx.B @ state.V, state.extra["impulse"]))
+            self.rows.append((run.ctx.rows.B @ state.V, state.extra["impulse"]))
 
     b = get_benchmark("bar1d-impact")
     for e in (0.0, 0.5):
@@ -101,10 +101,10 @@ def test_energy_conserving_persistency():
 
     class Rates(Observer):
         def start(self, run):
-            self.prev, self.bad, self.acted = run.ctx.B @ run.initial.V, 0.0, 0
+            self.prev, self.bad, self.acted = run.ctx.rows.B @ run.initial.V, 0.0, 0
 
         def record(self, run, n, state):
-            bv = run.ctx.B @ state.V
+            bv = run.ctx.rows.B @ state.V
             P = state.extra["impulse"]
             if (P < 0).any():
                 self.acted += 1

@@ -79,7 +79,7 @@ def identity(run, case_hash: str | None = None) -> dict[str, Any]:
         "mesh": [int(mesh.n_nodes), int(mesh.n_cells), *_figures(pts)],
         "mass_matrix": _figures(ctx.Mop @ w),
         "stiffness": _figures(ctx.Sop @ w),
-        "contact": _figures(np.concatenate([ctx.gaps(0.0), ctx.B @ w])),  # at set-up: before any re-pairing
+        "contact": _figures(np.concatenate([ctx.gaps(0.0), ctx.rows.B @ w])),  # at set-up: before any re-pairing
         "loads": _figures(ctx.load(0.0)),
         "initial_state": _figures(np.concatenate([disc.U0, disc.V0])),
         "fixed_dofs": int(ctx.fixed.size),
@@ -208,7 +208,7 @@ def state_arrays(run, state: State) -> tuple[dict[str, np.ndarray], dict[str, An
 
 def _expected_shape(kind: str, run) -> tuple[int, ...]:
     n, nc = run.ctx.disc.space.n_dofs, run.ctx.disc.contact.size
-    return {"dofs": (n,), "contact": (nc,), "contact_t": (nc, run.ctx.components - 1),
+    return {"dofs": (n,), "contact": (nc,), "contact_t": (nc, run.ctx.rows.components - 1),
             "fixed": (run.ctx.fixed.size,)}[kind]  # fmt: skip
 
 
@@ -216,8 +216,8 @@ def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: 
     """The :class:`State` of a checkpoint, every array's shape and finiteness checked."""
     n, nc = run.ctx.disc.space.n_dofs, run.ctx.disc.contact.size
     expect = {"U": (n,), "V": (n,), "A": (n,), "lam": (nc,)}
-    if run.ctx.components > 1 and "lam_t" in arrays:
-        expect["lam_t"] = (nc, run.ctx.components - 1)
+    if run.ctx.rows.components > 1 and "lam_t" in arrays:
+        expect["lam_t"] = (nc, run.ctx.rows.components - 1)
     declared = {**COMMON_STATE_FIELDS, **getattr(run.scheme, "state_fields", {})}
     extra: dict[str, Any] = {}
     for key, a in arrays.items():
@@ -241,7 +241,7 @@ def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: 
         if declared.get(key) != "flag":
             raise InputError(f"checkpoint: flag {key!r} is not data of scheme {run.scheme.name}")
         extra[key] = bool(v)
-    lam_t = arrays.get("lam_t") if run.ctx.components > 1 else None
+    lam_t = arrays.get("lam_t") if run.ctx.rows.components > 1 else None
     return State(float(t), arrays["U"].copy(), arrays["V"].copy(), arrays["A"].copy(), arrays["lam"].copy(),
                  extra={k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in extra.items()},
                  lam_t=None if lam_t is None else lam_t.copy())  # fmt: skip

@@ -10,8 +10,8 @@ that left their master facet and returns the rows it changed (the
 rows the last level's multipliers acted through (:meth:`ContactRows.rows_of`) and what a
 checkpoint must hold of the pairing (:meth:`ContactRows.pairing_state`).
 
-The schemes read the rows through the Context (``ctx.B``, ``ctx.T``, ``ctx.friction_law(...)``,
-``ctx.contact_force(...)``): it forwards them here.
+The schemes read the rows as the Context's ``rows`` (``ctx.rows.B``, ``ctx.rows.T``,
+``ctx.rows.friction_law(...)``, ``ctx.rows.contact_force(...)``).
 """
 
 from __future__ import annotations

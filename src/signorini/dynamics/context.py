@@ -168,7 +168,7 @@ class _System:
 
     def __init__(self, op: Operator, ctx: Context, options: dict[str, Any]):
         f, D = ctx.free, ctx.fixed
-        if ctx.sliding:  # the Schur complement is of the contact dofs of t = 0: lazy or full columns follow
+        if ctx.rows.sliding:  # the Schur complement is of the contact dofs of t = 0: lazy or full columns follow
             if options.get("condensation") == "schur":
                 raise InputError("solver option condensation='schur' cannot follow contact pairs as they slide; "
                                  "use condensation='lazy' or 'full', or pairing='frozen'")  # fmt: skip
@@ -196,10 +196,10 @@ class _System:
             dim = ctx.disc.space.dim
             nodes = ctx.disc.space.dofmap.nodes_of(f if D.size else np.arange(Kff.shape[0]))
             cg_friendly = ctx.iterative_ok and stiffness_to_mass_ratio(op, ctx) <= CG_FRIENDLY_RATIO
-            B = ctx.Hf if ctx.components > 1 else ctx.Bf  # with friction: the nodal frames' rows
+            B = ctx.rows.Hf if ctx.rows.components > 1 else ctx.rows.Bf  # with friction: the nodal frames' rows
             free = f if D.size else np.arange(Kff.shape[0])
             self.solver: ContactSolver = make_contact_solver(
-                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.components,
+                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.rows.components,
                 lambda: ctx.disc.space.rigid_body_modes(free),
             )  # fmt: skip
         except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
@@ -256,13 +256,6 @@ class DirichletElimination:
         return out
 
 
-#: what the Context forwards to its :class:`~signorini.dynamics.contact_rows.ContactRows`: the rows,
-#: their blocks and frames, the friction data of a step's solve and the pairing
-ROW_ATTRIBUTES = frozenset({
-    "B", "Bf", "BD", "T", "H", "Hf", "HD", "friction", "components", "friction_rows", "sliding", "repaired",
-    "friction_law", "friction_rate_law", "rows_of", "contact_force", "contact_on_fixed", "pairing_state",
-})  # fmt: skip
-
 #: relative size of a gap that is contact (:attr:`Context.touch_tolerance`): 1e4 times the
 #: round-off of a coordinate, 1e-12 of the body
 TOUCH = 1e-12
@@ -285,12 +278,12 @@ class Context:
         self.has_fixed = self.fixed.size > 0
         #: the Dirichlet dofs eliminated from a solve and put back in its answer
         self.elimination = DirichletElimination(self.free, self.fixed, disc.space.n_dofs)
-        #: the contact rows B, T, H, their blocks, friction data and pairing (their only owner);
-        #: ``ctx.B``, ``ctx.friction_law(...)`` and the like read them (:data:`ROW_ATTRIBUTES`)
+        #: the contact rows B, T, H, their blocks, friction data and pairing (their only owner):
+        #: ``ctx.rows.B``, ``ctx.rows.friction_law(...)``
         self.rows = ContactRows(disc, self.solver_options)
         #: whether the schemes of the run can use the CG contact solve (``auto`` may pick it;
         #: never with friction)
-        self.iterative_ok = self.components == 1
+        self.iterative_ok = self.rows.components == 1
         #: the factorized step operators, per step size (their only owner)
         self.factors = Factorizations(lambda op: _System(op, self, self.solver_options), self.dt)
         self.massless = massless_dofs(disc.M)
@@ -327,13 +320,6 @@ class Context:
                 f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "
                 "boundary): refine the mesh across the contact layer or use the 'standard' mass"
             )
-
-    def __getattr__(self, name: str) -> Any:
-        """The contact rows' attributes and methods of :data:`ROW_ATTRIBUTES`, read from their owner."""
-        rows = self.__dict__.get("rows")  # (not yet there while __init__ runs: AttributeError below)
-        if rows is not None and name in ROW_ATTRIBUTES:
-            return getattr(rows, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def slide(self, U: np.ndarray, t: float) -> int:
         """Small sliding after a level (:meth:`ContactRows.slide`); every factorized system, the
@@ -439,10 +425,10 @@ class Context:
         if guess is not None and sys.solver.uses_guess:
             x0 = guess() if callable(guess) else guess
             sys.solver.set_guess(x0[self.free] if self.has_fixed else x0)
-        if self.components > 1:
+        if self.rows.components > 1:
             if not law.friction.frictional or law.reference is None:
                 raise InputError(
-                    f"this step's contact solve has no friction data; the run's law is {self.friction.label} "
+                    f"this step's contact solve has no friction data; the run's law is {self.rows.friction.label} "
                     "(a scheme that carries friction passes Context.friction_law)"
                 )
             bound = np.column_stack([bound, law.reference]).ravel()
@@ -464,7 +450,7 @@ class Context:
             V[ml] = (U[ml] - U_old[ml]) / self.dt
             A[ml] = 0.0
         if self.rotated_kernel:
-            B = self.B
+            B = self.rows.B
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)
 
@@ -484,6 +470,6 @@ class Context:
         """Sum of the solvers' counters (factorizations, linear_solves, ...), with the pairs' re-paired rows."""
         out = self.factors.counters()
         if self.disc.problem.pairs:
-            out["pair_rows_repaired"] = self.repaired
+            out["pair_rows_repaired"] = self.rows.repaired
         out.update(self.elastic.counters())
         return out

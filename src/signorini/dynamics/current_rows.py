@@ -475,7 +475,7 @@ class FollowingBound:
             return 0.0
         current = self.ctx.rows.current
         g = current.gaps(U, self.t, outside=np.nan)  # nan beyond the rim at U
-        err = np.abs(g - (self.bound - self.ctx.B @ U))
+        err = np.abs(g - (self.bound - self.ctx.rows.B @ U))
         if current.facing is not None:
             now = ~np.isnan(g)
             err[current.facing != now] = np.inf  # crossed the rim between the rows' iterate and U
@@ -505,4 +505,4 @@ def level_gaps(ctx: Context, U: np.ndarray, t: float) -> np.ndarray:
     slave node beyond the master surface's rim (facing nothing) has none: +inf."""
     if ctx.rows.current is not None:
         return ctx.rows.current.gaps(U, t, outside=np.inf)
-    return ctx.gaps(t) - ctx.B @ U
+    return ctx.gaps(t) - ctx.rows.B @ U

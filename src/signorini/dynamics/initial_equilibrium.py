@@ -96,7 +96,7 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
             "supported yet: its static Newton solve stalls at 1e-8 of the force scale on a steel beam under its "
             "weight (docs/initial_equilibrium.md); use the linear model for the preload, or leave equilibrium off"
         )
-    if ctx.components > 1:
+    if ctx.rows.components > 1:
         raise InputError(
             "[initial] equilibrium = true with friction is not supported: the static solve is frictionless and a "
             "frictional support's tangential forces at rest are not unique; start from rest without it"
@@ -148,7 +148,7 @@ def _proximal(ctx: Context, op: Any, U: np.ndarray, F: np.ndarray, f: np.ndarray
         k += 1
         # the free bodies' rows balance themselves at their own U0 (no load, no motion)
         r = np.where(held_dofs, F - f, 0.0)
-        dU, lam, _ = ctx.solve(op, r, ctx.gaps(0.0) - ctx.B @ U, None if fixed is None else 0.0 * fixed)
+        dU, lam, _ = ctx.solve(op, r, ctx.gaps(0.0) - ctx.rows.B @ U, None if fixed is None else 0.0 * fixed)
         U = U + dU
         f = el.force(U)
         scale = max(scale, np.abs(f).max(initial=0.0))

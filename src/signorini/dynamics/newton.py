@@ -111,7 +111,7 @@ def _residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: n
               contact_force: Callable | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """(r, c_M M X, the contact force), r (n,) the residual of :func:`residual_norm` on every dof [force]."""
     MdU = _mass_part(ctx, op, X)
-    contact = ctx.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
+    contact = ctx.rows.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
     return MdU + op.stiffness * gU - rest - contact, MdU, contact
 
 
@@ -147,7 +147,7 @@ def _shifted(law: ContactLaw, ctx: Context, U: np.ndarray) -> ContactLaw:
     """The law of a solve for the increment from U: the slip reference c_t less T U."""
     if law.reference is None:
         return law
-    return replace(law, reference=law.reference - (ctx.T @ U).reshape(law.reference.shape))
+    return replace(law, reference=law.reference - (ctx.rows.T @ U).reshape(law.reference.shape))
 
 
 def start_increment(ctx: Context, base: np.ndarray, fixed: np.ndarray | None) -> np.ndarray:
@@ -261,7 +261,7 @@ def newton_solve(
             # the slip measured in the frames of the rows just moved to U; the rows that face nothing left out
             law_k = _shifted(bound.law(law) if callable(bound) else law, ctx, U)
             minus_r = rest - _mass_part(ctx, op, X) - op.stiffness * gU
-            slack = bnd - ctx.B @ U
+            slack = bnd - ctx.rows.B @ U
             feasible = energy is not None and agree(bool(np.all(slack >= -ctx.touch_tolerance)))
             fixed_d = None if fixed is None else np.zeros(D.size)
             d, lam_new, info, renewed = factor.direction(k, minus_r, slack, fixed_d, law_k, U, lam)
@@ -303,7 +303,7 @@ def newton_solve(
                 continue
             # |r| does not fall (at the first iterate: below |r| there, without contact force): a line search
             if n_new > allowed and not n_new < (norm if lam is not None else agree(residual_norm(
-                    ctx, op, X, rest, gU, U, np.zeros(ctx.B.shape[0]), None, inertia, through)[0])):  # fmt: skip
+                    ctx, op, X, rest, gU, U, np.zeros(ctx.rows.B.shape[0]), None, inertia, through)[0])):  # fmt: skip
                 if feasible and factor.owned and not agree(factor.convex_along(d)):
                     # a tangent with a negative curvature along d (an indefinite cell): corrected at U, and the
                     # direction taken again
@@ -571,7 +571,7 @@ class _Factor:
         H = self.op.mass * ctx.M + self.op.stiffness * G
         if self.op.viscous is not None:
             H = H + self.op.viscous.coefficient * self.op.viscous.matrix
-        H, B = sp.csr_matrix(H), sp.csr_matrix(ctx.B)
+        H, B = sp.csr_matrix(H), sp.csr_matrix(ctx.rows.B)
         f, D = ctx.free, ctx.fixed
         d = np.zeros_like(minus_r)
         if D.size and fixed_d is not None:
@@ -606,8 +606,8 @@ def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) ->
     """Whether a step's direction may be taken from the plain tangent with the active set held (:meth:`_Factor.kkt`):
     frictionless exact contact on one process (a distributed or frictional system is not assembled whole), after a
     contact solve that reached complementarity (its active set is the one to hold); ``rows``: with contact rows."""
-    return (ctx.components == 1 and law.compliance is None and info.lam_t is None
-            and not isinstance(ctx.M, RowBlock) and (ctx.B.shape[0] > 0 or not rows)
+    return (ctx.rows.components == 1 and law.compliance is None and info.lam_t is None
+            and not isinstance(ctx.M, RowBlock) and (ctx.rows.B.shape[0] > 0 or not rows)
             and bool(info.residual <= _max_contact_residual()))  # fmt: skip
 
 

@@ -91,7 +91,7 @@ class HistoryRecorder(Observer):
 
     def start(self, run: Run) -> None:
         nc = run.ctx.disc.contact.size
-        self.series = empty_series(run.n_steps + 1, nc, run.ctx.disc.space.dim, run.ctx.components - 1)
+        self.series = empty_series(run.n_steps + 1, nc, run.ctx.disc.space.dim, run.ctx.rows.components - 1)
         for k in ("kinetic_energy", "elastic_energy"):
             del self.series[k]
         self.reactions = None

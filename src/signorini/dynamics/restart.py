@@ -179,7 +179,7 @@ class Pairing:
         self.t = 0.0  # the level's time (the stepper sets it before a walk)
 
     def saved(self) -> dict[str, Any]:
-        return self.ctx.pairing_state(self.t)
+        return self.ctx.rows.pairing_state(self.t)
 
     def resume(self, data: dict[str, Any]) -> None:
         self.ctx.restore_pairing(data, self.t)

@@ -124,7 +124,7 @@ def initial_state(ctx: Context) -> State:
         U, lam0, ctx.initial_equilibrium = static_equilibrium(ctx, U, F)
     r = F - (_initial_force(ctx, U) if ctx.elastic.finite else ctx.S @ U) - ctx.M @ A
     if lam0.any():
-        r += ctx.contact_force(lam0, None, 0.0)
+        r += ctx.rows.contact_force(lam0, None, 0.0)
     Fd = ctx.damping.force(ctx, V) if ctx.damping is not None else None
     if Fd is not None:  # damped: M A0 = F(0) - S U0 - C V0
         r -= Fd
@@ -156,7 +156,7 @@ def initial_state(ctx: Context) -> State:
                 sol = spla.spsolve((Mrr.whole() if by_rows else Mrr).tocsc(), r[idx])
                 ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
-    lam_t = np.zeros((disc.contact.size, ctx.components - 1)) if ctx.components > 1 else None
+    lam_t = np.zeros((disc.contact.size, ctx.rows.components - 1)) if ctx.rows.components > 1 else None
     state = State(0.0, U, V, A, lam0, lam_t=lam_t)
     R0 = np.zeros(n)
     ml = np.setdiff1d(ctx.massless, ctx.fixed)
@@ -287,7 +287,7 @@ def prepare_context(disc: Discretization, dt: float, opts: dict, schemes: Iterab
     ctx = Context(disc, dt, opts)
     schemes = [s for s in schemes if s is not None]
     ctx.iterative_ok = ctx.iterative_ok and not any(s.needs_condensed_solve for s in schemes)
-    check_friction_schemes(ctx.friction, schemes, finite=ctx.elastic.finite)
+    check_friction_schemes(ctx.rows.friction, schemes, finite=ctx.elastic.finite)
     check_finite_strain(ctx, schemes)
     for s in schemes:
         s.check_context(ctx)
@@ -468,7 +468,7 @@ def assemble_history(
         nodes=np.asarray(disc.contact.nodes, dtype=np.int64),
         pair=None if disc.contact.pair is None else np.asarray(disc.contact.pair, dtype=np.int64),
         master_facet=None if disc.contact.master_facet is None else np.asarray(disc.contact.master_facet, np.int64),
-        tangents=disc.contact.tangents if ctx.components > 1 else None,
+        tangents=disc.contact.tangents if ctx.rows.components > 1 else None,
         snapshots=snaps.snapshots() if snaps is not None else {},
         meta=run_meta(disc, ctx, run.scheme, run.dt, run.n_steps, timings),
         counters={

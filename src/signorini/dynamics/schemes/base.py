@@ -346,7 +346,12 @@ def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndar
     def compute():
         D = ctx.fixed
         MD, SD = rows if rows is not None else (ctx.M[D], ctx.S[D])
-        R = MD @ s.A + ctx.elastic.force_rows(s.U, D, SD) - ctx.load(s.t)[D] - ctx.contact_on_fixed(s.lam, s.lam_t, s.t)
+        R = (
+            MD @ s.A
+            + ctx.elastic.force_rows(s.U, D, SD)
+            - ctx.load(s.t)[D]
+            - ctx.rows.contact_on_fixed(s.lam, s.lam_t, s.t)
+        )
         Fd = damping_force(ctx, s)
         return R if Fd is None else R + Fd[D]
 
@@ -365,9 +370,9 @@ def load_work(ctx: Context, old: State, new: State, w_new: float) -> float:
 def friction_work(ctx: Context, dX: np.ndarray, lam_t: np.ndarray | None) -> float:
     """(T dX) . lambda_t: the work of the tangential contact forces lambda_t (nc, d - 1)
     over the displacement dX (n,) [energy]; 0 without friction."""
-    if lam_t is None or ctx.T is None:
+    if lam_t is None or ctx.rows.T is None:
         return 0.0
-    return float((ctx.T @ dX) @ lam_t.ravel())
+    return float((ctx.rows.T @ dX) @ lam_t.ravel())
 
 
 def contact_works(
@@ -379,28 +384,28 @@ def contact_works(
     the levels) [energy].  ``w_new``: one weight, or one per contact row (nc,) (energy-momentum).
     The normal work row by row (nc,) is kept in ``new.cache["contact_rows"]``."""
     w_old = 1 - w_new if w_old is None else w_old
-    B0, T0 = ctx.rows_of(old.t)
-    BdU = ctx.B @ dU
-    B0dU = BdU if B0 is ctx.B else B0 @ dU
+    B0, T0 = ctx.rows.rows_of(old.t)
+    BdU = ctx.rows.B @ dU
+    B0dU = BdU if B0 is ctx.rows.B else B0 @ dU
     if new.lam.size:  # row by row (kept with the new level: the spurious energy's contact cycles, EnergyRecorder)
         new.cache["contact_rows"] = BdU * (w_new * new.lam) + B0dU * (w_old * old.lam)
     if np.ndim(w_new):  # per row: each level's forces weighted through its own rows
         normal = float(BdU @ (w_new * new.lam) + B0dU @ (w_old * old.lam)) if new.lam.size else 0.0
         tangential = 0.0
-        if ctx.T is not None:
+        if ctx.rows.T is not None:
             if new.lam_t is not None:
-                tangential += float((ctx.T @ dU) @ weighted(new.lam_t, None, w_new).ravel())
+                tangential += float((ctx.rows.T @ dU) @ weighted(new.lam_t, None, w_new).ravel())
             if old.lam_t is not None and T0 is not None:
                 tangential += float((T0 @ dU) @ weighted(None, old.lam_t, w_new).ravel())
         return normal, tangential
-    if B0 is ctx.B:
+    if B0 is ctx.rows.B:
         normal = float(BdU @ (w_new * new.lam + w_old * old.lam))
         return normal, friction_work(ctx, dU, weighted(new.lam_t, old.lam_t, w_new))
     normal = w_new * float(BdU @ new.lam) + w_old * float(B0dU @ old.lam)
     tangential = 0.0
-    if ctx.T is not None:
+    if ctx.rows.T is not None:
         if new.lam_t is not None:
-            tangential += w_new * float((ctx.T @ dU) @ new.lam_t.ravel())
+            tangential += w_new * float((ctx.rows.T @ dU) @ new.lam_t.ravel())
         if old.lam_t is not None:
             tangential += w_old * float((T0 @ dU) @ old.lam_t.ravel())
     return normal, tangential

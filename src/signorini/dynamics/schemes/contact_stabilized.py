@@ -74,11 +74,11 @@ class ContactStabilizedNewmark(Scheme):
         delta, mu1 = new.extra["delta"], new.extra["mu"]
         Fs = ctx.load(old.t) + ctx.load(new.t)
         Ss = old.product("SU", lambda: ctx.Sop @ old.U) + new.product("SU", lambda: ctx.Sop @ new.U)
-        parts = EnergyParts(external=load_work(ctx, old, new, 0.5), contact=0.5 * float((ctx.B @ dU) @ mu1))
-        parts.numerical = -0.5 * float(delta @ (Fs - Ss + ctx.B.T @ mu1))
+        parts = EnergyParts(external=load_work(ctx, old, new, 0.5), contact=0.5 * float((ctx.rows.B @ dU) @ mu1))
+        parts.numerical = -0.5 * float(delta @ (Fs - Ss + ctx.rows.B.T @ mu1))
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             Up = old.U + dt * old.V + delta
-            r = (4.0 / (dt * dt)) * (ctx.M[D] @ (new.U - Up)) + Ss[D] - Fs[D] - ctx.contact_on_fixed(mu1)
+            r = (4.0 / (dt * dt)) * (ctx.M[D] @ (new.U - Up)) + Ss[D] - Fs[D] - ctx.rows.contact_on_fixed(mu1)
             parts.external += 0.5 * float(dU[D] @ r)
         return parts

@@ -80,7 +80,7 @@ class EnergyMomentum(Scheme):
         with B's pattern (the rows move with sliding pairs and in the current configuration)."""
         ml = np.zeros(ctx.M.shape[0])
         ml[ctx.massless] = 1.0
-        pattern = (ctx.B != 0).astype(float)
+        pattern = (ctx.rows.B != 0).astype(float)
         on_massless, on_all = pattern @ ml, pattern @ np.ones(ml.size)
         joined = (on_massless > 0) & (on_massless < on_all)
         if joined.any():
@@ -106,7 +106,7 @@ class EnergyMomentum(Scheme):
         ml = self._massless_mask(ctx)
         Fw = np.where(ml, 0.5 * F1, 0.5 * (F0 + F1))
         w = self.row_weights(ctx)
-        law = ctx.friction_law(s.U, s.t, t)
+        law = ctx.rows.friction_law(s.U, s.t, t)
         if law.radius is not None:  # Tresca: the halved rows' multipliers are half the forces, so is their bound
             law = replace(law, radius=law.radius * w)
         el, U0 = ctx.elastic, s.U
@@ -177,12 +177,12 @@ class EnergyMomentum(Scheme):
         tangential = weighted(lam_t, None, w)
         if tangential is not None:
             tangential = np.where(on[:, None], tangential, 0.0)
-        f = ctx.contact_force(np.where(on, w * lam, 0.0), tangential)
+        f = ctx.rows.contact_force(np.where(on, w * lam, 0.0), tangential)
         old_t = weighted(None, s.lam_t, w)  # (1 - w) lambda_t^n: 0 where w = 1
         if old_t is not None:
             old_t = np.where(on[:, None], old_t, 0.0)
         if s.lam.size and np.any(w < 1.0):
-            f = f + ctx.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), old_t, s.t)
+            f = f + ctx.rows.contact_force(np.where(on, (1.0 - w) * s.lam, 0.0), old_t, s.t)
         return f
 
     def impulse(self, ctx, old: State, new: State) -> np.ndarray:
@@ -226,8 +226,10 @@ class EnergyMomentum(Scheme):
         g = np.where(self._massless_mask(ctx), 0.5 * (f0 + f1), f_alg)
         contact = 0.0
         if new.lam.size:  # each level's weighted forces through its own rows
-            contact = ctx.contact_force(w * new.lam, weighted(new.lam_t, None, w) if new.lam_t is not None else None)
-            contact = contact + ctx.contact_force((1.0 - w) * old.lam, weighted(None, old.lam_t, w)
+            contact = ctx.rows.contact_force(
+                w * new.lam, weighted(new.lam_t, None, w) if new.lam_t is not None else None
+            )
+            contact = contact + ctx.rows.contact_force((1.0 - w) * old.lam, weighted(None, old.lam_t, w)
                                                   if old.lam_t is not None else None, old.t)  # fmt: skip
         R = (ctx.M @ (new.V - old.V)) / dt + g - 0.5 * (ctx.load(old.t) + ctx.load(new.t)) - contact
         return float((new.U - old.U)[D] @ R[D])

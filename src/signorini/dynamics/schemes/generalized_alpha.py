@@ -118,12 +118,12 @@ class GeneralizedAlpha(Newmark):
         Fd0 = damping_force(ctx, s)
         lagged = 0.0
         if af:
-            lagged = af * (ctx.load(s.t) - products(ctx, s)[1] + ctx.contact_force(s.lam, s.lam_t, s.t))
+            lagged = af * (ctx.load(s.t) - products(ctx, s)[1] + ctx.rows.contact_force(s.lam, s.lam_t, s.t))
             if Fd0 is not None:  # the damping force weighs as the elastic one: a_f C V^n lagged
                 lagged -= af * Fd0
             if ctx.massless.size:  # no inertia: balanced at t_{n+1}, not on average (no (-1)^n mode)
                 lagged[ctx.massless] = 0.0
-        law = ctx.friction_law(s.U, s.t, t)
+        law = ctx.rows.friction_law(s.U, s.t, t)
         # (1 - a_m) M A^{n+1} + a_m M A^n + (1 - a_f) f(U^{n+1}) + a_f f(U^n) = ..., over (1 - a_f)
         q = ((1 - am) * self.increment_predictor(ctx, s.V, s.A) - am * s.A) / (1 - af)
         damping = None if ctx.damping is None else self.damping_offset_increment(ctx, s)
@@ -155,11 +155,11 @@ class GeneralizedAlpha(Newmark):
             D = ctx.fixed
             A_w = (1 - am) * new.A + am * old.A
             F_w = (1 - af) * ctx.load(new.t) + af * ctx.load(old.t)
-            if ctx.rows_of(old.t)[0] is ctx.B:
-                on_fixed = ctx.contact_on_fixed(lam_w, lam_t_w)
+            if ctx.rows.rows_of(old.t)[0] is ctx.rows.B:
+                on_fixed = ctx.rows.contact_on_fixed(lam_w, lam_t_w)
             else:  # a contact pair re-paired between the levels: each level through its own rows
-                on_fixed = (1 - af) * ctx.contact_on_fixed(new.lam, new.lam_t, new.t) + af * ctx.contact_on_fixed(
-                    old.lam, old.lam_t, old.t)  # fmt: skip
+                on_fixed = (1 - af) * ctx.rows.contact_on_fixed(new.lam, new.lam_t, new.t) + af * (
+                    ctx.rows.contact_on_fixed(old.lam, old.lam_t, old.t))  # fmt: skip
             f_w = (1 - af) * products(ctx, new)[1][D] + af * products(ctx, old)[1][D]
             RD = ctx.M[D] @ A_w + f_w - F_w[D] - on_fixed
             Fd0, Fd1 = damping_force(ctx, old), damping_force(ctx, new)

@@ -90,8 +90,8 @@ class MoreauJean(Scheme):
             rhs -= th * (1 - th) * dt * dt * (ctx.S @ s.V)
             if ctx.damping is not None:
                 rhs -= (1 - th) * dt * damping_force(ctx, s)
-        BV0 = ctx.B @ s.V
-        index = ctx.gaps(t0 + 0.5 * dt) - ctx.B @ (s.U + 0.5 * dt * s.V) <= ctx.touch_tolerance
+        BV0 = ctx.rows.B @ s.V
+        index = ctx.gaps(t0 + 0.5 * dt) - ctx.rows.B @ (s.U + 0.5 * dt * s.V) <= ctx.touch_tolerance
         gdot = (ctx.gaps(t1) - ctx.gaps(t0)) / dt if ctx.disc.contact.moving else 0.0
         bound = (1 + e) * gdot - e * BV0
         fixed = None
@@ -99,7 +99,7 @@ class MoreauJean(Scheme):
             D = ctx.fixed
             fixed = (ctx.dirichlet(t1) - s.U[D]) / (th * dt) - (1 - th) / th * s.V[D]
         bound = np.broadcast_to(bound, BV0.shape).copy()
-        law = ctx.friction_rate_law(t0, t1, ContactLaw(subset=index))
+        law = ctx.rows.friction_rate_law(t0, t1, ContactLaw(subset=index))
         V, P, info = ctx.solve(self.step_operator(ctx, dt), rhs, bound, fixed, law)
         U = s.U + dt * (th * V + (1 - th) * s.V)
         P_t = info.lam_t  # tangential impulses (friction), or None
@@ -118,7 +118,7 @@ class MoreauJean(Scheme):
         P_t = new.extra.get("impulse_t")
         parts = EnergyParts(
             external=load_work(ctx, old, new, th),
-            contact=float((ctx.B @ Vth) @ P),
+            contact=float((ctx.rows.B @ Vth) @ P),
             friction=friction_work(ctx, Vth, P_t),
         )
         parts.damping, parts.numerical = damping_split(ctx, dU, old, new, th)
@@ -126,7 +126,7 @@ class MoreauJean(Scheme):
             D = ctx.fixed
             Fth = th * ctx.load(new.t) + (1 - th) * ctx.load(old.t)
             SUth = th * (ctx.S[D] @ new.U) + (1 - th) * (ctx.S[D] @ old.U)
-            r = ctx.M[D] @ dV + dt * (SUth - Fth[D]) - ctx.contact_on_fixed(P, P_t)
+            r = ctx.M[D] @ dV + dt * (SUth - Fth[D]) - ctx.rows.contact_on_fixed(P, P_t)
             if ctx.damping is not None:
                 r += dt * (th * damping_force(ctx, new)[D] + (1 - th) * damping_force(ctx, old)[D])
             parts.external += float(Vth[D] @ r)

@@ -101,7 +101,7 @@ class Newmark(Scheme):
 
     def step(self, ctx, s: State) -> State:
         t = ctx.next_time(s.t)
-        law = ctx.friction_law(s.U, s.t, t, self.contact_law(ctx))
+        law = ctx.rows.friction_law(s.U, s.t, t, self.contact_law(ctx))
         q = self.increment_predictor(ctx, s.V, s.A)  # M A^{n+1} = M (dU/(beta dt^2) - q)
         damping = None if ctx.damping is None else self.damping_offset_increment(ctx, s)
         p = self.predictor(ctx, s)  # q + U^n/(beta dt^2), as the linear solve rounds it

@@ -88,14 +88,14 @@ class PaoliSchatzman(Scheme):
         MUp, SUp = s.extra["MU_prev"], s.extra["SU_prev"]
         rhs = (2 * MU - MUp) / dt**2 - 0.25 * (2 * SU + SUp) + F
         t_bound = (t + e * (s.t - dt)) / (1 + e)
-        bound = (1 + e) * ctx.gaps(t_bound) - e * (ctx.B @ Up) if e else ctx.gaps(t)
+        bound = (1 + e) * ctx.gaps(t_bound) - e * (ctx.rows.B @ Up) if e else ctx.gaps(t)
         fixed = ctx.dirichlet(t) if ctx.has_fixed else None
         U, lam, info = ctx.solve(self.operator(dt), rhs, bound, fixed)
         new = State(t, U, (U - Un) / dt, np.zeros_like(U), lam, info, {"U_prev": Un, "MU_prev": MU, "SU_prev": SU})
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
             D = ctx.fixed
             MU1, SU1 = self._MU(ctx, new), self._SU(ctx, new)
-            R = (MU1 - 2 * MU + MUp)[D] / dt**2 + 0.25 * (SU1 + 2 * SU + SUp)[D] - F[D] - ctx.contact_on_fixed(lam)
+            R = (MU1 - 2 * MU + MUp)[D] / dt**2 + 0.25 * (SU1 + 2 * SU + SUp)[D] - F[D] - ctx.rows.contact_on_fixed(lam)
             new.extra["R_D"] = R
         return new
 
@@ -134,7 +134,7 @@ class PaoliSchatzman(Scheme):
         """R_D^n of the step (U^{n-1}, U^n) -> U^{n+1} with the contact forces ``lam``."""
         D, dt = ctx.fixed, ctx.dt
         R = ctx.M[D] @ (new.U - 2 * old.U + Up) / dt**2 + 0.25 * (ctx.S[D] @ (new.U + 2 * old.U + Up))
-        return R - ctx.load(old.t)[D] - ctx.contact_on_fixed(lam)
+        return R - ctx.load(old.t)[D] - ctx.rows.contact_on_fixed(lam)
 
     def energy(self, ctx, s: State) -> tuple[float, float]:
         Up = self._previous(ctx, s)
@@ -157,7 +157,7 @@ class PaoliSchatzman(Scheme):
         W = 0.5 * (new.U - Up)
         starter = bool(new.extra.get("starter"))
         lam = 0.25 * new.lam if starter else new.lam  # the CN starter as a step from (U^{-1}, U^0)
-        parts = EnergyParts(contact=float((ctx.B @ W) @ lam))
+        parts = EnergyParts(contact=float((ctx.rows.B @ W) @ lam))
         F0, F1 = ctx.load(old.t), ctx.load(new.t)
         if F1 is not F0:
             Fm = ctx.load(old.t - dt)

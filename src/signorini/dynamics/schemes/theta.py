@@ -78,7 +78,7 @@ class Theta(Scheme):
         dt, th = ctx.dt, self.theta
         t = ctx.next_time(s.t)
         Vd0 = damping_velocity(s)[0]
-        law = ctx.friction_law(s.U, s.t, t)
+        law = ctx.rows.friction_law(s.U, s.t, t)
         q = s.V / (th * th * dt) + (1 - th) / th * s.A  # M A^{n+1} = M (dU / (theta dt)^2 - q)
         # C V_d^{n+1} = C dU / (theta dt) - C (1 - theta)/theta V_d^n
         damping = None if ctx.damping is None else -(1 - th) / th * Vd0
