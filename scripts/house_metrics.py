@@ -8,7 +8,9 @@ Printed, with the places that count:
 * the parameters of ``Stepper.__init__`` (at most 8);
 * accesses to another object's ``_private`` attribute across modules (``x._name`` where ``x``
   is not ``self``/``cls`` and ``_name`` is not defined in the same module; none);
-* ``mesh.mixed`` branches (none outside the one loop over cell blocks);
+* ``mesh.mixed`` branches (none outside ``fem/mesh.py``, refusals apart);
+* classes with a ``__getattr__`` (none: no forwarding an editor cannot follow);
+* the README's lines (at most 220);
 * ``d * node + c`` computed by hand outside ``fem/dofmap.py`` (``<name> * <dim> + ...`` or
   ``<dim> * <name> + ...`` with a dimension-like name: d, dim, block_size, components);
 * backend names compared outside the backend choice (``== "petsc"`` and the like, ``in
@@ -75,14 +77,43 @@ def private_access() -> list[tuple[str, int, str]]:
 
 
 def mixed_branches() -> list[tuple[str, int]]:
+    """Conditions that read ``.mixed`` (an ``if``, a conditional expression, a ``while`` or a comprehension's
+    filter, anywhere in the condition: ``if mesh.mixed and ...`` too), outside ``fem/mesh.py`` (the module of
+    the blocks) and except refusals (an ``if`` whose body ends in ``raise``: a capability refused by name)."""
     out = []
     for name, tree in _modules():
+        if name == "signorini/fem/mesh.py":
+            continue
         for n in ast.walk(tree):
-            if isinstance(n, (ast.If, ast.IfExp)) and "mixed" in ast.unparse(n.test).split("."):
-                out.append((name, n.lineno))
-            elif isinstance(n, (ast.If, ast.IfExp)) and ast.unparse(n.test).endswith(".mixed"):
-                out.append((name, n.lineno))
+            if isinstance(n, (ast.If, ast.IfExp, ast.While)):
+                tests = [n.test]
+            elif isinstance(n, ast.comprehension):
+                tests = list(n.ifs)
+            else:
+                continue
+            if not any(isinstance(a, ast.Attribute) and a.attr == "mixed" for t in tests for a in ast.walk(t)):
+                continue
+            if isinstance(n, ast.If) and not n.orelse and isinstance(n.body[-1], ast.Raise):
+                continue
+            out.append((name, n.lineno))
     return sorted(set(out))
+
+
+def forwarding_getattr() -> list[tuple[str, str]]:
+    """Classes that define ``__getattr__`` (attributes an editor or a type checker cannot follow; a module's own
+    ``__getattr__``, the package's lazy public names, is not a class's)."""
+    out = []
+    for name, tree in _modules():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                if any(isinstance(f, ast.FunctionDef) and f.name == "__getattr__" for f in node.body):
+                    out.append((name, node.name))
+    return out
+
+
+def readme_lines() -> int:
+    """The README's length in lines (issue 53: a front page of at most 220)."""
+    return len((PKG.parents[1] / "README.md").read_text().splitlines())
 
 
 def _is_dim(node: ast.AST) -> bool:
@@ -131,6 +162,8 @@ def main(argv: list[str]) -> int:
         "mesh_mixed_branches": mixed_branches(),
         "dofs_by_hand": hand_dofs(),
         "backend_name_comparisons": backend_comparisons(),
+        "classes_with_getattr": forwarding_getattr(),
+        "readme_lines": readme_lines(),
     }
     if "--json" in argv:
         print(json.dumps(m, indent=1))

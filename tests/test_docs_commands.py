@@ -1,6 +1,6 @@
-"""Every command line of the README and of docs/tutorial.md runs as written.
+"""Every command line of the README, docs/tutorial.md and docs/cli.md runs as written.
 
-The lines are every non-comment line of every ``bash`` block of the two files (not a
+The lines are every non-comment line of every ``bash`` block of those files (not a
 block picked by its position): a command added to the docs is tested without editing
 this file.  They run in a scratch directory that sees the repository's ``examples/``,
 ``benchmarks/`` and ``.venv-mpi/`` as the docs assume (the working directory is the
@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).parents[1]
-DOCS = ("README.md", "docs/tutorial.md")
+DOCS = ("README.md", "docs/tutorial.md", "docs/cli.md")
 #: command lines that take more than ~10 s (the main job's study, the performance suite)
 SLOW = ("signorini reproduce", "python3 -m benchmarks")
 

@@ -31,6 +31,14 @@ def test_no_backend_name_is_compared_outside_the_backend_choice():
     assert hm.backend_comparisons() == []
 
 
+def test_no_class_forwards_attributes_through_getattr():
+    assert hm.forwarding_getattr() == []
+
+
+def test_the_readme_is_a_front_page_of_at_most_220_lines():
+    assert 40 <= hm.readme_lines() <= 220
+
+
 def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
     """Each checker finds its pattern in a module written for it (a checker that sees nothing
     would pass the tests above whatever the code)."""
@@ -38,16 +46,24 @@ def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
     pkg.mkdir()
     (pkg / "bad.py").write_text(
         "class Big:\n" + "".join(f"    def m{k}(self):\n        pass\n" for k in range(21)) + "\n"
+        "class Forward:\n"
+        "    def __getattr__(self, name):\n"
+        "        return 1\n"
         "def f(mesh, other, node, d, opts):\n"
         "    if mesh.mixed:\n"
         "        pass\n"
+        "    if opts and mesh.mixed:\n"
+        "        pass\n"
+        "    if mesh.mixed and opts:\n"
+        "        raise ValueError('refused by name')\n"
         "    x = other._hidden\n"
         "    y = node * d + 1\n"
         "    return opts['backend'] == 'superlu'\n"
     )
     monkeypatch.setattr(hm, "PKG", pkg)
     assert [c[1] for c in hm.big_classes()] == ["Big"]
-    assert len(hm.mixed_branches()) == 1
+    assert len(hm.mixed_branches()) == 2  # the refusal is not a branch
+    assert hm.forwarding_getattr() == [("signorini/bad.py", "Forward")]
     assert [p[2] for p in hm.private_access()] == ["other._hidden"]
     assert len(hm.hand_dofs()) == 1
     assert len(hm.backend_comparisons()) == 1

@@ -198,13 +198,13 @@ def test_reproduce_says_when_hertz_was_skipped_and_how_to_get_it(tmp_path, capsy
     assert "section 7 (Hertz impact) skipped: gmsh is not installed" in out and 'pip install ".[mesh]"' in out
 
 
-def test_the_readme_lists_every_column_of_history_csv(tmp_path):
-    """The README's list of history.csv columns is the header a 2D run writes (x, y of the
-    vector columns; the README writes `name_x` (`_y`, `_z`))."""
+def test_the_cli_page_lists_every_column_of_history_csv(tmp_path):
+    """docs/cli.md's list of history.csv columns is the header a 2D run writes (x, y of the
+    vector columns; the page writes `name_x` (`_y`, `_z`))."""
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).parents[2] / "README.md").read_text()
+    readme = (Path(__file__).parents[2] / "docs" / "cli.md").read_text()
     text = readme[readme.index("`run` writes `history.csv`") :]
     text = text[: text.index("; `energy` =")]
     listed = []
