@@ -71,7 +71,7 @@ def run(cells: int, steps: int) -> dict:
     shifts = iter(range(1, 100))
     force = per_call(lambda: ctx.elastic.force(U * (1.0 + 1e-9 * next(shifts))), 5)  # (the last one is cached)
     tangent = per_call(lambda: ctx.elastic.tangent(U), 3)
-    from signorini.dynamics.context import Operator, Tangent
+    from signorini.dynamics.operator import Operator, Tangent
 
     K = ctx.elastic.tangent(U)
     op = s.run.scheme.step_operator(ctx, 2e-5)

@@ -41,7 +41,8 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
 
     from signorini.contact.distributed_cg import DistributedCGSolver, _matrix
-    from signorini.dynamics.context import Context, Operator
+    from signorini.dynamics.context import Context
+    from signorini.dynamics.operator import Operator
     from signorini.dynamics.problem import discretize
     from signorini.linalg.petsc import load
     from signorini.linalg.row_block import node_row_bounds

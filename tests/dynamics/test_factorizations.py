@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from signorini.dynamics.context import Operator
 from signorini.dynamics.factorizations import Factorizations
+from signorini.dynamics.operator import Operator
 from signorini.errors import InputError
 
 

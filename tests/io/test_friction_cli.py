@@ -146,8 +146,8 @@ def test_compare_with_friction(tmp_path):
 
 def test_a_friction_refusal_lists_the_schemes_that_also_run_finite_strain():
     from signorini.contact.friction import make_friction
-    from signorini.dynamics.problem import check_friction_schemes
     from signorini.dynamics.schemes import finite_strain_schemes, friction_schemes
+    from signorini.dynamics.schemes.checks import check_friction_schemes
     from signorini.errors import InputError
 
     law = make_friction("coulomb:0.3")
@@ -163,8 +163,9 @@ def test_a_users_scheme_is_judged_by_its_own_friction_refusal():
     """A scheme given as a class (``--scheme module:Class``, a subclass passed to ``simulate``) needs no registry
     name: a subclass of crank-nicolson named otherwise carries friction like it; one that refuses friction is
     refused by its own name and reason."""
-    from signorini.dynamics.problem import check_friction_schemes, with_friction
+    from signorini.dynamics.problem import with_friction
     from signorini.dynamics.schemes import CrankNicolson
+    from signorini.dynamics.schemes.checks import check_friction_schemes
     from signorini.dynamics.simulate import simulate
     from signorini.errors import InputError
     from signorini.studies.benchmarks import get_benchmark

@@ -67,6 +67,10 @@ from .delassus import DelassusColumns
 from .friction import FRICTIONLESS, Friction, solve_cone
 from .schur import SchurDelassus, schur_dofs
 
+#: the scaled complementarity residual of a contact solve above which a step has failed (the stepper's bound;
+#: Newton waits for it before it ends its iterations)
+MAX_CONTACT_RESIDUAL = 1e-6
+
 
 def _best_time(op, n: int, repeats: int = 3) -> float:
     """Best of ``repeats`` timings of ``op`` on a random vector of length n [s]."""

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,7 +28,7 @@ from ..contact.solver import SIGNORINI, ContactLaw, ContactSolver, StepInfo, mak
 from ..errors import InputError, NonFiniteError
 from ..linalg.base import CG_FRIENDLY_RATIO, backend_traits
 from ..linalg.row_block import RowBlock, node_row_bounds, row_bounds
-from ..linalg.sparse import linear_combination, principal_combination, principal_rows
+from ..linalg.sparse import principal_combination, principal_rows
 from ..linalg.spmv import sparse_product
 from ..parallel import DISTRIBUTED_BACKENDS, run_comm
 from .contact_rows import ContactRows
@@ -37,95 +36,12 @@ from .current_rows import current_rows
 from .elasticity import elasticity
 from .factorizations import Factorizations
 from .mass import massless_dofs
+from .operator import Operator
 from .problem import Discretization
 
 #: what a factorization raises for a singular or indefinite operator: SuperLU and MKL
 #: Pardiso RuntimeError, numpy LinAlgError, CHOLMOD (cvxopt) ArithmeticError
 FACTORIZATION_ERRORS = (RuntimeError, np.linalg.LinAlgError, ArithmeticError)
-
-
-class Tangent:
-    """A tangent stiffness K(U) (n, n) of one Newton iterate (finite strain, :mod:`~.elasticity`): an
-    operator ``c_M M + c_S K(U)`` holds it in place of S.  Two tangents are the same only when they
-    are the same object (each iterate's is factorized on its own)."""
-
-    def __init__(self, matrix: sp.spmatrix):
-        self.matrix = matrix
-
-    def __repr__(self) -> str:
-        return f"Tangent(id={id(self):#x})"
-
-
-class Viscous:
-    """``c C``, a damping matrix C (n, n) that is not a combination of M and S (Rayleigh damping per
-    region, :class:`~signorini.dynamics.damping.RegionalRayleigh`) times a step's coefficient c
-    [1/time]: an operator holds it as its third term.  Two are the same when their coefficients are
-    equal and their matrices the same object."""
-
-    __slots__ = ("coefficient", "matrix")
-
-    def __init__(self, coefficient: float, matrix: sp.spmatrix):
-        self.coefficient = float(coefficient)
-        self.matrix = matrix
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, Viscous) and other.coefficient == self.coefficient and other.matrix is self.matrix
-
-    def __hash__(self) -> int:
-        return hash((self.coefficient, id(self.matrix)))
-
-    def __repr__(self) -> str:
-        return f"Viscous({self.coefficient:g} C)"
-
-
-@dataclass(frozen=True)
-class Operator:
-    """The linear operator K = mass * M + stiffness * S of a scheme for a given dt; with a ``tangent``
-    (finite strain), mass * M + stiffness * K(U) of that iterate; with ``viscous`` (damping per region),
-    plus c C."""
-
-    mass: float
-    stiffness: float
-    tangent: Tangent | None = None
-    viscous: Viscous | None = None
-
-    def matrix(self, M: sp.spmatrix, S: sp.spmatrix) -> sp.csr_matrix:
-        return linear_combination(self.mass, M, *self.stiffness_part(S))
-
-    def stiffness_matrix(self, S: Any) -> Any:
-        """The stiffness this operator combines: the tangent's, or ``S``."""
-        return S if self.tangent is None else self.tangent.matrix
-
-    def stiffness_part(self, S: Any) -> tuple[float, Any]:
-        """(b, B) with K = mass M + b B: (stiffness, S or the tangent), or with ``viscous``
-        (1, stiffness S + c C)."""
-        if self.viscous is None:
-            return self.stiffness, self.stiffness_matrix(S)
-        return 1.0, linear_combination(self.stiffness, self.stiffness_matrix(S), self.viscous.coefficient,
-                                       self.viscous.matrix)  # fmt: skip
-
-    def coefficients(self) -> list[float]:
-        """[mass, stiffness] and, with ``viscous``, its coefficient (what a checkpoint records)."""
-        return [self.mass, self.stiffness] + ([] if self.viscous is None else [self.viscous.coefficient])
-
-    def ratio_to(self, other: Operator) -> float | None:
-        """s with self = s * other, or None when they are not proportional."""
-        if self.tangent is not other.tangent:
-            return None
-        if (self.viscous is None) != (other.viscous is None) or (
-            self.viscous is not None and self.viscous.matrix is not other.viscous.matrix
-        ):
-            return None
-        mine, theirs = self.coefficients(), other.coefficients()
-        pairs = ((self.stiffness, other.stiffness), (self.mass, other.mass), *zip(mine[2:], theirs[2:], strict=True))
-        for a, b in pairs:
-            if b != 0.0:
-                s = a / b
-                break
-        else:  # pragma: no cover - a zero operator is rejected earlier
-            return None
-        ok = all(np.isclose(a, s * b, rtol=1e-13, atol=0.0) for a, b in zip(mine, theirs, strict=True))
-        return float(s) if ok and s > 0 else None
 
 
 def stiffness_to_mass_ratio(op: Operator, ctx: Context) -> float:

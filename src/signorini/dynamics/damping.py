@@ -29,7 +29,8 @@ from ..errors import InputError
 from ..fem.material import RANGE
 
 if TYPE_CHECKING:
-    from .context import Context, Operator
+    from .context import Context
+    from .operator import Operator
 
 #: the keys of a damping table (``[material] damping = { alpha = ..., beta = ... }``)
 DAMPING_KEYS = ("alpha", "beta")
@@ -85,7 +86,7 @@ class Rayleigh:
     def fold(self, op: Operator, c: float, ctx: Context | None = None) -> Operator:
         """``op + c C``: the step operator of a scheme whose balance holds ``c C`` times its unknown
         (a combination of M and S again)."""
-        from .context import Operator
+        from .operator import Operator
 
         return Operator(op.mass + c * self.alpha, op.stiffness + c * self.beta, op.tangent)
 
@@ -178,7 +179,7 @@ class RegionalRayleigh:
 
     def fold(self, op: Operator, c: float, ctx: Context | None = None) -> Operator:
         """``op + c C`` with C held as the operator's third term."""
-        from .context import Operator, Viscous
+        from .operator import Operator, Viscous
 
         base = 0.0 if op.viscous is None else op.viscous.coefficient
         return Operator(op.mass, op.stiffness, op.tangent, Viscous(base + c, ctx.damping_matrix))

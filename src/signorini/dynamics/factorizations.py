@@ -23,7 +23,7 @@ from ..errors import InputError
 
 if TYPE_CHECKING:
     from ..contact.solver import ContactSolver
-    from .context import Operator
+    from .operator import Operator
 
 
 class Factorizations:

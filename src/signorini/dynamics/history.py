@@ -12,6 +12,7 @@ import numpy as np
 from ..fem.mesh import Mesh
 from ..fem.node_order import to_user_dofs, user_order_of
 from .diagnostics import impact_impulses, oscillation_index, oscillation_indices, penetration
+from .momentum_projection import moment
 
 HISTORY_COLUMNS = (
     "t",
@@ -66,17 +67,6 @@ def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
     return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
             + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS + PAIR_COLUMNS)  # fmt: skip
-
-
-def moment(x: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """sum_a x_a x p_a of nodal vectors p (N d,) at the points x (N, d): (3,) in 3D, (1,) (z) in 2D, (0,) in 1D."""
-    d = x.shape[1]
-    if d == 1:
-        return np.zeros(0)
-    p = p.reshape(-1, d)
-    if d == 2:
-        return np.array([float(x[:, 0] @ p[:, 1] - x[:, 1] @ p[:, 0])])
-    return np.cross(x, p).sum(axis=0)
 
 
 def angular_momentum(points: np.ndarray, U: np.ndarray, MV: np.ndarray) -> np.ndarray:

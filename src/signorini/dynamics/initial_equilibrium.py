@@ -87,7 +87,7 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
     bodies, the iterations, the force left).  Raises InputError naming the body when a held body has no
     equilibrium (a rigid motion its supports do not hold), and with friction or finite strain (module
     docstring)."""
-    from .context import Operator
+    from .operator import Operator
 
     M, S, el = ctx.M, ctx.S, ctx.elastic
     if el.finite:

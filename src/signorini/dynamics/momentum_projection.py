@@ -51,8 +51,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph  # noqa: F401  (sp.csgraph)
 
-from .history import moment
-
 
 def applies(scheme, ctx) -> bool:
     """Whether a run's steps get the projection: a scheme that declares it (``momentum_projection``), finite
@@ -86,7 +84,7 @@ def rigid_fields(x: np.ndarray, keep: np.ndarray, centre: np.ndarray | None = No
 
 
 def momenta(x: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """(k,) sum_a p_a and sum_a x_a x p_a (:func:`~signorini.dynamics.history.moment`) of nodal forces or momenta
+    """(k,) sum_a p_a and sum_a x_a x p_a (:func:`moment`) of nodal forces or momenta
     p (N d,) at x (N, d)."""
     return np.concatenate([p.reshape(-1, x.shape[1]).sum(axis=0), moment(x, p)])
 
@@ -132,3 +130,14 @@ def velocity_correction(M, X: np.ndarray, U0: np.ndarray, U1: np.ndarray, h: np.
             a[d:] = np.linalg.lstsq(A[d:, d:], rhs, rcond=1e-12)[0]  # singular only for collinear masses
         dV += G @ a
     return dV
+
+
+def moment(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """sum_a x_a x p_a of nodal vectors p (N d,) at the points x (N, d): (3,) in 3D, (1,) (z) in 2D, (0,) in 1D."""
+    d = x.shape[1]
+    if d == 1:
+        return np.zeros(0)
+    p = p.reshape(-1, d)
+    if d == 2:
+        return np.array([float(x[:, 0] @ p[:, 1] - x[:, 1] @ p[:, 0])])
+    return np.cross(x, p).sum(axis=0)

@@ -53,11 +53,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.spsolve)
 
-from ..contact.solver import ContactLaw, StepInfo
+from ..contact.solver import MAX_CONTACT_RESIDUAL, ContactLaw, StepInfo
 from ..errors import ConvergenceError, InputError
 from ..fem.hyperelastic import InvertedCellError
 from ..linalg.row_block import RowBlock
-from .context import Operator, Tangent
+from .operator import Operator, Tangent
 
 if TYPE_CHECKING:
     from .context import Context
@@ -329,7 +329,7 @@ def newton_solve(
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
             gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
-            solved = not info.residual > _max_contact_residual()  # a contact solve short of complementarity: go on
+            solved = not info.residual > MAX_CONTACT_RESIDUAL  # a contact solve short of complementarity: go on
             if full and norm <= allowed and gaps_ok and solved:
                 info.nonlinear_iterations = k
                 info.force_residual = _force_residual(ctx, op, X, rest, gU, U, lam, lam_t, through)
@@ -608,14 +608,7 @@ def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) ->
     contact solve that reached complementarity (its active set is the one to hold); ``rows``: with contact rows."""
     return (ctx.rows.components == 1 and law.compliance is None and info.lam_t is None
             and not isinstance(ctx.M, RowBlock) and (ctx.rows.B.shape[0] > 0 or not rows)
-            and bool(info.residual <= _max_contact_residual()))  # fmt: skip
-
-
-def _max_contact_residual() -> float:
-    """The stepper's bound on a contact solve's complementarity residual (a step above it has failed)."""
-    from .setup import MAX_CONTACT_RESIDUAL
-
-    return MAX_CONTACT_RESIDUAL
+            and bool(info.residual <= MAX_CONTACT_RESIDUAL))  # fmt: skip
 
 
 def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:

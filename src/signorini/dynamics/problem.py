@@ -224,23 +224,6 @@ def with_friction(problem: Problem, spec: Friction | str | dict | None, where: s
     return dataclasses.replace(problem, friction=law, pairs=pairs)
 
 
-def check_friction_schemes(friction: Friction, schemes: Sequence, finite: bool = False) -> None:
-    """InputError naming the first scheme that cannot carry ``friction``, with the registered schemes that can
-    (``finite``: those that also run finite strain).  ``schemes``: registry names, or scheme objects (a user's
-    scheme, registered or not: its own ``friction_refusal``)."""
-    if not friction.frictional:
-        return
-    from .schemes import SCHEMES, finite_strain_schemes, friction_schemes
-
-    for scheme in schemes:
-        name, why = (scheme, SCHEMES.get(scheme).obj.friction_refusal) if isinstance(scheme, str) else (
-            scheme.name, scheme.friction_refusal)  # fmt: skip
-        if why:
-            able = [s for s in friction_schemes() if not finite or s in finite_strain_schemes()]
-            which = f"schemes that do{' with finite strain' if finite else ''}: {', '.join(able)}"
-            raise InputError(f"scheme {name} cannot carry friction ({friction.label}): {why}; {which}")
-
-
 def in_node_order(problem: Problem, order: str) -> Problem:
     """``problem`` on its mesh in the node order ``order`` (:mod:`signorini.fem.node_order`;
     ``mesh``: itself): the mesh renumbered, with the initial data given as nodal arrays

@@ -30,7 +30,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..errors import InputError
-from .context import Context, Operator, Viscous
+from .context import Context
+from .operator import Operator, Viscous
 
 
 class Restartable(Protocol):

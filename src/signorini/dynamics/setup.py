@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse.linalg as spla
 
+from ..contact.solver import MAX_CONTACT_RESIDUAL  # noqa: F401  (the stepper's bound, read here)
 from ..errors import InputError, check_positive
 from ..fem.node_order import choose_order
 from ..linalg import solver_options as validate_solver_options
@@ -25,18 +26,17 @@ from ..parallel import DISTRIBUTED_BACKENDS, peak_memory_bytes, run_comm
 from .bodies import body_summaries, region_summaries
 from .context import Context
 from .damping import UNDAMPED
-from .elasticity import check_finite_strain, check_finite_strain_solvers
 from .history import COUNTER_KEYS, History
 from .mass import GRID_MASSES, MASS_VARIANTS
 from .mass_effect import effect_warning
 from .momentum_projection import applies as momentum_projection_applies
 from .observers import EnergyRecorder, HistoryRecorder, Observer, ProgressCallback, Run, SnapshotRecorder
 from .owned_rows import rank_cells
-from .problem import Discretization, Problem, check_friction_schemes, discretize, friction_summary, in_node_order
+from .problem import Discretization, Problem, discretize, friction_summary, in_node_order
 from .schemes import Scheme, State, damping_schemes, make_scheme
+from .schemes.checks import check_finite_strain, check_finite_strain_solvers, check_friction_schemes
 
 DT_RANGE = (1e-150, 1e150)
-MAX_CONTACT_RESIDUAL = 1e-6  # scaled complementarity residual above which a step has failed
 MAX_STEPS_EVER = 1e15
 
 

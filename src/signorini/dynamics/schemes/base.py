@@ -49,7 +49,8 @@ from ...errors import InputError
 from ...registry import Entry, Parameter
 
 if TYPE_CHECKING:
-    from ..context import Context, Operator
+    from ..context import Context
+    from ..operator import Operator
 
 
 @dataclass

@@ -43,8 +43,8 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..context import Operator
 from ..momentum_projection import applies, groups, velocity_correction
+from ..operator import Operator
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, solver_work, weighted
 from .step_problem import StepProblem, solve_step
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
-from ..context import Operator
+from ..operator import Operator
 from .base import EnergyParts, Scheme, State, damping_force, damping_split, friction_work, load_work
 
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
-from ..context import Operator
+from ..operator import Operator
 from .base import (
     EnergyParts,
     Scheme,

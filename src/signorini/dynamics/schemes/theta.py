@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...registry import Parameter
-from ..context import Operator
+from ..operator import Operator
 from .base import (
     EnergyParts,
     Scheme,

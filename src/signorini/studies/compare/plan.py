@@ -10,12 +10,12 @@ import numpy as np
 
 from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
 from ...dynamics.problem import (
-    check_friction_schemes,
     contact_node_count,
     friction_summary,
     run_friction,
     with_friction,
 )
+from ...dynamics.schemes.checks import check_friction_schemes
 from ...dynamics.simulate import number_of_steps
 from ...errors import InputError, check_positive
 from ..benchmarks import get_benchmark
