@@ -22,8 +22,8 @@ import numpy as np
 
 
 def measure(n: int, steps: int) -> dict:
-    from signorini.dynamics.run_options import CheckpointPolicy
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.run_options import CheckpointPolicy
+    from signorini.dynamics.stepping.simulate import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
     bench = get_benchmark("bar3d")

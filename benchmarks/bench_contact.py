@@ -23,7 +23,7 @@ import time
 def one(case: str, n: int, backend: str, condensation: str, steps: int) -> dict:
 
     from signorini.contact.obstacles import SphereObstacle
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar3d")

@@ -40,7 +40,7 @@ def operator(case: str) -> sp.csc_matrix:
         return sp.load_npz(path).tocsc()
     import dataclasses
 
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
     from signorini.fem.mesh import box
     from signorini.studies.benchmarks import get_benchmark
 

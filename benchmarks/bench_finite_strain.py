@@ -36,7 +36,7 @@ from benchmarks import median_step, per_call
 
 def block(cells: int, model: str):
     from signorini.contact.obstacles import PlaneObstacle
-    from signorini.dynamics.problem import Problem
+    from signorini.dynamics.model.problem import Problem
     from signorini.fem.material import MATERIAL_MODELS
     from signorini.fem.mesh import box
 
@@ -48,7 +48,7 @@ def block(cells: int, model: str):
 
 
 def run(cells: int, steps: int) -> dict:
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.simulate import Stepper
 
     best: dict[str, float] = {}
     info: dict[str, dict] = {}
@@ -71,7 +71,7 @@ def run(cells: int, steps: int) -> dict:
     shifts = iter(range(1, 100))
     force = per_call(lambda: ctx.elastic.force(U * (1.0 + 1e-9 * next(shifts))), 5)  # (the last one is cached)
     tangent = per_call(lambda: ctx.elastic.tangent(U), 3)
-    from signorini.dynamics.operator import Operator, Tangent
+    from signorini.dynamics.model.operator import Operator, Tangent
 
     K = ctx.elastic.tangent(U)
     op = s.run.scheme.step_operator(ctx, 2e-5)
@@ -105,7 +105,7 @@ def hertz(steps: int, divisor: int = 1) -> dict | None:
 
     if importlib.util.find_spec("gmsh") is None:
         return None
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.simulate import Stepper
     from signorini.fem.material import with_model
     from signorini.studies.benchmarks import get_benchmark
 

@@ -27,7 +27,7 @@ import numpy as np
 
 def oblique_bar(friction: str | None):
     from signorini.contact.obstacles import PlaneObstacle
-    from signorini.dynamics.problem import Problem
+    from signorini.dynamics.model.problem import Problem
     from signorini.fem.material import IsotropicElastic
     from signorini.fem.mesh import box
 
@@ -44,7 +44,7 @@ def oblique_bar(friction: str | None):
 
 
 def timed(problem, dt: float, T: float) -> dict:
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
 
     t0 = time.perf_counter()
     H = simulate(problem, "cn", dt, T)
@@ -115,7 +115,7 @@ def friction_rows(quick: bool = False) -> list[dict]:
     """Both problems of the module docstring (the ball at n = 3 with ``quick``), printed as they run."""
     rows = [compare("bar3d n=8 oblique", oblique_bar, 0.1 / 8 / 2, 80 * 0.1 / 8 / 2)]
     if importlib.util.find_spec("gmsh") is not None:
-        from signorini.dynamics.problem import with_friction
+        from signorini.dynamics.model.problem import with_friction
         from signorini.studies.benchmarks import get_benchmark
 
         b = get_benchmark("hertz3d")

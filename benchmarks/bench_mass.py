@@ -16,9 +16,9 @@ VARIANTS = ("standard", "seed", "moment-preserving", "neighbour", "mass-free-sur
 
 
 def one(n: int) -> list[dict]:
-    from signorini.dynamics.mass_effect import mass_effect
-    from signorini.dynamics.problem import discretize
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.model.mass_effect import mass_effect
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("hertz3d")

@@ -44,7 +44,7 @@ def setup_time(side: int, repeat: int) -> dict:
 
 
 def step_time(name: str, n: int, far: float, steps: int) -> dict:
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark(name)

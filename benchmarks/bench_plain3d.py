@@ -98,8 +98,8 @@ def load(case: str, cache: Path) -> tuple:
 
 def measure(case: str, variant: str, steps: int, cache: Path) -> dict:
     """One (case, variant) in this process."""
-    from signorini.dynamics.problem import discretize
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.linalg import ordering
 
     backend, _, order = variant.partition(":")

@@ -3,7 +3,7 @@
     python -m benchmarks.bench_sliding [--n 8] [--steps 40]
 
 1. What every level now adds to a step: the reactions of the Dirichlet tags
-   (:mod:`signorini.dynamics.reactions`) and the check of the energy identity, each timed
+   (:mod:`signorini.dynamics.observe.reactions`) and the check of the energy identity, each timed
    over 200 calls at a level of bar2d at level n (CN, the default mass), against the median
    step of the same run.
 2. A 3D block sliding at 1 m/s across the facets of a clamped block (Coulomb 0.3, gravity,
@@ -31,7 +31,7 @@ from benchmarks import median_step, per_call
 
 
 def level_costs(n: int, steps: int) -> dict:
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.simulate import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar2d")
@@ -52,7 +52,7 @@ def damping_cost(n: int, steps: int) -> dict:
     """The damped step against the undamped one (module docstring, item 3)."""
     import dataclasses
 
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.simulate import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar2d")
@@ -70,7 +70,7 @@ def damping_cost(n: int, steps: int) -> dict:
 
 def sliding_block():
     from signorini.contact.pairs import ContactPair
-    from signorini.dynamics.problem import Problem, RegionInitial
+    from signorini.dynamics.model.problem import Problem, RegionInitial
     from signorini.fem.material import IsotropicElastic
     from signorini.fem.mesh import box, join
     from signorini.fem.space import Dirichlet
@@ -87,7 +87,7 @@ def sliding_block():
 
 def sliding(steps: int) -> dict:
     """The loops of one case with both pairings (module docstring, item 2)."""
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
 
     p, dt = sliding_block(), 1e-3
     loops: dict[str, float] = {}

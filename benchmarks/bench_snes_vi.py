@@ -41,9 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
 
     from signorini.contact.distributed_cg import DistributedCGSolver, _matrix
-    from signorini.dynamics.context import Context
-    from signorini.dynamics.operator import Operator
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.operator import Operator
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.solve.context import Context
     from signorini.linalg.petsc import load
     from signorini.linalg.row_block import node_row_bounds
     from signorini.linalg.sparse import principal_combination

@@ -95,7 +95,7 @@ def hertz_bounces(n: int, flight: float = 10.0) -> dict:
 def overhead(n: int) -> dict:
     """The control's indicator (with the motion's error estimate: a level in contact) and its
     saved warm starts, against the median step of the same run."""
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar3d")

@@ -69,8 +69,8 @@ def step_seconds(H) -> tuple[float, float]:
 
 
 def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True, condensation: str = "auto") -> dict:
-    from signorini.dynamics.problem import discretize
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark(bench)
@@ -112,9 +112,9 @@ def measure(bench: str, n: int, steps: int, backend: str, energy: bool = True, c
 def measure_schemes(bench: str, n: int, steps: int, backend: str) -> list[dict]:
     """Per-step time of every registered scheme on one discretization (standard mass, which
     every scheme accepts), with its ratio to one bare solve and to the CN step."""
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
     from signorini.dynamics.schemes import SCHEMES
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark(bench)

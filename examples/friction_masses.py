@@ -30,11 +30,11 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.diagnostics import oscillation_index
-from signorini.dynamics.mass import MASS_VARIANTS
-from signorini.dynamics.observers import CentreOfMassRecorder
-from signorini.dynamics.problem import Problem, discretize
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.observe.diagnostics import oscillation_index
+from signorini.dynamics.model.mass import MASS_VARIANTS
+from signorini.dynamics.observe.observers import CentreOfMassRecorder
+from signorini.dynamics.model.problem import Problem, discretize
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import rectangle
 

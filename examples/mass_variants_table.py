@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from signorini.contact.obstacles import PlaneObstacle, SphereObstacle
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import read_mesh
 

@@ -6,9 +6,9 @@ The tutorial shows this file verbatim (tests/test_examples.py checks both).
 import numpy as np
 
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.observers import CentreOfMassRecorder
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.observe.observers import CentreOfMassRecorder
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import rectangle
 

@@ -20,7 +20,7 @@ per problem:
   with CN, standard and moment-preserving, the same at dt / 10;
 
 and for every run the oscillation index of the total contact force
-(``signorini.dynamics.diagnostics.oscillation_index``: 1 for one rise and fall), the energy
+(``signorini.dynamics.observe.diagnostics.oscillation_index``: 1 for one rise and fall), the energy
 drift max |E - E0| / E0 (the scheme's energy) and, for the free bodies, the momentum drift
 max |P - P0| / |P0| (``history`` ``momentum``).  Then the convergence in h and dt on
 ``collision1d``: n = 20, 40, 80 cells per bar with dt = h / (2c), the errors of the mean
@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from signorini.dynamics.diagnostics import oscillation_index
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.observe.diagnostics import oscillation_index
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.io.config import load_case
 from signorini.studies.benchmarks import get_benchmark
 from signorini.studies.collision import CollisionMeasure

@@ -49,7 +49,7 @@ def big_classes() -> list[tuple[str, str, int]]:
 
 
 def stepper_parameters() -> int:
-    tree = ast.parse((PKG / "dynamics" / "stepper.py").read_text())
+    tree = ast.parse((PKG / "dynamics" / "stepping" / "stepper.py").read_text())
     for node in ast.walk(tree):
         if isinstance(node, ast.ClassDef) and node.name == "Stepper":
             for f in node.body:

@@ -4,9 +4,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-# the tests live in folders that mirror the package (tests/fem, tests/contact, ...); a test module
-# may use another's helpers by its name (``from test_pairs import bars``), wherever it lives
-for _folder in sorted(p for p in Path(__file__).parent.iterdir() if p.is_dir() and p.name != "data"):
+# the tests live in folders that mirror the package (tests/fem, tests/contact, tests/dynamics/solve, ...); a test
+# module may use another's helpers by its name (``from test_pairs import bars``), wherever it lives
+_here = Path(__file__).parent
+for _folder in sorted(p for p in _here.rglob("*") if p.is_dir() and "data" not in p.relative_to(_here).parts
+                      and "__pycache__" not in p.parts):  # fmt: skip
     if str(_folder) not in sys.path:
         sys.path.insert(0, str(_folder))
 

@@ -4,7 +4,7 @@ bar1d with non-default parameters (L = 2, E = 4, gap = 0.3), dt = h/2 and T the 
 multiple of dt to 3 (one period of the released bar); errors against the exact solution.
 """
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.studies.benchmarks import get_benchmark
 from signorini.studies.study import errors_1d
 

@@ -12,7 +12,7 @@ import json
 import sys
 
 from signorini.dynamics.schemes import SCHEMES
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.parallel import MPIComm
 from signorini.studies.benchmarks import get_benchmark

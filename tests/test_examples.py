@@ -112,8 +112,8 @@ def test_block_on_block_example():
     """examples/block_on_block.toml: the upper block slides on the lower one, decelerating at
     mu g, and sticks after sliding v0^2 / (2 mu g) (the rigid block's distance; measured
     -1.6%: the elastic blocks), with the normal force m g."""
-    from signorini.dynamics.observers import CentreOfMassRecorder
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.observe.observers import CentreOfMassRecorder
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.io.config import load_case
 
     case = load_case(ROOT / "examples" / "block_on_block.toml")

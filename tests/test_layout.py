@@ -84,9 +84,60 @@ def test_optional_backends_are_not_imported_eagerly():
     code = (
         "import sys, signorini.io.cli, signorini.linalg;"
         "from signorini.studies.benchmarks import get_benchmark;"
-        "from signorini.dynamics.simulate import simulate;"
+        "from signorini.dynamics.stepping.simulate import simulate;"
         "b = get_benchmark('bar2d'); simulate(b.problem(2), 'cn', 0.025, 0.1);"
         "print('pypardiso' in sys.modules, 'pyamg' in sys.modules)"
     )
     out = subprocess.check_output([sys.executable, "-c", code], text=True).split()
     assert out == ["False", "False"]
+
+
+#: the rooms of ``dynamics/`` in pipeline order: a module imports from its own room or from the rooms before it
+#: (type hints under ``TYPE_CHECKING`` apart: they run no code)
+ROOMS = ["model", "rows", "solve", "schemes", "observe", "restart", "stepping"]
+
+
+def _upward_room_imports(pkg: Path) -> list[str]:
+    bad = []
+    for path in sorted((pkg / "dynamics").rglob("*.py")):
+        rel = path.relative_to(pkg / "dynamics").parts
+        if len(rel) < 2:
+            continue
+        mine, parts = rel[0], ["dynamics", *rel[:-1]]
+        tree = ast.parse(path.read_text())
+        hints = {id(m) for n in ast.walk(tree) if isinstance(n, ast.If) and "TYPE_CHECKING" in ast.unparse(n.test)
+                 for m in ast.walk(n)}  # fmt: skip
+        for node in ast.walk(tree):
+            if id(node) in hints or not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                module = parts[: len(parts) - node.level + 1] + (node.module.split(".") if node.module else [])
+            elif node.module and node.module.startswith("signorini.dynamics"):
+                module = node.module.split(".")[1:]
+            else:
+                continue
+            if module[:1] != ["dynamics"]:
+                continue
+            room = module[1] if len(module) > 1 else node.names[0].name
+            if room in ROOMS and ROOMS.index(room) > ROOMS.index(mine):
+                bad.append(f"dynamics/{'/'.join(rel)}:{node.lineno} ({mine}) imports from {room}")
+    return bad
+
+
+def test_the_rooms_of_dynamics_import_only_downward():
+    """Issue 53: dynamics/ in rooms that show the pipeline, no import circle across them (lazy imports too)."""
+    assert not _upward_room_imports(PKG), "\n".join(_upward_room_imports(PKG))
+    rooms = sorted(p.name for p in (PKG / "dynamics").iterdir() if p.is_dir() and p.name != "__pycache__")
+    assert rooms == sorted(ROOMS)
+    for room in ROOMS:
+        folder = PKG / "dynamics" / room
+        assert (folder / "__init__.py").read_text().startswith('"""'), room  # each room says what it holds
+        assert len(list(folder.glob("*.py"))) <= 15, room
+
+
+def test_the_room_checker_sees_an_upward_import(tmp_path):
+    for room in ("model", "stepping"):
+        (tmp_path / "dynamics" / room).mkdir(parents=True)
+    (tmp_path / "dynamics" / "model" / "bad.py").write_text("def f():\n    from ..stepping.setup import x\n")
+    (tmp_path / "dynamics" / "stepping" / "good.py").write_text("from ..model.bad import f\n")
+    assert _upward_room_imports(tmp_path) == ["dynamics/model/bad.py:2 (model) imports from stepping"]

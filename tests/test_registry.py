@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from signorini.dynamics.mass import MASS_VARIANTS, mass_matrix
+from signorini.dynamics.model.mass import MASS_VARIANTS, mass_matrix
 from signorini.dynamics.schemes import SCHEMES
 from signorini.errors import InputError
 from signorini.io.cli import build_parser

@@ -44,7 +44,7 @@ def check_choice(name: str, value: str, allowed) -> str:
 class ConvergenceError(RuntimeError):
     """A numerical method did not converge (iterative solver, active-set cycle, ...).
 
-    :func:`signorini.dynamics.simulate.simulate` turns it into a result with
+    :func:`signorini.dynamics.stepping.simulate.simulate` turns it into a result with
     ``status = "failed"``; the command line exits with code 3.
     """
 

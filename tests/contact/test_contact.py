@@ -54,7 +54,7 @@ def test_condense_budget_bounds_the_memory_without_changing_results():
     every step costs one more solve and the history is the same to round-off."""
     import numpy as np
 
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar2d")

@@ -9,8 +9,8 @@ import scipy.sparse as sp
 from backends import DIRECT
 from signorini.contact.delassus import DelassusColumns
 from signorini.contact.obstacles import SphereObstacle
-from signorini.dynamics.problem import discretize
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import discretize
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.linalg import factorize
 from signorini.studies.benchmarks import get_benchmark
 

@@ -14,11 +14,11 @@ import pytest
 
 from signorini.contact.friction import SLIP, STICK, Friction, make_friction
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.mass import MASS_VARIANTS
-from signorini.dynamics.observers import CentreOfMassRecorder
-from signorini.dynamics.problem import Problem, discretize, with_friction
+from signorini.dynamics.model.mass import MASS_VARIANTS
+from signorini.dynamics.model.problem import Problem, discretize, with_friction
+from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.schemes import SCHEMES, friction_schemes
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import Mesh, box, rectangle

@@ -51,8 +51,8 @@ import numpy as np
 import pytest
 
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.problem import Problem, RegionInitial, discretize
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem, RegionInitial, discretize
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import join, rectangle, write_mesh
 from signorini.fem.space import Dirichlet

@@ -16,9 +16,9 @@ import pytest
 from distinct_schemes import DISTINCT_SCHEMES
 from signorini.contact.friction import make_friction
 from signorini.contact.obstacles import PlaneObstacle, Rotation, SphereObstacle, SurfaceObstacle, read_surface
-from signorini.dynamics.problem import Problem, discretize
+from signorini.dynamics.model.problem import Problem, discretize
 from signorini.dynamics.schemes import SCHEMES, friction_schemes
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box

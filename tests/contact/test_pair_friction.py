@@ -20,8 +20,8 @@ from signorini.contact.contact_set import ContactSet
 from signorini.contact.friction import SLIP, STICK, Friction
 from signorini.contact.obstacles import PlaneObstacle
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.problem import Problem, discretize
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem, discretize
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import Mesh, box, interval, join, rectangle, write_mesh

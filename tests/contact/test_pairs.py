@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from signorini.contact.pairs import ContactPair, _closest_on_facets, pair_rows
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box, interval, join, rectangle
@@ -138,8 +138,8 @@ def test_no_mass_variant_couples_two_bodies(mass):
     now no entry of M couples them and each body keeps its own mass (measured 1 to 7e-16)."""
     from pathlib import Path
 
-    from signorini.dynamics.bodies import body_summaries
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.bodies import body_summaries
+    from signorini.dynamics.model.problem import discretize
     from signorini.fem.mesh import bodies, read_mesh
     from signorini.fem.space import Dirichlet
 
@@ -161,8 +161,8 @@ def test_body_summaries_in_the_users_order_and_by_products():
     the one from its block (serial)."""
     from pathlib import Path
 
-    from signorini.dynamics.bodies import body_summaries
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.bodies import body_summaries
+    from signorini.dynamics.model.problem import discretize
     from signorini.fem.mesh import read_mesh
     from signorini.fem.node_order import renumber
     from signorini.fem.space import Dirichlet

@@ -33,8 +33,8 @@ from signorini.contact.solver import (
     _projector,
     gram_factor,
 )
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import join, rectangle, write_mesh
 from signorini.fem.space import Dirichlet

@@ -6,7 +6,7 @@ import scipy.sparse as sp
 
 from signorini.contact.schur import SchurDelassus, schur_dofs
 from signorini.contact.solver import SCHUR_MIN_NODES, choose_condensation
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.linalg import factorize, has_pardiso
 from test_delassus import CASES, _agree, _curved

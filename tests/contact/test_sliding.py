@@ -15,8 +15,8 @@ import scipy.sparse as sp
 
 from signorini.contact.delassus import DelassusColumns
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.problem import Problem, RegionInitial
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem, RegionInitial
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import join, rectangle
@@ -57,8 +57,8 @@ def test_before_the_first_re_pairing_the_run_is_the_frozen_one_and_after_it_is_n
 
 
 def test_the_slave_nodes_face_the_facets_under_them_at_the_end():
-    from signorini.dynamics.context import Context
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.solve.context import Context
 
     p = sliding_block()
     disc = discretize(p)

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from signorini.contact.obstacles import PlaneObstacle, SphereObstacle
-from signorini.dynamics.history import angular_momentum
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.observe.history import angular_momentum
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic, NeoHookean, SaintVenantKirchhoff, with_model
 from signorini.fem.mesh import box, rectangle
@@ -259,8 +259,8 @@ def test_a_resume_is_bit_for_bit_and_refuses_another_material_model(tmp_path):
     tell a linear run from a Neo-Hookean one."""
     from pathlib import Path
 
-    from signorini.dynamics.checkpoint import compare_identity, identity
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.restart.checkpoint import compare_identity, identity
+    from signorini.dynamics.stepping.simulate import Stepper
     from signorini.io.cli import main
 
     text = (Path(__file__).parents[2] / "examples" / "tumbling_block.toml").read_text()
@@ -331,8 +331,8 @@ def test_contact_with_a_ball_in_the_current_configuration(scheme):
 def test_ball_contact_resumes_bit_for_bit(tmp_path):
     """A checkpoint holds the rows' normals of the current configuration: resumed at level 170 (during the
     contact, levels 155-190), the run is the uninterrupted one byte for byte."""
-    from signorini.dynamics.run_options import CheckpointPolicy
-    from signorini.dynamics.simulate import Stepper
+    from signorini.dynamics.stepping.run_options import CheckpointPolicy
+    from signorini.dynamics.stepping.simulate import Stepper
 
     def finish(s):
         while s.step() == "running":
@@ -362,9 +362,9 @@ def test_ball_contact_resumes_bit_for_bit(tmp_path):
 )
 def test_a_checkpoint_with_forged_contact_normals_is_refused_by_name(tmp_path, forge, words):
     """Issue 52: NaN normals were refused as "have shape (5, 2), expected (5, 2)"; normals of length 5 were taken."""
-    import signorini.dynamics.checkpoint as ckpt
-    from signorini.dynamics.run_options import CheckpointPolicy
-    from signorini.dynamics.simulate import Stepper
+    import signorini.dynamics.restart.checkpoint as ckpt
+    from signorini.dynamics.stepping.run_options import CheckpointPolicy
+    from signorini.dynamics.stepping.simulate import Stepper
 
     part = Stepper(
         block_on_ball(), "crank-nicolson", (2e-5, 0.006), {"checkpoint": CheckpointPolicy(tmp_path / "c.h5", 20)}
@@ -407,8 +407,8 @@ def test_regions_of_two_models_in_one_body():
     """The left half linear, the right half Neo-Hookean (``materials`` per region): the tangent at rest is the
     body's linear stiffness, and energy-momentum keeps the energy of the spinning body (the linear cells'
     force S U has the exact discrete gradient S U_mid)."""
-    from signorini.dynamics.problem import discretize
-    from signorini.dynamics.setup import prepare_context
+    from signorini.dynamics.model.problem import discretize
+    from signorini.dynamics.stepping.setup import prepare_context
     from signorini.fem.mesh import Mesh
 
     p = spinning("linear", 2)
@@ -433,8 +433,8 @@ def test_regions_of_two_models_in_one_body():
 def test_every_mass_that_runs_finite_strain_acts_alike_on_every_component():
     """Angular momentum needs M = m (x) I: the same scalar mass on every component of a node and no coupling
     between components.  Every variant but seed-normal (refused) has that form on a tilted 3D block."""
-    from signorini.dynamics.mass import MASS_VARIANTS
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.mass import MASS_VARIANTS
+    from signorini.dynamics.model.problem import discretize
 
     p = spinning("neo-hookean", 3)
     for mass in MASS_VARIANTS.names(aliases=False):
@@ -515,8 +515,8 @@ def test_auto_never_picks_cg_for_finite_strain_and_an_inverting_start_is_input(t
 def test_mass_damping_per_region_with_finite_strain(scheme):
     """Two Neo-Hookean blocks dropped on a floor, only one damped (alpha per region: c C in every tangent and
     in Newton's residual): the identity closes at every level, the damping dissipates."""
-    from signorini.dynamics.damping import UNDAMPED, Rayleigh, RegionalRayleigh
-    from signorini.dynamics.problem import RegionInitial
+    from signorini.dynamics.model.damping import UNDAMPED, Rayleigh, RegionalRayleigh
+    from signorini.dynamics.model.problem import RegionInitial
     from signorini.fem.mesh import join, rectangle
 
     a, b = rectangle(4, 2, 0.2, 0.1), rectangle(4, 2, 0.2, 0.1)
@@ -533,8 +533,8 @@ def test_mass_damping_per_region_with_finite_strain(scheme):
 def _newton_residuals(monkeypatch, scheme: str, tangent: str) -> np.ndarray:
     """|r| / scale of every Newton iterate of the first step of the soft spinning block (dt = 0.05, a quarter
     rad per step), recorded from the solver's own residual (data of the test)."""
-    import signorini.dynamics.newton as newton
-    from signorini.dynamics.stepper import Stepper
+    import signorini.dynamics.solve.newton as newton
+    from signorini.dynamics.stepping.stepper import Stepper
 
     seen, original = [], newton.residual_norm
 
@@ -568,7 +568,7 @@ def test_energy_momentums_symmetric_tangent_alone_converges_linearly(monkeypatch
     (symmetric, so CHOLMOD factorizes it), not the derivative of the discrete gradient (F_mid CC F_1 / 2 and
     Gonzalez's correction: not symmetric), and converges linearly, at a contraction of the order of the step's
     strain increment (measured 0.23 at a quarter rad per step): the reason the exact directions exist."""
-    import signorini.dynamics.newton as newton
+    import signorini.dynamics.solve.newton as newton
 
     monkeypatch.setattr(newton._Factor, "exact", lambda self, *a: None)
     e = _newton_residuals(monkeypatch, "energy-momentum", "full")
@@ -645,7 +645,7 @@ def two_neo_hookean_blocks(vx: float = 3.0, vy: float = -1.0, friction=None, obs
     """A Neo-Hookean block 0.2 x 0.1 m (4 x 2 quads) 2 mm above another 0.6 x 0.1 m (12 x 2 quads), both free,
     thrown at (vx, vy) m/s: it lands and slides over several facets of the lower one (contact pair)."""
     from signorini.contact.pairs import ContactPair
-    from signorini.dynamics.problem import RegionInitial
+    from signorini.dynamics.model.problem import RegionInitial
     from signorini.fem.mesh import join
 
     upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 2, 0.6, 0.1)
@@ -664,7 +664,7 @@ def test_contact_pairs_in_the_current_configuration_slide_across_facets(scheme):
     (energy_check=fail), the total linear and angular momentum kept to 1e-10, Newton's tolerance (measured
     1.4e-12 for CN, BE; energy-momentum through its momentum projection: its massless rows and the pairs'
     moment; CN and BE do not keep the angular momentum through the pair: not asserted)."""
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
 
     s = Stepper(two_neo_hookean_blocks(), scheme, (2e-4, 0.08), {"solver_options": {"energy_check": "fail"}})
     first = s.run.ctx.disc.contact.master_facet.copy()
@@ -711,7 +711,7 @@ def stack_on_floor(omega: float = 20.0) -> Problem:
     onto another 0.6 x 0.1 m (12 x 4 quads) that falls at 0.5 m/s onto a floor 2 mm below it: a contact pair
     between the blocks and the rigid floor's rows beside it, both in the current configuration."""
     from signorini.contact.pairs import ContactPair
-    from signorini.dynamics.problem import RegionInitial
+    from signorini.dynamics.model.problem import RegionInitial
     from signorini.fem.mesh import join
 
     upper, lower = rectangle(4, 2, 0.2, 0.1), rectangle(12, 4, 0.6, 0.1)
@@ -735,7 +735,7 @@ def test_contact_pairs_beside_a_rigid_obstacle_in_the_current_configuration(sche
     (t = 4 ms), the spinning upper block on the lower one (t = 10 ms); both carry force, no node through the
     floor or through the lower block (current gaps >= -1e-10 of the size), the identity closed at every step
     (energy_check=fail)."""
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
 
     s = Stepper(stack_on_floor(), scheme, (2e-4, 0.02), {"solver_options": {"energy_check": "fail"}})
     while s.status == "running":
@@ -753,7 +753,7 @@ def test_contact_pairs_beside_a_rigid_obstacle_resume_bit_for_bit(tmp_path):
     full = simulate(p, "crank-nicolson", 2e-4, 0.02)
     simulate(p, "crank-nicolson", 2e-4, 0.014, checkpoint=tmp_path / "c.h5")
     r = simulate(p, "crank-nicolson", 2e-4, 0.02, resume=tmp_path / "c.h5")
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
 
     pair = Stepper(p, "crank-nicolson", (2e-4, 0.02)).run.ctx.disc.contact.pair
     assert full.lam[70, pair < 0].min() < 0 and full.lam[70, pair >= 0].min() < 0  # both contacts press
@@ -772,7 +772,7 @@ def test_a_slave_node_beyond_the_master_surfaces_rim_carries_no_force(tmp_path, 
     solve: kept in it with their far bound, they set the cone solver's stop test's scale (1e6 of the body) and
     the pressed nodes went 9.7e-10 m (1.6e-9 of the body) through the surface while the block tipped."""
     from signorini.contact.pairs import ContactPair
-    from signorini.dynamics.problem import RegionInitial
+    from signorini.dynamics.model.problem import RegionInitial
     from signorini.fem.mesh import join
     from signorini.fem.space import Dirichlet
 
@@ -819,7 +819,7 @@ def test_newtons_branches_take_rank_zeros_values():
     arithmetic may differ in round-off between ranks, and the branches decide collective solves): a stand-in
     communicator whose rank 0 reports every residual as converged ends each step at its first iterate, where
     this process's own residual needs more."""
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
     from signorini.parallel import Comm
 
     class RankZeroConverged(Comm):
@@ -896,7 +896,7 @@ def test_friction_on_contact_pairs_keeps_the_momenta_and_dissipates():
     momentum to 1e-10 (the pairs' tangential forces in the momentum projection's target, as their normal ones:
     without them the angular momentum drifted by 6e-7 of itself on rings2d), the identity closes at every step,
     the cone holds, friction dissipates, and the upper block slides slower than without friction."""
-    from signorini.dynamics.stepper import Stepper
+    from signorini.dynamics.stepping.stepper import Stepper
 
     out = {}
     for friction in (None, "coulomb:0.2"):

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.mesh import write_mesh
 from signorini.studies.benchmarks import get_benchmark
 

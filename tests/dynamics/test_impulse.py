@@ -13,11 +13,11 @@ import pytest
 
 from distinct_schemes import DISTINCT_SCHEMES
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.diagnostics import impact_impulses
-from signorini.dynamics.history import HISTORY_COLUMNS, history_columns
-from signorini.dynamics.problem import Problem, discretize
+from signorini.dynamics.model.problem import Problem, discretize
+from signorini.dynamics.observe.diagnostics import impact_impulses
+from signorini.dynamics.observe.history import HISTORY_COLUMNS, history_columns
 from signorini.dynamics.schemes import SCHEMES
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import interval
 from signorini.io.cli import main

@@ -27,8 +27,8 @@ through the first impact):
 import numpy as np
 import pytest
 
-from signorini.dynamics.mass import MASS_VARIANTS
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.mass import MASS_VARIANTS
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.studies.benchmarks import get_benchmark
 
 MASSES = MASS_VARIANTS.names(aliases=False)

@@ -72,7 +72,7 @@ import numpy as np
 import pytest
 
 from signorini.dynamics.schemes import SCHEMES
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.studies.benchmarks import get_benchmark
 from signorini.studies.study import errors_1d
 

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.problem import Problem, RegionInitial, discretize
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem, RegionInitial, discretize
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError, MeshError
 from signorini.fem.assembly import mass_matrix, stiffness_matrix
 from signorini.fem.material import CellMaterial, IsotropicElastic, cell_material

@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 
 from backends import DIRECT
-from signorini.dynamics.problem import with_friction
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import with_friction
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.linalg import has_pardiso
 from signorini.studies.benchmarks import get_benchmark
 

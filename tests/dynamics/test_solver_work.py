@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from signorini.dynamics.schemes import finite_strain_schemes
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import NeoHookean
 from signorini.studies.benchmarks import get_benchmark
 

@@ -6,7 +6,7 @@ the run's energy scale; ``energy_check=fail`` makes it a failure (exit 3, levels
 import json
 from pathlib import Path
 
-from signorini.dynamics.observers import SPURIOUS_TOLERANCE
+from signorini.dynamics.observe.observers import SPURIOUS_TOLERANCE
 from signorini.io.cli import main
 
 #: a steel block 20 mm x 10 mm falling at 1 m/s onto a rigid plane (SI units): its contact

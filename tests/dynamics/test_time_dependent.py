@@ -13,7 +13,7 @@ import pytest
 from distinct_schemes import DISTINCT_SCHEMES
 from signorini.contact.obstacles import PlaneObstacle, SphereObstacle
 from signorini.dynamics.schemes import SCHEMES
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.studies.benchmarks import get_benchmark
 from signorini.studies.study import errors_1d, observed_rates
 
@@ -146,7 +146,7 @@ def test_follow_mass_false_applies_the_consistent_load_whatever_the_mass(mass):
     """``follow_mass=False`` is GetFEM's rho int g phi: with the standard mass it is the same
     load as M g (1^T phi_j = 1), so the runs are identical; with a redistributed mass the
     loads differ (M_used g moves weight off the contact nodes) and so do the runs."""
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
     from signorini.fem.assembly import body_load
 
     p, _ = _falling_block(follow_mass=False)

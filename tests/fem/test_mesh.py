@@ -280,12 +280,12 @@ def test_resolution_is_the_finest_bodys_median_cell_over_its_extent():
     of 2 mm: 0.1); a graded bar (cells 1 to 3 units, the median 2 over 30) its median, not its smallest."""
     from signorini.fem.mesh import resolution
 
-    assert resolution(rectangle(1, 80, 0.002, 0.01)) == pytest.approx(1 / 80, rel=1e-12)
-    assert resolution(interval(40)) == pytest.approx(1 / 40, rel=1e-12)
-    assert resolution(box(4, 4, 4)) == pytest.approx(1 / 4, rel=1e-12)
+    assert resolution(rectangle(1, 80, 0.002, 0.01)) == pytest.approx(1 / 80, rel=1e-12, abs=0)
+    assert resolution(interval(40)) == pytest.approx(1 / 40, rel=1e-12, abs=0)
+    assert resolution(box(4, 4, 4)) == pytest.approx(1 / 4, rel=1e-12, abs=0)
     beam, block = rectangle(50, 4, 0.1, 0.005), rectangle(10, 5, 0.02, 0.01)
     block.points = block.points + [0.04, 0.005 + 1e-6]
-    assert resolution(join({"beam": beam, "block": block})) == pytest.approx(0.0125, rel=1e-12)
+    assert resolution(join({"beam": beam, "block": block})) == pytest.approx(0.0125, rel=1e-12, abs=0)
     graded = interval(15, 1.0)
     graded.points = np.concatenate([[0.0], np.cumsum(np.linspace(1.0, 3.0, 15))])[:, None]
-    assert resolution(graded) == pytest.approx(2.0 / 30.0, rel=1e-12)
+    assert resolution(graded) == pytest.approx(2.0 / 30.0, rel=1e-12, abs=0)

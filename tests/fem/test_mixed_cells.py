@@ -15,14 +15,14 @@ import pytest
 import scipy.sparse as sp
 
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.mass import (
+from signorini.dynamics.model.mass import (
     mass_free_surface_scalar_mass,
     moment_preserving_scalar_mass,
     neighbour_scalar_mass,
     seed_scalar_mass,
 )
-from signorini.dynamics.problem import Problem, RegionInitial
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem, RegionInitial
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import MeshError
 from signorini.fem.assembly import cell_volumes, scalar_mass_matrix, stiffness_matrix, von_mises
 from signorini.fem.material import IsotropicElastic

@@ -13,9 +13,9 @@ import scipy.sparse as sp
 
 from backends import gmsh_param
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.owned_rows import rank_cells
-from signorini.dynamics.problem import discretize, in_node_order
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.owned_rows import rank_cells
+from signorini.dynamics.model.problem import discretize, in_node_order
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.mesh import box, interval, rectangle
 from signorini.fem.node_order import (
@@ -186,7 +186,7 @@ def test_every_mass_variant_is_the_users_permuted(which):
     """No variant depends on the node numbers (a tie broken by index would change the
     physics with the order): on the renumbered mesh, M is Q M Q^T, or the same refusal."""
     from signorini.contact.contact_set import ContactSet
-    from signorini.dynamics.mass import MASS_VARIANTS, redistribute
+    from signorini.dynamics.model.mass import MASS_VARIANTS, redistribute
     from signorini.fem.space import Constraints, VectorSpace
     from signorini.studies.benchmarks import get_benchmark
 

@@ -130,9 +130,9 @@ def test_run_fields_last_level_and_summary_counters(tmp_path):
     counter key and the scheme's energy definition."""
     import meshio
 
-    from signorini.dynamics.history import COUNTER_KEYS
+    from signorini.dynamics.observe.history import COUNTER_KEYS
     from signorini.dynamics.schemes import SCHEMES
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     out = tmp_path / "r"

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from signorini.dynamics.history import COUNTER_KEYS
+from signorini.dynamics.observe.history import COUNTER_KEYS
 from signorini.io.cli import main
 
 BAR1D = (
@@ -105,7 +105,7 @@ def test_non_finite_operators_fail_with_status_and_exit_3(tmp_path, capsys):
     ],
 )
 def test_environment_failures_and_bugs_are_one_line(tmp_path, capsys, monkeypatch, exc, code, text):
-    import signorini.dynamics.simulate as sim
+    import signorini.dynamics.stepping.simulate as sim
 
     def boom(*a, **k):
         raise exc
@@ -200,7 +200,7 @@ def test_a_mesh_file_that_is_not_one_says_what_it_is(tmp_path, capsys, kind, mes
 def test_simulate_refuses_what_is_not_a_problem_and_a_float32_step():
     import numpy as np
 
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.errors import InputError
     from signorini.studies.benchmarks import get_benchmark
 

@@ -24,7 +24,7 @@ def test_every_example_runs(tmp_path, path):
 
 
 def test_case_matches_benchmark(tmp_path):
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
 
     case = load_case(EXAMPLES[[p.stem for p in EXAMPLES].index("bar2d")])
@@ -147,7 +147,7 @@ def test_where_with_a_non_finite_value_is_refused(tmp_path):
     path = tmp_path / "c.toml"
     text = _case_text("").replace('tag = "ymin"\nobstacle', 'tag = "ymin"\nwhere = "sqrt(x - 0.5) < 1"\nobstacle')
     path.write_text(text)
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
 
     with pytest.raises(InputError, match="not finite"):
         discretize(load_case(path).problem, "standard")
@@ -160,7 +160,7 @@ def test_dirichlet_blocks_on_two_tags_must_agree_on_shared_nodes(tmp_path):
         "value = [0.1]\n"
     )
     path.write_text(_case_text(clash))
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
 
     with pytest.raises(InputError, match="prescribe different values"):
         discretize(load_case(path).problem, "standard")

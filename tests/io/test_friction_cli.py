@@ -163,10 +163,10 @@ def test_a_users_scheme_is_judged_by_its_own_friction_refusal():
     """A scheme given as a class (``--scheme module:Class``, a subclass passed to ``simulate``) needs no registry
     name: a subclass of crank-nicolson named otherwise carries friction like it; one that refuses friction is
     refused by its own name and reason."""
-    from signorini.dynamics.problem import with_friction
+    from signorini.dynamics.model.problem import with_friction
     from signorini.dynamics.schemes import CrankNicolson
     from signorini.dynamics.schemes.checks import check_friction_schemes
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.errors import InputError
     from signorini.studies.benchmarks import get_benchmark
 

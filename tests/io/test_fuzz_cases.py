@@ -56,7 +56,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from signorini.contact.obstacles import OBSTACLES
-from signorini.dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
+from signorini.dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS
 from signorini.dynamics.schemes import SCHEMES, EnergyMomentum, GeneralizedAlpha, MoreauJean
 from signorini.io.cli import main
 from signorini.io.config import SECTIONS

@@ -6,8 +6,8 @@ import dataclasses
 import pytest
 
 from signorini.contact.pairs import ContactPair
-from signorini.dynamics.events import Event
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.observe.events import Event
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.io.cli import main
 from test_pairs import bars
@@ -48,7 +48,7 @@ def test_a_pair_on_one_body_is_refused_as_self_contact():
     """A pair whose slave and master tags are on one body (the faces of a U-shaped part): the
     pair faced the body's own far side from t = 0 (a penetration reported at t = 0)."""
     from signorini.contact.obstacles import PlaneObstacle
-    from signorini.dynamics.problem import Problem
+    from signorini.dynamics.model.problem import Problem
     from signorini.fem.material import IsotropicElastic
     from signorini.fem.mesh import rectangle
 
@@ -160,7 +160,7 @@ def test_a_body_falling_from_rest_has_no_identity_warning(tmp_path):
     """E = 0 at every level while the block falls (kinetic energy and load potential cancel):
     the identity's residual is measured against its parts, not against |E| (which is round-off)."""
     from signorini.contact.obstacles import PlaneObstacle
-    from signorini.dynamics.problem import Problem
+    from signorini.dynamics.model.problem import Problem
     from signorini.fem.material import IsotropicElastic
     from signorini.fem.mesh import rectangle
 

@@ -2,7 +2,7 @@ import meshio
 import numpy as np
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.io.output import FieldWriter
 from signorini.studies.benchmarks import get_benchmark
 

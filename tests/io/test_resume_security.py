@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-import signorini.dynamics.checkpoint as ckpt
+import signorini.dynamics.restart.checkpoint as ckpt
 
 ROOT = Path(__file__).parents[2]
 #: code that leaves a marker file when it runs (what an attacker would put in a named file)

@@ -12,7 +12,7 @@ import meshio
 import numpy as np
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import ConvergenceError
 from signorini.studies.benchmarks import get_benchmark
 
@@ -158,7 +158,7 @@ import sys, tempfile
 from pathlib import Path
 import h5py, meshio  # imported in every mode: the test measures growth with the levels, not imports
 from signorini.studies.benchmarks import get_benchmark
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.io.output import FieldWriter
 mode, steps = sys.argv[1], int(sys.argv[2])
 b = get_benchmark("bar3d")
@@ -230,7 +230,7 @@ def test_a_second_sigint_late_in_the_loop_keeps_every_level(tmp_path):
 
 
 def test_the_second_sigint_aborts_only_a_step_in_progress():
-    from signorini.dynamics.simulate import _Interrupts
+    from signorini.dynamics.stepping.simulate import _Interrupts
 
     flag = _Interrupts()
     flag.handler(signal.SIGINT, None)

@@ -48,7 +48,7 @@ def test_closed_stderr_does_not_let_a_file_take_descriptor_2(tmp_path):
 
 def test_signal_while_results_are_written_keeps_every_step(tmp_path, monkeypatch, capsys):
     """SIGTERM after the time loop, during History.save: status interrupted, all steps kept, exit 130."""
-    from signorini.dynamics.history import History
+    from signorini.dynamics.observe.history import History
 
     real_save = History.save
     sent = []
@@ -89,7 +89,7 @@ def test_signal_right_after_the_commit_keeps_a_finished_run_finished(tmp_path, m
 
 
 def test_signal_while_the_history_is_assembled_keeps_every_step(tmp_path, monkeypatch):
-    import signorini.dynamics.setup as sim  # the History of the levels is assembled there
+    import signorini.dynamics.stepping.setup as sim  # the History of the levels is assembled there
 
     real = sim.assemble_history
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from signorini.contact.obstacles import SphereObstacle
-from signorini.dynamics.problem import Problem
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box

@@ -5,7 +5,7 @@ import pytest
 from packaging.version import Version
 
 from backends import DIRECT
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.linalg import choose_backend, estimate_factor_bytes, has_cholmod, has_metis, has_pardiso, has_pyamg
 from signorini.studies.benchmarks import get_benchmark
 
@@ -37,7 +37,7 @@ def test_backends_agree_with_default(reference, backend):
 @pytest.mark.skipif(not has_pyamg(), reason="pyamg not installed (extra 'amg')")
 def test_amg_preconditioned_active_set_agrees(reference):
     from signorini.contact.solver import ActiveSetCGSolver, CondensedContactSolver
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
 
     b = get_benchmark("bar3d")
     d = discretize(b.problem(3), "seed")
@@ -184,9 +184,9 @@ def test_factors_record_their_ordering(bar3d_operator):
 
 
 def test_stiffness_to_mass_ratio_scales_with_dt_squared():
-    from signorini.dynamics.context import Context, stiffness_to_mass_ratio
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
     from signorini.dynamics.schemes import make_scheme
+    from signorini.dynamics.solve.context import Context, stiffness_to_mass_ratio
     from signorini.linalg.base import CG_FRIENDLY_RATIO
 
     b = get_benchmark("bar3d")
@@ -235,7 +235,7 @@ def bar3d_operator():
     """K = 4/dt^2 M + S on the free dofs of bar3d n = 8 (seed mass, dt = h/2): 19,440 dofs."""
     import scipy.sparse as sp
 
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
 
     b = get_benchmark("bar3d")
     d = discretize(b.problem(8), "seed")
@@ -339,7 +339,7 @@ def test_cholmod_solves_a_block_of_columns_in_one_call(bar3d_operator, monkeypat
 def test_superlu_keeps_minimum_degree_in_2d():
     import scipy.sparse as sp
 
-    from signorini.dynamics.problem import discretize
+    from signorini.dynamics.model.problem import discretize
     from signorini.linalg.superlu import use_nested_dissection
 
     b = get_benchmark("bar2d")

@@ -5,7 +5,7 @@ round-off run to run: docs/performance.md); the other backends ignore it (they a
 import numpy as np
 import pytest
 
-from signorini.dynamics.problem import discretize
+from signorini.dynamics.model.problem import discretize
 from signorini.errors import InputError
 from signorini.linalg import factorize, has_pardiso
 from signorini.linalg.base import solver_options

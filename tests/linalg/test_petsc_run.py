@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from backends import needs_gmsh
-from signorini.dynamics.mass import MASS_VARIANTS
+from signorini.dynamics.model.mass import MASS_VARIANTS
 from signorini.dynamics.schemes import SCHEMES
 
 VENV = Path(__file__).parents[2] / ".venv-mpi" / "bin"
@@ -279,7 +279,7 @@ def test_one_and_three_ranks_match_the_serial_run(references, tmp_path, name, ra
 @pytest.mark.parametrize("case", [["hertz2d"], pytest.param(["bar3d", "--n", "4"], marks=pytest.mark.slow)])
 def test_every_mass_variant_by_rows_on_two_ranks_matches_the_serial_run(tmp_path, case):
     """S and every mass variant are assembled by rows on the ranks (each from the cells
-    near its nodes, ``dynamics/owned_rows.py``): the histories match the serial run's on
+    near its nodes, ``dynamics/model/owned_rows.py``): the histories match the serial run's on
     the curved contact of the Hertz disc (seed-normal's rotated kernel) and on the bar
     (the tensor form, built on the whole mesh); a variant that refuses the mesh serially
     refuses it on the ranks with the same message."""

@@ -6,7 +6,7 @@ import pytest
 import scipy.sparse as sp
 
 import signorini.linalg.spmv as spmv
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.linalg import solver_options
 from signorini.linalg.mkl import has_mkl

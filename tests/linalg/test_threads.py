@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
-from signorini.dynamics.observers import Observer
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.observe.observers import Observer
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.linalg.threads import blas_threads
 from signorini.studies.benchmarks import get_benchmark

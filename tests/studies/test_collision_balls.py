@@ -66,7 +66,7 @@ def test_bad_parameters_are_refused(bad, field):
 
 
 def _run(dim: int, n: int, overrides: dict, mass: str = "moment-preserving"):
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
 
     b = get_benchmark(f"collision{dim}d")
     p = b.params(overrides)

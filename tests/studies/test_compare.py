@@ -273,7 +273,7 @@ def test_too_large_a_matrix_is_refused_with_its_estimate(tmp_path, capsys):
 
 
 def test_the_compare_estimate_counts_the_kept_fields():
-    from signorini.dynamics.budget import estimate_run
+    from signorini.dynamics.stepping.budget import estimate_run
 
     pairs = cmp.make_pairs(cmp.parse_schemes("cn,be"), cmp.parse_masses("seed,standard"))
     plan = cmp.plan_benchmark("bar2d", pairs, 2, T=0.5)
@@ -335,7 +335,7 @@ def test_compare_bar3d_table_is_the_json_ranking(bar3d_report):
 )
 def test_compare_bar3d_numbers_equal_those_of_run(bar3d_report, tmp_path, scheme, options, mass):
     """Diagnostics equal those of ``signorini run``; errors equal relative_errors of the same runs."""
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
     from signorini.studies.reference_study import Reference, relative_errors
 

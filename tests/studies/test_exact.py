@@ -431,7 +431,7 @@ def test_errors_1d_memory_does_not_grow_with_the_levels():
     samples grew 4x (4.8 GB at n = 1000, when compare's estimate counted the fields only)."""
     import tracemalloc
 
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies.benchmarks import get_benchmark
     from signorini.studies.study import errors_1d
 

@@ -81,7 +81,7 @@ def test_pole_refined_mesh(dim):
 
 
 def _deviations(name, n, overrides):
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
 
     b = get_benchmark(name)
     dt, T = b.run_times(n, overrides)

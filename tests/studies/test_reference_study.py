@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.fem.mesh import box, rectangle
 from signorini.io.cli import main

@@ -34,7 +34,7 @@ import struct
 import numpy as np
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.assembly import von_mises
 from signorini.io.cli import main
 from signorini.studies import report
@@ -336,7 +336,7 @@ def test_an_interrupted_reproduce_keeps_and_names_the_sections_it_finished(tmp_p
     import os
     import signal
 
-    from signorini.dynamics.simulate import simulate
+    from signorini.dynamics.stepping.simulate import simulate
     from signorini.studies import report
 
     def first(cfg, out, summary, ctx):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.studies.benchmarks import get_benchmark
 
 

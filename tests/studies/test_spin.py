@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from signorini.dynamics.simulate import simulate
+from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
 from signorini.io.cli import main
 from signorini.studies.benchmarks import get_benchmark

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from signorini.dynamics.mass import MASS_VARIANTS
+from signorini.dynamics.model.mass import MASS_VARIANTS
 from signorini.dynamics.schemes import SCHEMES
 from signorini.studies import support
 

@@ -641,7 +641,7 @@ class SurfaceObstacle(RigidObstacle):
     rule), in 2D the segment (a, b) turned clockwise, (t_y, -t_x) with t = b - a (the
     outward normal of a polygon around the obstacle listed counterclockwise).  ``flip``
     reverses them; a body that starts mostly on the side the normals do not point to is
-    refused (:func:`~signorini.dynamics.problem.discretize`).
+    refused (:func:`~signorini.dynamics.model.problem.discretize`).
 
     Signed distance (in the surface's own coordinates y = Phi_t^{-1}(x)): the closest point
     p of the surface (candidates: the nearest facet centres in a KD-tree per class of facet

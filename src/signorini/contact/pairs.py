@@ -56,7 +56,7 @@ class ContactPair:
     :func:`~signorini.contact.friction.make_friction` (``"coulomb:0.3"``, ``{"law": "tresca",
     "threshold": 0.01}``, a :class:`~signorini.contact.friction.Friction`), normalized to a
     Friction; None (default): the run's ``[contact] friction``.  The frictional rows of a run
-    share one law kind, each its own coefficient or threshold (:func:`~signorini.dynamics.problem.run_friction`).
+    share one law kind, each its own coefficient or threshold (:func:`~signorini.dynamics.model.problem.run_friction`).
     """
 
     slave: str

@@ -140,7 +140,7 @@ class StepInfo:
     lam_t: np.ndarray | None = None
     slip: np.ndarray | None = None
     status: np.ndarray | None = None
-    #: Newton iterations of a finite-strain step (:mod:`~signorini.dynamics.newton`), 0 for a linear one
+    #: Newton iterations of a finite-strain step (:mod:`~signorini.dynamics.solve.newton`), 0 for a linear one
     nonlinear_iterations: int = 0
     #: the force residual r (n,) left by a finite-strain step's Newton iterations at its solution (0 on the Dirichlet
     #: dofs) [force], whose work is the step's ``solver_work``; None for a linear one

@@ -22,10 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
-from ..fem.dofmap import DofMap, blocked
-from ..fem.elements import determinants, jacobians, reference_element
-from ..fem.material import Material
-from ..fem.mesh import Mesh, facet_type, one_type, over_blocks, uniform_cells
+from .dofmap import DofMap, blocked
+from .elements import determinants, jacobians, reference_element
+from .material import Material
+from .mesh import Mesh, facet_type, one_type, over_blocks, uniform_cells
 
 
 # ----------------------------------------------------------------------------- geometry

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MeshError, not_a_file
-from ..fem.elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
+from .elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Node orders for a distributed run: a locality order, and the way back to the user's.
 
 On the distributed backends rank r owns an even split [a_r, a_{r+1}) of the node
-numbers (:mod:`signorini.dynamics.owned_rows`) and assembles the cells that touch them.
+numbers (:mod:`signorini.dynamics.model.owned_rows`) and assembles the cells that touch them.
 That saves memory only when consecutive numbers are close in space.  Generated grids
 are (slabs); mesh generators are not: gmsh numbers the nodes of the boundary entities
 first, so on a part with its whole skin tagged one rank touches every cell

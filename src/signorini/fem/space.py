@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..fem.fields import at_time, is_time_dependent
-from ..fem.mesh import Mesh
 from .dofmap import DofMap
+from .fields import at_time, is_time_dependent
+from .mesh import Mesh
 
 Value = float | Sequence[float] | Callable[..., np.ndarray]
 

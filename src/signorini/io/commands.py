@@ -21,8 +21,8 @@ def check_study_size(bench, levels: list[int], args: argparse.Namespace, overrid
     Every level keeps its fields for the errors; a 2D/3D study also runs its reference.
     Levels are estimated from their counts, without building anything.
     """
-    from ..dynamics.budget import check_run_size, estimate_run
-    from ..dynamics.simulate import number_of_steps
+    from ..dynamics.stepping.budget import check_run_size, estimate_run
+    from ..dynamics.stepping.simulate import number_of_steps
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR
 
     runs = list(levels)
@@ -39,7 +39,7 @@ def check_study_size(bench, levels: list[int], args: argparse.Namespace, overrid
 
 def cmd_study(args: argparse.Namespace) -> int:
 
-    from ..dynamics.history import _json_default
+    from ..dynamics.observe.history import _json_default
     from ..errors import check_positive
     from ..studies.benchmarks import get_benchmark
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR, check_levels, study, table_csv, table_markdown
@@ -149,7 +149,7 @@ def check_compare_size(plan, jobs: int | None, limits: dict) -> None:
     progress at once and the fields held for a 2D/3D reference
     (:func:`signorini.studies.compare.estimate_plan`).
     """
-    from ..dynamics.budget import check_run_size
+    from ..dynamics.stepping.budget import check_run_size
     from ..studies.compare import estimate_plan
 
     mem = limits.get("max_memory")

@@ -77,11 +77,11 @@ from typing import Any
 
 from ..contact.friction import make_friction
 from ..contact.obstacles import OBSTACLES, ROTATION_KEYS, RigidObstacle, Rotation, read_surface
-from ..dynamics.damping import Rayleigh, RegionalRayleigh, make_damping, regional_damping
-from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
-from ..dynamics.problem import Problem
+from ..dynamics.model.damping import Rayleigh, RegionalRayleigh, make_damping, regional_damping
+from ..dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS
+from ..dynamics.model.problem import Problem
+from ..dynamics.model.validate import INITIAL_ACCELERATIONS
 from ..dynamics.schemes import SCHEMES
-from ..dynamics.validate import INITIAL_ACCELERATIONS
 from ..errors import InputError, check_choice, check_positive, not_a_file
 from ..fem.material import MATERIAL_MODELS, IsotropicElastic, with_model
 from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
@@ -322,7 +322,7 @@ CONSTANTS = ("E", "nu", "lam", "mu", "rho")
 def _damping(t: dict, mesh: Mesh) -> Rayleigh | RegionalRayleigh | None:
     """``[material] damping = { alpha = ..., beta = ... }``: Rayleigh damping of the mesh; a ``regions`` entry
     with its own ``damping`` gives its cells theirs (an entry without one takes the section's), a
-    :class:`~signorini.dynamics.damping.RegionalRayleigh` (docs/schemes.md, "Damping")."""
+    :class:`~signorini.dynamics.model.damping.RegionalRayleigh` (docs/schemes.md, "Damping")."""
     damping = make_damping(t.get("damping"), "material.damping")
     own: dict[str, Rayleigh | None] = {}
     for k, entry in enumerate(t.get("regions", [])):
@@ -337,7 +337,7 @@ def _damping(t: dict, mesh: Mesh) -> Rayleigh | RegionalRayleigh | None:
 
 def _initial_regions(init: dict, mesh: Mesh) -> list:
     """``[initial] regions = [{ tag = "ball", velocity = [...], displacement = [...] }, ...]``."""
-    from ..dynamics.problem import RegionInitial
+    from ..dynamics.model.problem import RegionInitial
 
     given = init.get("regions", [])
     if not isinstance(given, list):
@@ -498,7 +498,7 @@ def _time(tm: Any) -> tuple[str, float | list, float, dict]:
     entry = SCHEMES.get(scheme)
     _keys("time", tm, TIME_KEYS | {p.name for p in entry.parameters})
     if isinstance(tm.get("dt"), list):  # a schedule [{until, dt}, ...]: T defaults to the last until
-        from ..dynamics.time_grid import TimeGrid, parse_schedule
+        from ..dynamics.stepping.time_grid import TimeGrid, parse_schedule
 
         schedule = parse_schedule(tm["dt"], "time.dt")
         T = check_positive("time.T", _number("time.T", tm["T"])) if "T" in tm else schedule[-1][0]
@@ -661,7 +661,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
         initial_equilibrium=equilibrium,
     )  # fmt: skip
     named = "mass" in data.get("solver", {})
-    from ..dynamics.events import parse_stop_at
+    from ..dynamics.observe.events import parse_stop_at
 
     stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
     control = _control(data["time"], dt)
@@ -671,7 +671,7 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
 
 def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
     """[time] control, dt_min and tolerance as ``{"control": ..., options}``; None when none is given."""
-    from ..dynamics.step_control import control_spec
+    from ..dynamics.stepping.step_control import control_spec
 
     given = {k: tm[k] for k in ("control", "dt_min", "tolerance") if k in tm}
     if not given:
@@ -684,7 +684,7 @@ def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
         if key in given and (isinstance(given[key], bool) or not isinstance(given[key], (int, float))):
             raise InputError(f"'time.{key}' must be a number, got {given[key]!r}")
     if "dt_min" in given:
-        from ..dynamics.step_control import MAX_LEVELS
+        from ..dynamics.stepping.step_control import MAX_LEVELS
 
         smallest = min(s["dt"] for s in dt) if isinstance(dt, list) else dt
         low = smallest / 2**MAX_LEVELS

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..contact.friction import CONTACT_LAWS
 from ..contact.obstacles import OBSTACLES
-from ..dynamics.mass import MASS_VARIANTS
+from ..dynamics.model.mass import MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
 from ..linalg import BACKENDS, PRECONDITIONERS, SOLVER_OPTIONS
 from ..registry import Registry

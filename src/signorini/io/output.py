@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dynamics.observers import Observer, Run
+from ..dynamics.observe.observers import Observer, Run
 from ..dynamics.schemes import State
 from ..fem.assembly import cell_means, nodal_average
 from ..fem.mesh import bodies, region_ids

@@ -6,9 +6,9 @@ import argparse
 
 from .. import __version__
 from ..contact.friction import CONTACT_LAWS
-from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
+from ..dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
-from ..dynamics.step_control import TIME_CONTROLS
+from ..dynamics.stepping.step_control import TIME_CONTROLS
 from ..linalg import BACKENDS, SOLVER_OPTIONS
 from ..studies.benchmarks import BENCHMARKS
 from .commands import cmd_compare, cmd_reproduce, cmd_study, cmd_template

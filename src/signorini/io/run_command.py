@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..dynamics.events import parse_stop_at
-from ..dynamics.mass import DEFAULT_MASS
-from ..dynamics.problem import contact_node_count, with_friction
+from ..dynamics.model.mass import DEFAULT_MASS
+from ..dynamics.model.problem import contact_node_count, with_friction
+from ..dynamics.observe.events import parse_stop_at
 from ..errors import ConvergenceError, InputError
 from ..parallel import mark_unshared
 from ..registry import parse_assignments
@@ -56,7 +56,7 @@ class RunSpec:
     resume: Path | None = None
     #: hash of the case file's text (a resumed case must be the same file)
     case_hash: str | None = None
-    #: the time-step control (:mod:`~signorini.dynamics.step_control`): a name or {"control": ..., options}
+    #: the time-step control (:mod:`~signorini.dynamics.stepping.step_control`): a name or {"control": ..., options}
     control: Any = None
 
 
@@ -148,8 +148,8 @@ def check_size(
     ``condense_budget`` bounds petsc's Delassus columns (a value the options' validation
     will refuse counts as the default here).
     """
-    from ..dynamics.budget import COLUMNS_BUDGET, check_run_size, estimate_run
-    from ..dynamics.simulate import number_of_steps
+    from ..dynamics.stepping.budget import COLUMNS_BUDGET, check_run_size, estimate_run
+    from ..dynamics.stepping.simulate import number_of_steps
     from ..parallel import local_ranks
 
     solver = solver or {}
@@ -160,7 +160,7 @@ def check_size(
     if not 0.0 <= budget < float("inf"):
         budget = COLUMNS_BUDGET
     backend = str(solver.get("backend") or "auto")
-    from ..dynamics.time_grid import TimeGrid
+    from ..dynamics.stepping.time_grid import TimeGrid
 
     if steps is None:
         steps = number_of_steps(dt, T) if isinstance(dt, (int, float)) else TimeGrid.build(dt, T).n_steps
@@ -232,7 +232,7 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
 
 def _control_name(control: Any) -> str:
     """The name of a run's control (``fixed`` for None)."""
-    from ..dynamics.step_control import control_spec
+    from ..dynamics.stepping.step_control import control_spec
 
     return control_spec(control)[0]
 
@@ -286,7 +286,7 @@ def case_control(args: argparse.Namespace, case_control: dict | None, scheme: An
 def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float, dict]:
     """``--dt`` and ``--T`` over a case file's ``[time]`` values, checked as the file's are;
     the overrides as ``{key: {"case_file": ..., "command_line": ...}}`` for the summary."""
-    from ..dynamics.time_grid import TimeGrid
+    from ..dynamics.stepping.time_grid import TimeGrid
     from ..errors import check_positive
 
     overrides: dict[str, dict] = {}
@@ -310,7 +310,7 @@ def _time_overrides(args: argparse.Namespace, dt, T: float) -> tuple[Any, float,
 def _choice_overrides(args: argparse.Namespace, case, scheme, problem) -> dict:
     """``--scheme``, ``--mass`` and ``--friction`` over a case file's choices (summary.json ``overrides``), each
     ``{"case_file": ..., "command_line": ...}`` when it differs from the file's."""
-    from ..dynamics.problem import pair_laws
+    from ..dynamics.model.problem import pair_laws
 
     def laws(p) -> str:  # the contact laws of a problem's rows, as the --friction spelling
         used = ([p.friction] if p.obstacle is not None else []) + pair_laws(p)
@@ -409,8 +409,8 @@ def _rank0_only():
 
 def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> None:
     """summary.json of a run that failed before its first step (status failed, no levels,
-    every counter of :data:`~signorini.dynamics.history.COUNTER_KEYS` zero)."""
-    from ..dynamics.history import COUNTER_KEYS
+    every counter of :data:`~signorini.dynamics.observe.history.COUNTER_KEYS` zero)."""
+    from ..dynamics.observe.history import COUNTER_KEYS
 
     tmp = rd.create()
     summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
@@ -424,7 +424,7 @@ def execute(spec: RunSpec, args: argparse.Namespace) -> int:
 
     Started by ``mpiexec`` (backend ``petsc``), rank 0 does this and the other ranks run
     the same simulation writing nothing (:func:`execute_follower`)."""
-    from ..dynamics.simulate import simulate
+    from ..dynamics.stepping.simulate import simulate
     from ..linalg.base import BACKENDS
     from ..parallel import launched, run_comm
 
@@ -532,7 +532,7 @@ def keep_after_write_failure(rd: ResultDirectory, tmp: Path, H, spec: RunSpec, e
 def execute_follower(spec: RunSpec, comm) -> int:
     """A rank other than 0: waits for rank 0's checks of the output path, then runs the
     same simulation and writes nothing (the command line keeps it silent)."""
-    from ..dynamics.simulate import simulate
+    from ..dynamics.stepping.simulate import simulate
 
     if not comm.bcast(None):  # rank 0 refused the output path and says why
         return 2
@@ -621,12 +621,12 @@ def _resume_scheme(recorded: str | None, given: str | None, where: str) -> str |
 def resume_spec(args: argparse.Namespace) -> RunSpec:
     """``signorini resume RESULT_DIR [--T T] --out NEW``: the run of RESULT_DIR rebuilt from the
     arguments its checkpoint keeps, continued from it to T (default: the run's own final time;
-    :mod:`~signorini.dynamics.checkpoint`).
+    :mod:`~signorini.dynamics.restart.checkpoint`).
 
     The checkpoint's checksum is verified and every kept argument type-checked before any is
     used; nothing it names is imported or executed (a scheme of the user's own is named again
     with ``--scheme``)."""
-    from ..dynamics.checkpoint import read
+    from ..dynamics.restart.checkpoint import read
 
     result = Path(args.result)
     if not result.is_dir():
@@ -673,10 +673,10 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
             raise InputError(f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
                              "give a later --T to continue it")  # fmt: skip
         raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {t_ckpt:.10g}")
-    from ..dynamics.time_grid import TimeGrid
+    from ..dynamics.stepping.time_grid import TimeGrid
 
     if "time_control" in meta and _control_name(spec.control) == "energy":  # an adaptive run's grid goes on
-        from ..dynamics.stepper import adaptive_grid
+        from ..dynamics.stepping.stepper import adaptive_grid
 
         grid = adaptive_grid(spec.dt, spec.T, meta, str(where))
         # its size at its largest steps, piece by piece of its plan (a dt schedule too; the grid's own count continues

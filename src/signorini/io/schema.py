@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from ..contact.friction import CONTACT_LAWS
 from ..contact.obstacles import OBSTACLES, ROTATION_KEYS
-from ..dynamics.mass import DEFAULT_MASS, MASS_VARIANTS
+from ..dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS
 from ..dynamics.schemes import SCHEMES
 from ..linalg import BACKENDS, SOLVER_OPTIONS
 from .expressions import CONSTANTS, FUNCTIONS, MAX_DEPTH, MAX_EXPONENT, MAX_LENGTH, MAX_NODES, VARIABLES

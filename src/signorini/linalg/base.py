@@ -13,7 +13,7 @@ lazily by the entry's loader so the default path never needs it.  ``auto`` choos
 estimated factor size (:func:`choose_backend`).
 
 Solver options (``--solver-option NAME=VALUE``, ``[solver]`` in case files, the
-``solver_options`` dict of :func:`~signorini.dynamics.simulate.simulate`) are the
+``solver_options`` dict of :func:`~signorini.dynamics.stepping.simulate.simulate`) are the
 generic :data:`SOLVER_OPTIONS` plus the chosen backend's own parameters.
 """
 

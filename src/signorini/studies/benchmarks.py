@@ -68,14 +68,14 @@ from typing import Any
 import numpy as np
 
 from ..contact.obstacles import PlaneObstacle
-from ..dynamics.problem import Problem
+from ..dynamics.model.problem import Problem
 from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, interval, rectangle
 from ..fem.space import Dirichlet
 from ..registry import Parameter, Registry
-from ..studies import collision, collision_balls, hertz, incline, rings, spin
-from ..studies.exact import ExactBar1D
+from . import collision, collision_balls, hertz, incline, rings, spin
+from .exact import ExactBar1D
 
 
 @dataclass(frozen=True)

@@ -19,8 +19,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..contact.pairs import ContactPair
-from ..dynamics.observers import Observer
-from ..dynamics.problem import Problem
+from ..dynamics.model.problem import Problem
+from ..dynamics.observe.observers import Observer
 from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import interval, join

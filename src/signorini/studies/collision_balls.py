@@ -38,8 +38,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..contact.pairs import ContactPair
-from ..dynamics.observers import CentreOfMassRecorder, Observer
-from ..dynamics.problem import Problem, RegionInitial
+from ..dynamics.model.problem import Problem, RegionInitial
+from ..dynamics.observe.observers import CentreOfMassRecorder, Observer
 from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import join

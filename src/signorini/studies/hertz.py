@@ -61,8 +61,8 @@ from scipy.special import beta
 
 from ..contact.friction import Friction
 from ..contact.obstacles import PlaneObstacle
-from ..dynamics.observers import CentreOfMassRecorder, Observer
-from ..dynamics.problem import Problem
+from ..dynamics.model.problem import Problem
+from ..dynamics.observe.observers import CentreOfMassRecorder, Observer
 from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.meshing import estimate_counts, pole_refined_ball

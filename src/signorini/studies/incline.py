@@ -15,7 +15,7 @@ tangential one mu times it when sliding):
 the closed form printed beside the computed acceleration: the second derivative of a
 least-squares parabola through x_G(t) over the last 3/4 of the run (after the settling
 of the normal waves started by switching gravity on).  The mass is that of the run's
-mass matrix, the same one the body force follows (:mod:`signorini.dynamics.mass`), so
+mass matrix, the same one the body force follows (:mod:`signorini.dynamics.model.mass`), so
 the closed form holds for every mass variant.
 
 Parameters: ``E`` = 1000, ``nu`` = 0.3, ``rho`` = 1, ``g`` = 1, ``angle`` = 30 (degrees),
@@ -33,8 +33,8 @@ import numpy as np
 
 from ..contact.friction import Friction
 from ..contact.obstacles import PlaneObstacle
-from ..dynamics.observers import CentreOfMassRecorder, Observer
-from ..dynamics.problem import Problem
+from ..dynamics.model.problem import Problem
+from ..dynamics.observe.observers import CentreOfMassRecorder, Observer
 from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, rectangle

@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from ..dynamics.history import History
-from ..dynamics.simulate import simulate
+from ..dynamics.observe.history import History
+from ..dynamics.stepping.simulate import simulate
 from ..errors import InputError
 from ..fem.assembly import mass_matrix, stiffness_matrix
-from ..studies.benchmarks import get_benchmark
+from .benchmarks import get_benchmark
 
 DEFAULT_REFERENCE_FACTOR = 4
 _CHUNK_VALUES = 4_000_000  # floats per block of (dofs x time levels) in the error sums
@@ -316,7 +316,7 @@ def relative_errors(H: History, mesh_c, ref: Reference, T: float) -> dict[str, f
 
 def level_rates(rows: list[dict]) -> dict[str, list[float]]:
     """Observed rates between successive rows for every error column (nan if undefined)."""
-    from ..studies.study import observed_rates
+    from .study import observed_rates
 
     keys = [k for k in rows[0] if k not in ("n", "h")]
     if len(rows) < 2:
@@ -502,7 +502,7 @@ def study(
     ``DEFAULT_REFERENCE_FACTOR`` x the finest level, i.e. n0 2^(levels+1)), same scheme
     and mass, and optionally with the further references ``check_ref_levels``.
     """
-    from ..studies.study import errors_1d
+    from .study import errors_1d
 
     b = get_benchmark(bench)
     ns = [n0 * 2**k for k in range(levels)]

@@ -31,12 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dynamics.diagnostics import impact_windows, oscillation_index  # noqa: F401 (re-exported)
-from ..dynamics.history import _json_default, finite_json
-from ..dynamics.simulate import simulate
+from ..dynamics.observe.diagnostics import impact_windows, oscillation_index  # noqa: F401 (re-exported)
+from ..dynamics.observe.history import _json_default, finite_json
+from ..dynamics.stepping.simulate import simulate
 from ..signals import interrupts_raise
-from ..studies.benchmarks import get_benchmark
-from ..studies.reference_study import (
+from .benchmarks import get_benchmark
+from .reference_study import (
     DEFAULT_REFERENCE_FACTOR,
     convergence_study,
     rate_comparison,
@@ -45,7 +45,7 @@ from ..studies.reference_study import (
     reference_levels,
     reference_run,
 )
-from ..studies.study import errors_1d, observed_rates
+from .study import errors_1d, observed_rates
 
 PAIRS = [
     ("crank-nicolson", "standard"),

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from ..contact.pairs import ContactPair
-from ..dynamics.problem import Problem, RegionInitial
+from ..dynamics.model.problem import Problem, RegionInitial
 from ..errors import InputError
 from ..fem.material import NeoHookean
 from ..fem.mesh import Mesh, join

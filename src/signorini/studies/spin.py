@@ -34,8 +34,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..contact.obstacles import PlaneObstacle
-from ..dynamics.observers import Observer
-from ..dynamics.problem import Problem
+from ..dynamics.model.problem import Problem
+from ..dynamics.observe.observers import Observer
 from ..errors import InputError
 from ..fem.material import IsotropicElastic, NeoHookean, SaintVenantKirchhoff
 from ..fem.mesh import Mesh, box, rectangle

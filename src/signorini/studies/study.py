@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dynamics.history import History
-from ..dynamics.problem import Problem
-from ..studies.exact import ExactBar1D
+from ..dynamics.model.problem import Problem
+from ..dynamics.observe.history import History
+from .exact import ExactBar1D
 
 #: sample values per block of time levels in :func:`errors_1d` (bounded memory)
 ERROR_BLOCK = 2_000_000

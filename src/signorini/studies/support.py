@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from ..contact.obstacles import PlaneObstacle
-from ..dynamics.mass import MASS_VARIANTS
-from ..dynamics.problem import Problem
+from ..dynamics.model.mass import MASS_VARIANTS
+from ..dynamics.model.problem import Problem
 from ..dynamics.schemes import SCHEMES
 from ..errors import InputError
 from ..fem.material import MATERIAL_MODELS
@@ -53,7 +53,7 @@ def case(model: str) -> Problem:
 def outcome(model: str, scheme: str, mass: str) -> tuple[str, float | str | None, float]:
     """("runs", the identity's largest residual over E0, the largest energy gain over E0) or ("refused", the
     reason: :func:`reason`, 0)."""
-    from ..dynamics.simulate import simulate
+    from ..dynamics.stepping.simulate import simulate
 
     try:
         H = simulate(case(model), scheme, DT, STEPS * DT, mass=mass)

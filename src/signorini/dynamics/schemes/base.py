@@ -1,14 +1,14 @@
 """The time-scheme contract (in the spirit of ``scipy.integrate.OdeSolver``).
 
 A scheme integrates ``M U'' + S U = F(t) + B^T lambda`` with contact, one time level
-at a time.  :func:`~signorini.dynamics.simulate.simulate` owns the loop; a scheme
+at a time.  :func:`~signorini.dynamics.stepping.simulate.simulate` owns the loop; a scheme
 provides, as a subclass of :class:`Scheme`:
 
 1. ``name``, ``description``, ``parameters`` (a tuple of
    :class:`~signorini.registry.Parameter`, validated when the scheme is built from an
    options dict) and ``energy_definition`` (a formula, stated in ``summary.json``).
 2. ``operator(dt)``: the linear operator ``K = c_M M + c_S S`` it solves with
-   (:class:`~signorini.dynamics.context.Operator`), or None for an explicit scheme.
+   (:class:`~signorini.dynamics.solve.context.Operator`), or None for an explicit scheme.
    The run factorizes it once; proportional operators share one factorization.
 3. ``starter`` (optional): the registry name of a one-step scheme that makes the
    first step of a two-step scheme, and ``start(ctx, first, second)`` which turns the
@@ -16,7 +16,7 @@ provides, as a subclass of :class:`Scheme`:
    factorization when its operator is proportional, else it is factorized once more
    (``counters['factorizations']`` says which happened).
 4. ``step(ctx, state) -> State``: from the state at t_n and the
-   :class:`~signorini.dynamics.context.Context` (M, S, B, ``load(t)``,
+   :class:`~signorini.dynamics.solve.context.Context` (M, S, B, ``load(t)``,
    ``dirichlet(t)``, ``gaps(t)``, ``solve(op, rhs, bound, fixed_values, law, guess)``)
    to the state at t_{n+1} with the contact forces ``lam`` and the solver's ``info``.
    Vectors are full-space (all dofs, prescribed values on the Dirichlet dofs).  A
@@ -49,8 +49,8 @@ from ...errors import InputError
 from ...registry import Entry, Parameter
 
 if TYPE_CHECKING:
-    from ..context import Context
-    from ..operator import Operator
+    from ..model.operator import Operator
+    from ..solve.context import Context
 
 
 @dataclass
@@ -96,7 +96,7 @@ class State:
 #: and a flag (bool)
 STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
 #: state data of every scheme: ``R0``, the residual of the massless free dofs at t = 0
-#: (:func:`~signorini.dynamics.setup.initial_state`); in a damped run (:mod:`~signorini.dynamics.damping`)
+#: (:func:`~signorini.dynamics.stepping.setup.initial_state`); in a damped run (:mod:`~..model.damping`)
 #: ``damping_velocity`` and ``damping_acceleration``, the scheme's own V and A that the level's
 #: damping force C V_d is made of (:func:`damping_velocity`, :func:`damping_force`)
 #: ``newton_residual``: the force residual r (n,) a finite-strain step's Newton left at its solution
@@ -153,10 +153,10 @@ class Scheme:
     #: work in its energy identity, :meth:`damping_coefficient` and :func:`damping_force`)
     damping_refusal: ClassVar[str | None] = "its balance has no damping term"
     #: why the scheme refuses finite strain (a material model other than ``linear``); None: its step
-    #: solves the nonlinear balance by Newton (:mod:`~signorini.dynamics.newton`)
+    #: solves the nonlinear balance by Newton (:mod:`~signorini.dynamics.solve.newton`)
     finite_strain_refusal: ClassVar[str | None] = "its step has no Newton iteration for a nonlinear internal force yet"
     #: whether its steps' velocities get the momentum projection with finite strain
-    #: (:func:`~signorini.dynamics.momentum_projection.applies`; energy-momentum)
+    #: (:func:`~signorini.dynamics.schemes.momentum_projection.applies`; energy-momentum)
     momentum_projection: ClassVar[bool] = False
 
     @property
@@ -164,7 +164,7 @@ class Scheme:
         """Whether the scheme conserves energy by design, so that its numerical part of the energy
         identity is an error of either sign (crank-nicolson); False: its losses are intended
         damping (backward-euler), only a gain is an error (the adaptive control,
-        :mod:`~signorini.dynamics.step_control`, and docs/schemes.md)."""
+        :mod:`~signorini.dynamics.stepping.step_control`, and docs/schemes.md)."""
         return False
 
     def __init__(self, **options: Any):
@@ -295,7 +295,7 @@ class Scheme:
 # ----------------------------------------------------------------------------- helpers
 def products(ctx: Context, s: State) -> tuple[np.ndarray, np.ndarray]:
     """(M V, f(U)) of a state, computed once: f(U) = S U in linear elasticity, the internal force of
-    finite strain otherwise (``ctx.elastic``, :mod:`~signorini.dynamics.elasticity`)."""
+    finite strain otherwise (``ctx.elastic``, :mod:`~signorini.dynamics.solve.elasticity`)."""
     return s.product("MV", lambda: ctx.Mop @ s.V), s.product("SU", lambda: ctx.elastic.force(s.U))
 
 
@@ -342,7 +342,7 @@ def fixed_reaction(ctx: Context, s: State, rows: tuple | None = None) -> np.ndar
     """R_D = (M A + C V + S U - F - B^T lambda - T^T lambda_t)_D (|D|,) [force]: the reactions of the
     Dirichlet dofs D at level ``s``, computed once per level (the state's products); ``rows``:
     (M_D, S_D) taken once by a caller that needs them at every level
-    (:class:`~signorini.dynamics.reactions.Reactions`)."""
+    (:class:`~signorini.dynamics.observe.reactions.Reactions`)."""
 
     def compute():
         D = ctx.fixed
@@ -440,7 +440,7 @@ def damping_velocity(s: State) -> tuple[np.ndarray, np.ndarray]:
     """(V_d, A_d): the velocity and acceleration the damping force C V_d of level ``s`` is made of.
 
     The scheme's own update of V and A on every dof, without the replacement of
-    :meth:`~signorini.dynamics.context.Context.massless_update` (V = dU/dt on massless dofs): with
+    :meth:`~signorini.dynamics.solve.context.Context.massless_update` (V = dU/dt on massless dofs): with
     it, the damping velocity of a massless node would mix two rules from one step to the next and
     the damping's work could be positive (measured: a CN run with the default mass and beta =
     1e-2 doubled its energy).  Equal to (V, A) on every dof with mass; (V, A) at level 0."""

@@ -14,7 +14,7 @@ from ...linalg.base import backend_traits
 from . import SCHEMES, finite_strain_schemes, friction_schemes
 
 if TYPE_CHECKING:
-    from ..context import Context
+    from ..solve.context import Context
 
 
 def check_friction_schemes(friction: Friction, schemes: Sequence, finite: bool = False) -> None:

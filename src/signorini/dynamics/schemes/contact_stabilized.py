@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import EnergyParts, Scheme, State, load_work
 
 

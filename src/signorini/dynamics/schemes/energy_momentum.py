@@ -26,12 +26,12 @@ energy exactly).  Friction (Coulomb, Tresca): the tangential forces of the halve
 too (Coulomb's cone is invariant; a Tresca threshold is halved with them) and doubled back.
 
 Momenta (finite strain): the massless rows' balance at t_{n+1} takes O(dt^2) of the linear and angular
-momentum, and a pair's forces a moment of their own (:mod:`~signorini.dynamics.momentum_projection`); after
+momentum, and a pair's forces a moment of their own (:mod:`~signorini.dynamics.schemes.momentum_projection`); after
 each step the velocities of the nodes with mass get the rigid motion
-closest in M's norm that gives it back (:mod:`~signorini.dynamics.momentum_projection`, solver option
+closest in M's norm that gives it back (:mod:`~signorini.dynamics.schemes.momentum_projection`, solver option
 ``momentum_projection``), and the kinetic energy that motion changes is part of the numerical term above.
 
-The step is solved by Newton (:mod:`~signorini.dynamics.newton`) with the operator 2/dt^2 M + 1/2 K(U_mid)
+The step is solved by Newton (:mod:`~signorini.dynamics.solve.newton`) with the operator 2/dt^2 M + 1/2 K(U_mid)
 (proportional to Crank-Nicolson's: one factorization serves both in linear elasticity), the massless
 rows' equations halved so that the tangent stays symmetric (their multipliers are doubled back).
 """
@@ -43,9 +43,9 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..momentum_projection import applies, groups, velocity_correction
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, solver_work, weighted
+from .momentum_projection import applies, groups, velocity_correction
 from .step_problem import StepProblem, solve_step
 
 
@@ -146,7 +146,7 @@ class EnergyMomentum(Scheme):
 
     def _groups(self, ctx, lam0: np.ndarray, lam1: np.ndarray) -> list[np.ndarray] | None:
         """The groups of bodies of the momentum projection (nodes, bool (N,) each): the bodies a pair row that acts
-        at t_n or t_{n+1} joins are one (:func:`~signorini.dynamics.momentum_projection.groups`); None: one body."""
+        at t_n or t_{n+1} joins are one (:func:`~.momentum_projection.groups`); None: one body."""
         from ...fem.mesh import bodies
 
         mesh = ctx.disc.problem.mesh

@@ -45,7 +45,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...registry import Parameter
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import (
     EnergyParts,
     State,

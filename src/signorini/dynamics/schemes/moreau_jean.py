@@ -6,7 +6,7 @@
     for i in I:   0 >= nu.V^{n+1}_i + e nu.V^n_i - (1 + e) gdot_i  ⊥  P_i <= 0,
     for i not in I:  P_i = 0,
 
-with tol = 1e-12 of the body's size (:attr:`~signorini.dynamics.context.Context.touch_tolerance`):
+with tol = 1e-12 of the body's size (:attr:`~signorini.dynamics.solve.context.Context.touch_tolerance`):
 a node resting on the obstacle is in I whatever the sign of its gap's round-off (with 0,
 a corner node sliding on a plane left I at a step where its gap rounded to +6e-36 and
 fell 6e-5 into the plane, a result that changed with the machine), the obstacle's
@@ -43,7 +43,7 @@ import numpy as np
 
 from ...contact.solver import ContactLaw
 from ...registry import Parameter
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import EnergyParts, Scheme, State, damping_force, damping_split, friction_work, load_work
 
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from ...contact.solver import SIGNORINI, ContactLaw
 from ...registry import Parameter
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import (
     EnergyParts,
     Scheme,

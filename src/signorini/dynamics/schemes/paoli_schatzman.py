@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...registry import Parameter
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import EnergyParts, Scheme, State
 
 

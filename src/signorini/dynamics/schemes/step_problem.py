@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...contact.solver import ContactLaw, StepInfo
-from ..current_rows import contact_bound
-from ..newton import newton_solve
+from ..rows.current_rows import contact_bound
+from ..solve.newton import newton_solve
 
 if TYPE_CHECKING:
-    from ..context import Context
+    from ..solve.context import Context
     from .base import Scheme, State
 
 

@@ -16,7 +16,7 @@ Energy identity (exact; docs/schemes.md), with x_theta = theta x^{n+1} + (1-thet
         - dU.(C V)_theta                                     (damping, when given)
 
 Finite strain (``[material] model``): S U^{n+1} becomes the internal force f(U^{n+1}), solved by Newton
-(:mod:`~signorini.dynamics.newton`), 1/2 U.SU the stored energy Pi(U), and the term in |dU|_S^2
+(:mod:`~signorini.dynamics.solve.newton`), 1/2 U.SU the stored energy Pi(U), and the term in |dU|_S^2
 becomes Delta Pi - dU.f_theta - (theta - 1/2)|dV|_M^2 (numerical: for CN the trapezoid's error on f,
 third order in dU; no longer of one sign, so that Crank-Nicolson may gain energy under large rotations).
 
@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...registry import Parameter
-from ..operator import Operator
+from ..model.operator import Operator
 from .base import (
     EnergyParts,
     Scheme,

@@ -9,7 +9,7 @@ missing.
 
 What exists (docs/parallel.md, docs/design.md "Beyond one machine"): the backend
 ``petsc``, a parallel MUMPS Cholesky behind the serial factor contract (:mod:`.factor`),
-fed by each rank's rows of the operators (:mod:`signorini.dynamics.owned_rows`, on the
+fed by each rank's rows of the operators (:mod:`signorini.dynamics.model.owned_rows`, on the
 Z-order renumbering of :mod:`signorini.fem.node_order`).  The earlier PT-Scotch partition
 and PETSc-matrix assembly that only a self-test used were removed (issue 31, item 6).
 """

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ...dynamics.mass import MASS_VARIANTS
+from ...dynamics.model.mass import MASS_VARIANTS
 from ...dynamics.schemes import SCHEMES, make_scheme
 from ...errors import InputError
 from ...registry import parse_assignments

@@ -8,15 +8,15 @@ from typing import Any
 
 import numpy as np
 
-from ...dynamics.budget import CompareEstimate, estimate_compare, estimate_run
-from ...dynamics.problem import (
+from ...dynamics.model.problem import (
     contact_node_count,
     friction_summary,
     run_friction,
     with_friction,
 )
 from ...dynamics.schemes.checks import check_friction_schemes
-from ...dynamics.simulate import number_of_steps
+from ...dynamics.stepping.budget import CompareEstimate, estimate_compare, estimate_run
+from ...dynamics.stepping.simulate import number_of_steps
 from ...errors import InputError, check_positive
 from ..benchmarks import get_benchmark
 from ..reference_study import DEFAULT_REFERENCE_FACTOR, Reference, check_levels
@@ -241,7 +241,7 @@ def make_jobs(plan: Plan) -> list[Job]:
 
 
 def estimate_plan(plan: Plan, jobs: int | None = None) -> CompareEstimate:
-    """Peak memory of the whole matrix (:func:`~signorini.dynamics.budget.estimate_compare`):
+    """Peak memory of the whole matrix (:func:`~signorini.dynamics.stepping.budget.estimate_compare`):
     every run with the fields it keeps for the errors (every level of every run), the
     ``jobs`` largest at once, plus the 2D/3D fields held by this process until the errors
     against the reference are measured.  Built from mesh counts: nothing is meshed."""

@@ -10,7 +10,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
-from ...dynamics.simulate import simulate
+from ...dynamics.stepping.simulate import simulate
 from ...errors import ConvergenceError, InputError
 from .names import SchemeSpec
 

@@ -6,7 +6,7 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from ...dynamics.history import _json_default, finite_json
+from ...dynamics.observe.history import _json_default, finite_json
 from ..reference_study import DEFAULT_REFERENCE_FACTOR, describe_reference
 from .pool import TIMING_FIELDS
 from .ranking import RANK_LABELS, _finite, ranked_pairs

@@ -1,0 +1,186 @@
+"""Restart and rollback, one protocol: what a step changes, saved and put back.
+
+Every object whose state a step changes is a *restartable part*: it has a ``key`` (its name
+in a checkpoint), ``saved() -> dict`` (arrays, numbers, strings: a copy of its state now) and
+``resume(data)`` (that state put back).  A checkpoint (:class:`~.checkpointer.Checkpointer`)
+is the walk over the parts, each flattened under its key in the file; the in-memory rollback
+of a rejected step (:class:`~.step_control.AdaptiveSteps`) is the walk over the parts that a
+step changes before it is accepted.
+
+The parts of a run:
+
+=================  ==================================================================  =========
+key                what                                                                rollback
+=================  ==================================================================  =========
+``state``          the scheme's state at the level (U, V, A, lambda, declared extras)  no [1]
+``solvers``        each factorized system's warm starts and Delassus columns           yes
+``pairing``        the contact pairs' pairing (the rows re-paired as slave nodes slid)  no [1]
+``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``)            no [1]
+(attributes)       the time grid's segment and step, an adaptive control's state       yes [2]
+=================  ==================================================================  =========
+
+[1] changed only when a level is accepted (a rejected step never reaches them).
+[2] the control puts its grid back itself (:meth:`~.time_grid.TimeGrid.continue_with`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from ...errors import InputError
+from ..model.operator import Operator, Viscous
+from ..solve.context import Context
+
+
+class Restartable(Protocol):
+    """A part of a run's state (module docstring)."""
+
+    key: str
+
+    def saved(self) -> dict[str, Any]:
+        """A copy of the part's state now."""
+
+    def resume(self, data: dict[str, Any]) -> None:
+        """The state of :meth:`saved` put back."""
+
+
+class SolverStates:
+    """The factorized systems' restartable data: each contact solver's warm starts (a few
+    vectors) and the log of its Delassus columns (solved again alike on resume, so that every
+    product summing over them is bit for bit the uninterrupted run's).
+
+    Parameters
+    ----------
+    ctx : the run's :class:`~.context.Context` (its factor cache ``ctx.factors``).
+    kept_steps : an adaptive control keeps the systems of the steps it left (all saved, least
+        recently used first); else only the current step's are.
+    ladder_bytes : the factor bytes an adaptive control keeps for those steps.
+    """
+
+    key = "solvers"
+
+    def __init__(self, ctx: Context, kept_steps: bool, ladder_bytes: float) -> None:
+        self.ctx, self.kept_steps, self.ladder_bytes = ctx, kept_steps, ladder_bytes
+        #: where the data comes from (the messages of :meth:`resume`)
+        self.where = "checkpoint"
+
+    # -- a checkpoint --------------------------------------------------------------------
+    def snapshot(self) -> list[tuple]:
+        """The warm starts (copies) and the lengths of the Delassus logs now, per factorized
+        operator (a rank's are its own rows): what a checkpoint of this level holds of them."""
+        ctx = self.ctx
+        systems = []
+        if ctx.comm.size == 1:
+            systems = ctx.factors.by_step() if self.kept_steps else [(ctx.dt, s) for s in ctx.factors.current]
+        out = []
+        for dt, sys in systems:  # each factorized operator's solver, in order of creation
+            warm = _warm_copy(sys)
+            delassus = getattr(sys.solver, "delassus", None)
+            blocks = len(delassus.log) if hasattr(delassus, "log") else None
+            out.append((sys, warm, blocks, dt))
+        return out
+
+    @staticmethod
+    def arrays(snapshot: list[tuple]) -> dict[str, np.ndarray]:
+        """``k/operator``, ``k/dt``, ``k/<warm start>`` and ``k/delassus/...`` of a :meth:`snapshot`."""
+        out: dict[str, np.ndarray] = {}
+        for k, (sys, arrays, blocks, dt) in enumerate(snapshot):
+            out[f"{k}/operator"] = np.array(sys.op.coefficients())
+            out[f"{k}/dt"] = np.array(dt)
+            out.update({f"{k}/{name}": a for name, a in arrays.items()})
+            log = sys.solver.delassus.history(blocks) if blocks is not None else None
+            if log is not None:  # the Delassus columns solved, to solve them again alike on resume
+                out.update({f"{k}/delassus/{name}": a for name, a in log.items()})
+        return out
+
+    def saved(self) -> dict[str, Any]:
+        return self.arrays(self.snapshot())
+
+    @staticmethod
+    def count(arrays: dict[str, Any]) -> int:
+        """The number of systems in :meth:`arrays`."""
+        return sum(1 for name in arrays if name.endswith("/operator") and name.count("/") == 1)
+
+    def resume(self, data: dict[str, Any]) -> None:
+        """Each saved operator factorized (with its step under an adaptive control), its warm
+        starts set, its Delassus columns solved again; the current step's systems last."""
+        ctx, where = self.ctx, self.where
+        count = int(data.get("count", 0))  # the systems saved (a checkpoint's ``n_solvers``)
+        current, restored = ctx.dt, {}
+        for k in range(count if ctx.comm.size == 1 else 0):
+            op = data.get(f"{k}/operator")
+            if op is None or op.shape not in ((2,), (3,)) or not np.all(np.isfinite(op)):
+                raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
+            step = data.get(f"{k}/dt")
+            if self.kept_steps and step is not None:  # a step an adaptive control kept: its own systems
+                if step.shape != () or not np.isfinite(step) or not step > 0:
+                    raise InputError(f"checkpoint {where!r}: solver {k} has no valid step")
+                ctx.use_step(float(step), ctx.t0, [], self.ladder_bytes)
+            viscous = None
+            if op.shape == (3,):  # damping per region: c C, the third term
+                if ctx.damping_matrix is None:
+                    raise InputError(f"checkpoint {where!r}: solver {k} holds a damping matrix this run does not have")
+                viscous = Viscous(float(op[2]), ctx.damping_matrix)
+            # made now if the loop made it
+            sys, _ = ctx.factors.system(Operator(float(op[0]), float(op[1]), None, viscous))
+            for name in _warm_names(sys):
+                a = data.get(f"{k}/{name}")
+                old = np.asarray(getattr(sys.solver, name))
+                if a is None or a.shape != old.shape:
+                    raise InputError(f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
+                                     f"has another shape (another backend?)")  # fmt: skip
+                setattr(sys.solver, name, a.astype(old.dtype, copy=True))
+                restored.setdefault(id(sys), {})[name] = getattr(sys.solver, name).copy()
+            prefix = f"{k}/delassus/"
+            log = {name[len(prefix) :]: a for name, a in data.items() if name.startswith(prefix)}
+            delassus = getattr(sys.solver, "delassus", None)
+            if all(name in log for name in ("nodes", "slots", "sizes")) and hasattr(delassus, "replay"):
+                try:
+                    delassus.replay(log)
+                except ValueError as exc:
+                    raise InputError(f"checkpoint {where!r}: solver {k}: {exc}") from None
+        if self.kept_steps:
+            ctx.use_step(current, ctx.t0, [], self.ladder_bytes)  # back to the checkpoint's step
+            for sys in ctx.factors.current:  # its warm starts, not those use_step passed from the last restored
+                for name, a in restored.get(id(sys), {}).items():
+                    setattr(sys.solver, name, a.copy())
+
+    # -- a rollback ----------------------------------------------------------------------
+    def point(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
+        """What a rejected step must put back: the warm starts of the current step's solvers
+        (the Delassus columns a rejected step solved stay valid for its operator)."""
+        return [(sys, _warm_copy(sys)) for sys in self.ctx.factors.current]
+
+    @staticmethod
+    def put_back(point: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
+        """The warm starts of :meth:`point` set again."""
+        for sys, arrays in point:
+            for name, a in arrays.items():
+                setattr(sys.solver, name, a.copy())
+
+
+def _warm_names(sys: Any) -> tuple[str, ...]:
+    return tuple(getattr(sys.solver, "warm_state", ()))
+
+
+def _warm_copy(sys: Any) -> dict[str, np.ndarray]:
+    """Copies of a system's solver's warm starts, by name."""
+    return {name: np.array(getattr(sys.solver, name), copy=True) for name in _warm_names(sys)}
+
+
+class Pairing:
+    """The contact pairs' pairing at the current level (:meth:`~.context.Context.pairing_state`)."""
+
+    key = "pairing"
+
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
+        self.t = 0.0  # the level's time (the stepper sets it before a walk)
+
+    def saved(self) -> dict[str, Any]:
+        return self.ctx.rows.pairing_state(self.t)
+
+    def resume(self, data: dict[str, Any]) -> None:
+        self.ctx.restore_pairing(data, self.t)

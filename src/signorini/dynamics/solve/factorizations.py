@@ -1,0 +1,150 @@
+"""The factorized step operators of a run, per step size: the only owner of the factor cache.
+
+A scheme solves with an operator K = c_M M + c_S S (:class:`~signorini.dynamics.solve.context.Operator`)
+for the current step dt.  :class:`Factorizations` keeps, for that dt, the systems made so far
+(a factorized K on the free dofs with its contact solver, ``_System``) and finds the one that
+serves an operator: itself, or a multiple of it (``K' = s K`` is solved as ``K x = rhs / s``).
+When the step changes it either releases the old step's systems (a schedule, a resume with
+another dt: :meth:`replace`) or keeps them on a ladder (an adaptive control's steps dt / 2^k:
+:meth:`use`), the least recently used dropped first beyond a memory budget.  The counters of
+released systems are kept (:meth:`counters`).
+
+The :class:`~signorini.dynamics.solve.context.Context` of a run holds one, as ``ctx.factors``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ...errors import InputError
+
+if TYPE_CHECKING:
+    from ...contact.solver import ContactSolver
+    from ..model.operator import Operator
+
+
+class Factorizations:
+    """The systems (factorized operators with their contact solvers) of the current step, and
+    those an adaptive control kept for other steps.
+
+    Parameters
+    ----------
+    build : makes the system of an operator (its factorization and contact solver).
+    dt : the step the first systems are made for [time].
+    """
+
+    def __init__(self, build: Callable[[Operator], Any], dt: float):
+        self._build = build
+        self.dt = float(dt)
+        #: the systems of the current step, in order of creation
+        self.current: list[Any] = []
+        self._lookup: dict[Operator, tuple[Any, float]] = {}
+        #: the systems of the steps used before (:meth:`use`), least recently used first
+        self._ladder: dict[float, tuple[list[Any], dict]] = {}
+        #: the counters of the systems released (:meth:`replace`, :meth:`use`)
+        self.retired: dict[str, int] = {}
+
+    def system(self, op: Operator) -> tuple[Any, float]:
+        """(system, s) with ``op = s * system.op``: a system of the current step that serves ``op``,
+        made (factorized) now when none does."""
+        found = self._lookup.get(op)
+        if found is None:
+            found = self._lookup[op] = self._find_or_build(op)
+        return found
+
+    def _find_or_build(self, op: Operator) -> tuple[Any, float]:
+        if op.mass < 0 or op.stiffness < 0 or (op.mass == 0 and op.stiffness == 0):
+            raise InputError(f"a scheme operator needs non-negative coefficients, not both zero; got {op}")
+        for sys in self.current:
+            s = op.ratio_to(sys.op)
+            if s is not None:
+                return sys, s
+        sys = self._build(op)
+        self.current.append(sys)
+        return sys, 1.0
+
+    def _retire(self, systems: list[Any]) -> None:
+        retired = dict(self.retired)
+        for sys in systems:
+            for k, v in sys.solver.counters.items():
+                retired[k] = retired.get(k, 0) + int(v)
+            release = getattr(sys.solver, "release", None)  # a solver's factor resources (ContactSolver.release)
+            if release is not None:
+                release()
+        self.retired = retired
+
+    def release(self, op: Operator) -> None:
+        """Drop the system made for ``op`` (a Newton iterate's tangent, no longer of use), its
+        counters kept; nothing when there is none."""
+        found = self._lookup.pop(op, None)
+        if found is None:
+            return
+        sys = found[0]
+        if any(o is sys for o, _ in self._lookup.values()):
+            return
+        self.current = [s for s in self.current if s is not sys]
+        self._retire([sys])
+
+    def replace(self, dt: float, operators: list[Operator]) -> None:
+        """Continue with the step ``dt``: the current systems are released (their counters kept)
+        and ``operators`` factorized."""
+        self._retire(self.current)
+        self.current, self._lookup = [], {}
+        self.dt = float(dt)
+        for op in operators:
+            self.system(op)
+
+    def use(self, dt: float, operators: list[Operator], keep_bytes: float) -> None:
+        """Continue with the step ``dt`` keeping the systems of the steps used before: those of
+        ``dt`` are taken back when kept, else ``operators`` are factorized; the steps used least
+        recently are released while the kept factors exceed ``keep_bytes``.  The contact
+        solvers' warm starts (``warm_state``) pass from the systems of the step left to those of
+        ``dt``, position by position, so that a step starts from the last accepted level
+        whatever operator computed it."""
+        dt = float(dt)
+        if dt == self.dt:
+            return
+        before = self.current
+        self._ladder[self.dt] = (self.current, self._lookup)
+        self.current, self._lookup = self._ladder.pop(dt, ([], {}))
+        self.dt = dt
+        for op in operators:
+            self.system(op)
+        for old, new in zip(before, self.current, strict=False):
+            for name in getattr(new.solver, "warm_state", ()):
+                a, b = getattr(old.solver, name, None), getattr(new.solver, name)
+                if a is not None and np.shape(a) == np.shape(b):
+                    setattr(new.solver, name, np.array(a, copy=True))
+        kept = sum(sys.solver.factor_bytes for systems, _ in self._ladder.values() for sys in systems)
+        while self._ladder and kept > keep_bytes:  # least recently used first
+            step = next(iter(self._ladder))
+            systems, _ = self._ladder.pop(step)
+            kept -= sum(sys.solver.factor_bytes for sys in systems)
+            self._retire(systems)
+
+    def by_step(self) -> list[tuple[float, Any]]:
+        """(dt, system) of the steps kept by :meth:`use`, least recently used first, then the
+        current step's."""
+        kept = [(dt, sys) for dt, (systems, _) in self._ladder.items() for sys in systems]
+        return kept + [(self.dt, s) for s in self.current]
+
+    def every(self) -> list[Any]:
+        """The systems of the current step, then those kept for other steps."""
+        return self.current + [sys for systems, _ in self._ladder.values() for sys in systems]
+
+    @property
+    def solvers(self) -> list[ContactSolver]:
+        """The contact solvers of the current step's systems."""
+        return [s.solver for s in self.current]
+
+    def counters(self) -> dict[str, int]:
+        """The solvers' counters (factorizations, linear_solves, ...), summed over every system
+        made, those released included."""
+        out: dict[str, int] = dict(self.retired)
+        for solver in (sys.solver for sys in self.every()):
+            for k, v in solver.counters.items():
+                out[k] = out.get(k, 0) + int(v)
+        return out
