@@ -30,10 +30,10 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.observe.diagnostics import oscillation_index
 from signorini.dynamics.model.mass import MASS_VARIANTS
-from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.model.problem import Problem, discretize
+from signorini.dynamics.observe.diagnostics import oscillation_index
+from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import rectangle

@@ -9,7 +9,7 @@ that it reproduces the registered ``theta``.  ``MyThetaAnyModel`` states the sam
 material model, finite strain included (Newton), and with Rayleigh damping left out here.
 """
 
-from signorini.dynamics.solve.context import Operator
+from signorini.dynamics.model.operator import Operator
 from signorini.dynamics.schemes import Scheme, State, StepProblem, solve_step
 from signorini.registry import Parameter
 

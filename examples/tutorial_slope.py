@@ -6,8 +6,8 @@ The tutorial shows this file verbatim (tests/test_examples.py checks both).
 import numpy as np
 
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.model.problem import Problem
+from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import rectangle
