@@ -7,9 +7,10 @@
    smallest step the control used: levels, loop time, the largest energy drift, the rebound
    momentum.
 2. A Hertz ball (hertz3d, gmsh) bouncing three times under a gravity that brings it back after
-   ``--flight`` (10) contact durations t_c: the control with dt = t_c / 2 and dt_min = dt / 64 against a
-   fixed run at dt_min: levels and loop time, and per bounce the contact duration and the
-   peak force (relative differences), the energy between bounces against E0.
+   ``--flight`` (10) contact durations t_c: the control with dt = t_c / 2 and every default (the tolerance
+   and dt_min from the mesh) against a fixed run at the smallest step it used: levels and loop time, and per
+   bounce the contact duration and the peak force (relative differences), the energy between bounces
+   against E0.
 3. The control's own cost per step (the energy indicator and the saved warm starts) against
    the median step of bar3d at level n (CN), each timed over 50 calls.
 """
@@ -70,8 +71,9 @@ def hertz_bounces(n: int, flight: float = 10.0) -> dict:
     p = dataclasses.replace(p, gravity=[0.0, 0.0, -g])
     dt = tc / 2
     T = round(3.2 * (flight + 1) * tc / dt) * dt  # three bounces and their flights
-    A = simulate(p, "cn", dt, T, control={"control": "energy", "dt_min": dt / 64})
-    F = simulate(p, "cn", dt / 64, T)
+    A = simulate(p, "cn", dt, T, control="energy")  # every default: the tolerance and dt_min from the mesh
+    h = A.meta["time_control"]["dt_smallest_used"]
+    F = simulate(p, "cn", h, T)
     ea, ef = _episodes(A), _episodes(F)
     rows = []
     for (a0, a1), (f0, f1) in zip(ea, ef, strict=False):
@@ -84,8 +86,12 @@ def hertz_bounces(n: int, flight: float = 10.0) -> dict:
         rows.append({"duration_rel_diff": float(abs(dur_a - dur_f) / dur_f),
                      "peak_rel_diff": float(abs(peak_a - peak_f) / peak_f)})  # fmt: skip
     free = [i for i in range(A.t.size) if not np.asarray(A.lambda_sum)[i] < 0]
+    tc_ = A.meta["time_control"]
     return {"case": f"hertz3d n = {n} bouncing ({int(A.meta['dofs'])} dofs), flights of {flight:g} t_c, dt = t_c / 2, "
-                    "dt_min = dt / 64",
+                    f"tolerance {tc_['tolerance']:.3g} from the mesh, fixed at the smallest step used "
+                    f"(dt / {dt / h:.0f})",
+            "rejected": tc_["steps_rejected"], "factorizations": tc_["factorizations"],
+            "unresolved": tc_["unresolved_steps"],
             "bounces_control": len(ea), "bounces_fixed": len(ef), "levels_control": int(A.t.size - 1),
             "levels_fixed": int(F.t.size - 1), "steps_ratio": (A.t.size - 1) / (F.t.size - 1),
             "loop_ratio": A.meta["loop_seconds"] / F.meta["loop_seconds"], "bounces": rows,
