@@ -224,9 +224,10 @@ def test_finite_strain_matches_the_serial_run(tmp_path, ranks):
     its first impact.  Each rank assembles its rows of every Newton tangent from the cells around its own
     nodes (``FiniteStrain.tangent``), MUMPS factorizes them: the history equals the serial run's to 1e-8
     (measured 3e-13 .. 4e-13 before the serial run took energy-momentum's exact directions, 1.9e-10 since, the
-    Newton iteration counts differing by 1-3), the identity closes as in serial (1e-11 of E, the Newton tolerance's), and the
-    run makes more than 400 factorizations, past the point where PETSc's MUMPS failed before its instances
-    were kept for the next tangent of the same pattern (``linalg/petsc/factor.py``, ``KEPT``)."""
+    Newton iteration counts differing by 1-3), the identity closes as in serial (1e-11 of E, the Newton
+    tolerance's), and the run makes more than 400 factorizations, past the point where PETSc's MUMPS failed
+    before its instances were kept for the next tangent of the same pattern (``linalg/petsc/factor.py``,
+    ``KEPT``)."""
     text = (Path(__file__).parents[2] / "examples" / "tumbling_block.toml").read_text()
     (tmp_path / "case.toml").write_text(text.replace("T = 0.02", "T = 0.008"))
     ref = serial(["case.toml", "--out", "ser", "--quiet"], tmp_path)
