@@ -306,6 +306,10 @@ FORGED_CONTROL = {
     # the resting-contact memory and the spurious energy's cycles (added by the same issue)
     "prev-sum-string": (_time_control("prev_sum", "1.0"), "'prev_sum' must be a finite number or null"),
     "persistent-int": (_time_control("persistent", 1), "'persistent' must be true or false"),
+    # the growth's backoff (growths rejected in a row)
+    "backoff-beyond": (_time_control("backoff", 7), "'backoff' must be an integer in [0, 6], got 7"),
+    "backoff-float": (_time_control("backoff", 1.0), "'backoff' must be an integer in"),
+    "just-grown-string": (_time_control("just_grown", "yes"), "'just_grown' must be true or false"),
     "created-negative": (
         lambda a: a.__setitem__("observers/energy/cycles_created", -1.0),
         "the energy's created must be a finite number >= 0",
