@@ -272,9 +272,14 @@ def time_control_line(tc: dict) -> str:
     if refined:
         shown = ", ".join(f"[{a:.4g}, {b:.4g}]" for a, b, _ in refined[:3])
         where = f"; refined over t in {shown}" + (f" and {len(refined) - 3} more" if len(refined) > 3 else "")
-    return (f"  time steps: energy control, {tc['dt_largest_used']:.4g} s largest used, {tc['dt_smallest_used']:.4g} s "
-            f"smallest; {tc['steps_accepted']} accepted, {tc['steps_rejected']} rejected, {tc['factorizations']} "
-            f"factorization(s){where}\n")  # fmt: skip
+    told = ""
+    if tc.get("tolerance") is not None:  # the control's tolerance, and whether the mesh made it (a default that
+        # changes with the mesh says so)
+        how = f"from the mesh, h/L = {tc['mesh_resolution']:.3g}" if tc.get("tolerance_from_mesh") else "given"
+        told = f"tolerance {tc['tolerance']:.3g} ({how}), "
+    return (f"  time steps: energy control, {told}{tc['dt_largest_used']:.4g} s largest used, "
+            f"{tc['dt_smallest_used']:.4g} s smallest; {tc['steps_accepted']} accepted, {tc['steps_rejected']} "
+            f"rejected, {tc['factorizations']} factorization(s){where}\n")  # fmt: skip
 
 
 def _value(x) -> str:

@@ -363,3 +363,14 @@ def test_the_default_tolerance_and_depth_follow_the_mesh():
         14,
         20,
     ]
+
+
+def test_the_summary_line_says_where_the_tolerance_came_from():
+    """A default that changes with the mesh says so: the run's time-step line names the tolerance and its origin."""
+    from signorini.io.summary import time_control_line
+
+    base = {"steps_accepted": 3, "steps_rejected": 1, "factorizations": 2, "dt_largest_used": 1e-5,
+            "dt_smallest_used": 2.5e-6, "refined": []}  # fmt: skip
+    mesh = time_control_line({**base, "tolerance": 6.25e-5, "tolerance_from_mesh": True, "mesh_resolution": 0.05})
+    given = time_control_line({**base, "tolerance": 1e-3, "tolerance_from_mesh": False, "mesh_resolution": None})
+    assert "tolerance 6.25e-05 (from the mesh, h/L = 0.05)" in mesh and "tolerance 0.001 (given)" in given
