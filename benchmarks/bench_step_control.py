@@ -110,7 +110,7 @@ def overhead(n: int) -> dict:
     s = Stepper(p, "cn", (dt, T), {"control": "energy"})
     step = median_step(s, lambda s, k: bool(np.any(s.state.lam)) and k >= 20)  # a level in contact
     in_contact = bool(np.any(s.state.lam))
-    cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s._save_point()), 50)
+    cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s.solvers.point()), 50)
     s.finish()
     return {"case": f"bar3d n = {n}", "dofs": int(s.run.ctx.disc.space.n_dofs), "step_s": step,
             "in_contact": in_contact, "control_over_step": cost / step}  # fmt: skip
