@@ -11,8 +11,8 @@
    and dt_min from the mesh) against a fixed run at the smallest step it used: levels and loop time, and per
    bounce the contact duration and the peak force (relative differences), the energy between bounces
    against E0.
-3. The control's own cost per step (the energy indicator and the saved warm starts) against
-   the median step of bar3d at level n (CN), each timed over 50 calls.
+3. The control's own cost per step (the energy indicator, the saved warm starts): bar3d at level n (CN)
+   through its contact with a control that never rejects, against the same steps fixed.
 """
 
 from __future__ import annotations
@@ -23,8 +23,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-
-from benchmarks import median_step, per_call
 
 ROOT = Path(__file__).parents[1]
 
@@ -99,21 +97,36 @@ def hertz_bounces(n: int, flight: float = 10.0) -> dict:
 
 
 def overhead(n: int) -> dict:
-    """The control's indicator (with the motion's error estimate: a level in contact) and its
-    saved warm starts, against the median step of the same run."""
+    """The control's own cost per step (its indicator with the motion's error estimate, the solvers' saved warm
+    starts, its growth bookkeeping): bar3d at level n (CN) stepped through its contact with the control set to never
+    reject (tolerance 1) against the same steps fixed, the median of 60 levels from level 30, two alternated rounds,
+    the best of each.  (Calling the indicator alone on one level, as before, measured its products without the
+    state's cache a real step shares with the energy recorder: 110% of a step, not what a run pays.)"""
+    import time
+
     from signorini.dynamics.stepping.stepper import Stepper
     from signorini.studies.benchmarks import get_benchmark
 
     b = get_benchmark("bar3d")
     p = b.problem(n, {})
     dt, T = b.run_times(n, {})
-    s = Stepper(p, "cn", (dt, T), {"control": "energy"})
-    step = median_step(s, lambda s, k: bool(np.any(s.state.lam)) and k >= 20)  # a level in contact
-    in_contact = bool(np.any(s.state.lam))
-    cost = per_call(lambda: (s.energies.indicator(s.run, s.n, s.state), s.solvers.point()), 50)
-    s.finish()
-    return {"case": f"bar3d n = {n}", "dofs": int(s.run.ctx.disc.space.n_dofs), "step_s": step,
-            "in_contact": in_contact, "control_over_step": cost / step}  # fmt: skip
+    best: dict[str, float] = {}
+    for _ in range(2):
+        for name, control in (("fixed", "fixed"), ("energy", {"control": "energy", "tolerance": 1.0})):
+            s = Stepper(p, "cn", (dt, T), {"control": control})
+            for _ in range(30):
+                s.step()
+            times = []
+            for _ in range(60):
+                t0 = time.perf_counter()
+                s.step()
+                times.append(time.perf_counter() - t0)
+            in_contact = bool(np.any(s.state.lam))
+            dofs = int(s.run.ctx.disc.space.n_dofs)
+            s.finish()
+            best[name] = min(best.get(name, np.inf), float(np.median(times)))
+    return {"case": f"bar3d n = {n}", "dofs": dofs, "step_s": best["fixed"], "in_contact": in_contact,
+            "control_over_step": best["energy"] / best["fixed"] - 1.0}  # fmt: skip
 
 
 def main(argv=None) -> int:
@@ -147,8 +160,8 @@ def main(argv=None) -> int:
               f"{h['energy_between_bounces']:.1e} of E0")  # fmt: skip
     o = out["overhead"]
     print(
-        f"{o['case']} ({o['dofs']} dofs): the control's indicator and saved warm starts cost "
-        f"{100 * o['control_over_step']:.1f}% of a step"
+        f"{o['case']} ({o['dofs']} dofs, a level in contact): a step under a control that never rejects costs "
+        f"{100 * o['control_over_step']:.1f}% more than the same step fixed"
     )
     return 0
 
