@@ -159,12 +159,13 @@ def test_an_indefinite_tangent_at_the_solution_converges_with_the_active_set_hel
 def test_energy_momentum_goes_through_the_bars_contact_with_the_exact_jacobian(monkeypatch):
     """``bar3d`` n = 4 with Neo-Hookean and energy-momentum through its contact (before: no convergence at step 35,
     rate 0.48: 1/2 K(U_mid) is not the Jacobian of the discrete gradient, and in contact its error dominates).
-    With the exact Jacobian's directions, the active set held, every step in at most 10 iterations, the energy
-    identity to round-off; without them step 35 fails again."""
+    With the exact Jacobian's directions (taken once a fresh tangent contracts slowly or needs a correction), the
+    active set held, every step in at most 15 iterations (measured 13), the energy identity to round-off; without
+    them step 35 fails again."""
     problem, dt, T = _bar3d_neo_hookean(0.45)
     H = simulate(problem, "energy-momentum", dt, T)
     assert H.status == "finished", H.summary().get("message")
-    assert H.counters["exact_directions"] > 0 and H.nonlinear_iterations.max() <= 10
+    assert H.counters["exact_directions"] > 0 and H.nonlinear_iterations.max() <= 15
     assert H.summary()["energy_identity_residual"] <= 1e-9 and -H.gap.min() <= 1e-10
     monkeypatch.setattr(newton._Factor, "exact", lambda self, *a: None)
     H = simulate(problem, "energy-momentum", dt, T)

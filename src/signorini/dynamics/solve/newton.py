@@ -78,6 +78,11 @@ REFERENCE_GRADIENT = 0.25
 #: an iterate of a fresh tangent whose residual fell by less than this factor has stalled; it is converged when its
 #: residual is below the round-off of the internal force itself (:meth:`~.elasticity.FiniteStrain.force_noise`)
 STALLED = 0.9
+#: a fresh tangent whose step reduces the residual by less than this factor is taken for an approximate Jacobian:
+#: with a scheme's exact one (``jacobian``: energy-momentum) the rest of the step takes its directions (measured:
+#: the symmetric tangent of energy-momentum contracts by 0.23-0.5 where it is poor; where it is good, as on the gmsh
+#: bracket of examples/bracket_tumble.toml, the exact directions on every iteration cost 3.1x the run's time)
+EXACT_RATE = 0.1
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
@@ -326,6 +331,9 @@ def newton_solve(
             full = a == 1.0
             X_new, U_new, g_new, lam_new, info.lam_t, n_new = trial[:6]
             previous, norm = norm, n_new
+            slow = 0 < previous < np.inf and norm > EXACT_RATE * previous
+            if fresh and factor.jacobian is not None and factor.owned and slow:  # not the Jacobian: the exact one
+                factor.exact_wanted = True
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
             gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
@@ -412,6 +420,9 @@ class _Factor:
                  jacobian: Callable | None = None):  # fmt: skip
         self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
         self.jacobian = jacobian
+        #: whether a fresh tangent contracted |r| by less than EXACT_RATE: the directions of the rest of the step
+        #: are the exact Jacobian's (:meth:`exact`)
+        self.exact_wanted = False
         self.current: Operator | None = None
         self.owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's
         self.corrected = False  # whether ``current`` is the corrected tangent (projected per cell, maybe shifted)
@@ -502,7 +513,7 @@ class _Factor:
                 self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
                 renewed = True
                 continue
-            if self.jacobian is not None and self.owned and _kkt_ok(self.ctx, law, info, rows=False):
+            if (self.exact_wanted or self.corrected) and self.owned and _kkt_ok(self.ctx, law, info, rows=False):
                 exact = self.exact(U, lam, lam_new, minus_r, slack, fixed_d, law)
                 if exact is not None:
                     d, lam_new = exact
@@ -524,8 +535,10 @@ class _Factor:
         of the discrete gradient) converges linearly with it, at a rate that grows with the step's rotation and
         strain (measured: 0.46 per iteration at `spin3d`'s doubled step, 0.5 in `bar3d`'s contact), and no longer
         converges beyond; the exact Jacobian in the system of :meth:`kkt` (one sparse LU) converges
-        quadratically.  Taken only once the step needed a tangent of its own: a step that the scheme's linear
-        operator or a kept tangent solves in a few iterations does not pay an LU per iteration."""
+        quadratically.  Taken only once a fresh tangent of the step contracted slowly (:data:`EXACT_RATE`) or had to
+        be corrected (indefinite: the bar's contact): a step
+        that the scheme's linear operator, a kept tangent or its fresh symmetric tangent solves fast does not pay an
+        LU per iteration."""
         G = self.assembled(U, lam, exact=True)
         sets = [np.flatnonzero(lam_new < 0.0)]
         if lam is not None and not np.array_equal(sets[0], last := np.flatnonzero(lam < 0.0)):
