@@ -513,7 +513,8 @@ class _Factor:
                 self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
                 renewed = True
                 continue
-            if (self.exact_wanted or self.corrected) and self.owned and _kkt_ok(self.ctx, law, info, rows=False):
+            exact = self.jacobian is not None and (self.exact_wanted or self.corrected)
+            if exact and self.owned and _kkt_ok(self.ctx, law, info, rows=False):
                 exact = self.exact(U, lam, lam_new, minus_r, slack, fixed_d, law)
                 if exact is not None:
                     d, lam_new = exact
