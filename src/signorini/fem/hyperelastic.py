@@ -498,6 +498,23 @@ def _element_tangents(terms: TangentTerms, w: np.ndarray, G: np.ndarray, out: np
 GONZALEZ_FLOOR = 1e-24
 
 
+def _gonzalez(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> tuple:
+    """(C_mid, dC, S(C_mid), phi, gap, |dC|^2 or 1 where cut off, cut off) of Gonzalez's discrete gradient
+    S_alg = S(C_mid) + phi dC, phi = 2 gap / (dC:dC), gap = W(C1) - W(C0) - S(C_mid):dC/2 (:func:`algorithmic_stress`);
+    phi = gap = 0 for Saint Venant-Kirchhoff (W quadratic in C) and where |dC|^2 <= GONZALEZ_FLOOR |C_mid|^2 (the
+    correction there is round-off divided by round-off)."""
+    Cm, dC = 0.5 * (C0 + C1), C1 - C0
+    S = law.stress_C(Cm)
+    zero = np.zeros(S.shape[:-2])
+    if isinstance(law, SaintVenantKirchhoffLaw):
+        return Cm, dC, S, zero, zero, np.ones_like(zero), np.ones(zero.shape, dtype=bool)
+    dd = np.einsum("...IJ,...IJ->...", dC, dC)
+    small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
+    gap = np.where(small, 0.0, law.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC))
+    safe = np.where(small, 1.0, dd)
+    return Cm, dC, S, 2.0 * gap / safe, gap, safe, small
+
+
 def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> np.ndarray:
     """Gonzalez's discrete gradient S_alg (..., d, d) between C0 and C1 (spec 12):
 
@@ -505,15 +522,8 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
 
     C_mid = (C0 + C1)/2, dC = C1 - C0, so that S_alg : dC / 2 = W(C1) - W(C0) exactly.  For Saint
     Venant-Kirchhoff (W quadratic in C) the correction vanishes: S_alg = S(C_mid) = (S(C0) + S(C1))/2."""
-    Cm, dC = 0.5 * (C0 + C1), C1 - C0
-    S = law.stress_C(Cm)
-    if isinstance(law, SaintVenantKirchhoffLaw):
-        return S
-    dd = np.einsum("...IJ,...IJ->...", dC, dC)
-    gap = law.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC)
-    small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
-    factor = np.where(small, 0.0, 2.0 * gap / np.where(small, 1.0, dd))
-    return S + factor[..., None, None] * dC
+    _, dC, S, phi, *_ = _gonzalez(law, C0, C1)
+    return S + phi[..., None, None] * dC
 
 
 def algorithmic_force(
@@ -566,22 +576,16 @@ def algorithmic_tangent(
             sub = part_law.take(lo, hi)
             a0, a1 = F0[lo:hi], F1[lo:hi]
             C0, C1 = _green(a0)[0], _green(a1)[0]
-            Cm, dC = 0.5 * (C0 + C1), C1 - C0
-            Sm, CC = sub.stress_C(Cm), sub.tangent_C(Cm)
+            Cm, dC, Sm, phi, gap, safe, small = _gonzalez(sub, C0, C1)
+            CC = sub.tangent_C(Cm)
+            S_alg = Sm + phi[..., None, None] * dC
             A = 0.25 * CC
-            S_alg = Sm
             if not isinstance(sub, SaintVenantKirchhoffLaw):
-                dd = np.einsum("...IJ,...IJ->...", dC, dC)
-                gap = sub.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", Sm, dC)
-                small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
-                safe = np.where(small, 1.0, dd)
-                phi = np.where(small, 0.0, 2.0 * gap / safe)
                 h = (2.0 / safe)[..., None, None] * (
                     0.5 * (sub.stress_C(C1) - Sm) - 0.125 * np.einsum("...IJKL,...KL->...IJ", CC, dC)
                 )
                 h -= (4.0 * gap / (safe * safe))[..., None, None] * dC
                 h = np.where(small[..., None, None], 0.0, h)
-                S_alg = Sm + phi[..., None, None] * dC
                 A = A + phi[..., None, None, None, None] * half_sym
                 A = A + dC[..., :, :, None, None] * h[..., None, None, :, :]
             Fm = 0.5 * (a0 + a1)

@@ -540,12 +540,12 @@ class _Factor:
         be corrected (indefinite: the bar's contact): a step
         that the scheme's linear operator, a kept tangent or its fresh symmetric tangent solves fast does not pay an
         LU per iteration."""
-        G = self.assembled(U, lam, exact=True)
+        H = self._hessian(self.assembled(U, lam, exact=True))  # once for the active sets tried below
         sets = [np.flatnonzero(lam_new < 0.0)]
         if lam is not None and not np.array_equal(sets[0], last := np.flatnonzero(lam < 0.0)):
             sets.append(last)
         for active in sets:
-            out = self._held(G, active, lam_new, minus_r, slack, fixed_d, law)
+            out = self._held(H, active, lam_new, minus_r, slack, fixed_d, law)
             if out is not None:
                 self.elastic.exact_directions += 1
                 return out
@@ -571,21 +571,26 @@ class _Factor:
         if not active.size or not np.array_equal(active, np.flatnonzero(lam < 0.0)):  # no rows: no constraint holds
             # a direction of negative curvature (the corrected direction is the one that descends)
             return None
-        out = self._held(self.assembled(U, lam), active, lam_new, minus_r, slack, fixed_d, law)
+        out = self._held(self._hessian(self.assembled(U, lam)), active, lam_new, minus_r, slack, fixed_d, law)
         if out is not None:
             self.elastic.kkt_directions += 1
         return out
 
-    def _held(self, G: sp.spmatrix, active: np.ndarray, lam_new: np.ndarray, minus_r: np.ndarray, slack: np.ndarray,
-              fixed_d: np.ndarray | None, law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
-        """(d, lambda) of the system of :meth:`kkt` with H = c_M M (+ c C) + c_S G and the rows ``active`` held at
-        their bound (one sparse LU); None when it is singular, or its multipliers pull, or a free row goes through
-        its bound."""
-        ctx = self.ctx
-        H = self.op.mass * ctx.M + self.op.stiffness * G
+    def _hessian(self, G: sp.spmatrix) -> sp.csr_matrix:
+        """H = c_M M (+ c C) + c_S G (n, n), the step's matrix with the tangent or Jacobian G."""
+        H = self.op.mass * self.ctx.M + self.op.stiffness * G
         if self.op.viscous is not None:
             H = H + self.op.viscous.coefficient * self.op.viscous.matrix
-        H, B = sp.csr_matrix(H), sp.csr_matrix(ctx.rows.B)
+        return sp.csr_matrix(H)
+
+    def _held(self, H: sp.csr_matrix, active: np.ndarray, lam_new: np.ndarray, minus_r: np.ndarray,
+              slack: np.ndarray, fixed_d: np.ndarray | None,
+              law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+        """(d, lambda) of the system of :meth:`kkt` with the step's matrix H (:meth:`_hessian`) and the rows
+        ``active`` held at their bound (one sparse LU); None when it is singular, or its multipliers pull, or a free
+        row goes through its bound."""
+        ctx = self.ctx
+        B = sp.csr_matrix(ctx.rows.B)
         f, D = ctx.free, ctx.fixed
         d = np.zeros_like(minus_r)
         if D.size and fixed_d is not None:
