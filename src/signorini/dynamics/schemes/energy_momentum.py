@@ -124,7 +124,7 @@ class EnergyMomentum(Scheme):
         f0 = products(ctx, s)[1]  # f_alg(U^n, U^n) = f(U^n): g(U^n) without evaluating it
         step = StepProblem(self, s, t, (2.0 / dt) * s.V, Fw, law, force=force, tangent=tangent,
                            force_start=np.where(ml, f0, 2.0 * f0), potential=False,
-                           jacobian=jacobian if el.finite else None)  # fmt: skip
+                           jacobian=jacobian)  # fmt: skip
         U, mu, info = solve_step(ctx, step)
         lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu
         if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike

@@ -63,7 +63,8 @@ class StepProblem:
         incremental potential); False: a merit function on the residual (energy-momentum).
     jacobian : the exact dg/dU(U) (n, n), not symmetric, when ``tangent`` is a symmetric approximation of it
         (energy-momentum: K(U_mid) for the discrete gradient's Jacobian); Newton takes its directions from it
-        where it needed a tangent of its own (:meth:`~..newton._Factor.exact`); None: ``tangent`` is exact.
+        where its tangent converges slowly (:meth:`~..solve.newton._Factor.exact`); None: ``tangent`` is exact.
+        Unused by the linear solve (one solve, no iteration).
     total : (n,) q + c_M U^n as the scheme computes it in its own form (Newmark's and theta's predictor p), for
         the linear solve; None: q + c_M U^n.  The same vector to round-off: the linear histories keep the
         rounding they had before the steps were stated this way (a run that reaches its obstacle exactly at a
