@@ -210,7 +210,7 @@ class ContactSet:
                     f"{np.round(box.max(axis=0), 6).tolist()}): move or extend the surface"
                 )
             nodes, gaps, normals = nodes[facing], gaps[facing], normals[facing]
-        weights = facet_weights(mesh, tag)[nodes]
+        weights = facet_weights(mesh, tag, positive=True)[nodes]
         if not np.all(weights > 0) or not np.all(np.isfinite(weights)):
             bad = np.flatnonzero(~(weights > 0)) if not np.all(weights > 0) else np.arange(nodes.size)
             i = int(bad[mesh.first_by_id(nodes[bad])])

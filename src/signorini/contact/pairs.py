@@ -309,7 +309,7 @@ def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -
         raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
                          "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
     r = node_to_facet_rows(mesh, slave, facets, n_dofs, every)
-    weights = facet_weights(mesh, pair.slave)[r.nodes]
+    weights = facet_weights(mesh, pair.slave, positive=True)[r.nodes]
     return PairRows(r.nodes, -r.normals, r.gaps, weights, r.B, r.facet, r.xi, r.facet_nodes, np.unique(facets),
                     r.inactive)  # fmt: skip
 

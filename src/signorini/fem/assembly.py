@@ -314,6 +314,22 @@ def lumped_mass_matrix(M: sp.spmatrix) -> sp.dia_matrix:
     return sp.diags(np.asarray(M.sum(axis=1)).ravel(), format="csr")
 
 
+def hrz_lumped_mass(mesh: Mesh, rho: float | np.ndarray = 1.0) -> sp.csr_matrix:
+    """Scalar HRZ (Hinton-Rock-Zienkiewicz) lumped mass, (n_nodes, n_nodes) diagonal: each cell's consistent
+    diagonal scaled to the cell's mass, m_a = sum_K m_K M^K_aa / sum_b M^K_bb.  Every nodal mass is positive on
+    every cell type; on quadratic cells the row sum is not (a ``triangle6``'s vertices get 0, a ``tetra10``'s
+    -1/20 of the cell); HRZ gives them 1/19 and 1/36 (spec section 16), a ``hexahedron27`` the Gauss-Lobatto
+    (Simpson) weights 1/216, 4/216, 16/216, 64/216."""
+
+    def one(part: Mesh, cut: slice) -> np.ndarray:
+        Ke = element_mass_matrices(part, part_value(rho, cut))
+        diag = np.einsum("eaa->ea", Ke)
+        share = diag * (Ke.sum(axis=(1, 2)) / diag.sum(axis=1))[:, None]
+        return np.bincount(part.cells.ravel(), weights=share.ravel(), minlength=mesh.n_nodes)
+
+    return sp.diags(over_blocks(mesh, one, lambda parts: np.sum(parts, axis=0)), format="csr")
+
+
 def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """Load vector F_(a,i) = int f_i N_a dx for a body force density f [force/length^d].
 
@@ -338,10 +354,14 @@ def _body_load(mesh: Mesh, f) -> np.ndarray:
     return F.ravel()
 
 
-def facet_weights(mesh: Mesh, tag: str) -> np.ndarray:
+def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
     """Nodal boundary weights w_a = int_{Gamma_tag} N_a ds, shape (n_nodes,) [length^(d-1)].
 
-    In 1D every tagged point has weight 1 (a unit cross-section).
+    In 1D every tagged point has weight 1 (a unit cross-section).  ``positive``: the weights of nodal contact,
+    positive at every node of a facet: the integrals, except on ``triangle6`` facets, whose vertices' integral
+    is 0, where each facet's area is shared by its HRZ lumped mass (vertices 1/19, edges 16/57: spec section
+    16); on ``line3`` and ``quad9`` facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight
+    facet) and are the HRZ shares already.
     """
     facets = mesh.facets_of(tag)
     if mesh.dim == 1:
@@ -350,7 +370,11 @@ def facet_weights(mesh: Mesh, tag: str) -> np.ndarray:
     X = mesh.points[facets]  # (nf, nfv, d)
     J = np.einsum("qak,fai->fqik", fref.dN, X)  # (nf, nq, d, d-1)
     area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))
-    we = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N)
+    if positive and fref.name == "triangle6":
+        diag = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N**2)
+        we = diag * (area @ fref.weights / diag.sum(axis=1))[:, None]
+    else:
+        we = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N)
     return np.bincount(facets.ravel(), weights=we.ravel(), minlength=mesh.n_nodes)
 
 

@@ -2,21 +2,37 @@
 
 Every element is described by its reference nodes, shape functions ``N_a(xi)`` and
 their gradients evaluated at a quadrature rule exact for the products needed by the
-mass matrix (degree 2 per direction for Q1, degree 2 for P1 simplices).
+mass matrix (degree 2 per direction for Q1, degree 2 for P1 simplices; degree 4 for the
+quadratic cells: 3 Gauss points per direction on Q2, 3 on ``line3``, a 6-point rule on
+``triangle6``, a 14-point rule of degree 5 on ``tetra10``, all weights positive).
 
-Node orderings follow meshio / VTK:
+Node orderings follow meshio / VTK (the vertices first, as in the linear cell):
 
-``line``        0 --- 1 on [0, 1]
-``quad``        (-1,-1), (1,-1), (1,1), (-1,1) on [-1, 1]^2
-``hexahedron``  bottom face (z=-1) counter-clockwise, then top face (z=+1)
-``triangle``    (0,0), (1,0), (0,1)
-``tetra``       (0,0,0), (1,0,0), (0,1,0), (0,0,1)
+``line``          0 --- 1 on [0, 1]
+``quad``          (-1,-1), (1,-1), (1,1), (-1,1) on [-1, 1]^2
+``hexahedron``    bottom face (z=-1) counter-clockwise, then top face (z=+1)
+``triangle``      (0,0), (1,0), (0,1)
+``tetra``         (0,0,0), (1,0,0), (0,1,0), (0,0,1)
+``line3``         0, 1, then the midpoint
+``triangle6``     the vertices, then the midpoints of edges (0,1), (1,2), (2,0)
+``quad9``         the corners, the midpoints of edges (0,1), (1,2), (2,3), (3,0), the centre
+``tetra10``       the vertices, the midpoints of edges (0,1), (1,2), (2,0), (0,3), (1,3), (2,3)
+``hexahedron27``  the corners, the midpoints of edges (0,1), (1,2), (2,3), (3,0), (4,5), (5,6),
+                  (6,7), (7,4), (0,4), (1,5), (2,6), (3,7), the centres of the faces
+                  x = -1, x = +1, y = -1, y = +1, z = -1, z = +1, the centre (meshio reorders
+                  gmsh's ``hexahedron27`` and ``tetra10`` to these)
+
+A quadratic cell's shape functions are the Lagrange basis of its polynomial space (P2:
+the monomials of degree <= 2; Q2: those of degree <= 2 in each variable) at its nodes,
+N(xi) = p(xi)^T V^-1 with V the space's monomials at the nodes; its facets are the
+quadratic facets of its linear cell's facets (vertices in the same order, then the
+midpoints of the facet's edges in cyclic order, then a quadrilateral facet's centre).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cache
 
 import numpy as np
@@ -53,10 +69,19 @@ class ReferenceElement:
     dN: np.ndarray
     facets: tuple[tuple[int, ...], ...]
     constant_gradients: bool = False
+    #: the polynomial degree of the shape functions (1: P1/Q1, 2: P2/Q2)
+    order: int = 1
+    #: the linear cell with the same vertices (its own name for a linear cell)
+    linear: str = ""
 
     @property
     def n_nodes(self) -> int:
         return self.nodes.shape[0]
+
+    @property
+    def n_vertices(self) -> int:
+        """The number of vertices (the nodes of the linear cell, numbered first)."""
+        return self.nodes.shape[0] if self.order == 1 else reference_element(self.linear).n_nodes
 
 
 def _tensor_gauss(dim: int) -> tuple[np.ndarray, np.ndarray]:
@@ -130,6 +155,118 @@ def _tetra() -> ReferenceElement:
     return ReferenceElement("tetra", 3, nodes, pts, np.full(4, 1 / 24), N, dN, facets, True)
 
 
+# ----------------------------------------------------------------------------- quadratic cells
+#: 3-point Gauss on [-1, 1] (degree 5)
+_G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
+_W3 = np.array([5.0, 8.0, 5.0]) / 9.0
+
+
+def _exponents(dim: int, tensor: bool) -> np.ndarray:
+    """(m, dim) exponents of the monomials of P2 (total degree <= 2) or Q2 (degree <= 2 in each variable)."""
+    grids = np.meshgrid(*([np.arange(3)] * dim), indexing="ij")
+    e = np.stack([g.ravel() for g in grids], axis=1)
+    return e if tensor else e[e.sum(axis=1) <= 2]
+
+
+def _lagrange(nodes: np.ndarray, pts: np.ndarray, tensor: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(N (nq, nv), dN (nq, nv, dim)) of the Lagrange basis at ``nodes`` of P2 or Q2 (module docstring)."""
+    dim = nodes.shape[1]
+    e = _exponents(dim, tensor)
+
+    def mono(x: np.ndarray, k: int | None = None) -> np.ndarray:  # monomials (or their d/dx_k) at x (n, dim)
+        if k is None:
+            return np.prod(x[:, None, :] ** e[None], axis=2)
+        lower = e.copy()
+        lower[:, k] = np.maximum(e[:, k] - 1, 0)
+        return e[None, :, k] * np.prod(x[:, None, :] ** lower[None], axis=2)
+
+    Vinv = np.linalg.inv(mono(nodes))  # (m, nv): the basis' coefficients
+    N = mono(pts) @ Vinv
+    dN = np.stack([mono(pts, k) @ Vinv for k in range(dim)], axis=2)
+    return N, dN
+
+
+def _quadratic_facets(linear: ReferenceElement, nodes: np.ndarray) -> tuple[tuple[int, ...], ...]:
+    """The facets of a quadratic cell: each facet of its linear cell, then the nodes at the midpoints of the
+    facet's edges (cyclic order), then (a quadrilateral facet) the node at its centre."""
+    out = []
+    for f in linear.facets:
+        pts = [linear.nodes[a] for a in f]
+        if len(f) >= 2:
+            pts += [(linear.nodes[a] + linear.nodes[b]) / 2 for a, b in zip(f, f[1:] + f[:1], strict=True)]
+            if len(f) == 2:
+                pts = pts[:3]  # a segment: one midpoint
+        if len(f) == 4:
+            pts.append(linear.nodes[list(f)].mean(axis=0))
+        out.append(tuple(int(np.flatnonzero(np.all(np.abs(nodes - x) < 1e-12, axis=1))[0]) for x in pts))
+    return tuple(out)
+
+
+def _quadratic(name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray,
+               tensor: bool) -> ReferenceElement:  # fmt: skip
+    linear = reference_element(linear_name)
+    nodes = np.vstack([linear.nodes, extra])
+    N, dN = _lagrange(nodes, pts, tensor)
+    return ReferenceElement(name, linear.dim, nodes, pts, w, N, dN, _quadratic_facets(linear, nodes), False, 2,
+                            linear_name)  # fmt: skip
+
+
+def _line3() -> ReferenceElement:
+    return _quadratic("line3", "line", np.array([[0.5]]), ((_G3 + 1.0) / 2.0)[:, None], _W3 / 2.0, True)
+
+
+def _triangle6() -> ReferenceElement:
+    # Dunavant's rule of degree 4: two orbits of three points (barycentric (a, a, 1 - 2a))
+    a, b = 0.44594849091596488632, 0.09157621350977074346
+    wa, wb = 0.11169079483900573285, 0.054975871827660933819
+    pts = np.array([[a, a], [1 - 2 * a, a], [a, 1 - 2 * a], [b, b], [1 - 2 * b, b], [b, 1 - 2 * b]])
+    w = np.array([wa, wa, wa, wb, wb, wb])
+    extra = np.array([[0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
+    return _quadratic("triangle6", "triangle", extra, pts, w, False)
+
+
+def _tetra10() -> ReferenceElement:
+    # a 14-point rule of degree 5 with positive weights: two orbits of four points (barycentric (a, a, a,
+    # 1 - 3a)) and one of six (b, b, 1/2 - b, 1/2 - b)
+    a1, a2, b = 0.092735250310891236065, 0.31088591926330061307, 0.045503704125649607082
+    w1, w2, w3 = 0.012248840519393661041, 0.01878132095300264784, 0.0070910034628469051906
+    rows, w = [], []
+    for a, wa in ((a1, w1), (a2, w2)):
+        for k in range(4):
+            lam = np.full(4, a)
+            lam[k] = 1 - 3 * a
+            rows.append(lam[1:])
+            w.append(wa)
+    for i, j in ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)):
+        lam = np.full(4, 0.5 - b)
+        lam[[i, j]] = b
+        rows.append(lam[1:])
+        w.append(w3)
+    edges = ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))
+    v = np.vstack([np.zeros(3), np.eye(3)])
+    extra = np.array([(v[i] + v[j]) / 2 for i, j in edges])
+    return _quadratic("tetra10", "tetra", extra, np.array(rows), np.array(w), False)
+
+
+def _quad9() -> ReferenceElement:
+    c = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    extra = np.vstack([(c + np.roll(c, -1, axis=0)) / 2, np.zeros((1, 2))])
+    X, Y = np.meshgrid(_G3, _G3, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    return _quadratic("quad9", "quad", extra, pts, np.outer(_W3, _W3).ravel(), True)
+
+
+def _hexahedron27() -> ReferenceElement:
+    v = reference_element("hexahedron").nodes
+    edges = ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7))
+    faces = [np.eye(3)[k] * s for k in range(3) for s in (-1.0, 1.0)]  # x = -1, x = +1, y = -1, ...
+    extra = np.vstack([[(v[i] + v[j]) / 2 for i, j in edges], faces, np.zeros((1, 3))])
+    X, Y, Z = np.meshgrid(_G3, _G3, _G3, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    w = np.einsum("i,j,k->ijk", _W3, _W3, _W3).ravel()
+    return _quadratic("hexahedron27", "hexahedron", extra, pts, w, True)
+
+
 @dataclass(frozen=True)
 class CellKind:
     """A registered cell type: its reference element's builder and the type of its facets."""
@@ -146,7 +283,15 @@ ELEMENTS: dict[str, CellKind] = {
     "triangle": CellKind(_triangle, "line"),
     "hexahedron": CellKind(_hexahedron, "quad"),
     "tetra": CellKind(_tetra, "triangle"),
+    "line3": CellKind(_line3, "vertex"),
+    "triangle6": CellKind(_triangle6, "line3"),
+    "quad9": CellKind(_quad9, "line3"),
+    "tetra10": CellKind(_tetra10, "triangle6"),
+    "hexahedron27": CellKind(_hexahedron27, "quad9"),
 }
+#: the quadratic cell with the vertices of each linear cell (:func:`~.mesh.elevate`)
+QUADRATIC = {"line": "line3", "triangle": "triangle6", "quad": "quad9", "tetra": "tetra10",
+             "hexahedron": "hexahedron27"}  # fmt: skip
 
 
 @cache
@@ -154,7 +299,8 @@ def reference_element(name: str) -> ReferenceElement:
     """The reference element of a meshio cell-type name (:data:`ELEMENTS`, or ``vertex``); KeyError otherwise."""
     if name == "vertex":
         return _vertex()
-    return ELEMENTS[name].build()
+    ref = ELEMENTS[name].build()
+    return ref if ref.linear else replace(ref, linear=name)
 
 
 SUPPORTED_CELLS = tuple(ELEMENTS)

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MeshError, not_a_file
-from .elements import FACET_TYPES, SUPPORTED_CELLS, determinants, jacobians, reference_element
+from .elements import FACET_TYPES, QUADRATIC, SUPPORTED_CELLS, determinants, jacobians, reference_element
 
 
 @dataclass(frozen=True)
@@ -128,6 +128,9 @@ class Mesh:
             start += part.cells.shape[0]
         if len(dims) > 1:
             raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one dimension")
+        if len({reference_element(t).order for t in types}) > 1:
+            raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one order (linear and quadratic "
+                            "cells do not conform: elevate the whole mesh, signorini.fem.mesh.elevate)")  # fmt: skip
         return blocks
 
     def cached(self, key: str, build: Callable[[], Any]) -> Any:
@@ -141,6 +144,11 @@ class Mesh:
     def mixed(self) -> bool:
         """Several cell types (:attr:`blocks`; ``cells`` is None)."""
         return self._blocks is not None
+
+    @property
+    def order(self) -> int:
+        """The polynomial order of the cells (1: linear, 2: quadratic; one order per mesh)."""
+        return reference_element(self.blocks[0].cell_type).order
 
     @property
     def blocks(self) -> list[CellBlock]:
@@ -330,13 +338,21 @@ def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
     return out
 
 
-#: the meshio type of a facet by its number of nodes
-FACET_OF_WIDTH = {1: "vertex", 2: "line", 3: "triangle", 4: "quad"}
+#: the meshio type of a facet of a ``dim``-dimensional mesh by its number of nodes
+FACET_OF_WIDTH = {(2, 2): "line", (2, 3): "line3", (3, 3): "triangle", (3, 4): "quad", (3, 6): "triangle6",
+                  (3, 9): "quad9"}  # fmt: skip
 
 
 def facet_type(facets: np.ndarray, dim: int) -> str:
-    """The cell type of facets (n, nfv): a point in 1D, a line in 2D, a triangle or a quad in 3D."""
-    return FACET_OF_WIDTH[1 if dim == 1 else int(np.shape(facets)[1])]
+    """The cell type of facets (n, nfv): a point in 1D, a line (``line3`` quadratic) in 2D, a triangle or a quad
+    (``triangle6``, ``quad9``) in 3D."""
+    return "vertex" if dim == 1 else FACET_OF_WIDTH[(dim, int(np.shape(facets)[1]))]
+
+
+def facet_vertices(facets: np.ndarray, dim: int) -> np.ndarray:
+    """The vertex columns of facets (n, nfv) (a quadratic facet's nodes list its vertices first): what tells
+    two facets apart (two quadratic facets sharing an edge share three nodes)."""
+    return facets if dim == 1 else facets[:, : reference_element(facet_type(facets, dim)).n_vertices]
 
 
 # ----------------------------------------------------------------------------- boundary
@@ -358,9 +374,15 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
     ref = reference_element(cell_type)
     loc = np.array(ref.facets)
     faces = cells[:, loc].reshape(-1, loc.shape[1])
-    key = face_keys(faces, int(cells.max()) + 1)
+    key = face_keys(faces[:, : _facet_vertex_count(cell_type)], int(cells.max()) + 1)
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     return faces[counts[inv] == 1]
+
+
+def _facet_vertex_count(cell_type: str) -> int:
+    """The number of vertices of a facet of ``cell_type`` (its facets list them first)."""
+    ref = reference_element(cell_type)
+    return len(reference_element(ref.linear).facets[0])
 
 
 def mesh_boundary(mesh: Mesh) -> list[np.ndarray]:
@@ -368,13 +390,14 @@ def mesh_boundary(mesh: Mesh) -> list[np.ndarray]:
     mesh between two blocks, a 2D edge of a triangle and a quad, is inside)."""
     if len(mesh.blocks) == 1:
         return [boundary_facets(mesh.blocks[0].cells, mesh.blocks[0].cell_type)]
-    faces = []
+    faces, nv = [], []
     for b in mesh.blocks:
         loc = np.array(reference_element(b.cell_type).facets)
         faces.append(b.cells[:, loc].reshape(-1, loc.shape[1]))
-    keys = [face_keys(f, mesh.n_nodes) for f in faces]
+        nv.append(_facet_vertex_count(b.cell_type))
+    keys = [face_keys(f[:, :k], mesh.n_nodes) for f, k in zip(faces, nv, strict=True)]
     if len({k.dtype for k in keys}) > 1:  # the opaque row values of a huge mesh: compare as rows of 3
-        keys = [_rows(np.sort(f, axis=1)[:, :3]) for f in faces]
+        keys = [_rows(np.sort(f[:, :k], axis=1)[:, :3]) for f, k in zip(faces, nv, strict=True)]
     _, inv, counts = np.unique(np.concatenate(keys), return_inverse=True, return_counts=True)
     once = counts[inv] == 1
     out, start = {}, 0
@@ -464,8 +487,8 @@ def resolution(mesh: Mesh) -> float:
     nb = int(label.max(initial=0)) + 1
     short = []
     for b in mesh.blocks:  # a few cell types; per type a loop over the pairs of a cell's nodes (at most 28)
-        x = mesh.points[b.cells]
-        nv = b.cells.shape[1]
+        nv = reference_element(b.cell_type).n_vertices  # a quadratic cell's size is its vertices' (not h / 2)
+        x = mesh.points[b.cells[:, :nv]]
         h = np.full(b.cells.shape[0], np.inf)
         for i in range(nv):
             for j in range(i + 1, nv):
@@ -523,17 +546,28 @@ def _check_lengths(**lengths: float) -> None:
             raise MeshError(f"{name} must be a positive length, got {v!r}")
 
 
-def interval(n: int, length: float = 1.0, x0: float = 0.0) -> Mesh:
-    """P1 mesh of [x0, x0 + length] with ``n`` equal elements; tags ``xmin``, ``xmax``."""
+def _check_order(order: int) -> None:
+    if not isinstance(order, (int, np.integer)) or isinstance(order, bool) or order not in (1, 2):
+        raise MeshError(f"order must be 1 (linear cells) or 2 (quadratic cells), got {order!r}")
+
+
+def interval(n: int, length: float = 1.0, x0: float = 0.0, order: int = 1) -> Mesh:
+    """P1 (``order`` 2: P2, ``line3``) mesh of [x0, x0 + length] with ``n`` equal elements; tags ``xmin``, ``xmax``."""
     _check_counts(n=n)
     _check_lengths(length=length)
+    _check_order(order)
     x = x0 + np.linspace(0.0, length, n + 1)
     cells = np.column_stack([np.arange(n), np.arange(1, n + 1)])
-    return Mesh(x[:, None], cells, "line", {"xmin": np.array([[0]]), "xmax": np.array([[n]])}, grid=(x,))
+    mesh = Mesh(x[:, None], cells, "line", {"xmin": np.array([[0]]), "xmax": np.array([[n]])}, grid=(x,))
+    return mesh if order == 1 else elevate(mesh)
 
 
-def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "quad") -> Mesh:
-    """Structured mesh of [0,lx]x[0,ly]: ``nx`` x ``ny`` quads, or twice as many triangles."""
+def rectangle(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, cell: str = "quad", order: int = 1) -> Mesh:
+    """Structured mesh of [0,lx]x[0,ly]: ``nx`` x ``ny`` quads, or twice as many triangles; ``order`` 2: the same
+    cells quadratic (``quad9``, ``triangle6``: :func:`elevate`)."""
+    _check_order(order)
+    if order == 2:
+        return elevate(rectangle(nx, ny, lx, ly, cell))
     _check_counts(nx=nx, ny=ny)
     _check_lengths(lx=lx, ly=ly)
     xs, ys = np.linspace(0, lx, nx + 1), np.linspace(0, ly, ny + 1)
@@ -565,8 +599,13 @@ def box(
     ly: float = 1.0,
     lz: float = 1.0,
     cell: str = "hexahedron",
+    order: int = 1,
 ) -> Mesh:
-    """Structured mesh of [0,lx]x[0,ly]x[0,lz]: hexahedra or six tetrahedra per cube."""
+    """Structured mesh of [0,lx]x[0,ly]x[0,lz]: hexahedra or six tetrahedra per cube; ``order`` 2: the same cells
+    quadratic (``hexahedron27``, ``tetra10``: :func:`elevate`)."""
+    _check_order(order)
+    if order == 2:
+        return elevate(box(nx, ny, nz, lx, ly, lz, cell))
     _check_counts(nx=nx, ny=ny, nz=nz)
     _check_lengths(lx=lx, ly=ly, lz=lz)
     xs, ys, zs = (np.linspace(0, L, m + 1) for L, m in ((lx, nx), (ly, ny), (lz, nz)))
@@ -594,6 +633,88 @@ def box(
     raise MeshError(f"unknown 3D cell {cell!r}; allowed: hexahedron, tetra")
 
 
+def elevate(mesh: Mesh) -> Mesh:
+    """The quadratic mesh of a linear one (straight-sided: every new node at the centroid of the vertices of the
+    edge, face or cell it belongs to; ``line3``, ``triangle6``, ``quad9``, ``tetra10``, ``hexahedron27``).
+
+    A new node of the reference cell belongs to the vertices whose linear shape functions are positive there (an
+    edge's two, a quadrilateral face's four, a hexahedron's eight); cells and tagged facets sharing those vertices
+    share the node (numbered after the vertices, in the order of first appearance over the cells).  Tags and regions
+    are kept; the structured ``grid`` is not (the nodes are no longer its tensor product)."""
+    if any(reference_element(b.cell_type).order != 1 for b in mesh.blocks):
+        raise MeshError("elevate needs a mesh of linear cells (this one is quadratic already)")
+    parents: list[np.ndarray] = []  # per block: (ne, extra, k) vertices of each new node, -1 padded
+
+    def owners(cell_type: str, cells: np.ndarray) -> np.ndarray:
+        quad = reference_element(QUADRATIC[cell_type])
+        lin = reference_element(cell_type)
+        extra = quad.nodes[lin.n_nodes :]
+        N = _linear_shapes(lin, extra)  # (extra, nv) the linear shape functions at the new nodes
+        k = int((N > 1e-12).sum(axis=1).max())
+        own = np.full((cells.shape[0], extra.shape[0], k), -1, dtype=np.int64)
+        for j in range(extra.shape[0]):  # a few nodes per cell type (at most 19)
+            v = np.flatnonzero(N[j] > 1e-12)
+            own[:, j, : v.size] = np.sort(cells[:, v], axis=1)
+        return own
+
+    blocks = mesh.blocks
+    k_max = 0
+    for b in blocks:
+        parents.append(owners(b.cell_type, b.cells))
+        k_max = max(k_max, parents[-1].shape[2])
+    facet_parents = {}
+    for tag, f in mesh.facets.items():
+        if mesh.dim == 1:
+            continue
+        facet_parents[tag] = owners(facet_type(f, mesh.dim), f)
+        k_max = max(k_max, facet_parents[tag].shape[2])
+
+    def padded(own: np.ndarray) -> np.ndarray:
+        out = np.full(own.shape[:2] + (k_max,), -1, dtype=np.int64)
+        out[..., : own.shape[2]] = np.sort(np.where(own < 0, np.iinfo(np.int64).max, own), axis=2)
+        return np.where(out == np.iinfo(np.int64).max, -1, out)
+
+    rows = [padded(o).reshape(-1, k_max) for o in parents]
+    allrows = np.vstack(rows)
+    keys, first, inverse = np.unique(_rows(allrows), return_index=True, return_inverse=True)
+    order_ = np.argsort(first, kind="stable")  # numbered in the order of first appearance
+    number = np.empty(keys.size, dtype=np.int64)
+    number[order_] = mesh.n_nodes + np.arange(keys.size)
+    new_of = number[inverse.ravel()]
+    owner_rows = allrows[first[order_]]
+    valid = owner_rows >= 0
+    coords = np.where(valid[..., None], mesh.points[np.maximum(owner_rows, 0)], 0.0).sum(axis=1)
+    coords /= valid.sum(axis=1, keepdims=True)
+    points = np.vstack([mesh.points, coords])
+    cells_out, start = [], 0
+    for b, own in zip(blocks, parents, strict=True):
+        m = own.shape[0] * own.shape[1]
+        cells_out.append(np.hstack([b.cells, new_of[start : start + m].reshape(own.shape[:2])]))
+        start += m
+    facets = {}
+    for tag, f in mesh.facets.items():
+        if mesh.dim == 1:
+            facets[tag] = f
+            continue
+        fr = padded(facet_parents[tag]).reshape(-1, k_max)
+        pos = np.searchsorted(keys, _rows(fr))
+        if not np.all(keys[np.minimum(pos, keys.size - 1)] == _rows(fr)):
+            raise MeshError(f"elevate: tag {tag!r} has facets that are not faces of the cells")
+        facets[tag] = np.hstack([f, number[pos].reshape(f.shape[0], -1)])
+    types = [QUADRATIC[b.cell_type] for b in blocks]
+    if len(types) == 1:
+        return Mesh(points, cells_out[0], types[0], facets, regions=dict(mesh.regions))
+    return Mesh(points, cells_out, types, facets, regions=dict(mesh.regions))
+
+
+def _linear_shapes(lin: Any, x: np.ndarray) -> np.ndarray:
+    """The linear cell's shape functions at reference points x (m, dim): barycentric on simplices,
+    multilinear on [-1, 1]^d."""
+    if lin.constant_gradients:  # a simplex (the segment on [0, 1] too)
+        return np.column_stack([1.0 - x.sum(axis=1), x])
+    return np.prod((1.0 + x[:, None, :] * lin.nodes[None, :, :]) / 2.0, axis=2)
+
+
 def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
     """Boundary quads of a structured hexahedral grid ``idx[z, y, x]``, by side."""
 
@@ -611,7 +732,7 @@ def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
 
 
 # ----------------------------------------------------------------------------- files
-_DIM_OF = {"line": 1, "triangle": 2, "quad": 2, "tetra": 3, "hexahedron": 3}
+_DIM_OF = {t: reference_element(t).dim for t in SUPPORTED_CELLS}
 
 
 def _tagged_facets(m, ftype: str, names: dict[int, str], fdim: int) -> dict[str, list[np.ndarray]]:
@@ -724,7 +845,7 @@ def read_mesh(path: str | Path) -> Mesh:
     m = meshio_read(p, "mesh file")
     kinds = {b.type for b in m.cells}
     volume = [t for t in kinds if t in _DIM_OF]
-    unsupported = [t for t in kinds if t not in _DIM_OF and t not in ("vertex", "line", "triangle", "quad")]
+    unsupported = [t for t in kinds if t not in _DIM_OF and t != "vertex"]
     if not volume:
         raise MeshError(
             f"{p.name}: no supported cells (found {sorted(kinds)}); supported: {', '.join(SUPPORTED_CELLS)}"

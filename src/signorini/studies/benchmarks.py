@@ -125,6 +125,9 @@ class Benchmark:
         for k in ("gap", "velocity"):
             if k in p and p[k] < 0:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be >= 0, got {p[k]}")
+        if "order" in p and p["order"] not in (1.0, 2.0):
+            raise InputError(f"parameter 'order' of {self.name!r} must be 1 (linear cells) or 2 (quadratic cells), "
+                             f"got {p['order']:g}")  # fmt: skip
         if self.check is not None:
             self.check(p)
         return p
@@ -158,17 +161,15 @@ class Benchmark:
         """(nodes, cells, nodes per cell) of level n, without building the mesh."""
         if self.sizes is not None:
             return self.sizes(n, self.params(overrides))[1:4]
-        if self.dim == 1:
-            return n + 1, n, 2
-        if self.dim == 2:
-            return (n + 1) * (10 * n + 1), 10 * n * n, 4
-        return (n + 1) ** 2 * (10 * n + 1), 10 * n**3, 8
+        k = _order(self.params(overrides))  # nodes per cell edge - 1
+        cells = n if self.dim == 1 else 10 * n**self.dim
+        return (k * n + 1) ** (self.dim - 1) * (10 ** (self.dim > 1) * k * n + 1), cells, (k + 1) ** self.dim
 
     def contact_count(self, n: int, overrides: dict | None = None) -> int:
         """Number of contact nodes of level n (one end or side of the bar)."""
         if self.sizes is not None:
             return self.sizes(n, self.params(overrides))[4]
-        return (n + 1) ** (self.dim - 1)
+        return (_order(self.params(overrides)) * n + 1) ** (self.dim - 1)
 
     def problem(self, n: int, overrides: dict | None = None) -> Problem:
         if not isinstance(n, (int, np.integer)) or n < 1:
@@ -191,6 +192,11 @@ class Benchmark:
         return float(np.sqrt((p["lam"] + 2 * p["mu"]) / p["rho"]))
 
 
+def _order(p: dict) -> int:
+    """The cells' order of a bar (parameter ``order``: 1 linear, 2 quadratic)."""
+    return int(p.get("order", 1.0))
+
+
 def _clamp(value: float, b: float) -> float | Callable:
     """Clamp value u_D, or the prescribed motion u_D + b t."""
     if b == 0.0:
@@ -206,7 +212,7 @@ def _obstacle_1d(w: float) -> PlaneObstacle:
 def _bar1d(n: int, p: dict) -> Problem:
     L, g = p["L"], p["gap"]
     return Problem(
-        mesh=interval(n, L),
+        mesh=interval(n, L, order=_order(p)),
         material=IsotropicElastic.from_young(p["E"], 0.0, p["rho"]),
         contact_tag="xmin",
         obstacle=_obstacle_1d(p["obstacle_velocity"]),
@@ -220,7 +226,7 @@ def _bar1d(n: int, p: dict) -> Problem:
 def _bar1d_impact(n: int, p: dict) -> Problem:
     g = p["gap"]
     return Problem(
-        mesh=interval(n, p["L"]),
+        mesh=interval(n, p["L"], order=_order(p)),
         material=IsotropicElastic.from_young(p["E"], 0.0, p["rho"]),
         contact_tag="xmin",
         obstacle=_obstacle_1d(p["obstacle_velocity"]),
@@ -235,9 +241,9 @@ def _bar(dim: int) -> Callable[[int, dict], Problem]:
     def build(n: int, p: dict) -> Problem:
         w, length, g, v = p["width"], p["length"], p["gap"], p["velocity"]
         if dim == 2:
-            mesh = rectangle(n, 10 * n, w, length)
+            mesh = rectangle(n, 10 * n, w, length, order=_order(p))
         else:
-            mesh = box(n, n, 10 * n, w, w, length)
+            mesh = box(n, n, 10 * n, w, w, length, order=_order(p))
         e = np.eye(dim)[-1]
         top, bottom = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
         return Problem(
@@ -254,8 +260,8 @@ def _bar(dim: int) -> Callable[[int, dict], Problem]:
     return build
 
 
-_BAR = {"rho": 1.0, "lam": 0.25, "mu": 0.5, "gap": 0.2, "velocity": 0.5, "width": 0.1, "length": 1.0}
-_MOTION = {"clamp_velocity": 0.0, "obstacle_velocity": 0.0}
+_BAR = {"rho": 1.0, "lam": 0.25, "mu": 0.5, "gap": 0.2, "velocity": 0.5, "width": 0.1, "length": 1.0, "order": 1.0}
+_MOTION = {"clamp_velocity": 0.0, "obstacle_velocity": 0.0, "order": 1.0}
 
 
 def _exact_bar1d(p: dict, T: float) -> ExactBar1D:

@@ -58,6 +58,7 @@ from ...errors import InputError
 from ...fem.assembly import (
     assemble_vector,
     element_mass_matrices,
+    hrz_lumped_mass,
     lumped_mass_matrix,
     part_value,
     scalar_mass_matrix,
@@ -90,6 +91,8 @@ def _standard(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.cs
 
 
 def _lumped(mesh: Mesh, rho: float, contact_nodes=None, normals=None) -> sp.csr_matrix:
+    if mesh.order == 2:  # the row sum is zero or negative at the vertices: HRZ
+        return vectorize(hrz_lumped_mass(mesh, rho), mesh.dim)
     return vectorize(lumped_mass_matrix(scalar_mass_matrix(mesh, rho)), mesh.dim)
 
 
