@@ -303,6 +303,11 @@ def _closest(row: np.ndarray, dist: np.ndarray, centres: np.ndarray, size: float
 def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -> PairRows:
     """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring); ``every``: a row for every
     slave node (:func:`node_to_facet_rows`)."""
+    if mesh.order != 1:
+        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: contact pairs need linear cells (a node "
+                         "against the straight facets of the master surface); the mesh has quadratic cells "
+                         f"({mesh.cell_type}), whose curved master facets are not supported yet: mesh both bodies "
+                         "with linear cells, or use a rigid obstacle")  # fmt: skip
     slave = mesh.nodes_of(pair.slave)
     facets = mesh.facets_of(pair.master)
     if np.intersect1d(slave, np.unique(facets)).size:

@@ -84,7 +84,7 @@ from ..dynamics.model.validate import INITIAL_ACCELERATIONS
 from ..dynamics.schemes import SCHEMES
 from ..errors import InputError, check_choice, check_positive, not_a_file
 from ..fem.material import MATERIAL_MODELS, IsotropicElastic, with_model
-from ..fem.mesh import Mesh, box, interval, read_mesh, rectangle
+from ..fem.mesh import Mesh, box, elevate, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
 from ..linalg import BACKENDS, SOLVER_OPTIONS, solver_options
 from ..registry import FilePath, Motion, RotationTable, Vector
@@ -211,12 +211,20 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
     gen = check_choice("mesh.generator", gen, {"interval", "rectangle", "box", "file"}) if gen else None
     if gen is None:
         raise InputError("missing key 'mesh.generator'; allowed: interval, rectangle, box, file")
+    order = m.get("order")
+    if order is not None and (isinstance(order, bool) or order not in (1, 2)):
+        raise InputError(f"'mesh.order' must be 1 (linear cells) or 2 (quadratic cells), got {_short(order)}")
     if gen == "file":
         if "file" not in m or not isinstance(m["file"], str):
             raise InputError("'mesh.file' must be the path of a mesh file")
         if files is not None:
             files.append(base / m["file"])
-        return read_mesh(base / m["file"])
+        mesh = read_mesh(base / m["file"])
+        if order == 1 and mesh.order == 2:
+            raise InputError(f"'mesh.order' = 1, but {m['file']!r} holds quadratic cells ({mesh.cell_type}); remove "
+                             "'order' (a file's cells are read as they are) or mesh it with linear cells")  # fmt: skip
+        return elevate(mesh) if order == 2 and mesh.order == 1 else mesh
+    order = int(order or 1)
     dim = {"interval": 1, "rectangle": 2, "box": 3}[gen]
     cells = m.get("cells")
     if (
@@ -241,13 +249,15 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
         per_cell, split = {"line": (2, 1), "quad": (4, 1), "triangle": (3, 2), "hexahedron": (8, 1), "tetra": (4, 6)}[
             cell
         ]
-        nodes = math.prod(c + 1 for c in cells)
-        guard((nodes, split * math.prod(cells), per_cell, dim, nodes // (min(cells) + 1)))
+        if order == 2:  # the doubled grid (a split cell's diagonals meet at the grid's new points)
+            per_cell = {"line": 3, "quad": 9, "triangle": 6, "hexahedron": 27, "tetra": 10}[cell]
+        nodes = math.prod(order * c + 1 for c in cells)
+        guard((nodes, split * math.prod(cells), per_cell, dim, nodes // (order * min(cells) + 1)))
     if dim == 1:
-        return interval(cells[0], size[0])
+        return interval(cells[0], size[0], order=order)
     if dim == 2:
-        return rectangle(cells[0], cells[1], size[0], size[1], cell)
-    return box(*cells, *size, cell=cell)
+        return rectangle(cells[0], cells[1], size[0], size[1], cell, order=order)
+    return box(*cells, *size, cell=cell, order=order)
 
 
 def _material(t: dict, key: str = "material", allowed: set[str] | None = None, model: str = "linear"

@@ -69,6 +69,10 @@ SECTIONS: tuple[Section, ...] = (
             Key("cell", "string", "line / quad / hexahedron", "",
                 "line (1D); quad | triangle (2D); hexahedron | tetra (3D)", _ex('"line"', '"quad"', '"hexahedron"')),
             Key("file", "string", "", "", "mesh file, relative to the case file (generator = file)"),
+            Key("order", "1 or 2", "1 (a file: its own)", "",
+                "the cells' order: 1 linear, 2 quadratic (line3, triangle6 | quad9, tetra10 | hexahedron27; a "
+                "file of linear cells is elevated with straight sides, a file of quadratic cells is read as it is)",
+                _ex("", "", "")),
         ),
         required=True,
     ),

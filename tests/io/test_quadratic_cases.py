@@ -1,0 +1,121 @@
+"""Quadratic cells from the command line and case files (issue 54): ``[mesh] order = 2``, ``--set order=2``,
+the refusals by name (exit 2, nothing written), a resume bit for bit, two ranks equal to one."""
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from signorini.fem.mesh import rectangle, write_mesh
+from signorini.io.cli import main
+
+BAR2D = (
+    '[mesh]\ngenerator = "rectangle"\ncells = [2, 8]\nsize = [0.1, 0.4]\n{order}[material]\nrho = 1.0\n'
+    'lam = 0.25\nmu = 0.5\n[[dirichlet]]\ntag = "ymax"\nvalue = [0.0, 0.2]\n[contact]\ntag = "ymin"\n'
+    'obstacle = {{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }}\n[initial]\n'
+    "displacement = [0.0, 0.2]\nvelocity = [0.0, -1.0]\n[time]\ndt = 0.025\nT = 0.6\n"
+)
+
+
+def _run(capsys, args):
+    rc = main(args)
+    cap = capsys.readouterr()
+    assert "Traceback" not in cap.err + cap.out
+    return rc, cap.err
+
+
+def _case(tmp_path: Path, order: str = "order = 2\n", name: str = "case.toml", mesh: str | None = None) -> Path:
+    text = BAR2D.format(order=order)
+    if mesh is not None:
+        text = text.replace('generator = "rectangle"\ncells = [2, 8]\nsize = [0.1, 0.4]\n', f'file = "{mesh}"\n')
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_a_case_file_of_quadratic_cells_runs_and_says_so(tmp_path, capsys):
+    rc, _ = _run(capsys, ["run", str(_case(tmp_path)), "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["dofs"] == 2 * 5 * 17 and s["contact_nodes"] == 5  # the mid-side nodes of the contact side too
+    assert s["impacts"] >= 1 and s["energy_identity_residual"] < 1e-12
+
+
+@pytest.mark.parametrize("order", ["order = 3\n", 'order = "2"\n', "order = true\n", "order = 2.5\n"])
+def test_a_bad_order_is_refused_by_name(tmp_path, capsys, order):
+    rc, err = _run(capsys, ["run", str(_case(tmp_path, order)), "--out", str(tmp_path / "o")])
+    assert rc == 2 and "'mesh.order' must be 1 (linear cells) or 2 (quadratic cells)" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_mesh_file_is_read_as_it_is_or_elevated(tmp_path, capsys):
+    write_mesh(rectangle(2, 8, 0.1, 0.4), tmp_path / "lin.msh")
+    write_mesh(rectangle(2, 8, 0.1, 0.4, order=2), tmp_path / "quad.msh")
+    a_case = _case(tmp_path, "", "a.toml", "quad.msh")
+    rc, _ = _run(capsys, ["run", str(a_case), "--out", str(tmp_path / "a"), "--quiet"])
+    assert rc == 0
+    rc, _ = _run(capsys, ["run", str(_case(tmp_path, "order = 2\n", "b.toml", "lin.msh")), "--out",
+                          str(tmp_path / "b"), "--quiet"])  # fmt: skip
+    assert rc == 0
+    a, b = (np.genfromtxt(tmp_path / k / "history.csv", delimiter=",", names=True) for k in "ab")
+    assert np.array_equal(a["lambda_sum"], b["lambda_sum"])  # the file read as quad9 = the linear one elevated
+    rc, err = _run(capsys, ["run", str(_case(tmp_path, "order = 1\n", "c.toml", "quad.msh")), "--out",
+                            str(tmp_path / "c")])  # fmt: skip
+    assert rc == 2 and "holds quadratic cells (quad9)" in err and not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("mass", ["seed", "seed-normal", "neighbour"])
+def test_masses_not_defined_on_quadratic_cells_are_refused_by_name(tmp_path, capsys, mass):
+    rc, err = _run(capsys, ["run", "bar2d", "--set", "order=2", "--n", "1", "--mass", mass, "--out",
+                            str(tmp_path / "o")])  # fmt: skip
+    assert rc == 2 and f"mass {mass!r} is defined on linear cells only" in err and not (tmp_path / "o").exists()
+
+
+def test_a_benchmark_order_other_than_one_or_two_is_refused(tmp_path, capsys):
+    rc, err = _run(capsys, ["run", "bar1d", "--set", "order=3", "--out", str(tmp_path / "o")])
+    assert rc == 2 and "parameter 'order' of 'bar1d' must be 1 (linear cells) or 2 (quadratic cells)" in err
+
+
+def test_contact_pairs_on_quadratic_cells_are_refused_by_name(tmp_path, capsys):
+    root = Path(__file__).resolve().parents[2] / "examples"
+    shutil.copytree(root / "meshes", tmp_path / "meshes")
+    text = (
+        (root / "block_on_block.toml")
+        .read_text()
+        .replace('file = "meshes/block_on_block.msh"', 'file = "meshes/block_on_block.msh"\norder = 2')
+    )
+    case = tmp_path / "bob.toml"
+    case.write_text(text.replace('directory = "out/block-on-block"', ""))
+    rc, err = _run(capsys, ["run", str(case), "--out", str(tmp_path / "o")])
+    assert rc == 2 and "contact pairs need linear cells" in err and "(quad9)" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_resumed_quadratic_run_is_the_uninterrupted_one(tmp_path, capsys):
+    case = _case(tmp_path)
+    assert _run(capsys, ["run", str(case), "--out", str(tmp_path / "whole"), "--quiet"])[0] == 0
+    assert _run(capsys, ["run", str(case), "--T", "0.3", "--checkpoint-every", "5", "--out", str(tmp_path / "half"),
+                         "--quiet"])[0] == 0  # fmt: skip
+    rest = ["resume", str(tmp_path / "half"), "--T", "0.6", "--out", str(tmp_path / "rest"), "--quiet"]
+    assert _run(capsys, rest)[0] == 0
+    a = (tmp_path / "whole" / "history.csv").read_text().splitlines()
+    b = (tmp_path / "rest" / "history.csv").read_text().splitlines()
+    assert a == b
+
+
+def test_two_ranks_equal_one_on_quadratic_cells(tmp_path):
+    root = Path(__file__).resolve().parents[2]
+    mpiexec, exe = root / ".venv-mpi" / "bin" / "mpiexec", root / ".venv-mpi" / "bin" / "signorini"
+    if not mpiexec.exists():
+        pytest.skip("the MPI environment (bash scripts/mpi-env.sh) is not set up")
+    args = ["run", "bar2d", "--set", "order=2", "--n", "2", "--T", "0.8", "--quiet"]
+    subprocess.run([str(mpiexec), "-n", "2", str(exe), *args, "--backend", "petsc", "--out", str(tmp_path / "p")],
+                   check=True, capture_output=True, timeout=300)  # fmt: skip
+    subprocess.run([str(exe), *args, "--out", str(tmp_path / "s")], check=True, capture_output=True, timeout=300)
+    p, s = (np.genfromtxt(tmp_path / k / "history.csv", delimiter=",", names=True) for k in "ps")
+    assert np.abs(s["lambda_sum"]).max() > 0.05  # the bar is in contact
+    assert np.allclose(p["lambda_sum"], s["lambda_sum"], rtol=0, atol=1e-12 * np.abs(s["lambda_sum"]).max())
+    assert np.allclose(p["energy"], s["energy"], rtol=0, atol=1e-12 * s["energy"][0])
