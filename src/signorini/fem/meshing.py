@@ -81,8 +81,10 @@ def pole_refined_ball(
     h_far: float,
     r_fine: float,
     grading: float = 0.5,
+    order: int = 1,
 ) -> Mesh:
-    """A disc (dim 2) or ball (dim 3) of radius R touching x_d = 0 at the origin.
+    """A disc (dim 2) or ball (dim 3) of radius R touching x_d = 0 at the origin; ``order`` 2: quadratic cells
+    (``triangle6``, ``tetra10``) whose new nodes gmsh places on the circle or sphere (curved facets).
 
     Parameters
     ----------
@@ -123,7 +125,9 @@ def pole_refined_ball(
             gmsh.option.setNumber(f"Mesh.{opt}", 0)
         gmsh.option.setNumber("Mesh.MeshSizeMax", h_far)
         gmsh.model.mesh.generate(dim)
-        return _to_mesh(gmsh, dim, cap, rest)
+        if order == 2:
+            gmsh.model.mesh.setOrder(2)
+        return _to_mesh(gmsh, dim, cap, rest, order)
     finally:
         gmsh.finalize()
 
@@ -160,17 +164,25 @@ def _elements(gmsh, dim: int, tags: list[int], etype: int) -> np.ndarray:
         for t, n in zip(types, nodes, strict=True):
             if t == etype:
                 out.append(np.asarray(n, dtype=np.int64))
-    npe = {1: 2, 2: 3, 4: 4}[etype]
+    npe = {1: 2, 2: 3, 4: 4, 8: 3, 9: 6, 11: 10}[etype]
     return np.concatenate(out).reshape(-1, npe) if out else np.zeros((0, npe), dtype=np.int64)
 
 
-def _to_mesh(gmsh, dim: int, cap: list[int], rest: list[int]) -> Mesh:
+#: gmsh's element types of (dim, order): (cell type, cell element, facet element); its tetra10 lists the midpoints
+#: of edges (2, 3) and (1, 3) in the other order than VTK's (meshio swaps them alike)
+_GMSH_TYPES = {(2, 1): ("triangle", 2, 1), (3, 1): ("tetra", 4, 2), (2, 2): ("triangle6", 9, 8),
+               (3, 2): ("tetra10", 11, 9)}  # fmt: skip
+
+
+def _to_mesh(gmsh, dim: int, cap: list[int], rest: list[int], order: int = 1) -> Mesh:
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     pts = np.asarray(coords).reshape(-1, 3)[:, :dim]
     node_tags = np.asarray(node_tags, dtype=np.int64)
     volumes = [t for _, t in gmsh.model.getEntities(dim)]
-    cell_type, etype, ftype = ("tetra", 4, 2) if dim == 3 else ("triangle", 2, 1)
+    cell_type, etype, ftype = _GMSH_TYPES[(dim, order)]
     cells_g = _elements(gmsh, dim, volumes, etype)
+    if cell_type == "tetra10":
+        cells_g = cells_g[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]]
     used = np.unique(cells_g)
     index = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)
     index[node_tags] = np.arange(node_tags.size)
@@ -188,11 +200,17 @@ def _to_mesh(gmsh, dim: int, cap: list[int], rest: list[int]) -> Mesh:
     return mesh
 
 
+#: the node permutation that swaps a simplex's vertices 0 and 1 (with its edges' midpoints), by nodes per cell
+_SWAP01 = {3: [1, 0, 2], 4: [1, 0, 2, 3], 6: [1, 0, 2, 3, 5, 4], 10: [1, 0, 2, 3, 4, 6, 5, 8, 7, 9]}
+
+
 def _orient(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Swap two nodes of every simplex whose Jacobian determinant is negative."""
-    X = points[cells]
+    """Swap vertices 0 and 1 (and the midpoints of the edges they change) of every simplex whose vertices'
+    Jacobian determinant is negative."""
+    d = points.shape[1]
+    X = points[cells[:, : d + 1]]
     J = X[:, 1:] - X[:, :1]
     neg = np.linalg.det(J) < 0
     cells = cells.copy()
-    cells[neg, 0], cells[neg, 1] = cells[neg, 1].copy(), cells[neg, 0].copy()
+    cells[neg] = cells[neg][:, _SWAP01[cells.shape[1]]]
     return cells

@@ -291,7 +291,7 @@ def _contact_radius(H) -> float:
 
 # ----------------------------------------------------------------------------- benchmarks
 HERTZ_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "velocity": 0.002, "cap": 2.0, "far": 0.25,
-                  "grading": 0.5, "skin": 0.0, "tangential_velocity": 0.0, "mu": 0.0}  # fmt: skip
+                  "grading": 0.5, "skin": 0.0, "tangential_velocity": 0.0, "mu": 0.0, "order": 1.0}  # fmt: skip
 DEFAULT_LEVEL = {2: 8, 3: 3}
 STEPS_PER_DURATION = 25  # default dt = t_c / (25 n)
 
@@ -345,7 +345,7 @@ def _mesh_sizes(dim: int, n: int, p: dict) -> tuple[float, float, float]:
 def builder(dim: int) -> Callable[[int, dict], Problem]:
     def build(n: int, p: dict) -> Problem:
         h_c, h_far, r_fine = _mesh_sizes(dim, n, p)
-        mesh = pole_refined_ball(dim, p["R"], cap_angle(dim, p), h_c, h_far, r_fine, p["grading"])
+        mesh = pole_refined_ball(dim, p["R"], cap_angle(dim, p), h_c, h_far, r_fine, p["grading"], int(p["order"]))
         e = np.eye(dim)[-1]
         return Problem(
             mesh=mesh,
@@ -365,6 +365,8 @@ def sizes(dim: int) -> Callable[[int, dict], tuple[float, int, int, int, int]]:
     def counts(n: int, p: dict) -> tuple[float, int, int, int, int]:
         h_c, h_far, r_fine = _mesh_sizes(dim, n, p)
         nodes, cells, contact = estimate_counts(dim, p["R"], h_c, h_far, r_fine, p["grading"])
+        if p["order"] == 2:  # a vertex per edge more: about 2^d nodes per vertex (a simplicial mesh's edge count)
+            return h_c, nodes * 2**dim, cells, (dim + 1) * (dim + 2) // 2, contact * 2 ** (dim - 1)
         return h_c, nodes, cells, dim + 1, contact
 
     return counts
