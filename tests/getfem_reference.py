@@ -350,7 +350,10 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
         dim = {"bar2d": 2, "bar3d": 3}[case["benchmark"]]
         p = {**BAR_DEFAULTS, **case.get("params", {})}
         m, pts = bar_mesh(dim, int(case["n"]), p["width"], p["length"])
-        fem, integ = f"FEM_QK({dim},1)", f"IM_GAUSS_PARALLELEPIPED({dim},3)"
+        order = int(case.get("order", 1))  # 2: Q2 on the same (affine) cells, signorini's nodes in ``points``
+        fem, integ = f"FEM_QK({dim},{order})", f"IM_GAUSS_PARALLELEPIPED({dim},{2 * order + 1})"
+        if order == 2:
+            pts = np.asarray(case["points"], dtype=float)
         u0, v0, clamped = p["gap"] * np.eye(dim)[-1], -p["velocity"] * np.eye(dim)[-1], True
     elif "block" in case:
         p = dict(case["params"])
@@ -362,7 +365,7 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
         p = dict(case["params"])
         m, pts = file_mesh(case["mesh"], case["contact"])
         dim = m.dim()
-        fem, integ = f"FEM_PK({dim},1)", f"IM_{'TRIANGLE' if dim == 2 else 'TETRAHEDRON'}(2)"
+        fem, integ = cell_fem(m)  # P1 (or P2 on a file of triangle6) on the simplices of the file
         u0, v0, clamped = np.zeros(dim), -p["velocity"] * np.eye(dim)[-1], False
     u0 = np.asarray(case.get("u0", u0), dtype=float)
     v0 = np.asarray(case.get("v0", v0), dtype=float)
@@ -561,6 +564,10 @@ def cell_fem(m: gf.Mesh) -> tuple[str, str]:
         return f"FEM_PK({dim},1)", f"IM_{'TRIANGLE' if dim == 2 else 'TETRAHEDRON'}(2)"
     if nv == {2**dim}:
         return f"FEM_QK({dim},1)", f"IM_GAUSS_PARALLELEPIPED({dim},3)"
+    if nv == {6} and dim == 2:  # triangle6 (curved: GT_PK(2,2)): P2, the 6-point rule of degree 4 (signorini's)
+        return "FEM_PK(2,2)", "IM_TRIANGLE(4)"
+    if nv == {3**dim}:  # quad9 / hexahedron27: Q2, 3 Gauss points per direction
+        return f"FEM_QK({dim},2)", f"IM_GAUSS_PARALLELEPIPED({dim},5)"
     raise ValueError(f"one cell type per file: simplices or quadrilaterals/hexahedra, got {sorted(nv)} vertices")
 
 
