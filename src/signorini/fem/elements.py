@@ -304,6 +304,18 @@ def reference_element(name: str) -> ReferenceElement:
 
 
 SUPPORTED_CELLS = tuple(ELEMENTS)
+
+
+def linear_shapes(name: str, x: np.ndarray) -> np.ndarray:
+    """(m, nv) the shape functions of the linear cell ``name`` (its vertices) at reference points x (m, dim):
+    barycentric on simplices (the segment on [0, 1] too), multilinear on [-1, 1]^d.  On a quadratic cell's
+    reference points (its nodes, its quadrature points) they are the P1/Q1 functions of its vertices."""
+    lin = reference_element(reference_element(name).linear)
+    if lin.constant_gradients:
+        return np.column_stack([1.0 - x.sum(axis=1), x])
+    return np.prod((1.0 + x[:, None, :] * lin.nodes[None, :, :]) / 2.0, axis=2)
+
+
 FACET_TYPES = {name: kind.facet for name, kind in ELEMENTS.items()}
 
 

@@ -28,7 +28,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import MeshError, not_a_file
-from .elements import FACET_TYPES, QUADRATIC, SUPPORTED_CELLS, determinants, jacobians, reference_element
+from .elements import (
+    FACET_TYPES,
+    QUADRATIC,
+    SUPPORTED_CELLS,
+    determinants,
+    jacobians,
+    linear_shapes,
+    reference_element,
+)
 
 
 @dataclass(frozen=True)
@@ -649,7 +657,7 @@ def elevate(mesh: Mesh) -> Mesh:
         quad = reference_element(QUADRATIC[cell_type])
         lin = reference_element(cell_type)
         extra = quad.nodes[lin.n_nodes :]
-        N = _linear_shapes(lin, extra)  # (extra, nv) the linear shape functions at the new nodes
+        N = linear_shapes(cell_type, extra)  # (extra, nv) the linear shape functions at the new nodes
         k = int((N > 1e-12).sum(axis=1).max())
         own = np.full((cells.shape[0], extra.shape[0], k), -1, dtype=np.int64)
         for j in range(extra.shape[0]):  # a few nodes per cell type (at most 19)
@@ -705,14 +713,6 @@ def elevate(mesh: Mesh) -> Mesh:
     if len(types) == 1:
         return Mesh(points, cells_out[0], types[0], facets, regions=dict(mesh.regions))
     return Mesh(points, cells_out, types, facets, regions=dict(mesh.regions))
-
-
-def _linear_shapes(lin: Any, x: np.ndarray) -> np.ndarray:
-    """The linear cell's shape functions at reference points x (m, dim): barycentric on simplices,
-    multilinear on [-1, 1]^d."""
-    if lin.constant_gradients:  # a simplex (the segment on [0, 1] too)
-        return np.column_stack([1.0 - x.sum(axis=1), x])
-    return np.prod((1.0 + x[:, None, :] * lin.nodes[None, :, :]) / 2.0, axis=2)
 
 
 def _structured_box_facets(idx: np.ndarray) -> dict[str, np.ndarray]:
