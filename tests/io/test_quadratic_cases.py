@@ -119,3 +119,37 @@ def test_two_ranks_equal_one_on_quadratic_cells(tmp_path):
     assert np.abs(s["lambda_sum"]).max() > 0.05  # the bar is in contact
     assert np.allclose(p["lambda_sum"], s["lambda_sum"], rtol=0, atol=1e-12 * np.abs(s["lambda_sum"]).max())
     assert np.allclose(p["energy"], s["energy"], rtol=0, atol=1e-12 * s["energy"][0])
+
+
+COMMANDS = [["study", "bar1d"], ["compare", "bar2d", "--schemes", "cn", "--masses", "standard"]]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_study_and_compare_of_quadratic_benchmarks_refuse_by_name(tmp_path, capsys, command):
+    rc, err = _run(capsys, [*command, "--set", "order=2", "--out", str(tmp_path / "o")])
+    assert rc == 2 and "measures errors between nested levels of linear cells" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_compare_runs_a_case_file_of_quadratic_cells(tmp_path, capsys):
+    case = _case(tmp_path)
+    rc, _ = _run(capsys, ["compare", str(case), "--schemes", "cn,be", "--masses", "standard,moment-preserving",
+                          "--out", str(tmp_path / "o")])  # fmt: skip
+    assert rc == 0
+    assert (tmp_path / "o" / "compare.md").read_text().count("| crank-nicolson |") == 2
+
+
+def test_spin_benchmark_on_curved_quadratic_cells(tmp_path, capsys):
+    """spin2d with --set order=2: the mapped grid's mid-side nodes mapped too (on the circle at the rim)."""
+    from signorini.studies.benchmarks import get_benchmark
+
+    mesh = get_benchmark("spin2d").problem(1, {"order": 2}).mesh
+    assert mesh.cell_type == "quad9"
+    rim = np.linalg.norm(mesh.points, axis=1)
+    assert rim.max() == pytest.approx(1.0, rel=1e-14, abs=0)
+    mids = mesh.cells[:, 4:8].ravel()  # the mid-side nodes of the boundary sit on the unit circle too
+    boundary = np.isclose(np.linalg.norm(mesh.points[mids], axis=1), 1.0, rtol=0, atol=1e-12)
+    assert boundary.sum() == 16  # the 4 x 4 grid's 16 boundary edges, each midpoint in one cell
+    args = ["run", "spin2d", "--set", "order=2", "--set", "revolutions=0.5", "--n", "1", "--quiet"]
+    rc, _ = _run(capsys, [*args, "--out", str(tmp_path / "o")])
+    assert rc == 0

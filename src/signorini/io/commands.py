@@ -45,9 +45,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR, check_levels, study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
-    bench.require_nested("signorini study")
     overrides = parse_assignments(args.set, "--set")
-    bench.params(overrides)
+    bench.require_nested("signorini study", overrides)
     if args.levels < 2:
         raise InputError(f"--levels must be >= 2 to measure a rate, got {args.levels}")
     if args.n0 is None:

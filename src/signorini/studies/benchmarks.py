@@ -137,8 +137,15 @@ class Benchmark:
         """Whether levels are nested structured meshes (what reference studies and compare need)."""
         return self.sizes is None or self.structured
 
-    def require_nested(self, command: str) -> None:
-        """InputError for a command that measures errors against a finer nested level."""
+    def require_nested(self, command: str, overrides: dict | None = None) -> None:
+        """InputError for a command that measures errors against a finer nested level (on linear cells: the
+        levels' errors interpolate nested grids of P1/Q1 cells)."""
+        if self.params(overrides).get("order", 1.0) != 1.0:
+            raise InputError(
+                f"{command} measures errors between nested levels of linear cells; order = 2 (quadratic cells) is not "
+                f"supported there yet: run one level by signorini run {self.name} --set order=2, or compare schemes "
+                "and masses on a case file with [mesh] order = 2 (one level, no errors)"
+            )
         if not self.nested:
             how = "is meshed by gmsh and compared with Hertz's theory" if self.name.startswith("hertz") else (
                 "prints its closed-form values beside the computed ones")  # fmt: skip

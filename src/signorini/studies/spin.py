@@ -40,7 +40,8 @@ from ..errors import InputError
 from ..fem.material import IsotropicElastic, NeoHookean, SaintVenantKirchhoff
 from ..fem.mesh import Mesh, box, rectangle
 
-SPIN_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "tip": 0.3, "revolutions": 10.0, "model": 2.0}
+SPIN_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "tip": 0.3, "revolutions": 10.0, "model": 2.0,
+                 "order": 1.0}  # fmt: skip
 #: the material of each value of the ``model`` parameter
 MODELS = {0: IsotropicElastic, 1: SaintVenantKirchhoff, 2: NeoHookean}
 DEFAULT_LEVEL = {2: 2, 3: 1}
@@ -73,9 +74,11 @@ def axis(dim: int) -> np.ndarray:
     return np.array([0.0, 0.0, 1.0]) if dim == 2 else np.array([1.0, 2.0, 3.0]) / math.sqrt(14.0)
 
 
-def round_mesh(dim: int, n: int, R: float) -> Mesh:
-    """The disc (ball) of radius R centred at the origin: the mapped grid of the module docstring."""
-    m = rectangle(4 * n, 4 * n, 2.0, 2.0) if dim == 2 else box(4 * n, 4 * n, 4 * n, 2.0, 2.0, 2.0)
+def round_mesh(dim: int, n: int, R: float, order: int = 1) -> Mesh:
+    """The disc (ball) of radius R centred at the origin: the mapped grid of the module docstring (``order`` 2:
+    quadratic cells, their mid-side nodes mapped too: curved)."""
+    m = rectangle(4 * n, 4 * n, 2.0, 2.0, order=order) if dim == 2 else box(4 * n, 4 * n, 4 * n, 2.0, 2.0, 2.0,
+                                                                             order=order)  # fmt: skip
     x = m.points - 1.0
     sq = x * x
     if dim == 2:
@@ -100,7 +103,7 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
 
         e = np.eye(dim)[-1]
         return Problem(
-            mesh=round_mesh(dim, n, p["R"]),
+            mesh=round_mesh(dim, n, p["R"], int(p["order"])),
             material=material(p),
             contact_tag="ymin" if dim == 2 else "zmin",
             obstacle=PlaneObstacle(-plane_distance(p) * e, e),
@@ -119,8 +122,8 @@ def plane_distance(p: dict) -> float:
 
 def sizes(dim: int) -> Callable[[int, dict], tuple[float, int, int, int, int]]:
     def counts(n: int, p: dict) -> tuple[float, int, int, int, int]:
-        k = 4 * n
-        return 2 * p["R"] / k, (k + 1) ** dim, k**dim, 2**dim, (k + 1) ** (dim - 1)
+        k, q = 4 * n, int(p["order"])
+        return 2 * p["R"] / k, (q * k + 1) ** dim, k**dim, (q + 1) ** dim, (q * k + 1) ** (dim - 1)
 
     return counts
 

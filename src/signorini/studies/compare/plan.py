@@ -136,7 +136,7 @@ def plan_benchmark(
     ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level); ``solver_options`` (the
     backend among them) for every run.  Raises InputError."""
     b = get_benchmark(name)
-    b.require_nested("signorini compare")
+    b.require_nested("signorini compare", overrides)
     params = b.params(overrides)
     target = BenchmarkTarget(
         b.name, tuple(sorted((k, float(v)) for k, v in (overrides or {}).items())), friction=friction
