@@ -153,3 +153,21 @@ def test_spin_benchmark_on_curved_quadratic_cells(tmp_path, capsys):
     args = ["run", "spin2d", "--set", "order=2", "--set", "revolutions=0.5", "--n", "1", "--quiet"]
     rc, _ = _run(capsys, [*args, "--out", str(tmp_path / "o")])
     assert rc == 0
+
+
+@pytest.mark.parametrize("extra", ['model = "neo-hookean"\n', 'friction = { law = "coulomb", coefficient = 0.3 }\n'])
+def test_finite_strain_and_friction_on_quadratic_cells(tmp_path, capsys, extra):
+    """Neo-Hookean (contact in the current configuration) and Coulomb friction on quad9: the run finishes and its
+    energy identity closes (solver_work in it for Newton)."""
+    text = _case(tmp_path).read_text()  # a gentler impact (v / c = 0.25, contact at t = 0.17)
+    text = text.replace("[0.0, 0.2]", "[0.0, 0.05]").replace("[0.0, -1.0]", "[0.0, -0.3]")
+    if "model" in extra:
+        text = text.replace("mu = 0.5\n", "mu = 0.5\n" + extra)
+    else:
+        text = text.replace("normal = [0.0, 1.0] }\n", "normal = [0.0, 1.0] }\n" + extra)
+    case = tmp_path / "x.toml"
+    case.write_text(text)
+    rc, _ = _run(capsys, ["run", str(case), "--out", str(tmp_path / "o"), "--quiet"])
+    assert rc == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["impacts"] >= 1 and s["energy_identity_residual"] < 1e-12

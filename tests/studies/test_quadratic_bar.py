@@ -33,7 +33,7 @@ def default_mass():
 
 def test_p2_contact_force_converges_with_the_default_mass(default_mass):
     """Measured: 0.245, 0.177, 0.128, 0.092 (rates 0.47, 0.46, 0.48); the linear cells at equal dofs and step
-    0.317, 0.234, 0.175, 0.146 (docs/verification.md)."""
+    0.347, 0.258, 0.219, 0.192 (docs/quadratic.md)."""
     errors = np.array([e for e, _ in default_mass])
     rates = np.log2(errors[:-1] / errors[1:])
     assert np.all((rates > 0.35) & (rates < 0.6)), rates
@@ -58,6 +58,7 @@ def test_p2_energy_changes_only_where_the_contact_does_and_at_order_h(default_ma
 
 def test_p2_consistent_mass_does_not_converge():
     """The consistent P2 mass keeps the contact node's inertia: its force oscillates, and the error does not
-    fall (measured 1.28, 0.80, 1.35, 1.45 at dt = L / dofs; spec section 16: 0.68-0.84 with its own step)."""
+    fall (measured 2.62, 3.10, 3.28, 3.37 at 20 ... 160 dofs; the spec's section 16 has 0.68-0.84 with its own
+    step and norm)."""
     errors = np.array([_run(n, "standard")[0] for n in DOFS[::3]])
     assert np.all(errors > 0.5) and errors[-1] > 0.7 * errors[0], errors

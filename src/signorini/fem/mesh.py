@@ -62,9 +62,10 @@ class Mesh:
     points : (n_nodes, dim) float array, coordinates in length units.
     cells : (n_cells, nv) int array, node indices (meshio ordering); None for a mixed mesh,
         whose cells are in :attr:`blocks`.
-    cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra``; ``mixed`` for
-        several.  A mixed mesh is given as lists: ``Mesh(points, [tets, hexes], ["tetra",
-        "hexahedron"])``; its cells are numbered block after block.
+    cell_type : ``line``, ``quad``, ``triangle``, ``hexahedron`` or ``tetra`` (quadratic: ``line3``,
+        ``quad9``, ``triangle6``, ``hexahedron27``, ``tetra10``); ``mixed`` for several.  A mixed mesh
+        is given as lists: ``Mesh(points, [tets, hexes], ["tetra", "hexahedron"])``; its cells are
+        numbered block after block.
     facets : dict tag -> (n_facets, nfv) int array of boundary facets.
     grid : for structured tensor-product meshes made by the generators, the 1D node
         coordinates along x, y (, z); node ``i + (nx+1) (j + (ny+1) k)`` sits at
@@ -74,6 +75,7 @@ class Mesh:
         messages name nodes by it (:meth:`node_id`).  ``None``: the numbers are the user's.
     regions : dict tag -> (k,) int array of cell indices (sorted, each cell once per region);
         a cell may belong to several regions or to none.
+    order : 1 (linear cells) or 2 (quadratic), from the cell types (set on construction).
     """
 
     points: np.ndarray
@@ -124,6 +126,8 @@ class Mesh:
         self.facets = {k: np.asarray(v, dtype=np.int64) for k, v in self.facets.items()}
         self.regions = {k: _region_cells(k, v, self.n_cells) for k, v in self.regions.items()}
         self._cache: dict = {}
+        #: the polynomial order of the cells (1: linear, 2: quadratic; one order per mesh)
+        self.order: int = reference_element(self.blocks[0].cell_type).order
 
     def _make_blocks(self, types: list[str], arrays: list) -> list[CellBlock]:
         """The blocks of a mixed mesh, each validated as the cells of a one-type mesh."""
@@ -152,11 +156,6 @@ class Mesh:
     def mixed(self) -> bool:
         """Several cell types (:attr:`blocks`; ``cells`` is None)."""
         return self._blocks is not None
-
-    @property
-    def order(self) -> int:
-        """The polynomial order of the cells (1: linear, 2: quadratic; one order per mesh)."""
-        return reference_element(self.blocks[0].cell_type).order
 
     @property
     def blocks(self) -> list[CellBlock]:
