@@ -171,3 +171,25 @@ def test_finite_strain_and_friction_on_quadratic_cells(tmp_path, capsys, extra):
     assert rc == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["impacts"] >= 1 and s["energy_identity_residual"] < 1e-12
+
+
+def test_fields_of_quadratic_cells_are_quadratic_cells_for_vtk(tmp_path, capsys):
+    """fields.xdmf holds the quad9 cells: VTK's XDMF reader (ParaView's) makes them biquadratic quads (drawn
+    curved), its points ours, and the stress tensors written per cell."""
+    rc, _ = _run(capsys, ["run", str(_case(tmp_path)), "--snapshot-every", "8", "--out", str(tmp_path / "o"),
+                          "--quiet"])  # fmt: skip
+    assert rc == 0
+    import meshio
+
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "o" / "fields.xdmf")) as r:
+        points, cells = r.read_points_cells()
+        _, point_data, cell_data = r.read_data(r.num_steps - 1)
+    assert [c.type for c in cells] == ["quad9"] and cells[0].data.shape == (16, 9)
+    assert {"displacement", "von_mises"} <= set(point_data) and {"cauchy_stress", "strain"} <= set(cell_data)
+    vtk = pytest.importorskip("vtkmodules.vtkIOXdmf2", reason="VTK's XDMF reader: pip install '.[vtk]'")
+    reader = vtk.vtkXdmfReader()
+    reader.SetFileName(str(tmp_path / "o" / "fields.xdmf"))
+    reader.Update()
+    out = reader.GetOutputDataObject(0)
+    assert {out.GetCellType(i) for i in range(out.GetNumberOfCells())} == {28}  # VTK_BIQUADRATIC_QUAD
+    assert out.GetNumberOfPoints() == points.shape[0]
