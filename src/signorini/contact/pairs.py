@@ -37,8 +37,8 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from ..fem.assembly import facet_weights
 from ..fem.dofmap import DofMap
-from ..fem.elements import reference_element
-from ..fem.mesh import Mesh
+from ..fem.elements import reference_element, shape_functions
+from ..fem.mesh import Mesh, facet_type, facet_vertices
 from .friction import Friction, make_friction
 
 #: master facets tried per slave node (the nearest centres); more cost more, fewer may miss
@@ -114,8 +114,9 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
     else:
         loc = np.array(reference_element(b.cell_type).facets)
         faces = b.cells[:, loc].reshape(-1, loc.shape[1])  # every cell face, outward order
-    key_faces = _keys(faces, mesh.n_nodes)
-    key_tag = _keys(facets, mesh.n_nodes)
+    nv = facet_vertices(facets, mesh.dim).shape[1]  # a quadratic facet is told apart by its vertices
+    key_faces = _keys(faces[:, :nv], mesh.n_nodes)
+    key_tag = _keys(facets[:, :nv], mesh.n_nodes)
     order = np.argsort(key_faces, kind="stable")
     pos = np.searchsorted(key_faces[order], key_tag)
     pos = np.minimum(pos, order.size - 1)
@@ -128,17 +129,29 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
     d = mesh.dim
     if d == 1:  # a vertex: outward is away from the other node of its cell (1D: one block)
         cell = order[pos] // loc.shape[0]
-        other = b.cells[cell].sum(axis=1) - oriented[:, 0]
+        other = b.cells[cell][:, :2].sum(axis=1) - oriented[:, 0]  # (a line3's mid-side node is not a vertex)
         n = np.sign(X[oriented[:, 0], 0] - X[other, 0])[:, None]
         return n.astype(float), oriented
     if d == 2:
         t = X[oriented[:, 1]] - X[oriented[:, 0]]
         n = np.column_stack([t[:, 1], -t[:, 0]])
-    else:
-        a, b, c = X[oriented[:, 0]], X[oriented[:, 1]], X[oriented[:, -1]]
+    else:  # the vertices' normal (a quadratic facet's is the same at its vertices' plane)
+        a, b, c = X[oriented[:, 0]], X[oriented[:, 1]], X[oriented[:, nv - 1]]
         n = np.cross(b - a, c - a)
     n /= np.linalg.norm(n, axis=1)[:, None]
     return n, oriented
+
+
+def _normal_at(P: np.ndarray, N: np.ndarray, kind: str, outward: np.ndarray) -> np.ndarray:
+    """The unit normal (m, d) of facets P (m, nfv, d) at the points of shape functions N (m, nfv), outward as the
+    facets' normals ``outward`` (m, d): that of a bilinear or curved face at the point, a flat facet's own."""
+    if kind == "quad":
+        n = _quad_normal(P, N)
+    elif kind in CURVED:
+        n = _curved_normals(P, N, kind)
+    else:
+        return outward
+    return n * np.sign(np.einsum("md,md->m", n, outward))[:, None]
 
 
 def _keys(f: np.ndarray, nn: int) -> np.ndarray:
@@ -148,9 +161,18 @@ def _keys(f: np.ndarray, nn: int) -> np.ndarray:
     return face_keys(f, nn)
 
 
+#: the quadratic (curved) facets and the linear facet of their vertices
+CURVED = {"line3": "line", "triangle6": "triangle", "quad9": "quad"}
+#: Gauss-Newton iterations of a projection on a curved facet (it stops when no point moves by 1e-14)
+CURVED_ITERATIONS = 30
+
+
 def _closest_on_facets(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
     """Closest points (m, d) of points x (m, d) on facets P (m, nfv, d) and the facets' shape
-    functions there (m, nfv): a vertex, a segment, a triangle or a bilinear quadrilateral."""
+    functions there (m, nfv): a vertex, a segment, a triangle or a bilinear quadrilateral, or their
+    quadratic (curved) forms (:func:`_closest_on_curved`)."""
+    if kind in CURVED:
+        return _closest_on_curved(x, P, kind)
     if kind == "vertex":
         return P[:, 0], np.ones((x.shape[0], 1))
     if kind == "line":
@@ -161,6 +183,51 @@ def _closest_on_facets(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndar
     if kind == "triangle":
         return _closest_on_triangles(x, P)
     return _closest_on_quads(x, P)
+
+
+def _closest_on_curved(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points on quadratic facets P (m, nfv, d): projected Gauss-Newton on the facet's parameters s
+    (x(s) = sum_j N_j(s) P_j; s in [0, 1], the reference triangle or [-1, 1]^2), started at the closest point
+    of the linear facet of its vertices.  At its fixed point the residual x - x(s) is orthogonal to the facet
+    (or s on the parameters' boundary): the exact closest point of the curved facet."""
+    ref = reference_element(kind)
+    nv = ref.n_vertices
+    _, N0 = _closest_on_facets(x, P[:, :nv], CURVED[kind])
+    s = N0 @ reference_element(CURVED[kind]).nodes  # the linear guess's parameters (m, k)
+    for _ in range(CURVED_ITERATIONS):
+        N, dN = shape_functions(kind, s)
+        r = x - np.einsum("mj,mjd->md", N, P)
+        J = np.einsum("mjk,mjd->mdk", dN, P)  # dx/ds (m, d, k)
+        step = np.linalg.solve(np.einsum("mdk,mdl->mkl", J, J), np.einsum("mdk,md->mk", J, r)[..., None])[..., 0]
+        new = _into_parameters(s + step, kind)
+        moved = float(np.abs(new - s).max(initial=0.0))
+        s = new
+        if moved <= 1e-14:
+            break
+    N, _ = shape_functions(kind, s)
+    return np.einsum("mj,mjd->md", N, P), N
+
+
+def _into_parameters(s: np.ndarray, kind: str) -> np.ndarray:
+    """Parameters s (m, k) moved into the facet's reference domain (the nearest point of it)."""
+    if kind == "line3":
+        return np.clip(s, 0.0, 1.0)
+    if kind == "quad9":
+        return np.clip(s, -1.0, 1.0)
+    s = np.maximum(s, 0.0)  # the reference triangle: beyond the hypotenuse, onto it, then into [0, 1]
+    over = np.maximum(s.sum(axis=1) - 1.0, 0.0)
+    return np.clip(s - over[:, None] / 2.0, 0.0, 1.0)
+
+
+def _curved_normals(P: np.ndarray, N: np.ndarray, kind: str) -> np.ndarray:
+    """Unit normals (m, d) of quadratic facets P (m, nfv, d) at the points of shape functions N (m, nfv), by the
+    facets' node order as :func:`_facet_normals` (the parameters recovered as s = N @ the reference nodes: the
+    shape functions reproduce linear functions)."""
+    s = N @ reference_element(kind).nodes
+    _, dN = shape_functions(kind, s)
+    J = np.einsum("mjk,mjd->mdk", dN, P)
+    n = np.column_stack([J[:, 1, 0], -J[:, 0, 0]]) if P.shape[2] == 2 else np.cross(J[:, :, 0], J[:, :, 1])
+    return n / np.linalg.norm(n, axis=1)[:, None]
 
 
 def _closest_on_triangles(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -241,7 +308,7 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     X = mesh.points
     P = X[oriented]  # (nf, nfv, d)
     centres = P.mean(axis=1)
-    kind = {1: "vertex", 2: "line"}.get(d, "triangle" if oriented.shape[1] == 3 else "quad")
+    kind = facet_type(oriented, d)
     k = min(CANDIDATES, len(facets))
     d_centre, cand = cKDTree(centres).query(X[nodes], k=k)
     d_centre, cand = np.asarray(d_centre).reshape(nodes.size, k), np.asarray(cand).reshape(nodes.size, k)
@@ -258,11 +325,7 @@ def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs
     size = float(np.linalg.norm(np.ptp(np.vstack([X[nodes], centres]), axis=0))) or 1.0
     first = _closest(row, dist, centres[cand[row, col]], size, xs)
     facet, p, N = cand[row[first], col[first]], p[first], N[first]
-    if kind == "quad":  # the normal of the bilinear face at the projection, outward as the facet's
-        nq = _quad_normal(P[facet], N)
-        normals_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[facet]))[:, None]
-    else:
-        normals_m = normals_f[facet]
+    normals_m = _normal_at(P[facet], N, kind, normals_f[facet])
     delta = X[nodes] - p
     gaps = np.einsum("md,md->m", delta, normals_m)
     lateral = np.linalg.norm(delta - gaps[:, None] * normals_m, axis=1)
@@ -303,11 +366,12 @@ def _closest(row: np.ndarray, dist: np.ndarray, centres: np.ndarray, size: float
 def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -> PairRows:
     """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring); ``every``: a row for every
     slave node (:func:`node_to_facet_rows`)."""
-    if mesh.order != 1:
-        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: contact pairs need linear cells (a node "
-                         "against the straight facets of the master surface); the mesh has quadratic cells "
-                         f"({mesh.cell_type}), whose curved master facets are not supported yet: mesh both bodies "
-                         "with linear cells, or use a rigid obstacle")  # fmt: skip
+    if mesh.order != 1 and every:
+        raise InputError(
+            f"contact pair {pair.slave!r} / {pair.master!r}: finite strain's contact pairs (the current "
+            f"configuration) need linear cells; the mesh has quadratic cells ({mesh.cell_type}): mesh both "
+            "bodies with linear cells, or run a linear model"
+        )
     slave = mesh.nodes_of(pair.slave)
     facets = mesh.facets_of(pair.master)
     if np.intersect1d(slave, np.unique(facets)).size:
@@ -411,8 +475,10 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
     def deformed(nodes: np.ndarray) -> np.ndarray:  # X + U at these nodes only (every level: no whole-mesh copy)
         return mesh.points[nodes] + u[nodes]
 
-    kind = "line" if d == 2 else ("triangle" if oriented.shape[1] == 3 else "quad")
-    left = _outside(deformed(slave), deformed(oriented[facet]), kind)
+    kind = facet_type(oriented, d)
+    # a curved facet: its vertices' facet says whether the node left it (the projection on it is the curved one)
+    nv = facet_vertices(oriented, d).shape[1]
+    left = _outside(deformed(slave), deformed(oriented[facet][:, :nv]), CURVED.get(kind, kind))
     if not left.any():
         return None
     Xd = mesh.points + u
@@ -433,11 +499,7 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
         return None
     rows, slave, new, N = rows[moved], slave[moved], new[moved], N[moved]
     P = mesh.points[oriented[new]]
-    if kind == "quad":
-        nq = _quad_normal(P, N)
-        n_m = nq * np.sign(np.einsum("md,md->m", nq, normals_f[new]))[:, None]
-    else:
-        n_m = normals_f[new]
+    n_m = _normal_at(P, N, kind, normals_f[new])
     gaps = np.einsum("md,md->m", mesh.points[slave] - np.einsum("mk,mkd->md", N, P), n_m)
     return SlidRows(rows, -n_m, gaps, new, N, oriented[new])
 

@@ -306,6 +306,22 @@ def reference_element(name: str) -> ReferenceElement:
 SUPPORTED_CELLS = tuple(ELEMENTS)
 
 
+def shape_functions(name: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N (m, nv), dN (m, nv, dim)): the shape functions of cell type ``name`` and their reference gradients at
+    reference points x (m, dim) (a facet's projection, a point inside a cell)."""
+    ref = reference_element(name)
+    x = np.asarray(x, dtype=float).reshape(-1, ref.dim)
+    if ref.order == 2:
+        return _lagrange(ref.nodes, x, not _is_simplex(ref))
+    if ref.constant_gradients:
+        return _p1(ref.dim, x)
+    return _q1(ref.nodes, x)
+
+
+def _is_simplex(ref: ReferenceElement) -> bool:
+    return reference_element(ref.linear).constant_gradients
+
+
 def linear_shapes(name: str, x: np.ndarray) -> np.ndarray:
     """(m, nv) the shape functions of the linear cell ``name`` (its vertices) at reference points x (m, dim):
     barycentric on simplices (the segment on [0, 1] too), multilinear on [-1, 1]^d.  On a quadratic cell's

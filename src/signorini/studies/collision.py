@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import interval, join
 
-COLLISION_DEFAULTS = {"L": 1.0, "gap": 0.1, "velocity": 0.5, "E": 1.0, "rho": 1.0}
+COLLISION_DEFAULTS = {"L": 1.0, "gap": 0.1, "velocity": 0.5, "E": 1.0, "rho": 1.0, "order": 1.0}
 
 
 def check_params(p: dict) -> None:
@@ -37,9 +37,9 @@ def check_params(p: dict) -> None:
 
 
 def build(n: int, p: dict) -> Problem:
-    """Level n: n P1 cells per bar."""
+    """Level n: n P1 cells per bar (``order`` 2: P2)."""
     L, g, v = p["L"], p["gap"], p["velocity"]
-    a, b = interval(n, L), interval(n, L)
+    a, b = interval(n, L, order=int(p["order"])), interval(n, L, order=int(p["order"]))
     b.points = b.points + (L + g)
     mesh = join({"left": a, "right": b})
     x_mid = L + 0.5 * g
@@ -75,7 +75,8 @@ def run_times(n: int, p: dict) -> tuple[float, float]:
 
 
 def sizes(n: int, p: dict) -> tuple[float, int, int, int, int]:
-    return p["L"] / n, 2 * (n + 1), 2 * n, 2, 1
+    q = int(p["order"])
+    return p["L"] / n, 2 * (q * n + 1), 2 * n, q + 1, 1
 
 
 class CollisionMeasure:

@@ -55,7 +55,7 @@ from .hertz import (
 )
 
 BALLS_DEFAULTS = {"R1": 1.0, "R2": 1.0, "E1": 1.0, "E2": 1.0, "nu1": 0.3, "nu2": 0.3, "rho1": 1.0, "rho2": 1.0,
-                  "velocity": 0.002, "cap": 2.0, "far": 0.25, "grading": 0.5}  # fmt: skip
+                  "velocity": 0.002, "cap": 2.0, "far": 0.25, "grading": 0.5, "order": 1.0}  # fmt: skip
 DEFAULT_LEVEL = {2: 8, 3: 2}
 STEPS_PER_DURATION = 25
 MAX_CONTACT_RATIO = 0.5
@@ -149,7 +149,7 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
         balls = {}
         for name, R in (("a", p["R1"]), ("b", p["R2"])):
             h_c, h_far, r_fine = _sizes(dim, n, p, R)
-            balls[name] = pole_refined_ball(dim, R, _cap(dim, p, R), h_c, h_far, r_fine, p["grading"])
+            balls[name] = pole_refined_ball(dim, R, _cap(dim, p, R), h_c, h_far, r_fine, p["grading"], int(p["order"]))
         b = balls["b"]
         b.points = -b.points if dim == 2 else b.points * np.array([-1.0, 1.0, -1.0])  # turned by 180 degrees
         mesh = join(balls)
@@ -171,6 +171,8 @@ def sizes(dim: int) -> Callable[[int, dict], tuple[float, int, int, int, int]]:
             h = min(h, h_c)
             for k, c in enumerate(estimate_counts(dim, R, h_c, h_far, r_fine, p["grading"])):
                 total[k] += c
+        if p["order"] == 2:  # about 2^d nodes per vertex (a simplicial mesh's edges), 2^(d-1) per contact vertex
+            return h, total[0] * 2**dim, total[1], (dim + 1) * (dim + 2) // 2, total[2] * 2 ** (dim - 1) // 2
         return h, total[0], total[1], dim + 1, total[2] // 2
 
     return counts
