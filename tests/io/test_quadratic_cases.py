@@ -202,3 +202,8 @@ def test_fields_of_quadratic_cells_are_quadratic_cells_for_vtk(tmp_path, capsys)
     out = reader.GetOutputDataObject(0)
     assert {out.GetCellType(i) for i in range(out.GetNumberOfCells())} == {28}  # VTK_BIQUADRATIC_QUAD
     assert out.GetNumberOfPoints() == points.shape[0]
+
+
+def test_rings_of_quadratic_cells_refuse_by_name(tmp_path, capsys):
+    rc, err = _run(capsys, ["run", "rings2d", "--set", "order=2", "--out", str(tmp_path / "o")])
+    assert rc == 2 and "contact pairs in the current configuration" in err and not (tmp_path / "o").exists()
