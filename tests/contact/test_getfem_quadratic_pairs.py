@@ -19,9 +19,7 @@ its rows by 0.13): the reference is the distance itself, sampled on each master 
 from __future__ import annotations
 
 import importlib.util
-import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -32,7 +30,8 @@ from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import join, rectangle, write_mesh
 from signorini.fem.space import Dirichlet
-from test_getfem_pairs import GETFEM_SOLVER, SCRIPT, SYSTEM_PYTHON, _getfem_importable, _lame, relative
+from test_getfem import _run_getfem
+from test_getfem_pairs import GETFEM_SOLVER, _getfem_importable, _lame, relative
 
 HAS_GMSH = importlib.util.find_spec("gmsh") is not None
 #: (mass, scheme, T): CN with the consistent mass makes the contact rattle and amplifies round-off (as in
@@ -73,14 +72,7 @@ def reference(tmp_path_factory):
         pytest.skip("python3-getfem not installed: apt-get install python3-getfem")
     problem, case = _problem(tmp_path_factory.mktemp("getfem_quadratic_pairs") / "disc2.msh")
     cases = [{**case, "mass": m, "scheme": s, "dt": DT, "T": T, "solver": GETFEM_SOLVER} for m, s, T in CASES]
-    out = subprocess.run([SYSTEM_PYTHON, str(SCRIPT), "-"], input=json.dumps({"cases": cases}), capture_output=True,
-                         text=True, timeout=600)  # fmt: skip
-    assert out.returncode == 0, f"getfem_reference.py failed:\n{out.stderr[-4000:]}"
-    runs: dict = {k: [] for k in CASES}
-    for line in out.stdout.splitlines():
-        row = json.loads(line)
-        runs[CASES[row["case"]]].append(row)
-    return runs, problem
+    return dict(zip(CASES, _run_getfem(cases), strict=True)), problem
 
 
 @pytest.mark.parametrize("key", CASES, ids=["-".join(k[:2]) for k in CASES])

@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import json
-import subprocess
 
 import numpy as np
 import pytest
@@ -29,7 +27,7 @@ from signorini.contact.obstacles import PlaneObstacle
 from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.mesh import write_mesh
 from signorini.studies.benchmarks import get_benchmark
-from test_getfem import SCRIPT, SYSTEM_PYTHON, _getfem_importable, relative
+from test_getfem import _getfem_importable, _run_getfem, relative
 
 RTOL = 1e-8
 HAS_GMSH = importlib.util.find_spec("gmsh") is not None
@@ -70,14 +68,7 @@ def reference(tmp_path_factory):
             case.update(mesh=str(path), contact="cap", params=params)
         cases.append(case)
         keys.append((name, scheme, free))
-    out = subprocess.run([SYSTEM_PYTHON, str(SCRIPT), "-"], input=json.dumps({"cases": cases}), capture_output=True,
-                         text=True, timeout=600)  # fmt: skip
-    assert out.returncode == 0, f"getfem_reference.py failed:\n{out.stderr[-4000:]}"
-    runs: dict = {}
-    for line in out.stdout.splitlines():
-        row = json.loads(line)
-        runs.setdefault(keys[row["case"]], []).append(row)
-    return runs
+    return dict(zip(keys, _run_getfem(cases), strict=True))
 
 
 @pytest.mark.parametrize("key", CASES, ids=["-".join(map(str, k)) for k in CASES])
