@@ -359,9 +359,10 @@ def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
 
     In 1D every tagged point has weight 1 (a unit cross-section).  ``positive``: the weights of nodal contact,
     positive at every node of a facet: the integrals, except on ``triangle6`` facets, whose vertices' integral
-    is 0, where each facet's area is shared by its HRZ lumped mass (vertices 1/19, edges 16/57: spec section
-    16); on ``line3`` and ``quad9`` facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight
-    facet) and are the HRZ shares already.
+    is 0, and ``quad8`` facets (serendipity: -1/12 of the area at a corner), where each facet's area is shared by
+    its HRZ lumped mass (``triangle6``: vertices 1/19, edges 16/57, spec section 16); on ``line3`` and ``quad9``
+    facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight facet) and are the HRZ shares
+    already.
     """
     facets = mesh.facets_of(tag)
     if mesh.dim == 1:
@@ -370,7 +371,7 @@ def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
     X = mesh.points[facets]  # (nf, nfv, d)
     J = np.einsum("qak,fai->fqik", fref.dN, X)  # (nf, nq, d, d-1)
     area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))
-    if positive and fref.name == "triangle6":
+    if positive and fref.name in ("triangle6", "quad8"):
         diag = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N**2)
         we = diag * (area @ fref.weights / diag.sum(axis=1))[:, None]
     else:

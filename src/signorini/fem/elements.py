@@ -17,13 +17,15 @@ Node orderings follow meshio / VTK (the vertices first, as in the linear cell):
 ``triangle6``     the vertices, then the midpoints of edges (0,1), (1,2), (2,0)
 ``quad9``         the corners, the midpoints of edges (0,1), (1,2), (2,3), (3,0), the centre
 ``tetra10``       the vertices, the midpoints of edges (0,1), (1,2), (2,0), (0,3), (1,3), (2,3)
+``quad8``, ``hexahedron20``  serendipity: the nodes of ``quad9`` / ``hexahedron27`` without the centres
 ``hexahedron27``  the corners, the midpoints of edges (0,1), (1,2), (2,3), (3,0), (4,5), (5,6),
                   (6,7), (7,4), (0,4), (1,5), (2,6), (3,7), the centres of the faces
                   x = -1, x = +1, y = -1, y = +1, z = -1, z = +1, the centre (meshio reorders
                   gmsh's ``hexahedron27`` and ``tetra10`` to these)
 
 A quadratic cell's shape functions are the Lagrange basis of its polynomial space (P2:
-the monomials of degree <= 2; Q2: those of degree <= 2 in each variable) at its nodes,
+the monomials of degree <= 2; Q2: those of degree <= 2 in each variable; serendipity S2: those of
+Q2 of superlinear degree <= 2) at its nodes,
 N(xi) = p(xi)^T V^-1 with V the space's monomials at the nodes; its facets are the
 quadratic facets of its linear cell's facets (vertices in the same order, then the
 midpoints of the facet's edges in cyclic order, then a quadrilateral facet's centre).
@@ -161,15 +163,19 @@ _G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _W3 = np.array([5.0, 8.0, 5.0]) / 9.0
 
 
-def _exponents(dim: int, tensor: bool) -> np.ndarray:
-    """(m, dim) exponents of the monomials of P2 (total degree <= 2) or Q2 (degree <= 2 in each variable)."""
+def _exponents(dim: int, tensor: bool | str) -> np.ndarray:
+    """(m, dim) exponents of the monomials of P2 (total degree <= 2), Q2 (``tensor``: degree <= 2 in each variable)
+    or the serendipity space S2 (``tensor = "serendipity"``: those of Q2 whose superlinear degree, the sum of the
+    exponents >= 2, is at most 2: 8 monomials in 2D, 20 in 3D)."""
     grids = np.meshgrid(*([np.arange(3)] * dim), indexing="ij")
     e = np.stack([g.ravel() for g in grids], axis=1)
+    if tensor == "serendipity":
+        return e[np.where(e >= 2, e, 0).sum(axis=1) <= 2]
     return e if tensor else e[e.sum(axis=1) <= 2]
 
 
-def _lagrange(nodes: np.ndarray, pts: np.ndarray, tensor: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(N (nq, nv), dN (nq, nv, dim)) of the Lagrange basis at ``nodes`` of P2 or Q2 (module docstring)."""
+def _lagrange(nodes: np.ndarray, pts: np.ndarray, tensor: bool | str) -> tuple[np.ndarray, np.ndarray]:
+    """(N (nq, nv), dN (nq, nv, dim)) of the Lagrange basis at ``nodes`` of P2, Q2 or S2 (module docstring)."""
     dim = nodes.shape[1]
     e = _exponents(dim, tensor)
 
@@ -196,14 +202,15 @@ def _quadratic_facets(linear: ReferenceElement, nodes: np.ndarray) -> tuple[tupl
             pts += [(linear.nodes[a] + linear.nodes[b]) / 2 for a, b in zip(f, f[1:] + f[:1], strict=True)]
             if len(f) == 2:
                 pts = pts[:3]  # a segment: one midpoint
-        if len(f) == 4:
+        if len(f) == 4:  # a quadrilateral facet's centre: a node of Q2 cells, not of serendipity ones
             pts.append(linear.nodes[list(f)].mean(axis=0))
-        out.append(tuple(int(np.flatnonzero(np.all(np.abs(nodes - x) < 1e-12, axis=1))[0]) for x in pts))
+        found = [np.flatnonzero(np.all(np.abs(nodes - x) < 1e-12, axis=1)) for x in pts]
+        out.append(tuple(int(k[0]) for k in found if k.size))
     return tuple(out)
 
 
 def _quadratic(name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray,
-               tensor: bool) -> ReferenceElement:  # fmt: skip
+               tensor: bool | str) -> ReferenceElement:  # fmt: skip
     linear = reference_element(linear_name)
     nodes = np.vstack([linear.nodes, extra])
     N, dN = _lagrange(nodes, pts, tensor)
@@ -256,6 +263,16 @@ def _quad9() -> ReferenceElement:
     return _quadratic("quad9", "quad", extra, pts, np.outer(_W3, _W3).ravel(), True)
 
 
+def _quad8() -> ReferenceElement:
+    q9 = reference_element("quad9")
+    return _quadratic("quad8", "quad", q9.nodes[4:8], q9.points, q9.weights, "serendipity")
+
+
+def _hexahedron20() -> ReferenceElement:
+    h27 = reference_element("hexahedron27")
+    return _quadratic("hexahedron20", "hexahedron", h27.nodes[8:20], h27.points, h27.weights, "serendipity")
+
+
 def _hexahedron27() -> ReferenceElement:
     v = reference_element("hexahedron").nodes
     edges = ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7))
@@ -288,6 +305,8 @@ ELEMENTS: dict[str, CellKind] = {
     "quad9": CellKind(_quad9, "line3"),
     "tetra10": CellKind(_tetra10, "triangle6"),
     "hexahedron27": CellKind(_hexahedron27, "quad9"),
+    "quad8": CellKind(_quad8, "line3"),
+    "hexahedron20": CellKind(_hexahedron20, "quad8"),
 }
 #: the quadratic cell with the vertices of each linear cell (:func:`~.mesh.elevate`)
 QUADRATIC = {"line": "line3", "triangle": "triangle6", "quad": "quad9", "tetra": "tetra10",
@@ -312,7 +331,8 @@ def shape_functions(name: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ref = reference_element(name)
     x = np.asarray(x, dtype=float).reshape(-1, ref.dim)
     if ref.order == 2:
-        return _lagrange(ref.nodes, x, not _is_simplex(ref))
+        serendipity = ref.n_nodes in (8, 20) and not _is_simplex(ref)
+        return _lagrange(ref.nodes, x, "serendipity" if serendipity else not _is_simplex(ref))
     if ref.constant_gradients:
         return _p1(ref.dim, x)
     return _q1(ref.nodes, x)

@@ -347,7 +347,7 @@ def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
 
 #: the meshio type of a facet of a ``dim``-dimensional mesh by its number of nodes
 FACET_OF_WIDTH = {(2, 2): "line", (2, 3): "line3", (3, 3): "triangle", (3, 4): "quad", (3, 6): "triangle6",
-                  (3, 9): "quad9"}  # fmt: skip
+                  (3, 8): "quad8", (3, 9): "quad9"}  # fmt: skip
 
 
 def facet_type(facets: np.ndarray, dim: int) -> str:
