@@ -366,12 +366,6 @@ def _closest(row: np.ndarray, dist: np.ndarray, centres: np.ndarray, size: float
 def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -> PairRows:
     """The rows of B, gaps, normals and weights of ``pair`` (see the module docstring); ``every``: a row for every
     slave node (:func:`node_to_facet_rows`)."""
-    if mesh.order != 1 and every:
-        raise InputError(
-            f"contact pair {pair.slave!r} / {pair.master!r}: finite strain's contact pairs (the current "
-            f"configuration) need linear cells; the mesh has quadratic cells ({mesh.cell_type}): mesh both "
-            "bodies with linear cells, or run a linear model"
-        )
     slave = mesh.nodes_of(pair.slave)
     facets = mesh.facets_of(pair.master)
     if np.intersect1d(slave, np.unique(facets)).size:
@@ -508,6 +502,8 @@ def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray
 def _facet_normals(P: np.ndarray, N: np.ndarray, kind: str) -> np.ndarray:
     """Unit normals (m, d) of facets P (m, nfv, d) at the points of shape functions N (m, nfv), by the facets'
     node order (a segment's (t_y, -t_x), a triangle's (P1 - P0) x (P2 - P0), a bilinear face's at N)."""
+    if kind in CURVED:
+        return _curved_normals(P, N, kind)
     if kind == "line":
         t = P[:, 1] - P[:, 0]
         n = np.column_stack([t[:, 1], -t[:, 0]])
@@ -547,19 +543,27 @@ class CurrentPairing:
         self.mesh = mesh
         normals_f, self.oriented = master_geometry(mesh, pair)
         d = mesh.dim
-        self.kind = "line" if d == 2 else ("triangle" if self.oriented.shape[1] == 3 else "quad")
+        self.kind = facet_type(self.oriented, d)
+        #: the vertices of the facets (a curved facet's chord: whether a node left it)
+        self.nv = facet_vertices(self.oriented, d).shape[1]
         P = mesh.points[self.oriented]
-        centre = np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])
+        centre = reference_element(self.kind).N.mean(axis=0, keepdims=True).repeat(len(P), axis=0) if (
+            self.kind in CURVED) else np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])  # fmt: skip
         self.sign = np.sign(np.einsum("md,md->m", _facet_normals(P, centre, self.kind), normals_f))
-        # the master surface's rim: the vertices (2D) or the nodes of the edges (3D) of only one master facet
-        if d == 2:
-            nodes, count = np.unique(self.oriented, return_counts=True)
-        else:
-            e = np.sort(np.stack([self.oriented, np.roll(self.oriented, -1, axis=1)], -1).reshape(-1, 2), axis=1)
-            keys, count = np.unique(e, axis=0, return_counts=True)
-            nodes, count = np.unique(keys[count == 1]), None
+        # the master surface's rim: the vertices (2D) or the nodes of the edges (3D) of only one master facet (a
+        # quadratic facet's edge: its two vertices and its mid-side node)
+        vertices = self.oriented[:, : self.nv]
         self.rim = np.zeros(mesh.n_nodes, dtype=bool)
-        self.rim[nodes if count is None else nodes[count == 1]] = True
+        if d == 2:
+            nodes, count = np.unique(vertices, return_counts=True)
+            self.rim[nodes[count == 1]] = True
+        else:
+            edges = np.sort(np.stack([vertices, np.roll(vertices, -1, axis=1)], -1), axis=2)  # (nf, nv, 2)
+            _, inverse, count = np.unique(edges.reshape(-1, 2), axis=0, return_inverse=True, return_counts=True)
+            once = (count[inverse.ravel()] == 1).reshape(vertices.shape)  # (nf, nv): edge k of facet f is on the rim
+            self.rim[edges[once].ravel()] = True
+            if self.kind in CURVED:  # the edge's mid-side node (listed after the vertices, in edge order)
+                self.rim[self.oriented[:, self.nv : 2 * self.nv][once]] = True
 
     def _normals(self, P: np.ndarray, N: np.ndarray, facet: np.ndarray) -> np.ndarray:
         """The outward unit normals (m, d) of the master facets ``facet`` at their points P (m, nfv, d), at the
@@ -584,9 +588,10 @@ class CurrentPairing:
         Pd = X[self.oriented]
         centres = Pd.mean(axis=1)
         size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
-        stay = (
-            np.zeros(slave.size, dtype=bool) if facet is None else ~_outside(X[slave], Pd[facet], self.kind, KEEP_FACET)
-        )
+        stay = (  # a curved facet: judged on its chord (its vertices), as small sliding does
+            np.zeros(slave.size, dtype=bool) if facet is None
+            else ~_outside(X[slave], Pd[facet][:, : self.nv], CURVED.get(self.kind, self.kind), KEEP_FACET)
+        )  # fmt: skip
         new = np.array(facet, copy=True) if facet is not None else np.zeros(slave.size, dtype=np.int64)
         N = np.zeros((slave.size, self.oriented.shape[1]))
         p = np.zeros((slave.size, d))
@@ -625,6 +630,7 @@ def facet_sizes_and_normals(mesh: Mesh, tag: str) -> tuple[np.ndarray, np.ndarra
     (up to sign) of the facets of ``tag``: a segment's perpendicular, a polygon's (first
     three vertices' for a triangle, the diagonals' cross product for a quadrilateral)."""
     f = mesh.facets_of(tag)
+    f = facet_vertices(f, mesh.dim)  # a quadratic facet's size and plane: its vertices'
     x = mesh.points[f]  # (m, k, d)
     edges = np.roll(x, -1, axis=1) - x
     size = np.sqrt(np.mean(np.sum(edges**2, axis=2), axis=1))

@@ -39,32 +39,36 @@ def check_params(p: dict) -> None:
         raise InputError(f"parameter 'nu' must be in (-1, 0.5), got {p['nu']}")
     if not abs(p["offset"]) < 1.0:
         raise InputError(f"parameter 'offset' (a fraction of R) must be in (-1, 1), got {p['offset']}")
-    if p["order"] == 2:
-        raise InputError(
-            "rings2d with order = 2: its Neo-Hookean rings meet through contact pairs in the current configuration, "
-            "which quadratic cells do not support yet (docs/quadratic.md); run order = 1"
-        )
 
 
-def ring(n_angle: int, n_radius: int, R: float, r: float) -> Mesh:
+def ring(n_angle: int, n_radius: int, R: float, r: float, order: int = 1) -> Mesh:
     """A ring of quadrilaterals centred at the origin: ``n_angle`` x ``n_radius`` cells in (angle, radius), the
-    grid closed on itself; facet tags ``outer`` and ``inner``."""
-    theta = 2 * math.pi * np.arange(n_angle) / n_angle
-    radius = np.linspace(r, R, n_radius + 1)
+    grid closed on itself; facet tags ``outer`` and ``inner``.  ``order`` 2: quad9 cells on the grid of half the
+    spacing in (angle, radius), every node on its circle (the cells curved)."""
+    k = order  # nodes per cell side - 1
+    na, nr = k * n_angle, k * n_radius
+    theta = 2 * math.pi * np.arange(na) / na
+    radius = np.linspace(r, R, nr + 1)
     points = np.column_stack([np.outer(radius, np.cos(theta)).ravel(), np.outer(radius, np.sin(theta)).ravel()])
     i, j = np.meshgrid(np.arange(n_angle), np.arange(n_radius), indexing="ij")
-    i, j = i.ravel(), j.ravel()
-    node = lambda a, b: b * n_angle + a % n_angle  # noqa: E731
-    cells = np.column_stack([node(i, j), node(i, j + 1), node(i + 1, j + 1), node(i + 1, j)])  # counter-clockwise
-    a = np.arange(n_angle)
-    outer = np.column_stack([node(a, n_radius), node(a + 1, n_radius)])
-    inside = np.column_stack([node(a + 1, 0), node(a, 0)])
-    return Mesh(points, cells, "quad", facets={"outer": outer, "inner": inside})
+    i, j = k * i.ravel(), k * j.ravel()
+    node = lambda a, b: b * na + a % na  # noqa: E731
+    cells = np.column_stack([node(i, j), node(i, j + k), node(i + k, j + k), node(i + k, j)])  # counter-clockwise
+    a = k * np.arange(n_angle)
+    outer = np.column_stack([node(a, nr), node(a + k, nr)])
+    inside = np.column_stack([node(a + k, 0), node(a, 0)])
+    if order == 2:  # quad9: the midpoints of the edges (0,1), (1,2), (2,3), (3,0), then the centre
+        cells = np.column_stack([cells, node(i, j + 1), node(i + 1, j + 2), node(i + 2, j + 1), node(i + 1, j),
+                                 node(i + 1, j + 1)])  # fmt: skip
+        outer = np.column_stack([outer, node(a + 1, nr)])
+        inside = np.column_stack([inside, node(a + 1, 0)])
+    return Mesh(points, cells, "quad" if order == 1 else "quad9", facets={"outer": outer, "inner": inside})
 
 
 def build(n: int, p: dict) -> Problem:
     R, v = p["R"], p["velocity"]
-    a, b = ring(32 * n, 2 * n, R, p["inner"] * R), ring(32 * n, 2 * n, R, p["inner"] * R)
+    q = int(p["order"])
+    a, b = ring(32 * n, 2 * n, R, p["inner"] * R, q), ring(32 * n, 2 * n, R, p["inner"] * R, q)
     shift = R + 0.5 * p["gap"]
     a.points = a.points + [-shift, -0.5 * p["offset"] * R]
     b.points = b.points + [shift, 0.5 * p["offset"] * R]
@@ -76,8 +80,8 @@ def build(n: int, p: dict) -> Problem:
 
 
 def sizes(n: int, p: dict) -> tuple[float, int, int, int, int]:
-    na, nr = 32 * n, 2 * n
-    return 2 * math.pi * p["R"] / na, 2 * na * (nr + 1), 2 * na * nr, 4, na
+    na, nr, q = 32 * n, 2 * n, int(p["order"])
+    return 2 * math.pi * p["R"] / na, 2 * q * na * (q * nr + 1), 2 * na * nr, (q + 1) ** 2, q * na
 
 
 def run_times(n: int, p: dict) -> tuple[float, float]:
