@@ -140,3 +140,27 @@ def test_cli_run_of_a_mixed_mesh_writes_both_blocks(tmp_path):
     assert [c.type for c in cells] == ["hexahedron", "tetra"]
     assert [np.unique(b).tolist() for b in cell_data["body"]] == [[0], [1]]
     assert point_data["displacement"].shape == (len(points), 3)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_contact_boundary_of_triangles_and_quads_drops_on_a_plane(order):
+    """[contact] tag = the bottoms of a tetrahedral and a hexahedral body (two facet types in one list: they
+    were stacked as one array, a ValueError): their union's nodes, the facets' area summed type by type, and a
+    run through the impact with both bodies' nodes in contact."""
+    from signorini.contact.obstacles import PlaneObstacle
+    from signorini.fem.assembly import facet_weights
+
+    a, b = box(2, 2, 2, cell="tetra", order=order), box(2, 2, 2, order=order)
+    b.points = b.points + [2.0, 0.0, 0.0]
+    mesh = join({"a": a, "b": b})
+    tags = ["a_zmin", "b_zmin"]
+    assert np.array_equal(mesh.nodes_of(tags), np.union1d(mesh.nodes_of("a_zmin"), mesh.nodes_of("b_zmin")))
+    assert facet_weights(mesh, tags, positive=True).sum() == pytest.approx(2.0, rel=1e-14, abs=0)
+    with pytest.raises(MeshError, match="several types"):
+        mesh.facets_of(tags)
+    problem = Problem(mesh, IsotropicElastic.from_young(100.0, 0.3, 1.0), tags,
+                      PlaneObstacle([0.0, 0.0, -0.01], [0.0, 0.0, 1.0]), v0=[0.0, 0.0, -1.0])  # fmt: skip
+    H = simulate(problem, "crank-nicolson", 0.005, 0.05)
+    assert H.status == "finished" and H.nodes.size == mesh.nodes_of(tags).size
+    assert (H.lam < 0).any(axis=0)[np.isin(H.nodes, mesh.nodes_of("a_zmin"))].any()
+    assert (H.lam < 0).any(axis=0)[np.isin(H.nodes, mesh.nodes_of("b_zmin"))].any()

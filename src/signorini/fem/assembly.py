@@ -25,7 +25,7 @@ from ..errors import MeshError
 from .dofmap import DofMap, blocked
 from .elements import determinants, jacobians, reference_element
 from .material import Material
-from .mesh import Mesh, facet_type, one_type, over_blocks, uniform_cells
+from .mesh import Mesh, facet_type, one_type, over_blocks, tags_by_facet_type, uniform_cells
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -357,13 +357,17 @@ def _body_load(mesh: Mesh, f) -> np.ndarray:
 def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
     """Nodal boundary weights w_a = int_{Gamma_tag} N_a ds, shape (n_nodes,) [length^(d-1)].
 
-    In 1D every tagged point has weight 1 (a unit cross-section).  ``positive``: the weights of nodal contact,
+    In 1D every tagged point has weight 1 (a unit cross-section).  Several tags: their union (each facet once;
+    tags of several facet types, a mixed mesh's triangles and quads, summed type by type).  ``positive``: the
+    weights of nodal contact,
     positive at every node of a facet: the integrals, except on ``triangle6`` facets, whose vertices' integral
     is 0, and ``quad8`` facets (serendipity: -1/12 of the area at a corner), where each facet's area is shared by
     its HRZ lumped mass (``triangle6``: vertices 1/19, edges 16/57, spec section 16); on ``line3`` and ``quad9``
     facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight facet) and are the HRZ shares
     already.
     """
+    if not isinstance(tag, str) and len(groups := tags_by_facet_type(mesh, tag)) > 1:
+        return sum(facet_weights(mesh, group, positive) for group in groups)
     facets = mesh.facets_of(tag)
     if mesh.dim == 1:
         return np.bincount(facets.ravel(), minlength=mesh.n_nodes).astype(float)

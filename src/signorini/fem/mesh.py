@@ -239,13 +239,18 @@ class Mesh:
         return self.cell_nodes(self.cells_of(region))
 
     def facets_of(self, tag: str | Sequence[str]) -> np.ndarray:
-        """Facets of a tag, or the union of the facets of several tags (each facet once);
-        clear error for unknown or empty tags."""
+        """Facets of a tag, or the union of the facets of several tags of one facet type (each facet once);
+        clear error for unknown or empty tags, and for tags of several facet types (triangles and quads of a
+        mixed mesh: :func:`tags_by_facet_type` splits them)."""
         if not isinstance(tag, str):
             tags = list(tag)
             if not tags:
                 raise MeshError("an empty list of boundary tags")
-            f = np.vstack([self.facets_of(t) for t in tags])
+            parts = [self.facets_of(t) for t in tags]
+            if len({f.shape[1] for f in parts}) > 1:
+                kinds = ", ".join(f"{t!r}: {facet_type(f, self.dim)}" for t, f in zip(tags, parts, strict=True))
+                raise MeshError(f"the tags hold facets of several types ({kinds}); take them one type at a time")
+            f = np.vstack(parts)
             _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
             return f[np.sort(first)]
         if tag not in self.facets:
@@ -256,8 +261,11 @@ class Mesh:
         return f
 
     def nodes_of(self, tag: str | Sequence[str]) -> np.ndarray:
-        """Sorted unique node indices of the facets of ``tag``."""
-        return np.unique(self.facets_of(tag))
+        """Sorted unique node indices of the facets of ``tag`` (several tags: of their union, whatever their
+        facet types)."""
+        if isinstance(tag, str):
+            return np.unique(self.facets_of(tag))
+        return np.unique(np.concatenate([self.facets_of(group).ravel() for group in tags_by_facet_type(self, tag)]))
 
     def check_cells(self) -> None:
         """Raise :class:`MeshError` if an element is degenerate or inverted (det J <= 0)."""
@@ -363,6 +371,18 @@ def facet_vertices(facets: np.ndarray, dim: int) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- boundary
+def tags_by_facet_type(mesh: Mesh, tags: Sequence[str]) -> list[list[str]]:
+    """``tags`` grouped by the facet type they hold (a mixed mesh's triangles and quads: two groups), in the
+    order of first appearance; an empty list refused."""
+    tags = list(tags)
+    if not tags:
+        raise MeshError("an empty list of boundary tags")
+    groups: dict[int, list[str]] = {}
+    for t in tags:
+        groups.setdefault(mesh.facets_of(t).shape[1], []).append(t)
+    return list(groups.values())
+
+
 def face_keys(faces: np.ndarray, n_nodes: int) -> np.ndarray:
     """One sortable value per face (n, nfv) from its sorted first three nodes: enough to tell
     faces apart.  An integer (s0 n + s1) n + s2 while n^3 fits in int64 (below 2,097,152

@@ -112,19 +112,21 @@ def _padded(R: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _impossible(name: str, mesh: Mesh, nodes: np.ndarray, is_c: np.ndarray) -> InputError:
-    pts = mesh.points[nodes]
-    lo, hi = np.round(pts.min(axis=0), 6).tolist(), np.round(pts.max(axis=0), 6).tolist()
     e = mesh.first_by_id(nodes)
     label = body_labels(mesh)
     which = ""
     n_free = int(np.count_nonzero(~is_c))
-    if label.max(initial=0) > 0:  # several bodies: name the one (its regions) and count its own nodes
+    if label.max(initial=0) > 0:  # several bodies: name the one (its regions), count and box its own nodes
         b = int(label[nodes[e]])
+        nodes = nodes[label[nodes] == b]
+        e = mesh.first_by_id(nodes)
         in_b = np.zeros(mesh.n_cells, dtype=bool)
         in_b[np.flatnonzero(label[mesh.first_nodes()] == b)] = True
         regions = sorted(t for t, c in mesh.regions.items() if c.size and in_b[c].any())
         which = f" of body {b}" + (f" (regions {', '.join(regions)})" if regions else "")
         n_free = int(np.count_nonzero(~is_c & (label == b)))
+    pts = mesh.points[nodes]
+    lo, hi = np.round(pts.min(axis=0), 6).tolist(), np.round(pts.max(axis=0), 6).tolist()
     return InputError(
         f"mass {name!r}: {nodes.size} contact node(s){which} in the box {lo} .. {hi} (e.g. node "
         f"{mesh.node_id(nodes[e])} at {np.round(pts[e], 6).tolist()}) cannot be extrapolated: the body's {n_free} "
