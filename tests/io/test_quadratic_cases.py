@@ -198,3 +198,15 @@ def test_fields_of_quadratic_cells_are_quadratic_cells_for_vtk(tmp_path, capsys)
     out = reader.GetOutputDataObject(0)
     assert {out.GetCellType(i) for i in range(out.GetNumberOfCells())} == {28}  # VTK_BIQUADRATIC_QUAD
     assert out.GetNumberOfPoints() == points.shape[0]
+
+
+def test_a_quadratic_run_says_so_on_its_first_line_and_in_its_summary(tmp_path, capsys):
+    """Never change the physics silently: the run's first line and summary.json ``cells`` name the cells."""
+    rc = main(["run", "bar2d", "--set", "order=2", "--n", "1", "--T", "0.2", "--out", str(tmp_path / "o")])
+    out = capsys.readouterr().out
+    assert rc == 0 and "dofs on quadratic cells (quad9)" in out.splitlines()[0]
+    cells = json.loads((tmp_path / "o" / "summary.json").read_text())["cells"]
+    assert cells == {"types": ["quad9"], "order": 2, "count": 10}
+    rc = main(["run", "bar2d", "--n", "1", "--T", "0.2", "--out", str(tmp_path / "l")])
+    assert "quadratic" not in capsys.readouterr().out.splitlines()[0]
+    assert json.loads((tmp_path / "l" / "summary.json").read_text())["cells"]["order"] == 1

@@ -198,11 +198,18 @@ def bodies_lines(s: dict) -> str:
     return "".join(out)
 
 
+def _quadratic(s: dict) -> str:
+    """`` on quadratic cells (tetra10)`` for a run of quadratic cells (the first line says what is computed)."""
+    cells = s.get("cells") or {}
+    return f" on quadratic cells ({', '.join(cells['types'])})" if cells.get("order") == 2 else ""
+
+
 def one_screen_summary(H) -> str:
     s = H.summary()
     c = s["counters"]
     return (
-        f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs, {s['contact_nodes']} contact nodes\n"
+        f"{s['problem']}: {s['scheme']} / {s['mass']} mass, {s['dofs']} dofs{_quadratic(s)}, {s['contact_nodes']} "
+        "contact nodes\n"
         f"  status {s['status']}{': ' + s['message'] if s['message'] else ''}\n"
         f"  steps {s['steps']} (dt={s['dt']:.4g}, T={s['T']:.4g}), impacts {s['impacts']}, "
         f"{s['fallbacks']} step(s) with the contact solver's fallback\n"

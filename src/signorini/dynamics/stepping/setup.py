@@ -217,6 +217,8 @@ def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: i
         "T": N * dt,
         "dim": int(disc.space.dim),
         "dofs": int(disc.space.n_dofs),
+        # the cells: their types, their order (1 linear, 2 quadratic: docs/quadratic.md) and count
+        "cells": cells_summary(disc.problem.mesh),
         "free_dofs": int(disc.free.size),
         "contact_nodes": int(disc.contact.size),
         "massless_dofs": int(ctx.massless.size),
@@ -477,3 +479,8 @@ def assemble_history(
             "steps": n_last,
         },
     )
+
+
+def cells_summary(mesh) -> dict:
+    """``summary.json`` ``cells``: the mesh's cell types, their order (1 linear, 2 quadratic) and count."""
+    return {"types": sorted({b.cell_type for b in mesh.blocks}), "order": int(mesh.order), "count": int(mesh.n_cells)}
