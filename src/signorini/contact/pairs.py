@@ -547,8 +547,11 @@ class CurrentPairing:
         #: the vertices of the facets (a curved facet's chord: whether a node left it)
         self.nv = facet_vertices(self.oriented, d).shape[1]
         P = mesh.points[self.oriented]
-        centre = reference_element(self.kind).N.mean(axis=0, keepdims=True).repeat(len(P), axis=0) if (
-            self.kind in CURVED) else np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])  # fmt: skip
+        centre = (
+            reference_element(self.kind).N.mean(axis=0, keepdims=True).repeat(len(P), axis=0)
+            if (self.kind in CURVED)
+            else np.full(self.oriented.shape, 1.0 / self.oriented.shape[1])
+        )
         self.sign = np.sign(np.einsum("md,md->m", _facet_normals(P, centre, self.kind), normals_f))
         # the master surface's rim: the vertices (2D) or the nodes of the edges (3D) of only one master facet (a
         # quadratic facet's edge: its two vertices and its mid-side node)
@@ -589,9 +592,10 @@ class CurrentPairing:
         centres = Pd.mean(axis=1)
         size = float(np.linalg.norm(np.ptp(centres, axis=0))) or 1.0
         stay = (  # a curved facet: judged on its chord (its vertices), as small sliding does
-            np.zeros(slave.size, dtype=bool) if facet is None
+            np.zeros(slave.size, dtype=bool)
+            if facet is None
             else ~_outside(X[slave], Pd[facet][:, : self.nv], CURVED.get(self.kind, self.kind), KEEP_FACET)
-        )  # fmt: skip
+        )
         new = np.array(facet, copy=True) if facet is not None else np.zeros(slave.size, dtype=np.int64)
         N = np.zeros((slave.size, self.oriented.shape[1]))
         p = np.zeros((slave.size, d))

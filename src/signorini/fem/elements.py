@@ -209,13 +209,15 @@ def _quadratic_facets(linear: ReferenceElement, nodes: np.ndarray) -> tuple[tupl
     return tuple(out)
 
 
-def _quadratic(name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray,
-               tensor: bool | str) -> ReferenceElement:  # fmt: skip
+def _quadratic(
+    name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray, tensor: bool | str
+) -> ReferenceElement:
     linear = reference_element(linear_name)
     nodes = np.vstack([linear.nodes, extra])
     N, dN = _lagrange(nodes, pts, tensor)
-    return ReferenceElement(name, linear.dim, nodes, pts, w, N, dN, _quadratic_facets(linear, nodes), False, 2,
-                            linear_name)  # fmt: skip
+    return ReferenceElement(
+        name, linear.dim, nodes, pts, w, N, dN, _quadratic_facets(linear, nodes), False, 2, linear_name
+    )
 
 
 def _line3() -> ReferenceElement:
@@ -309,8 +311,13 @@ ELEMENTS: dict[str, CellKind] = {
     "hexahedron20": CellKind(_hexahedron20, "quad8"),
 }
 #: the quadratic cell with the vertices of each linear cell (:func:`~.mesh.elevate`)
-QUADRATIC = {"line": "line3", "triangle": "triangle6", "quad": "quad9", "tetra": "tetra10",
-             "hexahedron": "hexahedron27"}  # fmt: skip
+QUADRATIC = {
+    "line": "line3",
+    "triangle": "triangle6",
+    "quad": "quad9",
+    "tetra": "tetra10",
+    "hexahedron": "hexahedron27",
+}
 
 
 @cache

@@ -141,8 +141,10 @@ class Mesh:
         if len(dims) > 1:
             raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one dimension")
         if len({reference_element(t).order for t in types}) > 1:
-            raise MeshError(f"the cell types {sorted(set(types))} of a mesh must have one order (linear and quadratic "
-                            "cells do not conform: elevate the whole mesh, signorini.fem.mesh.elevate)")  # fmt: skip
+            raise MeshError(
+                f"the cell types {sorted(set(types))} of a mesh must have one order (linear and quadratic "
+                "cells do not conform: elevate the whole mesh, signorini.fem.mesh.elevate)"
+            )
         return blocks
 
     def cached(self, key: str, build: Callable[[], Any]) -> Any:
@@ -354,8 +356,15 @@ def uniform_cells(mesh: Mesh, cached: bool = True) -> bool:
 
 
 #: the meshio type of a facet of a ``dim``-dimensional mesh by its number of nodes
-FACET_OF_WIDTH = {(2, 2): "line", (2, 3): "line3", (3, 3): "triangle", (3, 4): "quad", (3, 6): "triangle6",
-                  (3, 8): "quad8", (3, 9): "quad9"}  # fmt: skip
+FACET_OF_WIDTH = {
+    (2, 2): "line",
+    (2, 3): "line3",
+    (3, 3): "triangle",
+    (3, 4): "quad",
+    (3, 6): "triangle6",
+    (3, 8): "quad8",
+    (3, 9): "quad9",
+}
 
 
 def facet_type(facets: np.ndarray, dim: int) -> str:

@@ -170,8 +170,12 @@ def _elements(gmsh, dim: int, tags: list[int], etype: int) -> np.ndarray:
 
 #: gmsh's element types of (dim, order): (cell type, cell element, facet element); its tetra10 lists the midpoints
 #: of edges (2, 3) and (1, 3) in the other order than VTK's (meshio swaps them alike)
-_GMSH_TYPES = {(2, 1): ("triangle", 2, 1), (3, 1): ("tetra", 4, 2), (2, 2): ("triangle6", 9, 8),
-               (3, 2): ("tetra10", 11, 9)}  # fmt: skip
+_GMSH_TYPES = {
+    (2, 1): ("triangle", 2, 1),
+    (3, 1): ("tetra", 4, 2),
+    (2, 2): ("triangle6", 9, 8),
+    (3, 2): ("tetra10", 11, 9),
+}
 
 
 def _to_mesh(gmsh, dim: int, cap: list[int], rest: list[int], order: int = 1) -> Mesh:

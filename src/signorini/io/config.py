@@ -221,8 +221,10 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
             files.append(base / m["file"])
         mesh = read_mesh(base / m["file"])
         if order == 1 and mesh.order == 2:
-            raise InputError(f"'mesh.order' = 1, but {m['file']!r} holds quadratic cells ({mesh.cell_type}); remove "
-                             "'order' (a file's cells are read as they are) or mesh it with linear cells")  # fmt: skip
+            raise InputError(
+                f"'mesh.order' = 1, but {m['file']!r} holds quadratic cells ({mesh.cell_type}); remove "
+                "'order' (a file's cells are read as they are) or mesh it with linear cells"
+            )
         return elevate(mesh) if order == 2 and mesh.order == 1 else mesh
     order = int(order or 1)
     dim = {"interval": 1, "rectangle": 2, "box": 3}[gen]

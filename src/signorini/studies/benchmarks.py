@@ -126,8 +126,10 @@ class Benchmark:
             if k in p and p[k] < 0:
                 raise InputError(f"parameter {k!r} of {self.name!r} must be >= 0, got {p[k]}")
         if "order" in p and p["order"] not in (1.0, 2.0):
-            raise InputError(f"parameter 'order' of {self.name!r} must be 1 (linear cells) or 2 (quadratic cells), "
-                             f"got {p['order']:g}")  # fmt: skip
+            raise InputError(
+                f"parameter 'order' of {self.name!r} must be 1 (linear cells) or 2 (quadratic cells), "
+                f"got {p['order']:g}"
+            )
         if self.check is not None:
             self.check(p)
         return p

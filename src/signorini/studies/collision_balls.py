@@ -54,8 +54,21 @@ from .hertz import (
     sphere_force,  # fmt: skip
 )
 
-BALLS_DEFAULTS = {"R1": 1.0, "R2": 1.0, "E1": 1.0, "E2": 1.0, "nu1": 0.3, "nu2": 0.3, "rho1": 1.0, "rho2": 1.0,
-                  "velocity": 0.002, "cap": 2.0, "far": 0.25, "grading": 0.5, "order": 1.0}  # fmt: skip
+BALLS_DEFAULTS = {
+    "R1": 1.0,
+    "R2": 1.0,
+    "E1": 1.0,
+    "E2": 1.0,
+    "nu1": 0.3,
+    "nu2": 0.3,
+    "rho1": 1.0,
+    "rho2": 1.0,
+    "velocity": 0.002,
+    "cap": 2.0,
+    "far": 0.25,
+    "grading": 0.5,
+    "order": 1.0,
+}
 DEFAULT_LEVEL = {2: 8, 3: 2}
 STEPS_PER_DURATION = 25
 MAX_CONTACT_RATIO = 0.5

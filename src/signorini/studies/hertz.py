@@ -290,8 +290,20 @@ def _contact_radius(H) -> float:
 
 
 # ----------------------------------------------------------------------------- benchmarks
-HERTZ_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "velocity": 0.002, "cap": 2.0, "far": 0.25,
-                  "grading": 0.5, "skin": 0.0, "tangential_velocity": 0.0, "mu": 0.0, "order": 1.0}  # fmt: skip
+HERTZ_DEFAULTS = {
+    "R": 1.0,
+    "E": 1.0,
+    "nu": 0.3,
+    "rho": 1.0,
+    "velocity": 0.002,
+    "cap": 2.0,
+    "far": 0.25,
+    "grading": 0.5,
+    "skin": 0.0,
+    "tangential_velocity": 0.0,
+    "mu": 0.0,
+    "order": 1.0,
+}
 DEFAULT_LEVEL = {2: 8, 3: 3}
 STEPS_PER_DURATION = 25  # default dt = t_c / (25 n)
 

@@ -27,8 +27,17 @@ from ..errors import InputError
 from ..fem.material import NeoHookean
 from ..fem.mesh import Mesh, join
 
-RINGS_DEFAULTS = {"R": 1.0, "inner": 0.8, "E": 100.0, "nu": 0.3, "rho": 1.0, "velocity": 1.0, "gap": 0.02,
-                  "offset": 0.3, "order": 1.0}  # fmt: skip
+RINGS_DEFAULTS = {
+    "R": 1.0,
+    "inner": 0.8,
+    "E": 100.0,
+    "nu": 0.3,
+    "rho": 1.0,
+    "velocity": 1.0,
+    "gap": 0.02,
+    "offset": 0.3,
+    "order": 1.0,
+}
 
 
 def check_params(p: dict) -> None:
@@ -58,8 +67,9 @@ def ring(n_angle: int, n_radius: int, R: float, r: float, order: int = 1) -> Mes
     outer = np.column_stack([node(a, nr), node(a + k, nr)])
     inside = np.column_stack([node(a + k, 0), node(a, 0)])
     if order == 2:  # quad9: the midpoints of the edges (0,1), (1,2), (2,3), (3,0), then the centre
-        cells = np.column_stack([cells, node(i, j + 1), node(i + 1, j + 2), node(i + 2, j + 1), node(i + 1, j),
-                                 node(i + 1, j + 1)])  # fmt: skip
+        cells = np.column_stack(
+            [cells, node(i, j + 1), node(i + 1, j + 2), node(i + 2, j + 1), node(i + 1, j), node(i + 1, j + 1)]
+        )
         outer = np.column_stack([outer, node(a + 1, nr)])
         inside = np.column_stack([inside, node(a + 1, 0)])
     return Mesh(points, cells, "quad" if order == 1 else "quad9", facets={"outer": outer, "inner": inside})

@@ -40,8 +40,7 @@ from ..errors import InputError
 from ..fem.material import IsotropicElastic, NeoHookean, SaintVenantKirchhoff
 from ..fem.mesh import Mesh, box, rectangle
 
-SPIN_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "tip": 0.3, "revolutions": 10.0, "model": 2.0,
-                 "order": 1.0}  # fmt: skip
+SPIN_DEFAULTS = {"R": 1.0, "E": 1.0, "nu": 0.3, "rho": 1.0, "tip": 0.3, "revolutions": 10.0, "model": 2.0, "order": 1.0}
 #: the material of each value of the ``model`` parameter
 MODELS = {0: IsotropicElastic, 1: SaintVenantKirchhoff, 2: NeoHookean}
 DEFAULT_LEVEL = {2: 2, 3: 1}
@@ -77,8 +76,11 @@ def axis(dim: int) -> np.ndarray:
 def round_mesh(dim: int, n: int, R: float, order: int = 1) -> Mesh:
     """The disc (ball) of radius R centred at the origin: the mapped grid of the module docstring (``order`` 2:
     quadratic cells, their mid-side nodes mapped too: curved)."""
-    m = rectangle(4 * n, 4 * n, 2.0, 2.0, order=order) if dim == 2 else box(4 * n, 4 * n, 4 * n, 2.0, 2.0, 2.0,
-                                                                             order=order)  # fmt: skip
+    m = (
+        rectangle(4 * n, 4 * n, 2.0, 2.0, order=order)
+        if dim == 2
+        else box(4 * n, 4 * n, 4 * n, 2.0, 2.0, 2.0, order=order)
+    )
     x = m.points - 1.0
     sq = x * x
     if dim == 2:

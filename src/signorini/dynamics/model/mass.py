@@ -204,19 +204,21 @@ def touching_cells(mesh: Mesh, nodes: np.ndarray) -> np.ndarray:
 #: the variants that are not defined on quadratic cells, and why (a refusal by name, issue 54)
 LINEAR_ONLY = {
     "seed": "it drops the cells touching the contact boundary, and on quadratic cells that also leaves the mid-side "
-            "nodes inside them without mass",
+    "nodes inside them without mass",
     "seed-normal": "it drops the cells touching the contact boundary (normal part), and on quadratic cells that also "
-                   "leaves the mid-side nodes inside them without normal mass",
+    "leaves the mid-side nodes inside them without normal mass",
     "neighbour": "its shares M_ij / c_i have both signs on quadratic cells: the mass is indefinite (a negative "
-                 "eigenvalue of 7-24% of the largest on quad9, tetra10, hexahedron27)",
-}  # fmt: skip
+    "eigenvalue of 7-24% of the largest on quad9, tetra10, hexahedron27)",
+}
 
 
 def _linear_only(mesh: Mesh, name: str) -> None:
     """InputError for a variant of :data:`LINEAR_ONLY` on a mesh of quadratic cells."""
     if mesh.order != 1:
-        raise InputError(f"mass {name!r} is defined on linear cells only: {LINEAR_ONLY[name]}; use "
-                         "'moment-preserving' (the default), 'mass-free-surface', 'lumped' or 'standard'")  # fmt: skip
+        raise InputError(
+            f"mass {name!r} is defined on linear cells only: {LINEAR_ONLY[name]}; use "
+            "'moment-preserving' (the default), 'mass-free-surface', 'lumped' or 'standard'"
+        )
 
 
 def seed_scalar_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray) -> sp.csr_matrix:
