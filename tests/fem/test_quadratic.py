@@ -323,3 +323,39 @@ def test_gmsh_second_order_meshes_are_read_as_they_are(tmp_path, hexahedra, inco
     free = ~boundary
     x[free] = spla.spsolve(K[free][:, free].tocsc(), -(K[free][:, boundary] @ u[boundary]))
     assert np.abs(x - u).max() <= 1e-12
+
+
+def test_a_curved_cell_folded_at_a_node_is_refused(tmp_path):
+    """A quad9 whose mid-side node is moved 0.3 of its edge towards a vertex: det J is positive at every
+    quadrature point but negative at the vertex (gmsh's own validity check flags such cells): refused, by file."""
+    from signorini.fem.mesh import read_mesh, write_mesh
+
+    mesh = rectangle(2, 2, order=2)
+    pts = mesh.points.copy()
+    cell = mesh.cells[0]
+    pts[cell[4]] += 0.3 * (pts[cell[0]] - pts[cell[1]])  # the midpoint of edge (0, 1) towards vertex 0
+    bad = Mesh(pts, mesh.cells, "quad9", mesh.facets)
+    ref = reference_element("quad9")
+    from signorini.fem.elements import jacobians
+
+    assert np.linalg.det(jacobians(ref.dN, pts[cell][None]))[0].min() > 0  # fine at the quadrature points
+    with pytest.raises(MeshError, match="inverted"):
+        bad.check_cells()
+    write_mesh(bad, tmp_path / "folded.msh")
+    with pytest.raises(MeshError, match=r"folded\.msh: .*HighOrderOptimize"):
+        read_mesh(tmp_path / "folded.msh")
+
+
+def test_quadratic_cells_with_two_middle_nodes_on_one_edge_are_refused(tmp_path):
+    """Two quad9 cells sharing an edge's vertices, each with its own node at its middle, do not conform."""
+    from signorini.fem.mesh import read_mesh, write_mesh
+
+    mesh = rectangle(2, 1, order=2)
+    shared = np.intersect1d(mesh.cells[0], mesh.cells[1])  # the edge x = 0.5: 2 vertices and its mid-side node
+    mid = [n for n in shared if n >= 6][0]
+    pts = np.vstack([mesh.points, mesh.points[mid]])
+    cells = mesh.cells.copy()
+    cells[1][cells[1] == mid] = len(pts) - 1
+    write_mesh(Mesh(pts, cells, "quad9", mesh.facets), tmp_path / "split.msh")
+    with pytest.raises(MeshError, match="two middle nodes"):
+        read_mesh(tmp_path / "split.msh")

@@ -44,7 +44,7 @@ def test_a_case_file_of_quadratic_cells_runs_and_says_so(tmp_path, capsys):
     assert s["impacts"] >= 1 and s["energy_identity_residual"] < 1e-12
 
 
-@pytest.mark.parametrize("order", ["order = 3\n", 'order = "2"\n', "order = true\n", "order = 2.5\n"])
+@pytest.mark.parametrize("order", ["order = 3\n", 'order = "2"\n', "order = true\n", "order = 2.5\n", "order = 2.0\n"])
 def test_a_bad_order_is_refused_by_name(tmp_path, capsys, order):
     rc, err = _run(capsys, ["run", str(_case(tmp_path, order)), "--out", str(tmp_path / "o")])
     assert rc == 2 and "'mesh.order' must be 1 (linear cells) or 2 (quadratic cells)" in err

@@ -36,6 +36,7 @@ from .elements import (
     jacobians,
     linear_shapes,
     reference_element,
+    shape_functions,
 )
 
 
@@ -289,7 +290,10 @@ def _check_one_type(mesh: Mesh) -> None:
     # translates of one element (structured generators): checking the first suffices
     uniform = uniform_cells(mesh, cached=False)  # points may have moved since it was cached
     X = mesh.points[mesh.cells[:1] if uniform else mesh.cells]
-    J = jacobians(ref.dN, X)
+    dN = ref.dN
+    if ref.order == 2:  # a curved cell can fold near a node while positive at every quadrature point: its nodes too
+        dN = np.concatenate([dN, shape_functions(ref.name, ref.nodes)[1]])
+    J = jacobians(dN, X)
     det = J[..., 0, 0] if ref.dim == 1 else determinants(J)
     scale = np.abs(X - X.mean(axis=1, keepdims=True)).max(axis=(1, 2)) ** ref.dim
     bad = np.where((det <= 1e-12 * scale[:, None]).any(axis=1))[0]
@@ -298,10 +302,10 @@ def _check_one_type(mesh: Mesh) -> None:
         kind = "inverted" if inverted.all() else "degenerate or inverted"
         if uniform:  # the first cell stands for all
             bad = np.arange(mesh.n_cells)
-        raise MeshError(
-            f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; "
-            "fix the node ordering or the geometry"
-        )
+        fix = "fix the node ordering or the geometry"
+        if ref.order == 2:  # gmsh's curved cells: its high-order optimization untangles them
+            fix += " (gmsh's curved cells: mesh with Mesh.HighOrderOptimize = 2, or move the mid-side nodes)"
+        raise MeshError(f"{bad.size} {kind} element(s) (det J <= 0), e.g. cells {bad[:5].tolist()}; {fix}")
 
 
 def over_blocks(mesh: Mesh, kernel: Callable[[Mesh, slice], Any], combine: Callable[[list[Any]], Any]) -> Any:
@@ -932,8 +936,12 @@ def read_mesh(path: str | Path) -> Mesh:
         mesh = Mesh(pts, renum[by_type[top[0]]], top[0], tagged, regions=regions)
     else:
         mesh = Mesh(pts, [renum[c] for c in by_type.values()], list(by_type), tagged, regions=regions)
-    mesh.check_cells()
+    try:
+        mesh.check_cells()
+    except MeshError as exc:
+        raise MeshError(f"{p.name}: {exc}") from None
     _check_facets(p.name, mesh)
+    _check_shared_nodes(p.name, mesh)
     return mesh
 
 
@@ -1014,6 +1022,42 @@ def _check_facets(name: str, mesh: Mesh) -> None:
             raise MeshError(
                 f"{name}: tag {tag!r} has {int(inside.sum())} facet(s) inside the body (shared by two cells); "
                 "boundary tags hold boundary facets only"
+            )
+
+
+def _check_shared_nodes(name: str, mesh: Mesh) -> None:
+    """Quadratic cells that share an edge (or a quadrilateral face) share its mid-side (centre) node: two cells
+    with the vertices of an edge in common but a node of their own at its middle do not conform (the
+    displacement jumps along the edge)."""
+    keys, mids = {2: [], 4: []}, {2: [], 4: []}
+    for b in mesh.blocks:
+        ref = reference_element(b.cell_type)
+        if ref.order == 1:
+            return
+        N = linear_shapes(b.cell_type, ref.nodes[ref.n_vertices :])  # (extra, nv): a new node's parent vertices
+        for j, row in enumerate(N > 1e-12):  # a few nodes per cell type (at most 19)
+            parents = np.flatnonzero(row)
+            if parents.size in keys:
+                keys[parents.size].append(np.sort(b.cells[:, parents], axis=1))
+                mids[parents.size].append(b.cells[:, ref.n_vertices + j])
+    for k, what in ((2, "edge"), (4, "face")):
+        if not keys[k]:
+            continue
+        key, mid = _rows(np.vstack(keys[k])), np.concatenate(mids[k])
+        _, inverse = np.unique(key, return_inverse=True)
+        low = np.full(inverse.max() + 1, np.iinfo(np.int64).max)
+        high = np.full(inverse.max() + 1, -1)
+        np.minimum.at(low, inverse, mid)
+        np.maximum.at(high, inverse, mid)
+        apart = np.flatnonzero(low != high)
+        if apart.size:
+            i = int(np.flatnonzero(inverse == apart[0])[0])
+            vertices = np.vstack(keys[k])[i]
+            raise MeshError(
+                f"{name}: {apart.size} {what}(s) of quadratic cells have two middle nodes (cells sharing "
+                f"the {what} of nodes {vertices.tolist()} each have their own node {low[apart[0]]} / "
+                f"{high[apart[0]]} at its middle): the mesh does not conform there; merge the "
+                "duplicated nodes"
             )
 
 

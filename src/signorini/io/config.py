@@ -212,7 +212,7 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
     if gen is None:
         raise InputError("missing key 'mesh.generator'; allowed: interval, rectangle, box, file")
     order = m.get("order")
-    if order is not None and (isinstance(order, bool) or order not in (1, 2)):
+    if order is not None and (not isinstance(order, int) or isinstance(order, bool) or order not in (1, 2)):
         raise InputError(f"'mesh.order' must be 1 (linear cells) or 2 (quadratic cells), got {_short(order)}")
     if gen == "file":
         if "file" not in m or not isinstance(m["file"], str):
