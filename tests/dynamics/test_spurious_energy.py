@@ -62,3 +62,20 @@ def test_energy_created_after_earlier_losses_shows_and_the_control_finishes_a_lo
     assert 1e-5 * e["scale"] <= e["created"] <= SPURIOUS_TOLERANCE * e["scale"] and e["destroyed"] >= e["created"]
     assert e["created_relative"] == e["created"] / e["scale"]
     assert not any("the scheme created" in w for w in s["warnings"])
+
+
+def test_a_run_that_fails_after_gaining_energy_says_so(tmp_path, capsys):
+    """spin3d (Neo-Hookean) at 4x its step: Crank-Nicolson gains 95% of the energy scale before Newton fails at step
+    18 (measured; issue 51's note): exit 3 with Newton's message, and the energy gained, often the failure's cause,
+    warned about too (it was left out of a failed run)."""
+    from signorini.studies.benchmarks import get_benchmark
+
+    b = get_benchmark("spin3d")
+    dt, T = b.run_times(1, b.params({}))
+    out = tmp_path / "o"
+    rc = main(["run", "spin3d", "--dt", repr(4 * dt), "--T", repr(T), "--out", str(out), "--quiet"])
+    s = json.loads((out / "summary.json").read_text())
+    assert rc == 3 and s["status"] == "failed" and "Newton" in s["message"]
+    assert s["spurious_energy"]["created_relative"] > 0.5
+    assert any(w.startswith("the scheme created") for w in s["warnings"])
+    assert "the scheme created" in capsys.readouterr().err
