@@ -75,6 +75,9 @@ class ReferenceElement:
     order: int = 1
     #: the linear cell with the same vertices (its own name for a linear cell)
     linear: str = ""
+    #: a quadratic cell's polynomial space: ``P2`` (degree <= 2), ``Q2`` (<= 2 in each variable) or ``S2``
+    #: (serendipity: Q2's monomials of superlinear degree <= 2); "" for a linear cell
+    space: str = ""
 
     @property
     def n_nodes(self) -> int:
@@ -163,32 +166,36 @@ _G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _W3 = np.array([5.0, 8.0, 5.0]) / 9.0
 
 
-def _exponents(dim: int, tensor: bool | str) -> np.ndarray:
-    """(m, dim) exponents of the monomials of P2 (total degree <= 2), Q2 (``tensor``: degree <= 2 in each variable)
-    or the serendipity space S2 (``tensor = "serendipity"``: those of Q2 whose superlinear degree, the sum of the
-    exponents >= 2, is at most 2: 8 monomials in 2D, 20 in 3D)."""
+def _exponents(dim: int, space: str) -> np.ndarray:
+    """(m, dim) exponents of the monomials of P2 (total degree <= 2), Q2 (degree <= 2 in each variable) or the
+    serendipity space S2 (those of Q2 whose superlinear degree, the sum of the exponents >= 2, is at most 2: 8
+    monomials in 2D, 20 in 3D)."""
     grids = np.meshgrid(*([np.arange(3)] * dim), indexing="ij")
     e = np.stack([g.ravel() for g in grids], axis=1)
-    if tensor == "serendipity":
+    if space == "S2":
         return e[np.where(e >= 2, e, 0).sum(axis=1) <= 2]
-    return e if tensor else e[e.sum(axis=1) <= 2]
+    return e if space == "Q2" else e[e.sum(axis=1) <= 2]
 
 
-def _lagrange(nodes: np.ndarray, pts: np.ndarray, tensor: bool | str) -> tuple[np.ndarray, np.ndarray]:
+def _monomials(e: np.ndarray, x: np.ndarray, k: int | None = None) -> np.ndarray:
+    """(n, m) the monomials of exponents e (m, dim) at x (n, dim), or their derivatives d/dx_k."""
+    if k is None:
+        return np.prod(x[:, None, :] ** e[None], axis=2)
+    lower = e.copy()
+    lower[:, k] = np.maximum(e[:, k] - 1, 0)
+    return e[None, :, k] * np.prod(x[:, None, :] ** lower[None], axis=2)
+
+
+def _lagrange(nodes: np.ndarray, pts: np.ndarray, space: str) -> tuple[np.ndarray, np.ndarray]:
     """(N (nq, nv), dN (nq, nv, dim)) of the Lagrange basis at ``nodes`` of P2, Q2 or S2 (module docstring)."""
-    dim = nodes.shape[1]
-    e = _exponents(dim, tensor)
+    e = _exponents(nodes.shape[1], space)
+    Vinv = np.linalg.inv(_monomials(e, nodes))  # (m, nv): the basis' coefficients
+    return _basis_at(e, Vinv, pts)
 
-    def mono(x: np.ndarray, k: int | None = None) -> np.ndarray:  # monomials (or their d/dx_k) at x (n, dim)
-        if k is None:
-            return np.prod(x[:, None, :] ** e[None], axis=2)
-        lower = e.copy()
-        lower[:, k] = np.maximum(e[:, k] - 1, 0)
-        return e[None, :, k] * np.prod(x[:, None, :] ** lower[None], axis=2)
 
-    Vinv = np.linalg.inv(mono(nodes))  # (m, nv): the basis' coefficients
-    N = mono(pts) @ Vinv
-    dN = np.stack([mono(pts, k) @ Vinv for k in range(dim)], axis=2)
+def _basis_at(e: np.ndarray, Vinv: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    N = _monomials(e, pts) @ Vinv
+    dN = np.stack([_monomials(e, pts, k) @ Vinv for k in range(e.shape[1])], axis=2)
     return N, dN
 
 
@@ -210,18 +217,18 @@ def _quadratic_facets(linear: ReferenceElement, nodes: np.ndarray) -> tuple[tupl
 
 
 def _quadratic(
-    name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray, tensor: bool | str
+    name: str, linear_name: str, extra: np.ndarray, pts: np.ndarray, w: np.ndarray, space: str
 ) -> ReferenceElement:
     linear = reference_element(linear_name)
     nodes = np.vstack([linear.nodes, extra])
-    N, dN = _lagrange(nodes, pts, tensor)
+    N, dN = _lagrange(nodes, pts, space)
     return ReferenceElement(
-        name, linear.dim, nodes, pts, w, N, dN, _quadratic_facets(linear, nodes), False, 2, linear_name
+        name, linear.dim, nodes, pts, w, N, dN, _quadratic_facets(linear, nodes), False, 2, linear_name, space
     )
 
 
 def _line3() -> ReferenceElement:
-    return _quadratic("line3", "line", np.array([[0.5]]), ((_G3 + 1.0) / 2.0)[:, None], _W3 / 2.0, True)
+    return _quadratic("line3", "line", np.array([[0.5]]), ((_G3 + 1.0) / 2.0)[:, None], _W3 / 2.0, "P2")
 
 
 def _triangle6() -> ReferenceElement:
@@ -231,7 +238,7 @@ def _triangle6() -> ReferenceElement:
     pts = np.array([[a, a], [1 - 2 * a, a], [a, 1 - 2 * a], [b, b], [1 - 2 * b, b], [b, 1 - 2 * b]])
     w = np.array([wa, wa, wa, wb, wb, wb])
     extra = np.array([[0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
-    return _quadratic("triangle6", "triangle", extra, pts, w, False)
+    return _quadratic("triangle6", "triangle", extra, pts, w, "P2")
 
 
 def _tetra10() -> ReferenceElement:
@@ -254,7 +261,7 @@ def _tetra10() -> ReferenceElement:
     edges = ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))
     v = np.vstack([np.zeros(3), np.eye(3)])
     extra = np.array([(v[i] + v[j]) / 2 for i, j in edges])
-    return _quadratic("tetra10", "tetra", extra, np.array(rows), np.array(w), False)
+    return _quadratic("tetra10", "tetra", extra, np.array(rows), np.array(w), "P2")
 
 
 def _quad9() -> ReferenceElement:
@@ -262,17 +269,17 @@ def _quad9() -> ReferenceElement:
     extra = np.vstack([(c + np.roll(c, -1, axis=0)) / 2, np.zeros((1, 2))])
     X, Y = np.meshgrid(_G3, _G3, indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel()])
-    return _quadratic("quad9", "quad", extra, pts, np.outer(_W3, _W3).ravel(), True)
+    return _quadratic("quad9", "quad", extra, pts, np.outer(_W3, _W3).ravel(), "Q2")
 
 
 def _quad8() -> ReferenceElement:
     q9 = reference_element("quad9")
-    return _quadratic("quad8", "quad", q9.nodes[4:8], q9.points, q9.weights, "serendipity")
+    return _quadratic("quad8", "quad", q9.nodes[4:8], q9.points, q9.weights, "S2")
 
 
 def _hexahedron20() -> ReferenceElement:
     h27 = reference_element("hexahedron27")
-    return _quadratic("hexahedron20", "hexahedron", h27.nodes[8:20], h27.points, h27.weights, "serendipity")
+    return _quadratic("hexahedron20", "hexahedron", h27.nodes[8:20], h27.points, h27.weights, "S2")
 
 
 def _hexahedron27() -> ReferenceElement:
@@ -283,7 +290,7 @@ def _hexahedron27() -> ReferenceElement:
     X, Y, Z = np.meshgrid(_G3, _G3, _G3, indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
     w = np.einsum("i,j,k->ijk", _W3, _W3, _W3).ravel()
-    return _quadratic("hexahedron27", "hexahedron", extra, pts, w, True)
+    return _quadratic("hexahedron27", "hexahedron", extra, pts, w, "Q2")
 
 
 @dataclass(frozen=True)
@@ -338,25 +345,35 @@ def shape_functions(name: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ref = reference_element(name)
     x = np.asarray(x, dtype=float).reshape(-1, ref.dim)
     if ref.order == 2:
-        serendipity = ref.n_nodes in (8, 20) and not _is_simplex(ref)
-        return _lagrange(ref.nodes, x, "serendipity" if serendipity else not _is_simplex(ref))
+        return _basis_at(*_basis(name), x)
     if ref.constant_gradients:
         return _p1(ref.dim, x)
     return _q1(ref.nodes, x)
 
 
-def _is_simplex(ref: ReferenceElement) -> bool:
-    return reference_element(ref.linear).constant_gradients
+@cache
+def _basis(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(exponents, V^-1) of a quadratic cell's Lagrange basis (inverted once per cell type)."""
+    ref = reference_element(name)
+    e = _exponents(ref.dim, ref.space)
+    return e, np.linalg.inv(_monomials(e, ref.nodes))
 
 
 def linear_shapes(name: str, x: np.ndarray) -> np.ndarray:
-    """(m, nv) the shape functions of the linear cell ``name`` (its vertices) at reference points x (m, dim):
-    barycentric on simplices (the segment on [0, 1] too), multilinear on [-1, 1]^d.  On a quadratic cell's
-    reference points (its nodes, its quadrature points) they are the P1/Q1 functions of its vertices."""
-    lin = reference_element(reference_element(name).linear)
-    if lin.constant_gradients:
-        return np.column_stack([1.0 - x.sum(axis=1), x])
-    return np.prod((1.0 + x[:, None, :] * lin.nodes[None, :, :]) / 2.0, axis=2)
+    """(m, nv) the shape functions of the linear cell of ``name`` (its vertices) at reference points x (m, dim):
+    on a quadratic cell's reference points (its nodes, its quadrature points) the P1/Q1 functions of its
+    vertices."""
+    return shape_functions(reference_element(name).linear, x)[0]
+
+
+@cache
+def node_parents(name: str) -> tuple[np.ndarray, ...]:
+    """For each node of a quadratic cell after its vertices, the vertices (local numbers) of the edge, face or
+    cell it is the middle of: those whose linear shape function is positive there (an edge's 2, a quadrilateral
+    face's 4, a hexahedron's 8)."""
+    ref = reference_element(name)
+    N = linear_shapes(name, ref.nodes[ref.n_vertices :])
+    return tuple(np.flatnonzero(row > 1e-12) for row in N)
 
 
 FACET_TYPES = {name: kind.facet for name, kind in ELEMENTS.items()}

@@ -34,7 +34,7 @@ from .elements import (
     SUPPORTED_CELLS,
     determinants,
     jacobians,
-    linear_shapes,
+    node_parents,
     reference_element,
     shape_functions,
 )
@@ -421,8 +421,7 @@ def boundary_facets(cells: np.ndarray, cell_type: str) -> np.ndarray:
 
 def _facet_vertex_count(cell_type: str) -> int:
     """The number of vertices of a facet of ``cell_type`` (its facets list them first)."""
-    ref = reference_element(cell_type)
-    return len(reference_element(ref.linear).facets[0])
+    return reference_element(FACET_TYPES[cell_type]).n_vertices
 
 
 def mesh_boundary(mesh: Mesh) -> list[np.ndarray]:
@@ -686,14 +685,10 @@ def elevate(mesh: Mesh) -> Mesh:
     parents: list[np.ndarray] = []  # per block: (ne, extra, k) vertices of each new node, -1 padded
 
     def owners(cell_type: str, cells: np.ndarray) -> np.ndarray:
-        quad = reference_element(QUADRATIC[cell_type])
-        lin = reference_element(cell_type)
-        extra = quad.nodes[lin.n_nodes :]
-        N = linear_shapes(cell_type, extra)  # (extra, nv) the linear shape functions at the new nodes
-        k = int((N > 1e-12).sum(axis=1).max())
-        own = np.full((cells.shape[0], extra.shape[0], k), -1, dtype=np.int64)
-        for j in range(extra.shape[0]):  # a few nodes per cell type (at most 19)
-            v = np.flatnonzero(N[j] > 1e-12)
+        parents = node_parents(QUADRATIC[cell_type])
+        k = max(v.size for v in parents)
+        own = np.full((cells.shape[0], len(parents), k), -1, dtype=np.int64)
+        for j, v in enumerate(parents):  # a few nodes per cell type (at most 19)
             own[:, j, : v.size] = np.sort(cells[:, v], axis=1)
         return own
 
@@ -1034,9 +1029,7 @@ def _check_shared_nodes(name: str, mesh: Mesh) -> None:
         ref = reference_element(b.cell_type)
         if ref.order == 1:
             return
-        N = linear_shapes(b.cell_type, ref.nodes[ref.n_vertices :])  # (extra, nv): a new node's parent vertices
-        for j, row in enumerate(N > 1e-12):  # a few nodes per cell type (at most 19)
-            parents = np.flatnonzero(row)
+        for j, parents in enumerate(node_parents(b.cell_type)):  # a few nodes per cell type (at most 19)
             if parents.size in keys:
                 keys[parents.size].append(np.sort(b.cells[:, parents], axis=1))
                 mids[parents.size].append(b.cells[:, ref.n_vertices + j])
