@@ -4,11 +4,12 @@ energy identity closes, the slave rows take every node of the slave side, and th
 
 import numpy as np
 
-from signorini.contact.pairs import ContactPair
+from signorini.contact.pairs import ContactPair, pair_rows
 from signorini.dynamics.model.problem import Problem, RegionInitial
 from signorini.dynamics.stepping.simulate import simulate
 from signorini.fem.material import NeoHookean
-from signorini.fem.mesh import join, rectangle
+from signorini.fem.mesh import box, join, rectangle
+from test_quadratic import serendipity
 
 
 def test_free_neo_hookean_quadratic_blocks_collide_keeping_momentum():
@@ -28,3 +29,16 @@ def test_free_neo_hookean_quadratic_blocks_collide_keeping_momentum():
     P = np.asarray(H.momentum)
     assert np.abs(P - P[0]).max() <= 1e-12 * np.abs(P[0]).max()
     assert H.summary()["energy_identity_residual"] < 1e-10
+
+
+def test_pairs_between_serendipity_blocks():
+    """hexahedron20 blocks (quad8 facets: curved-capable, 8 nodes): every node of the slave side a row (a 3 x 3
+    side: 16 vertices and 24 mid-side nodes), its gap the blocks' distance, its row 8 master shape functions
+    summing to 1 (a rigid translation leaves every gap unchanged)."""
+    lower, upper = serendipity(box(2, 2, 1, order=2)), serendipity(box(3, 3, 1, order=2))
+    upper.points = upper.points + [0.0, 0.0, 1.02]
+    mesh = join({"lower": lower, "upper": upper})
+    r = pair_rows(mesh, ContactPair("upper_zmin", "lower_zmax"), 3 * mesh.n_nodes)
+    assert r.nodes.size == 40 and r.xi.shape == (40, 8)
+    assert np.allclose(r.gaps, 0.02, rtol=0, atol=1e-15) and np.allclose(r.xi.sum(axis=1), 1.0, rtol=0, atol=1e-14)
+    assert np.abs(r.B @ np.tile([0.3, -0.2, 0.7], mesh.n_nodes)).max() < 1e-14

@@ -161,8 +161,8 @@ def _keys(f: np.ndarray, nn: int) -> np.ndarray:
     return face_keys(f, nn)
 
 
-#: the quadratic (curved) facets and the linear facet of their vertices
-CURVED = {"line3": "line", "triangle6": "triangle", "quad9": "quad"}
+#: the quadratic (curved) facets and the linear facet of their vertices (from the element registry)
+CURVED = {kind: reference_element(kind).linear for kind in ("line3", "triangle6", "quad8", "quad9")}
 #: Gauss-Newton iterations of a projection on a curved facet (it stops when no point moves by 1e-14)
 CURVED_ITERATIONS = 30
 
@@ -199,7 +199,7 @@ def _closest_on_curved(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndar
         r = x - np.einsum("mj,mjd->md", N, P)
         J = np.einsum("mjk,mjd->mdk", dN, P)  # dx/ds (m, d, k)
         step = np.linalg.solve(np.einsum("mdk,mdl->mkl", J, J), np.einsum("mdk,md->mk", J, r)[..., None])[..., 0]
-        new = _into_parameters(s + step, kind)
+        new = _into_parameters(s + step, CURVED[kind])
         moved = float(np.abs(new - s).max(initial=0.0))
         s = new
         if moved <= 1e-14:
@@ -208,11 +208,11 @@ def _closest_on_curved(x: np.ndarray, P: np.ndarray, kind: str) -> tuple[np.ndar
     return np.einsum("mj,mjd->md", N, P), N
 
 
-def _into_parameters(s: np.ndarray, kind: str) -> np.ndarray:
-    """Parameters s (m, k) moved into the facet's reference domain (the nearest point of it)."""
-    if kind == "line3":
+def _into_parameters(s: np.ndarray, linear: str) -> np.ndarray:
+    """Parameters s (m, k) moved into the reference domain of a facet whose vertices make a ``linear`` facet."""
+    if linear == "line":
         return np.clip(s, 0.0, 1.0)
-    if kind == "quad9":
+    if linear == "quad":
         return np.clip(s, -1.0, 1.0)
     s = np.maximum(s, 0.0)  # the reference triangle: beyond the hypotenuse, onto it, then into [0, 1]
     over = np.maximum(s.sum(axis=1) - 1.0, 0.0)
