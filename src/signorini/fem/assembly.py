@@ -322,12 +322,19 @@ def hrz_lumped_mass(mesh: Mesh, rho: float | np.ndarray = 1.0) -> sp.csr_matrix:
     (Simpson) weights 1/216, 4/216, 16/216, 64/216."""
 
     def one(part: Mesh, cut: slice) -> np.ndarray:
-        Ke = element_mass_matrices(part, part_value(rho, cut))
-        diag = np.einsum("eaa->ea", Ke)
-        share = diag * (Ke.sum(axis=(1, 2)) / diag.sum(axis=1))[:, None]
+        wdet = geometry(part)[0] * np.reshape(per_cell(part_value(rho, cut), 2), (-1, 1))
+        share = hrz_shares(wdet, reference_element(part.cell_type).N)
         return np.bincount(part.cells.ravel(), weights=share.ravel(), minlength=mesh.n_nodes)
 
     return sp.diags(over_blocks(mesh, one, lambda parts: np.sum(parts, axis=0)), format="csr")
+
+
+def hrz_shares(wdet: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """(e, nv) each cell's (or facet's) measure sum_q wdet_eq shared by HRZ: in proportion to the diagonal of its
+    consistent mass, sum_q wdet_eq N_qa^2 (``wdet`` (e, q) the weights times det J, or times rho too; ``N`` (q, nv)
+    the shape functions at the points)."""
+    diag = wdet @ N**2
+    return diag * (wdet.sum(axis=1) / diag.sum(axis=1))[:, None]
 
 
 def body_load(mesh: Mesh, f: np.ndarray | Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
@@ -360,11 +367,11 @@ def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
     In 1D every tagged point has weight 1 (a unit cross-section).  Several tags: their union (each facet once;
     tags of several facet types, a mixed mesh's triangles and quads, summed type by type).  ``positive``: the
     weights of nodal contact,
-    positive at every node of a facet: the integrals, except on ``triangle6`` facets, whose vertices' integral
-    is 0, and ``quad8`` facets (serendipity: -1/12 of the area at a corner), where each facet's area is shared by
-    its HRZ lumped mass (``triangle6``: vertices 1/19, edges 16/57, spec section 16); on ``line3`` and ``quad9``
-    facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight facet) and are the HRZ shares
-    already.
+    positive at every node of a facet: the integrals where the facet type's are all positive, else each facet's
+    area shared by HRZ (:func:`hrz_shares`): ``triangle6`` facets, whose vertices' integral is 0 (HRZ: vertices
+    1/19, edges 16/57, spec section 16), and ``quad8`` ones (serendipity: -1/12 of the area at a corner); on
+    ``line3`` and ``quad9`` facets the integrals are positive (1/6, 2/3; 1/36, 1/9, 4/9 of a straight facet) and
+    are the HRZ shares already.
     """
     if not isinstance(tag, str) and len(groups := tags_by_facet_type(mesh, tag)) > 1:
         return sum(facet_weights(mesh, group, positive) for group in groups)
@@ -375,9 +382,8 @@ def facet_weights(mesh: Mesh, tag: str, positive: bool = False) -> np.ndarray:
     X = mesh.points[facets]  # (nf, nfv, d)
     J = np.einsum("qak,fai->fqik", fref.dN, X)  # (nf, nq, d, d-1)
     area = np.sqrt(np.abs(np.linalg.det(np.einsum("fqik,fqil->fqkl", J, J))))
-    if positive and fref.name in ("triangle6", "quad8"):
-        diag = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N**2)
-        we = diag * (area @ fref.weights / diag.sum(axis=1))[:, None]
+    if positive and not np.all(fref.weights @ fref.N > 0):
+        we = hrz_shares(area * fref.weights, fref.N)
     else:
         we = np.einsum("fq,q,qa->fa", area, fref.weights, fref.N)
     return np.bincount(facets.ravel(), weights=we.ravel(), minlength=mesh.n_nodes)

@@ -83,6 +83,7 @@ from ..dynamics.model.problem import Problem
 from ..dynamics.model.validate import INITIAL_ACCELERATIONS
 from ..dynamics.schemes import SCHEMES
 from ..errors import InputError, check_choice, check_positive, not_a_file
+from ..fem.elements import QUADRATIC, reference_element
 from ..fem.material import MATERIAL_MODELS, IsotropicElastic, with_model
 from ..fem.mesh import Mesh, box, elevate, interval, read_mesh, rectangle
 from ..fem.space import Dirichlet
@@ -252,7 +253,7 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
             cell
         ]
         if order == 2:  # the doubled grid (a split cell's diagonals meet at the grid's new points)
-            per_cell = {"line": 3, "quad": 9, "triangle": 6, "hexahedron": 27, "tetra": 10}[cell]
+            per_cell = reference_element(QUADRATIC[cell]).n_nodes
         nodes = math.prod(order * c + 1 for c in cells)
         guard((nodes, split * math.prod(cells), per_cell, dim, nodes // (order * min(cells) + 1)))
     if dim == 1:
