@@ -122,8 +122,10 @@ def test_two_ranks_equal_one_on_quadratic_cells(tmp_path):
     subprocess.run([str(exe), *args, "--out", str(tmp_path / "s")], check=True, capture_output=True, timeout=300)
     p, s = (np.genfromtxt(tmp_path / k / "history.csv", delimiter=",", names=True) for k in "ps")
     assert np.abs(s["lambda_sum"]).max() > 0.05  # the bar is in contact
-    assert np.allclose(p["lambda_sum"], s["lambda_sum"], rtol=0, atol=1e-12 * np.abs(s["lambda_sum"]).max())
-    assert np.allclose(p["energy"], s["energy"], rtol=0, atol=1e-12 * s["energy"][0])
+    # measured 3e-13 and 1e-15 relative: a distributed factorization's round-off, which another machine's MPI
+    # and BLAS change (docs/parallel.md: ranks agree to 1e-12 .. 1e-10); bound 1e-10
+    assert np.allclose(p["lambda_sum"], s["lambda_sum"], rtol=0, atol=1e-10 * np.abs(s["lambda_sum"]).max())
+    assert np.allclose(p["energy"], s["energy"], rtol=0, atol=1e-10 * s["energy"][0])
 
 
 COMMANDS = [["study", "bar1d"], ["compare", "bar2d", "--schemes", "cn", "--masses", "standard"]]
