@@ -155,7 +155,7 @@ def test_a_rows_facing_flips_are_counted_within_a_step_only():
                                           master_facet=np.zeros(1, int), master_shape=np.zeros((1, 2)),
                                           master_dofs=np.zeros((1, 2, 2), int))  # fmt: skip
         o.space = types.SimpleNamespace(dofs=lambda n: np.zeros((n.size, 2), int))
-        o.far, o._kept, o._last, o._first = 1e6, None, None, False
+        o.far, o._last, o._first = 1e6, None, False
         o.facing, o._flips, o._sticky = np.array([facing_before]), np.zeros(1, int), np.zeros(1, bool)
         o._set = lambda new: np.zeros(0, int)
         o.rows = types.SimpleNamespace(keep_level=lambda t: None)

@@ -5,7 +5,7 @@ in a checkpoint), ``saved() -> dict`` (arrays, numbers, strings: a copy of its s
 ``resume(data)`` (that state put back).  A checkpoint (:class:`~.checkpointer.Checkpointer`)
 is the walk over the parts, each flattened under its key in the file; the in-memory rollback
 of a rejected step (:class:`~.step_control.AdaptiveSteps`) is the walk over the parts that a
-step changes before it is accepted.
+step changes before it is accepted (:class:`StepParts`).
 
 The parts of a run:
 
@@ -13,14 +13,19 @@ The parts of a run:
 key                what                                                                rollback
 =================  ==================================================================  =========
 ``state``          the scheme's state at the level (U, V, A, lambda, declared extras)  no [1]
-``solvers``        each factorized system's warm starts and Delassus columns           yes
-``pairing``        the contact pairs' pairing (the rows re-paired as slave nodes slid)  no [1]
+``solvers``        each factorized system's warm starts and Delassus columns           yes [3]
+``pairing``        the contact rows: the pairs' pairing, the current configuration's   yes
+                   normals and master points (the same ``saved``/``resume`` calls)
 ``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``)            no [1]
 (attributes)       the time grid's segment and step, an adaptive control's state       yes [2]
 =================  ==================================================================  =========
 
 [1] changed only when a level is accepted (a rejected step never reaches them).
 [2] the control puts its grid back itself (:meth:`~.time_grid.TimeGrid.continue_with`).
+[3] in memory, not through a file: ``SolverStates.mark``/``rollback`` (the warm starts copied; the Delassus
+columns copied once if the step moves their rows, as the current configuration's Newton iterates do: their
+columns are updated incrementally, and moving the rows back would not give back the same round-off; a
+checkpoint's ``resume`` solves the logged columns again, which a rollback need not pay for).
 """
 
 from __future__ import annotations
@@ -148,17 +153,33 @@ class SolverStates:
                     setattr(sys.solver, name, a.copy())
 
     # -- a rollback ----------------------------------------------------------------------
-    def point(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
-        """What a rejected step must put back: the warm starts of the current step's solvers
-        (the Delassus columns a rejected step solved stay valid for its operator)."""
+    def mark(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
+        """What a rejected step must put back: the warm starts of the current step's solvers, and every
+        system's Delassus columns as they are now (:meth:`~signorini.contact.delassus.DelassusColumns.mark`:
+        copied only if the step moves their rows; the columns a step only adds stay valid for its operator)."""
+        for sys in self.ctx.factors.every():
+            _delassus_call(sys, "mark")
         return [(sys, _warm_copy(sys)) for sys in self.ctx.factors.current]
 
-    @staticmethod
-    def put_back(point: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
-        """The warm starts of :meth:`point` set again."""
-        for sys, arrays in point:
+    def rollback(self, mark: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
+        """The solvers as at :meth:`mark`: the Delassus columns, then the warm starts."""
+        for sys in self.ctx.factors.every():
+            _delassus_call(sys, "rollback")
+        for sys, arrays in mark:
             for name, a in arrays.items():
                 setattr(sys.solver, name, a.copy())
+
+    def release(self) -> None:
+        """The step was accepted: the marks of :meth:`mark` dropped (nothing is copied after it)."""
+        for sys in self.ctx.factors.every():
+            _delassus_call(sys, "release")
+
+
+def _delassus_call(sys: Any, name: str) -> None:
+    """``name`` (mark, rollback, release) on a system's Delassus columns, if its solver has them."""
+    delassus = getattr(sys.solver, "delassus", None)
+    if hasattr(delassus, name):
+        getattr(delassus, name)()
 
 
 def _warm_names(sys: Any) -> tuple[str, ...]:
@@ -184,3 +205,32 @@ class Pairing:
 
     def resume(self, data: dict[str, Any]) -> None:
         self.ctx.restore_pairing(data, self.t)
+
+
+class StepParts:
+    """The parts a step changes before it is accepted (the solvers and the rows' pairing), for the in-memory
+    rollback of a rejected step: :meth:`mark` before a trial, :meth:`rollback` after a rejected one,
+    :meth:`release` after an accepted one.  The rows are put back by their checkpoint's own calls
+    (``Pairing.saved``/``resume``), after the solvers (whose Delassus columns then hold the level's rows).
+
+    Parameters
+    ----------
+    solvers, pairing : the run's :class:`SolverStates` and :class:`Pairing`.
+    """
+
+    def __init__(self, solvers: SolverStates, pairing: Pairing) -> None:
+        self.solvers, self.pairing = solvers, pairing
+
+    def mark(self, t: float) -> tuple[Any, dict[str, Any]]:
+        """What a rollback to the level at time t puts back."""
+        self.pairing.t = t
+        return self.solvers.mark(), self.pairing.saved()
+
+    def rollback(self, marked: tuple[Any, dict[str, Any]]) -> None:
+        """The parts as at :meth:`mark`."""
+        self.solvers.rollback(marked[0])
+        self.pairing.resume(marked[1])
+
+    def release(self) -> None:
+        """The step was accepted."""
+        self.solvers.release()

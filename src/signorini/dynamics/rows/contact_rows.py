@@ -189,7 +189,7 @@ class ContactRows:
         if not self.sliding:
             return {}
         c = self.disc.contact
-        out: dict[str, Any] = {k: np.asarray(getattr(c, k)) for k in self.PAIRING_ARRAYS}
+        out: dict[str, Any] = {k: np.array(getattr(c, k), copy=True) for k in self.PAIRING_ARRAYS}
         out["repaired"] = int(self.repaired)
         out["pair_repaired"] = [int(p["repaired_rows"]) for p in (c.pair_info or [])]
         if self._level_rows is not None and self._level_rows[0] == t:

@@ -57,8 +57,6 @@ class CurrentRows:
         self.n_dofs = rows.disc.space.n_dofs
         #: the obstacle's rows (all rows but those of contact pairs, :class:`CurrentRowsAndPairs`)
         self.own = np.arange(self.contact.size) if own is None else np.asarray(own, dtype=np.int64)
-        #: (t, normals of the own rows) of the level the step in progress starts from
-        self._kept: tuple[float, np.ndarray] | None = None
         #: every row faces the obstacle (:attr:`CurrentPairRows.facing`)
         self.facing: np.ndarray | None = None
 
@@ -126,20 +124,11 @@ class CurrentRows:
         out[self.own] = np.asarray(self.obstacle.gaps(self._points(U)[0], t), dtype=float)
         return out
 
-    def keep_level(self, t: float) -> np.ndarray:
+    def keep_level(self, t: float) -> None:
         """Before a step from the level at t moves the rows: they are that level's (kept for its identity,
-        :meth:`ContactRows.keep_level`); a step tried again from the same level first gets them back.
-        Returns the rows put back."""
-        c = self.contact
-        changed = np.zeros(0, dtype=np.int64)
-        if self._kept is not None and self._kept[0] == t:
-            back = np.any(c.normals[self.own] != self._kept[1], axis=1)
-            changed = self.own[back]
-            self._set(changed, self._kept[1][back])
-        else:
-            self._kept = (t, c.normals[self.own].copy())
+        :meth:`ContactRows.keep_level`).  A rejected step's rows are put back by its rollback
+        (:meth:`resume` of :meth:`saved`, :mod:`~signorini.dynamics.restart.protocol`)."""
         self.rows.keep_level(t)
-        return changed
 
     def saved(self) -> dict[str, Any]:
         """What a checkpoint holds of the rows: the normals the last level's multipliers acted through."""
@@ -197,7 +186,6 @@ class CurrentPairRows:
         #: same at every iterate) [length]
         X = disc.problem.mesh.points
         self.far = OFF_RIM * (float(np.abs(X).max(initial=0.0)) + float(np.ptp(X, axis=0).max(initial=0.0)) or 1.0)
-        self._kept: tuple[float, dict[str, np.ndarray]] | None = None
         self._last: tuple[np.ndarray, np.ndarray, list] | None = None
         #: (nc,) whether each row faces something at the last :meth:`follow` (the rigid obstacle's rows do)
         self.facing = np.ones(self.contact.size, dtype=bool)
@@ -309,19 +297,12 @@ class CurrentPairRows:
             out[r] = np.where(proj.facing | self._sticky[r], proj.gaps, self.far if outside is None else outside)
         return out
 
-    def keep_level(self, t: float) -> np.ndarray:
-        """As :meth:`CurrentRows.keep_level`: the level's pairing kept, or put back before a step is tried again."""
-        c = self.contact
-        changed = np.zeros(0, dtype=np.int64)
-        if self._kept is not None and self._kept[0] == t:
-            changed = self._set(self._kept[1])
-        else:
-            self._kept = (t, {k: np.array(getattr(c, k), copy=True) for k in self.ARRAYS})
+    def keep_level(self, t: float) -> None:
+        """As :meth:`CurrentRows.keep_level`; this step's flips at the rim start from none."""
         self._flips[:] = 0
         self._sticky[:] = False
         self._first = True
         self.rows.keep_level(t)
-        return changed
 
     def saved(self) -> dict[str, Any]:
         """The pairing the last level's multipliers acted through (a checkpoint's)."""
@@ -415,8 +396,9 @@ class CurrentRowsAndPairs:
         out[self.own] = self.obstacle.gaps(U, t)[self.own]
         return out
 
-    def keep_level(self, t: float) -> np.ndarray:
-        return np.union1d(self.obstacle.keep_level(t), self.pairs.keep_level(t))
+    def keep_level(self, t: float) -> None:
+        self.obstacle.keep_level(t)
+        self.pairs.keep_level(t)
 
     def saved(self) -> dict[str, Any]:
         return self.pairs.saved()
@@ -496,7 +478,7 @@ def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarr
     current = ctx.rows.current
     if current is None:
         return ctx.gaps(t)
-    ctx.replace_rows(current.keep_level(t0))
+    current.keep_level(t0)
     return FollowingBound(ctx, t, U0, t0)
 
 

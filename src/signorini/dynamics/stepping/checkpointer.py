@@ -19,7 +19,7 @@ import numpy as np
 
 from ...errors import InputError
 from ..restart import checkpoint as ckpt
-from ..restart.protocol import Pairing, SolverStates
+from ..restart.protocol import SolverStates
 from .run_options import CheckpointPolicy
 
 if TYPE_CHECKING:
@@ -40,7 +40,7 @@ class Checkpointer:
         run = stepper.run
         self.stepper, self.policy = stepper, policy
         self.solvers = stepper.solvers
-        self.pairing = Pairing(run.ctx)
+        self.pairing = stepper.pairing
         self.series = ckpt.SeriesLog()  # the levels' series written beside the checkpoint
         self.meta = dict(policy.meta) if policy is not None else {}
         self.log = ckpt.CheckpointLog(policy.every, policy.path) if policy is not None else None

@@ -454,13 +454,14 @@ class AdaptiveSteps:
             begin, _, dt_piece = grid.piece(s.t)
             h = grid.segment(n).dt
             s.use_segment(n)  # the systems of h first: theirs are the warm starts a rejection puts back
-            point = s.solvers.point()
+            marked = s.step_parts.mark(s.t)  # the parts a step changes (:mod:`~.restart.protocol`)
             new, why = s.trial(n)
             if comm.any(new is None):  # every rank takes the same decision
                 new, why = None, why or f"step {n} failed on another rank"
             if new is None:
                 verdict = "reject" if ctl.k < ctl.k_max(dt_piece) else "failed"
                 if verdict == "failed":
+                    s.step_parts.rollback(marked)
                     return None, why
                 ctl.failed_trials += 1
             else:
@@ -473,14 +474,16 @@ class AdaptiveSteps:
                 verdict = "reject"
                 ctl.event_refinements += 1
             if verdict == "unresolved" and s.energies.check == "fail":  # energy_check=fail: levels kept
+                s.step_parts.rollback(marked)
                 allowed = ctl.allowed(scale, h, dt_piece)
                 return None, (f"step {n} (t = {s.grid.time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
                               f"creates or destroys {abs(delta):.3g} of energy (its error estimate: {eta:.3g}), above "
                               f"the allowance {allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
             if verdict in ("accept", "unresolved"):
                 self.verdict = (verdict, delta, scale, h, dt_piece, eta)
+                s.step_parts.release()
                 return new, ""
-            s.solvers.put_back(point)
+            s.step_parts.rollback(marked)
             if verdict == "retry":  # the test hook: the same step again
                 continue
             ctl.rejected += 1

@@ -47,7 +47,7 @@ from ..observe.observers import grow_observers
 from ..observe.rotation_watch import ROTATION_LIMIT, RotationWatch
 from ..observe.untagged import UntaggedContact
 from ..restart import checkpoint as ckpt
-from ..restart.protocol import SolverStates
+from ..restart.protocol import Pairing, SolverStates, StepParts
 from ..schemes import Scheme, State, make_scheme
 from .checkpointer import Checkpointer
 from .run_options import RunOptions
@@ -88,7 +88,9 @@ class Stepper:
     state : the :class:`~.schemes.State` of the current level.
     status, message : ``running`` until the run ends; why it ended early.
     run : the :class:`~.observers.Run` (context, scheme, initial state) observers see.
-    solvers : the solvers' restartable data (:class:`~.restart.SolverStates`: a rollback's too).
+    solvers, pairing : the solvers' and the rows' restartable data (:class:`~.restart.protocol.SolverStates`,
+        :class:`~.restart.protocol.Pairing`).
+    step_parts : what a rejected step's rollback puts back (:class:`~.restart.protocol.StepParts`).
     adaptive : the energy control (:class:`~.step_control.AdaptiveSteps`; None: fixed steps).
     checkpointer : the run's checkpoints (:class:`~.checkpointer.Checkpointer`).
     resumed_from : the level and time the run resumed at (None: it started at t = 0).
@@ -183,6 +185,8 @@ class Stepper:
         #: factor bytes an adaptive control keeps for the steps it left (a quarter of the budget)
         ladder_bytes = 0.25 * float(run.ctx.solver_options.get("memory_budget") or total_memory())
         self.solvers = SolverStates(run.ctx, self.adaptive is not None, ladder_bytes)
+        self.pairing = Pairing(run.ctx)
+        self.step_parts = StepParts(self.solvers, self.pairing)  # a rejected step's rollback
         self.checkpointer = Checkpointer(self, o.checkpoint, o.case_hash)
         self._loop_seconds = 0.0
         #: the BLAS threads of the loop (0: the libraries' own); a driver that holds them already
@@ -261,8 +265,8 @@ class Stepper:
 
     def trial(self, n: int) -> tuple[State | None, str]:
         """Level n computed from the current one, not accepted: (state, "") or (None, why it
-        failed).  What it changed is put back by ``solvers.put_back(solvers.point())`` taken
-        before it (a rollback: :mod:`~.restart`)."""
+        failed).  What it changed is put back by the rollback of the parts marked before it
+        (:meth:`~.step_control.AdaptiveSteps.step`, :mod:`~.restart`)."""
         try:
             new = self._advance(n)
         except (ConvergenceError, InputError, np.linalg.LinAlgError, FloatingPointError) as exc:
