@@ -460,7 +460,15 @@ def test_friction_is_part_of_the_identity(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "attr, value", [("level", "x"), ("t", float("nan")), ("counters", []), ("n_solvers", "2"), ("segment", [0, -1, 0])]
+    "attr, value",
+    [
+        ("level", "x"),
+        ("t", float("nan")),
+        ("counters", []),
+        ("solvers/count", "2"),
+        ("state/flags", [1]),
+        ("segment", [0, -1, 0]),
+    ],
 )
 def test_forged_attributes_are_refused_in_one_line(tmp_path, attr, value):
     """An attribute of the wrong type with the checksum recomputed (a forged file): exit 2 in one
@@ -475,6 +483,24 @@ def test_forged_attributes_are_refused_in_one_line(tmp_path, attr, value):
     r = _cli("resume", "a", "--T", "1", "--out", "b", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "b").exists()
+
+
+def test_a_checkpoint_of_the_former_layout_resumes_alike(tmp_path):
+    """A checkpoint written before the parts' walk named the state's flags ``state_flags`` and the solvers' count
+    ``n_solvers`` (top-level attributes): rewritten so, it resumes to the same history as the file as written."""
+    import signorini.dynamics.restart.checkpoint as ckpt
+
+    assert _cli("run", "bar2d", "--T", "0.5", "--quiet", "--out", "a", cwd=tmp_path).returncode == 0
+    assert _cli("resume", "a", "--T", "1", "--quiet", "--out", "now", cwd=tmp_path).returncode == 0
+    path = tmp_path / "a/checkpoint.h5"
+    contents = ckpt.read(path)
+    attrs = contents["attrs"]
+    assert isinstance(attrs["solvers/count"], int) and attrs["solvers/count"] > 0 and "n_solvers" not in attrs
+    attrs["state_flags"], attrs["n_solvers"] = attrs.pop("state/flags"), attrs.pop("solvers/count")
+    ckpt.write(path, {"arrays": contents["arrays"], "attrs": attrs})
+    r = _cli("resume", "a", "--T", "1", "--quiet", "--out", "former", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "now/history.csv").read_text() == (tmp_path / "former/history.csv").read_text()
 
 
 #: the default suite runs these schemes on the gmsh part; the others are in the slow suite

@@ -28,7 +28,7 @@ def _same_step_twice(stepper: Stepper, before: int) -> None:
     for _ in range(before):
         assert stepper.step() == "running"
     n = stepper.n + 1
-    marked = stepper.step_parts.mark(stepper.t)
+    marked = stepper.step_parts.mark()
     first, why = stepper.trial(n)
     assert first is not None, why
     stepper.step_parts.rollback(marked)

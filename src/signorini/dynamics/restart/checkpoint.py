@@ -436,10 +436,13 @@ def check_attrs(attrs: dict[str, Any], where: str) -> None:
             raise bad(f"{name} {v!r} is not a finite number")
     if not dt > 0 or t < 0:
         raise bad(f"dt = {dt!r} or t = {t!r} out of range")
-    for name, kind in (("identity", dict), ("counters", dict), ("state_flags", dict), ("series", dict),
-                       ("n_solvers", int)):  # fmt: skip
-        if not isinstance(attrs.get(name), kind) or isinstance(attrs.get(name), bool):
+    for name, kind in (("identity", dict), ("counters", dict), ("series", dict)):
+        if not isinstance(attrs.get(name), kind):
             raise bad(f"{name} is missing or not a {kind.__name__}")
+    for name, kind in (("state/flags", dict), ("solvers/count", int)):  # (or their former names: :func:`upgrade`)
+        value = attrs.get(name, attrs.get(LAYOUT_NAMES[name], kind()))
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise bad(f"{name} is not a {kind.__name__}")
     if any(not isinstance(v, int) or isinstance(v, bool) or v < 0 for v in attrs["counters"].values()):
         raise bad("a counter is not a non-negative integer")
     seg = attrs.get("segment")
@@ -474,6 +477,20 @@ def read(path: Path) -> dict[str, Any]:
         raise InputError(f"{where}: its checksum does not match its contents (a corrupt or edited file)")
     check_attrs(attrs, where)
     return {"arrays": arrays, "attrs": attrs}
+
+
+#: attributes a checkpoint of before the parts' walk named otherwise (new name: former name); still read
+LAYOUT_NAMES = {"state/flags": "state_flags", "solvers/count": "n_solvers"}
+
+
+def upgrade(contents: dict[str, Any]) -> dict[str, Any]:
+    """A checkpoint's contents with the attributes of before the parts' walk under their names now
+    (:data:`LAYOUT_NAMES`): a checkpoint written by an earlier version of the same format resumes."""
+    attrs = dict(contents["attrs"])
+    for new, old in LAYOUT_NAMES.items():
+        if old in attrs:
+            attrs.setdefault(new, attrs.pop(old))
+    return {**contents, "attrs": attrs}
 
 
 def unflatten(prefix: str, contents: dict[str, Any]) -> dict[str, Any]:

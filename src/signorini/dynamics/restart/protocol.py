@@ -13,11 +13,15 @@ The parts of a run:
 key                what                                                                rollback
 =================  ==================================================================  =========
 ``state``          the scheme's state at the level (U, V, A, lambda, declared extras)  no [1]
+                   (:class:`StatePart`)
 ``solvers``        each factorized system's warm starts and Delassus columns           yes [3]
 ``pairing``        the contact rows: the pairs' pairing, the current configuration's   yes
                    normals and master points (the same ``saved``/``resume`` calls)
-``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``)            no [1]
-(attributes)       the time grid's segment and step, an adaptive control's state       yes [2]
+``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``,             no [1]
+                   :class:`ObserverPart`)
+(header)           the level, its time, the identity, the counters; the time grid's    yes [2]
+                   segment and step and an adaptive control's state (read by the
+                   set-up, before the parts exist)
 =================  ==================================================================  =========
 
 [1] changed only when a level is accepted (a rejected step never reaches them).
@@ -30,6 +34,7 @@ checkpoint's ``resume`` solves the logged columns again, which a rollback need n
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -37,6 +42,7 @@ import numpy as np
 from ...errors import InputError
 from ..model.operator import Operator, Viscous
 from ..solve.context import Context
+from . import checkpoint as ckpt
 
 
 class Restartable(Protocol):
@@ -70,6 +76,8 @@ class SolverStates:
         self.ctx, self.kept_steps, self.ladder_bytes = ctx, kept_steps, ladder_bytes
         #: where the data comes from (the messages of :meth:`resume`)
         self.where = "checkpoint"
+        #: the level's snapshot taken before a step works (:meth:`take`), what :meth:`saved` gives until dropped
+        self.taken: list[tuple] | None = None
 
     # -- a checkpoint --------------------------------------------------------------------
     def snapshot(self) -> list[tuple]:
@@ -100,8 +108,19 @@ class SolverStates:
                 out.update({f"{k}/delassus/{name}": a for name, a in log.items()})
         return out
 
+    def take(self) -> None:
+        """What a checkpoint of the current level holds of the solvers, taken before a step changes their warm
+        starts (a step interrupted or failed midway leaves the level before it); kept until :meth:`drop`."""
+        if self.taken is None:
+            self.taken = self.snapshot()
+
+    def drop(self) -> None:
+        """A new level: the next :meth:`take` takes again."""
+        self.taken = None
+
     def saved(self) -> dict[str, Any]:
-        return self.arrays(self.snapshot())
+        arrays = self.arrays(self.taken if self.taken is not None else self.snapshot())
+        return {**arrays, "count": self.count(arrays)}
 
     @staticmethod
     def count(arrays: dict[str, Any]) -> int:
@@ -112,7 +131,7 @@ class SolverStates:
         """Each saved operator factorized (with its step under an adaptive control), its warm
         starts set, its Delassus columns solved again; the current step's systems last."""
         ctx, where = self.ctx, self.where
-        count = int(data.get("count", 0))  # the systems saved (a checkpoint's ``n_solvers``)
+        count = int(data.get("count", 0))  # the systems saved (a checkpoint's ``solvers/count``)
         current, restored = ctx.dt, {}
         for k in range(count if ctx.comm.size == 1 else 0):
             op = data.get(f"{k}/operator")
@@ -192,19 +211,25 @@ def _warm_copy(sys: Any) -> dict[str, np.ndarray]:
 
 
 class Pairing:
-    """The contact pairs' pairing at the current level (:meth:`~.context.Context.pairing_state`)."""
+    """The contact rows at the current level (:meth:`~.context.Context.pairing_state`): the pairs' pairing after
+    small sliding, the current configuration's normals and master points.
+
+    Parameters
+    ----------
+    ctx : the run's :class:`~.context.Context`.
+    level_time : the current level's time [s] (the stepper's).
+    """
 
     key = "pairing"
 
-    def __init__(self, ctx: Context) -> None:
-        self.ctx = ctx
-        self.t = 0.0  # the level's time (the stepper sets it before a walk)
+    def __init__(self, ctx: Context, level_time: Callable[[], float]) -> None:
+        self.ctx, self.level_time = ctx, level_time
 
     def saved(self) -> dict[str, Any]:
-        return self.ctx.rows.pairing_state(self.t)
+        return self.ctx.rows.pairing_state(self.level_time())
 
     def resume(self, data: dict[str, Any]) -> None:
-        self.ctx.restore_pairing(data, self.t)
+        self.ctx.restore_pairing(data, self.level_time())
 
 
 class StepParts:
@@ -221,9 +246,8 @@ class StepParts:
     def __init__(self, solvers: SolverStates, pairing: Pairing) -> None:
         self.solvers, self.pairing = solvers, pairing
 
-    def mark(self, t: float) -> tuple[Any, dict[str, Any]]:
-        """What a rollback to the level at time t puts back."""
-        self.pairing.t = t
+    def mark(self) -> tuple[Any, dict[str, Any]]:
+        """What a rollback to the current level puts back."""
         return self.solvers.mark(), self.pairing.saved()
 
     def rollback(self, marked: tuple[Any, dict[str, Any]]) -> None:
@@ -234,3 +258,56 @@ class StepParts:
     def release(self) -> None:
         """The step was accepted."""
         self.solvers.release()
+
+
+class StatePart:
+    """The scheme's state at the level (U, V, A, lambda, lambda_t, the scheme's declared data and flags).
+
+    Parameters
+    ----------
+    stepper : the run (its ``state``, set by :meth:`resume`).
+    t : the level's time [s] (a checkpoint's header).
+    """
+
+    key = "state"
+
+    def __init__(self, stepper: Any, t: float) -> None:
+        self.stepper, self.t = stepper, t
+
+    def saved(self) -> dict[str, Any]:
+        s = self.stepper
+        arrays, flags = ckpt.state_arrays(s.run, s.state)
+        return {**arrays, "flags": flags}
+
+    def resume(self, data: dict[str, Any]) -> None:
+        data = dict(data)
+        flags = data.pop("flags", {})
+        if not isinstance(flags, dict):
+            raise InputError("checkpoint: the state's flags are not a mapping")
+        self.stepper.state = ckpt.restore_state(self.stepper.run, data, flags, self.t)
+
+
+class ObserverPart:
+    """An observer's data up to the level (``Observer.saved(n)``/``resume(run, n, state, data)``, the public
+    calls users' observers implement); its ``series`` go to the checkpoint's series file under ``series_key``.
+    An observer without a ``checkpoint_key`` writes nothing and resumes with no data (e.g. one that copies files).
+
+    Parameters
+    ----------
+    stepper : the run.
+    observer : the observer.
+    level : the level saved or resumed.
+    """
+
+    def __init__(self, stepper: Any, observer: Any, level: int) -> None:
+        self.stepper, self.observer, self.level = stepper, observer, level
+        self.series_key: str | None = getattr(observer, "checkpoint_key", None)
+        self.key = f"observers/{self.series_key}" if self.series_key else None
+
+    def saved(self) -> dict[str, Any]:
+        return dict(self.observer.saved(self.level)) if self.key else {}
+
+    def resume(self, data: dict[str, Any]) -> None:
+        if hasattr(self.observer, "resume"):
+            s = self.stepper
+            self.observer.resume(s.run, self.level, s.state, data)

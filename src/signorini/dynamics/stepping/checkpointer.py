@@ -19,7 +19,7 @@ import numpy as np
 
 from ...errors import InputError
 from ..restart import checkpoint as ckpt
-from ..restart.protocol import SolverStates
+from ..restart.protocol import ObserverPart, StatePart
 from .run_options import CheckpointPolicy
 
 if TYPE_CHECKING:
@@ -45,7 +45,8 @@ class Checkpointer:
         self.meta = dict(policy.meta) if policy is not None else {}
         self.log = ckpt.CheckpointLog(policy.every, policy.path) if policy is not None else None
         self.identity = ckpt.identity(run, case_hash)
-        #: what a checkpoint of the current level holds, taken before the next step works
+        #: what a checkpoint of the current level holds of the grid and the counters, taken before the next step
+        #: works (the solvers' part takes its own: :meth:`~.restart.protocol.SolverStates.take`)
         self._level: dict[str, Any] | None = None
 
     # -- the stepper's calls ---------------------------------------------------------
@@ -53,12 +54,13 @@ class Checkpointer:
         """The solvers' warm starts, the grid's attributes and the counters at the current
         level, if not taken yet (a rejected step tries again from the same level)."""
         if self.log is not None and self._level is None:
-            s = self.stepper
-            self._level = {"solvers": self.solvers.snapshot(), "grid": self.grid_attrs(), "counters": s.counters}
+            self.solvers.take()
+            self._level = {"grid": self.grid_attrs(), "counters": self.stepper.counters}
 
     def accepted(self) -> None:
         """A new level: what a checkpoint holds is taken again before the next step."""
         self._level = None
+        self.solvers.drop()
 
     def level_done(self) -> None:
         """The periodic checkpoint, when the level is due (not the last: :meth:`at_exit` writes it)."""
@@ -95,32 +97,30 @@ class Checkpointer:
         return {"segment": segment, "dt": s.dt}
 
     # -- the walk --------------------------------------------------------------------
+    def parts(self, level: int, t: float) -> list[Any]:
+        """The run's restartable parts at a level (:mod:`~.restart.protocol`), in the order a resume puts them
+        back: the state, the solvers, the contact rows (at the state's time), the observers (given the state)."""
+        s = self.stepper
+        return [StatePart(s, t), self.solvers, self.pairing, *(ObserverPart(s, o, level) for o in s.observers)]
+
     def contents(self) -> dict[str, Any]:
-        """Every part at the current level, flattened under its key (:mod:`~.restart`)."""
+        """Every part at the current level, each flattened under its key, and the header: the level, its time,
+        the identity, the counters, where the grid goes on (:mod:`~.restart`)."""
         s = self.stepper
         run, n = s.run, s.n
         arrays: dict[str, np.ndarray] = {}
         attrs: dict[str, Any] = {}
-        state_arrays, flags = ckpt.state_arrays(run, s.state)
-        arrays.update({f"state/{k}": v for k, v in state_arrays.items()})
-        attrs["state_flags"] = flags
-        level = self._level or {}
-        solvers = SolverStates.arrays(level["solvers"]) if "solvers" in level else self.solvers.saved()
-        arrays.update({f"solvers/{k}": v for k, v in solvers.items()})
-        self.pairing.t = s.state.t
-        ckpt.flatten("pairing", self.pairing.saved(), arrays, attrs)
         series: dict[str, np.ndarray] = {}
-        for o in s.observers:
-            key = getattr(o, "checkpoint_key", None)
-            if key:
-                data = dict(o.saved(n))
-                series.update({f"{key}/{k}": v for k, v in data.pop("series", {}).items()})
-                ckpt.flatten(f"observers/{key}", data, arrays, attrs)
+        for part in self.parts(n, float(s.state.t)):
+            if part.key is None:
+                continue
+            data = dict(part.saved())
+            series.update({f"{part.series_key}/{k}": v for k, v in data.pop("series", {}).items()})
+            ckpt.flatten(part.key, data, arrays, attrs)
+        level = self._level or {}
         attrs.update(level.get("grid") or self.grid_attrs())
-        counters = level.get("counters") or s.counters
-        attrs.update(level=n, t=float(s.state.t), identity=self.identity, counters=counters,
-                     n_solvers=SolverStates.count(solvers), meta=self.meta,
-                     scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
+        attrs.update(level=n, t=float(s.state.t), identity=self.identity, counters=level.get("counters") or s.counters,
+                     meta=self.meta, scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
         return {"arrays": arrays, "attrs": attrs, "series": series}
 
     def save(self, path: str | Path | None = None) -> Path | None:
@@ -163,16 +163,10 @@ class Checkpointer:
 
     def _restore(self, saved: dict[str, Any], where: str) -> dict[str, Any]:
         s = self.stepper
+        saved = ckpt.upgrade(saved)
         attrs, run = saved["attrs"], s.run
         ckpt.compare_identity(attrs["identity"], self.identity, f"checkpoint {where!r}")
         n, t = int(attrs["level"]), float(attrs["t"])
-        s.state = ckpt.restore_state(run, ckpt.unflatten("state", saved), attrs.get("state_flags", {}), t)
-        self.solvers.where = where
-        self.solvers.resume({**ckpt.unflatten("solvers", saved), "count": int(attrs.get("n_solvers", 0))})
-        if s.adaptive is not None and "time_control" in attrs:
-            s.adaptive.control.restore(dict(attrs["time_control"]), n, t)
-        self.pairing.t = t
-        self.pairing.resume(ckpt.unflatten("pairing", saved))
         info = attrs.get("series", {})
         series = ckpt.read_series(Path(where), info.get("layout", []), info.get("records", -1), info.get("digest", ""),
                                   f"checkpoint {where!r}")  # fmt: skip
@@ -180,14 +174,15 @@ class Checkpointer:
             raise InputError(f"checkpoint {where!r}: its series hold {info.get('records')} levels, not {n + 1}")
         times = series.get("history/times")
         run.level_times = None if times is None else np.asarray(times)
-        for o in s.observers:  # each with its data; those without a key with none (e.g. to copy files)
-            key = getattr(o, "checkpoint_key", None)
-            if not hasattr(o, "resume"):
-                continue
-            data = ckpt.unflatten(f"observers/{key}", saved) if key else {}
-            if key:
+        if s.adaptive is not None and "time_control" in attrs:
+            s.adaptive.control.restore(dict(attrs["time_control"]), n, t)
+        self.solvers.where = where
+        for part in self.parts(n, t):  # each with its data; an observer without a key with none
+            data = ckpt.unflatten(part.key, saved) if part.key else {}
+            if getattr(part, "series_key", None):
+                key = part.series_key
                 data["series"] = {k[len(key) + 1 :]: v for k, v in series.items() if k.startswith(f"{key}/")}
-            o.resume(run, n, s.state, data)
+            part.resume(data)
         return {"level": n, "t": t, "counters": {k: int(v) for k, v in attrs["counters"].items() if k != "steps"},
                 "created": attrs.get("created", "")}  # fmt: skip
 

@@ -454,7 +454,7 @@ class AdaptiveSteps:
             begin, _, dt_piece = grid.piece(s.t)
             h = grid.segment(n).dt
             s.use_segment(n)  # the systems of h first: theirs are the warm starts a rejection puts back
-            marked = s.step_parts.mark(s.t)  # the parts a step changes (:mod:`~.restart.protocol`)
+            marked = s.step_parts.mark()  # the parts a step changes (:mod:`~.restart.protocol`)
             new, why = s.trial(n)
             if comm.any(new is None):  # every rank takes the same decision
                 new, why = None, why or f"step {n} failed on another rank"

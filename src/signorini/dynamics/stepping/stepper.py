@@ -185,7 +185,7 @@ class Stepper:
         #: factor bytes an adaptive control keeps for the steps it left (a quarter of the budget)
         ladder_bytes = 0.25 * float(run.ctx.solver_options.get("memory_budget") or total_memory())
         self.solvers = SolverStates(run.ctx, self.adaptive is not None, ladder_bytes)
-        self.pairing = Pairing(run.ctx)
+        self.pairing = Pairing(run.ctx, lambda: self.t)
         self.step_parts = StepParts(self.solvers, self.pairing)  # a rejected step's rollback
         self.checkpointer = Checkpointer(self, o.checkpoint, o.case_hash)
         self._loop_seconds = 0.0
