@@ -63,10 +63,8 @@ class DelassusColumns:
         self._dof_slot = np.full(n, -1, dtype=np.intp)
         self._Zd = np.empty((0, self._rows()))
         self.dof_columns = 0  # dof columns solved (counted in ``solved`` too)
-        #: a rejected step's rollback (:meth:`mark`): whether one is marked, and the columns as they were
-        #: before the step first changed B's rows (None: not changed yet)
-        self._marked = False
-        self._undo: dict[str, object] | None = None
+        #: a rejected step's rollback (:class:`ColumnsUndo`)
+        self.undo = ColumnsUndo(self)
 
     def _rows(self) -> int:
         """Rows of a stored Z column (n; a rank's own rows on a distributed factor)."""
@@ -151,35 +149,6 @@ class DelassusColumns:
             self.solved += J.size
             self.log.append(("solve", J.copy(), s.copy()))
         self.seconds += time.perf_counter() - t0
-
-    # -- a rejected step's rollback (in memory) ----------------------------------------
-    #: what a rollback leaves as it is: the work done (counted), the factor, the rollback's own state
-    KEPT_ON_ROLLBACK = ("factor", "solved", "seconds", "replayed", "_marked", "_undo")
-
-    def mark(self) -> None:
-        """Before a step that may be rejected: the columns now are those a :meth:`rollback` puts back.
-        Nothing is copied until the step changes B's rows (:meth:`replace_rows`: the current configuration's
-        rows, moved by each Newton iterate); the columns it only adds stay valid for B and are kept."""
-        self._marked, self._undo = True, None
-
-    def release(self) -> None:
-        """The step was accepted: nothing to put back."""
-        self._marked, self._undo = False, None
-
-    def rollback(self) -> None:
-        """The columns, their slots, B and the log as at :meth:`mark` if the step changed B's rows since
-        (the incremental updates of the moved rows' columns are not undone by moving them back: their
-        round-off would differ from the run without the rejected step)."""
-        if self._undo is not None:
-            for k, v in self._undo.items():
-                setattr(self, k, v)
-        self._undo = None
-
-    def _before_change(self) -> None:
-        """A copy of everything :meth:`replace_rows` may change, once after :meth:`mark`."""
-        if self._marked and self._undo is None:
-            self._undo = {k: (v.copy() if isinstance(v, (np.ndarray, list)) else v)
-                          for k, v in vars(self).items() if k not in self.KEPT_ON_ROLLBACK}  # fmt: skip
 
     def history(self, blocks: int | None = None) -> dict[str, np.ndarray]:
         """What changed the columns so far (or its first ``blocks`` entries), for a checkpoint:
@@ -316,7 +285,7 @@ class DelassusColumns:
         digest = _digest(B)
         if digest == self._digest_B:  # these rows already (a resumed run's pairing, its log replayed)
             return
-        self._before_change()
+        self.undo.before_change()
         B_before = self.B
         self.B, self._digest_B = B, digest
         self.Bt = self.B.T.tocsc()
@@ -429,6 +398,47 @@ class DelassusColumns:
         if self.keeps_Z:
             return x_free + self.Z_times(A, lam[A])
         return x_free + self.factor.solve(self.B.T @ lam)
+
+
+class ColumnsUndo:
+    """The in-memory rollback of a rejected step's changes to a :class:`DelassusColumns`.
+
+    :meth:`mark` before a step that may be rejected; nothing is copied until the step changes B's rows
+    (:meth:`DelassusColumns.replace_rows`: the current configuration's rows, moved by each Newton iterate), then
+    everything those changes touch is copied once (:meth:`before_change`); :meth:`rollback` puts it back,
+    :meth:`release` drops it after an accepted step.  The columns a step only adds stay valid for B and are
+    kept.  Moving the rows back would not do: the moved rows' columns are updated incrementally, and the
+    retried step would see another round-off (1e-13 of the contact force, measured on rings2d).
+    """
+
+    #: what a rollback leaves as it is: the work done (counted), the factor, this object
+    KEPT = ("factor", "solved", "seconds", "replayed", "undo")
+
+    def __init__(self, columns: DelassusColumns) -> None:
+        self.columns = columns
+        self.marked = False
+        self.copy: dict[str, object] | None = None
+
+    def mark(self) -> None:
+        """The columns now are those a :meth:`rollback` puts back."""
+        self.marked, self.copy = True, None
+
+    def release(self) -> None:
+        """The step was accepted: nothing to put back."""
+        self.marked, self.copy = False, None
+
+    def before_change(self) -> None:
+        """A copy of everything :meth:`DelassusColumns.replace_rows` may change, once after :meth:`mark`."""
+        if self.marked and self.copy is None:
+            self.copy = {k: (v.copy() if isinstance(v, (np.ndarray, list)) else v)
+                         for k, v in vars(self.columns).items() if k not in self.KEPT}  # fmt: skip
+
+    def rollback(self) -> None:
+        """The columns, their slots, B and the log as at :meth:`mark`, if the step changed B's rows since."""
+        if self.copy is not None:
+            for k, v in self.copy.items():
+                setattr(self.columns, k, v)
+        self.copy = None
 
 
 def _digest(B: sp.csr_matrix) -> bytes:

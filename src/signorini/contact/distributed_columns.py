@@ -27,7 +27,7 @@ class DistributedColumns(DelassusColumns):
 
     def replace_rows(self, rows: np.ndarray, B: sp.csr_matrix) -> None:
         """As the serial columns (every rank with the same B and rows: the solves are collective)."""
-        self._before_change()  # (a rollback puts this rank's block of B back too)
+        self.undo.before_change()  # (a rollback puts this rank's block of B back too)
         self.Bloc = sp.csr_matrix(B)[:, self.factor.lo : self.factor.hi]
         super().replace_rows(rows, B)
 

@@ -174,7 +174,7 @@ class SolverStates:
     # -- a rollback ----------------------------------------------------------------------
     def mark(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
         """What a rejected step must put back: the warm starts of the current step's solvers, and every
-        system's Delassus columns as they are now (:meth:`~signorini.contact.delassus.DelassusColumns.mark`:
+        system's Delassus columns as they are now (:class:`~signorini.contact.delassus.ColumnsUndo`:
         copied only if the step moves their rows; the columns a step only adds stay valid for its operator)."""
         for sys in self.ctx.factors.every():
             _delassus_call(sys, "mark")
@@ -196,9 +196,9 @@ class SolverStates:
 
 def _delassus_call(sys: Any, name: str) -> None:
     """``name`` (mark, rollback, release) on a system's Delassus columns, if its solver has them."""
-    delassus = getattr(sys.solver, "delassus", None)
-    if hasattr(delassus, name):
-        getattr(delassus, name)()
+    undo = getattr(getattr(sys.solver, "delassus", None), "undo", None)
+    if undo is not None:
+        getattr(undo, name)()
 
 
 def _warm_names(sys: Any) -> tuple[str, ...]:

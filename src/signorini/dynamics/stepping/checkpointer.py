@@ -23,7 +23,7 @@ from ..restart.protocol import ObserverPart, StatePart
 from .run_options import CheckpointPolicy
 
 if TYPE_CHECKING:
-    from .stepper import Stepper
+    from .seams import CheckpointedStepper
 
 
 class Checkpointer:
@@ -36,7 +36,9 @@ class Checkpointer:
     case_hash : the case file's hash (part of the identity a resume compares).
     """
 
-    def __init__(self, stepper: Stepper, policy: CheckpointPolicy | None, case_hash: str | None = None) -> None:
+    def __init__(
+        self, stepper: CheckpointedStepper, policy: CheckpointPolicy | None, case_hash: str | None = None
+    ) -> None:
         run = stepper.run
         self.stepper, self.policy = stepper, policy
         self.solvers = stepper.solvers

@@ -46,12 +46,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ...errors import InputError
 from ...registry import Parameter, Registry
+
+if TYPE_CHECKING:
+    from .seams import ControlledStepper
 
 #: the largest refinement by default: dt_min = dt / 2^DEFAULT_LEVELS
 DEFAULT_LEVELS = 10
@@ -406,7 +409,7 @@ class AdaptiveSteps:
     control : the :class:`EnergyControl` (its counters and ladder).
     """
 
-    def __init__(self, stepper: Any, control: EnergyControl) -> None:
+    def __init__(self, stepper: ControlledStepper, control: EnergyControl) -> None:
         self.stepper, self.control = stepper, control
         #: the judgement of the level accepted last: (verdict, delta, scale, h, dt_piece, eta)
         self.verdict: tuple = ()
@@ -416,7 +419,7 @@ class AdaptiveSteps:
         self.force_before: np.ndarray | None = None
 
     @classmethod
-    def build(cls, stepper: Any, scheme: Any, grid: Any, energy: bool, options: dict[str, Any],
+    def build(cls, stepper: ControlledStepper, scheme: Any, grid: Any, energy: bool, options: dict[str, Any],
               mesh: Any = None) -> AdaptiveSteps:  # fmt: skip
         """The control of ``options`` (:func:`control_spec`) for ``scheme`` on ``grid``; an
         InputError for a scheme that refuses it, a run without energy, or a dt_min outside
@@ -505,7 +508,6 @@ class AdaptiveSteps:
         excess = max(abs(delta) if s.run.scheme.conserving else delta, eta)
         ctl.note_accepted(t0, s.t, h, dt_piece, verdict, s.n, excess)
         self._grow(delta, scale, h, dt_piece, eta)
-        s.run.n_steps = s.grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
 
     def _grow(self, delta: float, scale: float, h: float, dt_piece: float, eta: float) -> None:
         """The step of the next levels: the piece's own at a piece's start; twice h after

@@ -319,6 +319,7 @@ class Stepper:
         self.checkpointer.accepted()
         if self.adaptive is not None:
             self.adaptive.accepted(t_before)
+            self.run.n_steps = self.grid.n_steps  # the levels if the step were kept (a progress bar's "of N")
 
     def _advance(self, n: int) -> State:
         run = self.run
