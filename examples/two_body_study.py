@@ -71,7 +71,7 @@ def drifts(H) -> dict:
 
 
 def _run(problem, scheme: str, dt: float, T: float, mass: str, observers=()):
-    return simulate(problem, scheme, dt, T, mass, scheme_options=SCHEMES[scheme], observers=observers,
+    return simulate(problem, scheme, dt, T, mass=mass, scheme_options=SCHEMES[scheme], observers=observers,
                     handle_signals=False)  # fmt: skip
 
 

@@ -118,7 +118,7 @@ def test_block_on_block_example():
 
     case = load_case(ROOT / "examples" / "block_on_block.toml")
     com = CentreOfMassRecorder([1.0, 0.0], "upper")
-    H = simulate(case.problem, case.scheme, case.dt, case.T, case.mass, observers=[com])
+    H = simulate(case.problem, case.scheme, case.dt, case.T, mass=case.mass, observers=[com])
     assert H.status == "finished" and H.impacts == 1
     v0, mu, g = 0.2, 0.3, 9.81
     assert abs(com.position[-1] / (v0**2 / (2 * mu * g)) - 1) <= 0.04  # measured 6.69 mm for 6.80 mm

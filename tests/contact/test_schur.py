@@ -107,7 +107,7 @@ def test_schur_equals_lazy_with_index_sets_compliance_and_two_step_schemes(schem
             scheme,
             dt,
             60 * dt,
-            mass,
+            mass=mass,
             scheme_options=opts,
             solver_options={"backend": "pardiso", "condensation": c},
         )  # fmt: skip

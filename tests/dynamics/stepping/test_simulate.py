@@ -163,3 +163,23 @@ def test_contact_node_fixed_by_dirichlet_is_an_error():
     p.dirichlet = list(p.dirichlet) + [Dirichlet("ymin", 0.0, (1,))]
     with pytest.raises(InputError, match="fixed by a Dirichlet condition"):
         simulate(p, "cn", 0.1, 1.0)
+
+
+def test_simulate_takes_its_options_as_one_object_or_as_keywords_never_positional():
+    """Issue 53, item 3: after (problem, scheme, dt, T) every option is keyword-only; ``options=RunOptions(...)``
+    gives the same run as its keywords; both at once, an unknown keyword or a fifth positional argument is
+    refused by name."""
+    from signorini.dynamics.stepping.run_options import RunOptions
+
+    b = get_benchmark("bar1d")
+    p = b.problem(10, {})
+    dt, _ = b.run_times(10, {})
+    a = simulate(p, "cn", dt, 20 * dt, mass="standard", scheme_options={}, handle_signals=False)
+    o = simulate(p, "cn", dt, 20 * dt, options=RunOptions(mass="standard", scheme_options={}), handle_signals=False)
+    assert a.meta["mass"] == o.meta["mass"] == "standard" and np.array_equal(a.lam, o.lam)
+    with pytest.raises(InputError, match="not both"):
+        simulate(p, "cn", dt, 20 * dt, options={"mass": "standard"}, energy=False)
+    with pytest.raises(InputError, match=r"unknown keyword\(s\) 'mas'; allowed: mass, "):
+        simulate(p, "cn", dt, 20 * dt, mas="standard")
+    with pytest.raises(TypeError):
+        simulate(p, "cn", dt, 20 * dt, "standard")  # type: ignore[misc]

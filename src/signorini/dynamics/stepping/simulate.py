@@ -18,19 +18,19 @@ pause.
 
 from __future__ import annotations
 
+import dataclasses
 import signal
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ...errors import InputError
 from ...linalg.threads import blas_threads
 from ...parallel import agree_deferred
 from ...signals import handled, interrupts_must_raise
-from ..model.mass import DEFAULT_MASS
 from ..model.problem import Discretization, Problem
 from ..observe.history import History
-from ..observe.observers import Observer
 from ..schemes import Scheme
 from .run_options import CheckpointPolicy, RunOptions
 from .setup import (  # noqa: F401 - the names users and older code import from here
@@ -82,30 +82,38 @@ def _catch_signals(enabled: bool):
         yield flag
 
 
+#: simulate's keywords of the checkpoint policy (the rest of its keywords are RunOptions' fields)
+POLICY_KEYWORDS = ("checkpoint", "checkpoint_every", "checkpoint_meta", "on_checkpoint")
+
+
+def run_options(options: RunOptions | Mapping[str, Any] | None, keywords: Mapping[str, Any]) -> RunOptions:
+    """:func:`simulate`'s options: ``options``, or its keywords (:class:`RunOptions`' fields and
+    :data:`POLICY_KEYWORDS`); an InputError for both, or for a name that is neither."""
+    if options is not None:
+        if keywords:
+            raise InputError(f"simulate takes its run options either as options=... or as keywords, not both "
+                             f"(got options and {', '.join(sorted(keywords))})")  # fmt: skip
+        return RunOptions.of(options)
+    fields = [f.name for f in dataclasses.fields(RunOptions) if f.name != "checkpoint"]
+    unknown = sorted(set(keywords) - set(fields) - set(POLICY_KEYWORDS))
+    if unknown:
+        allowed = ", ".join([*fields, *POLICY_KEYWORDS, "options", "resume", "handle_signals"])
+        raise InputError(f"simulate: unknown keyword(s) {', '.join(map(repr, unknown))}; allowed: {allowed}")
+    policy = CheckpointPolicy.of(keywords.get("checkpoint"), keywords.get("checkpoint_every", 0),
+                                 keywords.get("checkpoint_meta"), keywords.get("on_checkpoint"))  # fmt: skip
+    return RunOptions(**{k: v for k, v in keywords.items() if k in fields}, checkpoint=policy)
+
+
 def simulate(
     problem: Problem | Discretization,
     scheme: str | type[Scheme] | Scheme = "crank-nicolson",
     dt: float = 0.01,
     T: float = 1.0,
-    mass: str = DEFAULT_MASS,
-    snapshot_every: int = 0,
-    backend: str | None = None,
-    memory_budget: float | None = None,
-    progress: Callable[[int, int], None] | None = None,
     *,
-    scheme_options: Mapping[str, Any] | None = None,
-    solver_options: Mapping[str, Any] | None = None,
-    observers: Iterable[Observer] = (),
-    energy: bool = True,
-    handle_signals: bool = True,
-    events: Iterable[Any] = (),
-    checkpoint: str | Path | Callable[[], Path] | None = None,
-    checkpoint_every: int = 0,
-    checkpoint_meta: Mapping[str, Any] | None = None,
-    case_hash: str | None = None,
+    options: RunOptions | Mapping[str, Any] | None = None,
     resume: str | Path | None = None,
-    on_checkpoint: Callable[[dict], None] | None = None,
-    control: str | Mapping[str, Any] | None = None,
+    handle_signals: bool = True,
+    **keywords: Any,
 ) -> History:
     """Integrate ``problem`` in time with exact nodal contact at every step.
 
@@ -116,44 +124,34 @@ def simulate(
         (``crank-nicolson``/``cn``, ``backward-euler``/``be``, ``newmark``, ``theta``,
         ``paoli-schatzman``/``ps``), a :class:`Scheme` subclass, or an instance.
     dt, T : time step and final time [s]; N = T/dt steps (T must be >= dt).
-    mass : mass variant (ignored when a Discretization is given).
-    snapshot_every : keep full displacement/velocity fields in memory every k steps
-        and at the last level (0 = never); for large runs stream them with
-        :class:`signorini.io.output.FieldWriter` instead.
-    backend, memory_budget : shortcuts for ``solver_options['backend']`` and
-        ``solver_options['memory_budget']`` [bytes].
-    progress : callback(step, n_steps) called after every step.
-    scheme_options : the scheme's parameters, e.g. ``{"beta": 0.3, "gamma": 0.6}``.
-    solver_options : backend, preconditioner, rtol, max_iter, max_newton, memory_budget,
-        lcp_max_iter, condense_budget (see :data:`signorini.linalg.SOLVER_OPTIONS`).
-    observers : extra :class:`~.observers.Observer` objects (e.g. a field writer).
-    energy : record the scheme's energy and its identity (a few products per step).
-    handle_signals : turn SIGINT/SIGTERM into ``status = "interrupted"``.
-    events : :class:`~.events.Event` s (a function g(t, state), ``terminal``, ``direction``) or
-        names of built-in events (``"separation"``, ``"first-contact"``, ``"rest:0.01"``: each
-        terminal) watched after every level (:mod:`~.events`); a terminal one ends the run
-        after its level, status ``finished``; ``meta['events']`` lists every event met.
-    checkpoint, checkpoint_every : write a checkpoint (:mod:`~.checkpoint`) to this path every
-        K levels (0: only when the run ends early: interrupted or failed); ``meta['checkpoints']``
-        counts them.  ``checkpoint_meta`` and ``case_hash``: see :class:`~.stepper.Stepper`.
+    options : the run's options, a :class:`~.run_options.RunOptions` (or a mapping of its field names);
+        or give them as keywords (not both):
+    mass, snapshot_every, backend, memory_budget, progress, scheme_options, solver_options, observers,
+        energy, events, control, case_hash : :class:`~.run_options.RunOptions`'s fields, keyword-only
+        (``mass``: the mass variant, ignored when a Discretization is given; ``snapshot_every``: keep full
+        fields in memory every k steps and at the last level, 0 = never; ``progress``: callback(step,
+        n_steps); ``energy``: record the energy and its identity; ``events``: :class:`~.events.Event` s or
+        built-in event names, ``"separation"``, ``"first-contact"``, ``"rest:0.01"``, each terminal;
+        ``control``: ``"fixed"`` (None, the default here), ``"energy"`` (dt as the largest step; steps
+        rejected and halved where the energy identity shows energy no physical work explains, down to
+        dt_min) or ``{"control": "energy", "tolerance": ..., "dt_min": ..., "grow_after": 4}``;
+        ``meta['time_control']`` says what ran).
+    checkpoint, checkpoint_every, checkpoint_meta, on_checkpoint : keywords of the checkpoint policy
+        (:class:`~.run_options.CheckpointPolicy`): write a checkpoint (:mod:`~.checkpoint`) to this path every
+        K levels (0: only when the run ends); ``meta['checkpoints']`` counts them.
     resume : a checkpoint to continue from: the same problem, scheme, mass and dt (checked;
         a mismatch is an InputError naming what differs); the History holds every level
         from t = 0, ``meta['resumed_from']`` says where it resumed.
-    control : the time-step control (:mod:`~.step_control`): ``"fixed"`` (None, the default
-        here: the steps asked for) or ``"energy"`` (dt as the largest step; steps rejected and
-        halved where the energy identity shows energy no physical work explains, down to
-        dt_min), or ``{"control": "energy", "tolerance": ..., "dt_min": ..., "grow_after": 4}`` (the
-        tolerance made from the mesh when absent or 0: min(1e-3, 0.025 (h/L)^2)); ``meta['time_control']``
-        says what ran.
+    handle_signals : turn SIGINT/SIGTERM into ``status = "interrupted"``.
+
+    An unknown keyword is an :class:`~signorini.errors.InputError` listing the allowed ones.
 
     Returns
     -------
     History with ``status``, ``message``, ``counters`` and the levels computed.
     """
     check_problem_and_grid(problem, (dt, T), resume)  # these first, as the stepper would
-    policy = CheckpointPolicy.of(checkpoint, checkpoint_every, checkpoint_meta, on_checkpoint)
-    options = RunOptions(mass, snapshot_every, backend, memory_budget, progress, scheme_options, solver_options,
-                         observers, energy, events, control, policy, case_hash)  # fmt: skip
+    options = run_options(options, keywords)
     if resume is None:
         stepper = Stepper(problem, scheme, (dt, T), options)
     else:
