@@ -133,8 +133,14 @@ def _matches(owner: str, test) -> list[tuple[str, int, str]]:
 
 
 def _dof_by_hand(n: ast.AST) -> bool:
-    """``<a> * <dim> + ...`` or ``<dim> * <a> + ...`` with a dimension-like name."""
+    """A block layout's arithmetic with a dimension-like name: ``<a> * <dim> + ...`` or ``<dim> * <a> + ...``
+    (a dof from a node), ``<a> // <dim>`` and ``<a> % <dim>`` (a dof's node and component, a layout's blocks),
+    ``x[k::<dim>]`` (a component's entries)."""
     left = getattr(n, "left", None)
+    if isinstance(n, ast.BinOp) and isinstance(n.op, (ast.FloorDiv, ast.Mod)) and _is_dim(n.right):
+        return True
+    if isinstance(n, ast.Slice) and n.step is not None and _is_dim(n.step):
+        return True
     return (isinstance(n, ast.BinOp) and isinstance(n.op, ast.Add) and isinstance(left, ast.BinOp)
             and isinstance(left.op, ast.Mult) and (_is_dim(left.left) or _is_dim(left.right)))  # fmt: skip
 

@@ -48,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConvergenceError, InputError
-from ..fem.dofmap import blocked
+from ..fem.dofmap import blocked, component, n_blocks, whole_blocks
 from ..linalg import (
     BACKENDS,
     backend_traits,
@@ -287,8 +287,8 @@ class CondensedContactSolver(ContactSolver):
             self.delassus = columns(self.factor, self.B, condense_budget)
             if condensation == "full":
                 self.delassus.ensure(np.arange(nc))
-        self.active = np.zeros(nc // components, dtype=bool)
-        self.lam_prev = np.zeros((nc // components, components))
+        self.active = np.zeros(n_blocks(nc, components), dtype=bool)
+        self.lam_prev = np.zeros((n_blocks(nc, components), components))
         # frame rows with no free dof (a tangent whose motion a Dirichlet condition prescribes,
         # e.g. a symmetry plane through a contact node): the reaction carries that force
         self.dead = (np.asarray(abs(self.B).sum(axis=1)).ravel() == 0).reshape(-1, components)
@@ -405,7 +405,7 @@ class CondensedContactSolver(ContactSolver):
         radius 0).  Returns lambda (nc, d) in the nodal frames."""
         d = self.components
         state, HU = self.delassus.free(b)
-        nc = self.B.shape[0] // d
+        nc = n_blocks(self.B.shape[0], d)
         v_free = (HU - bound).reshape(nc, d)
         lam = np.zeros((nc, d))
         subset = law.subset
@@ -637,8 +637,9 @@ def _nodal_block_size(nodes: np.ndarray | None, n: int) -> int:
         return 1
     nodes = np.asarray(nodes)
     for d in (3, 2):
-        whole = n % d == 0 and all(np.array_equal(nodes[0::d], nodes[k::d]) for k in range(1, d))
-        if whole and np.all(np.diff(nodes[0::d]) != 0):
+        first = nodes[component(0, d)]
+        whole = whole_blocks(n, d) and all(np.array_equal(first, nodes[component(k, d)]) for k in range(1, d))
+        if whole and np.all(np.diff(first) != 0):
             return d
     return 1
 

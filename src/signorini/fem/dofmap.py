@@ -23,6 +23,32 @@ def blocked(items: np.ndarray, block_size: int, components: Sequence[int] | None
     return block_size * np.asarray(items, dtype=np.int64)[:, None] + comps[None, :]
 
 
+def block_of(index: np.ndarray | int, block_size: int) -> np.ndarray | int:
+    """The item (a node, a contact node) whose block holds each index of a block layout: index // block_size
+    (a dof's node; a dof range's node range)."""
+    return index // block_size
+
+
+def component_of(index: np.ndarray | int, block_size: int) -> np.ndarray | int:
+    """The component of each index in its block: index % block_size."""
+    return index % block_size
+
+
+def component(k: int, block_size: int) -> slice:
+    """The entries of component k of a node-major vector (or of the rows of a matrix): ``x[component(k, d)]``."""
+    return slice(k, None, block_size)
+
+
+def n_blocks(n: int, block_size: int) -> int:
+    """The number of whole blocks (nodes, contact nodes) in n indices."""
+    return n // block_size
+
+
+def whole_blocks(n: int, block_size: int) -> bool:
+    """Whether n indices are whole blocks of ``block_size`` (a layout that may be blocked)."""
+    return n % block_size == 0
+
+
 @dataclass(frozen=True)
 class DofMap:
     """Owned node range, ghost nodes and block size of one process.

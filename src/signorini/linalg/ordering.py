@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from ..fem.dofmap import block_of, whole_blocks
 from .base import module_loads
 
 
@@ -45,8 +46,8 @@ def supervariables(A: sp.spmatrix) -> np.ndarray:
     A = sp.csr_matrix(A)
     n = A.shape[0]
     for d in (3, 2):
-        if n % d == 0 and n > 0:
-            groups = np.arange(n) // d
+        if whole_blocks(n, d) and n > 0:
+            groups = block_of(np.arange(n), d)
             quotient = _pattern_graph(A, groups, diagonal=True)
             if A.nnz >= 0.5 * d * d * quotient.nnz:
                 return groups

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..fem.dofmap import component_of, whole_blocks
+
 
 def _canonical(A: sp.spmatrix) -> sp.csr_matrix:
     # tocsr() keeps a CSR object (and its cached format flags: a new object would scan
@@ -114,10 +116,10 @@ def _block_diagonal_positions(A: sp.csr_matrix, B: sp.csr_matrix) -> np.ndarray 
         return None
     d = B.nnz // A.nnz
     n = A.shape[0]
-    if d < 2 or n % d or not np.array_equal(B.indptr, d * A.indptr.astype(np.int64)):
+    if d < 2 or not whole_blocks(n, d) or not np.array_equal(B.indptr, d * A.indptr.astype(np.int64)):
         return None
     itype = np.int32 if B.nnz < 2**31 else np.int64  # 4 bytes an entry where they suffice
-    pos = np.repeat((np.arange(n) % d).astype(itype), np.diff(A.indptr))
+    pos = np.repeat(component_of(np.arange(n), d).astype(itype), np.diff(A.indptr))
     pos += np.arange(0, B.nnz, d, dtype=itype)
     return pos if np.array_equal(B.indices[pos], A.indices) else None
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ...fem.dofmap import DofMap
+from ...fem.dofmap import DofMap, component
 from ...fem.mesh import Mesh, bodies
 from .mass_effect import body_mass_effect, mass_effect
 
@@ -87,14 +87,14 @@ def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None)
         entry: dict = {"regions": regions, "nodes": int(nodes.size)}
         if local:
             Mb = M[dofs][:, dofs].tocsr()
-            entry["mass"] = float(Mb[0::d].sum())
+            entry["mass"] = float(Mb[component(0, d)].sum())
             entry["mass_effect"] = mass_effect(Mb, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells])
-        else:  # sum over the body's x rows of M 1_body = Mb[0::d].sum(); the effect by products with M
-            entry["mass"] = float(ME[dofs[0::d], k].sum())
+        else:  # sum over the body's x rows of M 1_body (the first component's); the effect by products with M
+            entry["mass"] = float(ME[dofs[component(0, d)], k].sum())
             entry["mass_effect"] = body_mass_effect(M, mesh, nodes, sub, rho if np.ndim(rho) == 0 else
                                                     np.asarray(rho)[cells])  # fmt: skip
         if MV is not None:
-            entry["momentum"] = [float(MV[dofs][k::d].sum()) for k in range(d)]
+            entry["momentum"] = [float(MV[dofs][component(k, d)].sum()) for k in range(d)]
             entry["kinetic_energy"] = 0.5 * float(V[dofs] @ MV[dofs])
         out.append(entry)
     return out

@@ -65,6 +65,7 @@ from ...fem.assembly import (
     sum_of,
     vectorize,
 )
+from ...fem.dofmap import n_blocks
 from ...fem.mesh import Mesh, over_blocks
 from ...linalg.row_block import RowBlock
 from ...linalg.sparse import count_per_row
@@ -163,7 +164,7 @@ class Redistribution:
         """
         if uniform is not None:
             d = uniform.size
-            return self.M @ np.tile(uniform / rho, self.M.shape[0] // d)
+            return self.M @ np.tile(uniform / rho, n_blocks(self.M.shape[0], d))
         if self.T is None:
             return F
         d = F.size // self.T.shape[0]

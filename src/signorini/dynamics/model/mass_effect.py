@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...fem.assembly import _element_data, part_value
+from ...fem.dofmap import component
 from ...fem.elements import reference_element
 from ...fem.mesh import Mesh, over_blocks
 
@@ -82,9 +83,9 @@ def moments(M: sp.spmatrix, mesh: Mesh, P: np.ndarray | None = None) -> np.ndarr
     P = _monomials(mesh) if P is None else P
     # every registered variant is block diagonal in the components (no entry couples
     # component k of a node with component l != k of another): one product with the
-    # monomials repeated on every component gives Y[k::d] = M_k P for all k at once
+    # monomials repeated on every component gives component k of Y = M_k P for all k at once
     Y = M @ np.repeat(P, d, axis=0)
-    return np.stack([P.T @ Y[k::d] for k in range(d)])
+    return np.stack([P.T @ Y[component(k, d)] for k in range(d)])
 
 
 def rigid_body_properties(Q: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...fem.assembly import assemble_scalar, assemble_vector, element_stiffness_matrices, scalar_mass_matrix, vectorize
+from ...fem.dofmap import block_of
 from ...fem.material import CellMaterial, Material
 from ...fem.mesh import Mesh
 from ...linalg.row_block import RowBlock, row_bounds
@@ -94,7 +95,7 @@ def stiffness_rows(mesh: Mesh, material: Material, comm) -> RowBlock:
     cells touching its nodes."""
     bounds = dof_bounds(mesh, comm.size)
     d, lo, hi = mesh.dim, int(bounds[comm.rank]), int(bounds[comm.rank + 1])
-    cells = cells_near(mesh, np.arange(lo // d, hi // d), 1)
+    cells = cells_near(mesh, np.arange(block_of(lo, d), block_of(hi, d)), 1)
     sub = submesh(mesh, cells)
     Ke = element_stiffness_matrices(sub, _take(material, cells))
     S = assemble_scalar(sub, Ke[..., 0, 0]) if d == 1 else assemble_vector(sub, Ke)
@@ -109,7 +110,7 @@ def mass_rows(
     name = MASS_VARIANTS.resolve(name)
     bounds = dof_bounds(mesh, comm.size)
     d, lo, hi = mesh.dim, int(bounds[comm.rank]), int(bounds[comm.rank + 1])
-    own = np.arange(lo // d, hi // d)
+    own = np.arange(block_of(lo, d), block_of(hi, d))
     if name in EXTRAPOLATED:
         T = extrapolation_operator(mesh, _needs_contact(name, contact_nodes), name)
         Tc = T[:, own].tocsr()  # (n, m): T[:, own]^T is this rank's rows of T^T

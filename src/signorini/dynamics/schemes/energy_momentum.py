@@ -43,6 +43,7 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
+from ...fem.dofmap import block_of
 from ..model.operator import Operator
 from .base import EnergyParts, Scheme, State, contact_works, load_work, products, reaction_work, solver_work, weighted
 from .momentum_projection import applies, groups, velocity_correction
@@ -159,7 +160,7 @@ class EnergyMomentum(Scheme):
         joined = np.zeros((0, 2), dtype=np.int64)
         if c.pair is not None and c.master_dofs is not None and lam1.size:
             rows = np.flatnonzero((c.pair >= 0) & ((lam1 != 0) | (lam0 != 0 if lam0.size else False)))
-            master = labels[c.master_dofs[rows][:, :, 0] // d]  # (rows, facet nodes) their bodies
+            master = labels[block_of(c.master_dofs[rows][:, :, 0], d)]  # (rows, facet nodes) their bodies
             slave = np.repeat(labels[c.nodes[rows]], master.shape[1])
             joined = np.unique(np.column_stack([slave, master.ravel()]), axis=0)
         return groups(labels, joined)

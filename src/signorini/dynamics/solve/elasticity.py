@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...fem.assembly import stiffness_matrix
+from ...fem.dofmap import block_of
 from ...fem.hyperelastic import (
     HYPERELASTIC_LAWS,
     algorithmic_force,
@@ -218,7 +219,7 @@ class FiniteStrain(Elasticity):
             from ..model.owned_rows import cells_near
 
             d = self.mesh.dim
-            near = cells_near(self.mesh, np.arange(M.lo // d, M.hi // d), 1)
+            near = cells_near(self.mesh, np.arange(block_of(M.lo, d), block_of(M.hi, d)), 1)
             self._by_rows = [(law, near if cells is None else np.intersect1d(cells, near))
                              for law, cells in self.groups]  # fmt: skip
         return self._by_rows
