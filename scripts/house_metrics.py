@@ -111,6 +111,17 @@ def forwarding_getattr() -> list[tuple[str, str]]:
     return out
 
 
+def formatter_escapes() -> list[tuple[str, int]]:
+    """(module, line) of every ``# fmt: skip`` in the package (issue 53: the formatter's layout is the house's;
+    a table kept aligned by hand is one ``# fmt: off`` block, not counted here)."""
+    out = []
+    for path in sorted(PKG.rglob("*.py")):
+        for k, line in enumerate(path.read_text().splitlines(), 1):
+            if line.rstrip().endswith("# fmt: skip"):
+                out.append((str(path.relative_to(PKG.parent)), k))
+    return out
+
+
 def readme_lines() -> int:
     """The README's length in lines (issue 53: a front page of at most 220)."""
     return len((PKG.parents[1] / "README.md").read_text().splitlines())
@@ -170,6 +181,7 @@ def main(argv: list[str]) -> int:
         "backend_name_comparisons": backend_comparisons(),
         "classes_with_getattr": forwarding_getattr(),
         "readme_lines": readme_lines(),
+        "formatter_escapes": formatter_escapes(),
     }
     if "--json" in argv:
         print(json.dumps(m, indent=1))

@@ -320,12 +320,24 @@ class ContactSet:
             + [space.dofs(r.facet_nodes.ravel()).reshape(-1, nfv, d) for r in parts]
         )
         master_shape = np.concatenate([np.zeros((nr, nfv))] + [r.xi for r in parts])
-        info = [{"slave": p.slave, "master": p.master, "rows": int(r.nodes.size), "inactive_slave_nodes": r.inactive,
-                 "repaired_rows": 0, "warning": pair_side_warning(mesh, p)}
-                for p, r in zip(pairs, parts, strict=True)]  # fmt: skip
+        info = [
+            {
+                "slave": p.slave,
+                "master": p.master,
+                "rows": int(r.nodes.size),
+                "inactive_slave_nodes": r.inactive,
+                "repaired_rows": 0,
+                "warning": pair_side_warning(mesh, p),
+            }
+            for p, r in zip(pairs, parts, strict=True)
+        ]
         # every node of the slave and master tags (a slave node facing nothing at t = 0 included)
-        inertia = np.unique(np.concatenate([self.nodes] + [np.concatenate([mesh.nodes_of(p.slave), r.master_nodes])
-                                                           for p, r in zip(pairs, parts, strict=True)]))  # fmt: skip
+        inertia = np.unique(
+            np.concatenate(
+                [self.nodes]
+                + [np.concatenate([mesh.nodes_of(p.slave), r.master_nodes]) for p, r in zip(pairs, parts, strict=True)]
+            )
+        )
         return ContactSet(
             nodes,
             np.vstack([self.normals] + [r.normals for r in parts]),

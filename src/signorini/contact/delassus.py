@@ -134,8 +134,9 @@ class DelassusColumns:
         reuse = min(len(self._free), new.size)
         fresh = new.size - reuse
         self._grow(self.count + fresh)
-        slots = np.concatenate([np.asarray(self._free[:reuse], dtype=np.intp),
-                                np.arange(self.count, self.count + fresh, dtype=np.intp)])  # fmt: skip
+        slots = np.concatenate(
+            [np.asarray(self._free[:reuse], dtype=np.intp), np.arange(self.count, self.count + fresh, dtype=np.intp)]
+        )
         del self._free[:reuse]
         self.count += fresh
         for k in range(0, new.size, BLOCK):
@@ -163,11 +164,15 @@ class DelassusColumns:
             return np.concatenate(items).astype(dtype) if items else np.zeros(0, dtype)
 
         O = self._origin_B
-        out = {"nodes": cat([e[1] for e in solves]), "slots": cat([e[2] for e in solves]),
-               "sizes": np.array([e[1].size for e in solves], dtype=np.int64),
-               "origin": np.frombuffer(self._origin, dtype=np.uint8).copy(),
-               "origin_indptr": O.indptr.astype(np.int64), "origin_indices": O.indices.astype(np.int64),
-               "origin_data": O.data.astype(np.float64)}  # fmt: skip
+        out = {
+            "nodes": cat([e[1] for e in solves]),
+            "slots": cat([e[2] for e in solves]),
+            "sizes": np.array([e[1].size for e in solves], dtype=np.int64),
+            "origin": np.frombuffer(self._origin, dtype=np.uint8).copy(),
+            "origin_indptr": O.indptr.astype(np.int64),
+            "origin_indices": O.indices.astype(np.int64),
+            "origin_data": O.data.astype(np.float64),
+        }
         if changes:
             out["kinds"] = np.array([e[0] == "rows" for e in log], dtype=np.int8)
             out["rows"] = cat([e[1] for e in changes])
@@ -192,20 +197,31 @@ class DelassusColumns:
         kinds = np.asarray(data.get("kinds", np.zeros(sizes.size, np.int8)), dtype=np.intp)
         rows_all, row_sizes, row_nnz, row_indices, row_data = (
             np.asarray(data.get(k, np.zeros(0)), dtype=float if k == "row_data" else np.intp)
-            for k in ("rows", "row_sizes", "row_nnz", "row_indices", "row_data"))  # fmt: skip
-        counts_ok = all(a.ndim == 1 and (a.size == 0 or a.min() >= low) for a, low in
-                        ((sizes, 1), (row_sizes, 1), (row_nnz, 0), (kinds, 0)))  # fmt: skip
+            for k in ("rows", "row_sizes", "row_nnz", "row_indices", "row_data")
+        )
+        counts_ok = all(
+            a.ndim == 1 and (a.size == 0 or a.min() >= low)
+            for a, low in ((sizes, 1), (row_sizes, 1), (row_nnz, 0), (kinds, 0))
+        )
         finite = bool(np.all(np.isfinite(row_data))) and (kinds.size == 0 or int(kinds.max()) <= 1)
         if not counts_ok or not finite:
             raise ValueError("the Delassus column log is inconsistent (negative counts or unknown entries)")
-        if nodes.shape != slots.shape or sizes.sum() != nodes.size or (nodes.size and (
-                nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc)) or (
-                np.count_nonzero(kinds == 0) != sizes.size or np.count_nonzero(kinds == 1) != row_sizes.size
-                or kinds.size != sizes.size + row_sizes.size or row_sizes.sum() != rows_all.size
-                or row_nnz.size != rows_all.size or row_nnz.sum() != row_indices.size
+        if (
+            nodes.shape != slots.shape
+            or sizes.sum() != nodes.size
+            or (nodes.size and (nodes.min() < 0 or nodes.max() >= nc or slots.min() < 0 or slots.max() >= nc))
+            or (
+                np.count_nonzero(kinds == 0) != sizes.size
+                or np.count_nonzero(kinds == 1) != row_sizes.size
+                or kinds.size != sizes.size + row_sizes.size
+                or row_sizes.sum() != rows_all.size
+                or row_nnz.size != rows_all.size
+                or row_nnz.sum() != row_indices.size
                 or row_indices.size != row_data.size
                 or (rows_all.size and (rows_all.min() < 0 or rows_all.max() >= nc))
-                or (row_indices.size and (row_indices.min() < 0 or row_indices.max() >= n))):  # fmt: skip
+                or (row_indices.size and (row_indices.min() < 0 or row_indices.max() >= n))
+            )
+        ):
             raise ValueError("the Delassus column log is inconsistent")
         t0 = time.perf_counter()
         start = rstart = nzstart = 0
@@ -218,8 +234,10 @@ class DelassusColumns:
                 nnz = row_nnz[rstart : rstart + size]
                 rstart += size
                 stop = nzstart + int(nnz.sum())
-                R = sp.csr_matrix((row_data[nzstart:stop], row_indices[nzstart:stop],
-                                   np.concatenate([[0], np.cumsum(nnz)])), shape=(size, n))  # fmt: skip
+                R = sp.csr_matrix(
+                    (row_data[nzstart:stop], row_indices[nzstart:stop], np.concatenate([[0], np.cumsum(nnz)])),
+                    shape=(size, n),
+                )
                 R.check_format(full_check=True)  # a forged log must not reach scipy's C code malformed
                 nzstart = stop
                 if done:
@@ -261,8 +279,13 @@ class DelassusColumns:
         indptr, indices = (np.asarray(data[f"origin_{k}"], dtype=np.int64) for k in ("indptr", "indices"))
         values = np.asarray(data["origin_data"], dtype=np.float64)
         out_of_range = indices.size and (indices.min() < 0 or indices.max() >= n)
-        if indptr.shape != (nc + 1,) or indices.shape != values.shape or indices.ndim != 1 or out_of_range or (
-                not np.all(np.isfinite(values))):  # fmt: skip
+        if (
+            indptr.shape != (nc + 1,)
+            or indices.shape != values.shape
+            or indices.ndim != 1
+            or out_of_range
+            or (not np.all(np.isfinite(values)))
+        ):
             raise ValueError("the Delassus column log's starting rows are inconsistent")
         O = sp.csr_matrix((values, indices, indptr), shape=(nc, n))
         O.check_format(full_check=True)  # a forged log must not reach scipy's C code malformed
@@ -430,8 +453,11 @@ class ColumnsUndo:
     def before_change(self) -> None:
         """A copy of everything :meth:`DelassusColumns.replace_rows` may change, once after :meth:`mark`."""
         if self.marked and self.copy is None:
-            self.copy = {k: (v.copy() if isinstance(v, (np.ndarray, list)) else v)
-                         for k, v in vars(self.columns).items() if k not in self.KEPT}  # fmt: skip
+            self.copy = {
+                k: (v.copy() if isinstance(v, (np.ndarray, list)) else v)
+                for k, v in vars(self.columns).items()
+                if k not in self.KEPT
+            }
 
     def rollback(self) -> None:
         """The columns, their slots, B and the log as at :meth:`mark`, if the step changed B's rows since."""

@@ -134,13 +134,21 @@ def _angle(value: Angle) -> Callable[[float], float]:
 
 #: the keys of a ``rotation`` table (case files) and of :class:`Rotation` (Python)
 ROTATION_KEYS = (
-    Parameter("angle", None, "angle theta(t) [rad], counterclockwise about the axis (right-hand rule); "
-              "a number or an expression of t", Motion),
+    Parameter(
+        "angle",
+        None,
+        "angle theta(t) [rad], counterclockwise about the axis (right-hand rule); a number or an expression of t",
+        Motion,
+    ),
     Parameter("axis", None, "direction of the axis (3D only: in 2D the axis is out of the plane, +z)", Vector),
-    Parameter("center", None, "a point of the axis, in the obstacle's own coordinates (the axis moves with its "
-              "translation); default the plane's point or the ball's centre at t = 0; required for a surface",
-              Vector),
-)  # fmt: skip
+    Parameter(
+        "center",
+        None,
+        "a point of the axis, in the obstacle's own coordinates (the axis moves with its "
+        "translation); default the plane's point or the ball's centre at t = 0; required for a surface",
+        Vector,
+    ),
+)
 
 
 @dataclass(frozen=True)
@@ -197,8 +205,9 @@ class RigidMotion:
             self.angle = _angle(spec.angle)
             if dim == 2:
                 if spec.axis is not None:
-                    raise InputError("obstacle rotation: in 2D the axis is out of the plane (angles counterclockwise); "
-                                     "omit 'axis'")  # fmt: skip
+                    raise InputError(
+                        "obstacle rotation: in 2D the axis is out of the plane (angles counterclockwise); omit 'axis'"
+                    )
                 self.axis = None
             else:
                 if spec.axis is None:
@@ -206,8 +215,10 @@ class RigidMotion:
                 k = np.asarray(spec.axis, dtype=float).ravel()
                 nk = float(np.linalg.norm(k)) if k.size == 3 else 0.0
                 if k.size != 3 or not np.isfinite(nk) or nk == 0.0:
-                    raise InputError(f"obstacle rotation axis must be a finite non-zero vector of 3 components, "
-                                     f"got {np.asarray(spec.axis).tolist()}")  # fmt: skip
+                    raise InputError(
+                        f"obstacle rotation axis must be a finite non-zero vector of 3 components, "
+                        f"got {np.asarray(spec.axis).tolist()}"
+                    )
                 self.axis = k / nk
             c = center if spec.center is None else spec.center
             if c is None:
@@ -521,8 +532,9 @@ def read_surface(source: Any, dim: int | None = None, where: str = "surface obst
         cells = np.asarray(source[1])
         kinds = {2: "line", 3: "triangle", 4: "quad"}
         if cells.ndim != 2 or cells.shape[1] not in kinds:
-            raise InputError(f"{where}: cells must be an (nf, 2) array of segments or (nf, 3) of triangles, "
-                             f"got shape {cells.shape}")  # fmt: skip
+            raise InputError(
+                f"{where}: cells must be an (nf, 2) array of segments or (nf, 3) of triangles, got shape {cells.shape}"
+            )
         blocks = [(kinds[cells.shape[1]], cells)]
         what = where
     else:
@@ -539,8 +551,9 @@ def read_surface(source: Any, dim: int | None = None, where: str = "surface obst
     if not found:
         other = sorted(kinds) or ["none"]
         need = "line segments" if dim == 2 else "triangles or quadrilaterals"
-        raise InputError(f"{what}: no facets for a {dim}D body (it needs {need}; the file has cells "
-                         f"{', '.join(other)})")  # fmt: skip
+        raise InputError(
+            f"{what}: no facets for a {dim}D body (it needs {need}; the file has cells {', '.join(other)})"
+        )
     parts = []
     for t, c in found:  # one block per cell type (at most two)
         c = np.asarray(c)
@@ -550,8 +563,10 @@ def read_surface(source: Any, dim: int | None = None, where: str = "surface obst
     facets = np.concatenate(parts).astype(np.int64)
     out = (facets < 0) | (facets >= len(points))
     if out.any():
-        raise InputError(f"{what}: facet {int(np.flatnonzero(out.any(axis=1))[0])} refers to vertex "
-                         f"{int(facets[out][0])}, out of 0 .. {len(points) - 1}")  # fmt: skip
+        raise InputError(
+            f"{what}: facet {int(np.flatnonzero(out.any(axis=1))[0])} refers to vertex "
+            f"{int(facets[out][0])}, out of 0 .. {len(points) - 1}"
+        )
     if not np.all(np.isfinite(points)):
         raise InputError(f"{what}: non-finite point coordinates")
     if points.shape[1] < dim:
@@ -560,8 +575,10 @@ def read_surface(source: Any, dim: int | None = None, where: str = "surface obst
         extra = points[:, dim:]
         scale = float(np.abs(points).max()) or 1.0
         if np.ptp(extra, axis=0).max() > 1e-12 * scale:
-            raise InputError(f"{what}: wrong dimension: the points of a 2D surface must lie in one plane z = const "
-                             f"(z spans {float(extra.min()):.6g} .. {float(extra.max()):.6g})")  # fmt: skip
+            raise InputError(
+                f"{what}: wrong dimension: the points of a 2D surface must lie in one plane z = const "
+                f"(z spans {float(extra.min()):.6g} .. {float(extra.max()):.6g})"
+            )
         points = np.ascontiguousarray(points[:, :dim])
     size = float(np.linalg.norm(np.ptp(points[np.unique(facets)], axis=0))) or 1.0
     facets = _weld(points, facets, WELD * size)
@@ -571,8 +588,10 @@ def read_surface(source: Any, dim: int | None = None, where: str = "surface obst
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         what_m = "length" if dim == 2 else "area"
-        raise InputError(f"{what}: {int(bad.sum())} degenerate facet(s) of zero {what_m}, e.g. facet {i} with vertices "
-                         f"{np.round(P[i], 6).tolist()}")  # fmt: skip
+        raise InputError(
+            f"{what}: {int(bad.sum())} degenerate facet(s) of zero {what_m}, e.g. facet {i} with vertices "
+            f"{np.round(P[i], 6).tolist()}"
+        )
     return points, facets
 
 
@@ -864,8 +883,9 @@ class SurfaceObstacle(RigidObstacle):
 
 
 OBSTACLES = Registry("obstacle type")
-_ROTATION_DOC = ("rigid rotation { angle = theta(t), axis = [...] (3D), center = [...] } (see the rotation keys); "
-                 "none: no rotation")  # fmt: skip
+_ROTATION_DOC = (
+    "rigid rotation { angle = theta(t), axis = [...] (3D), center = [...] } (see the rotation keys); none: no rotation"
+)
 OBSTACLES.register(
     "plane",
     PlaneObstacle,
@@ -873,10 +893,14 @@ OBSTACLES.register(
     parameters=(
         Parameter("point", None, "a point of the plane; may depend on t (moving plane)", Motion),
         Parameter("normal", None, "normal pointing out of the obstacle, towards the body", Vector),
-        Parameter("rotation", "none", _ROTATION_DOC + "; the axis passes through center (default point at t = 0) "
-                  "and moves with point", RotationTable),
+        Parameter(
+            "rotation",
+            "none",
+            _ROTATION_DOC + "; the axis passes through center (default point at t = 0) and moves with point",
+            RotationTable,
+        ),
     ),
-)  # fmt: skip
+)
 OBSTACLES.register(
     "sphere",
     SphereObstacle,
@@ -884,21 +908,32 @@ OBSTACLES.register(
     parameters=(
         Parameter("center", None, "centre; may depend on t (moving ball)", Motion),
         Parameter("radius", None, "radius [length]", float, 0.0, open_low=True),
-        Parameter("rotation", "none", _ROTATION_DOC + "; the axis passes through center (default the ball's centre "
-                  "at t = 0: a spinning ball) and moves with it", RotationTable),
+        Parameter(
+            "rotation",
+            "none",
+            _ROTATION_DOC + "; the axis passes through center (default the ball's centre "
+            "at t = 0: a spinning ball) and moves with it",
+            RotationTable,
+        ),
     ),
-)  # fmt: skip
+)
 OBSTACLES.register(
     "surface",
     SurfaceObstacle,
     "rigid triangulated (3D) or polygonal (2D: segments) surface from a mesh file; facet normals point out of "
     "the obstacle, towards the body; nodes beyond its edge face nothing",
     parameters=(
-        Parameter("file", None, "mesh file meshio reads (STL, OBJ, .msh, VTK, ...), relative to the case file: "
-                  "triangles or quadrilaterals in 3D, line segments in 2D", FilePath),
+        Parameter(
+            "file",
+            None,
+            "mesh file meshio reads (STL, OBJ, .msh, VTK, ...), relative to the case file: "
+            "triangles or quadrilaterals in 3D, line segments in 2D",
+            FilePath,
+        ),
         Parameter("translation", 0.0, "displacement d(t) of the surface, a vector; may depend on t", Motion),
-        Parameter("rotation", "none", _ROTATION_DOC + "; center required, the axis moves with the translation",
-                  RotationTable),
+        Parameter(
+            "rotation", "none", _ROTATION_DOC + "; center required, the axis moves with the translation", RotationTable
+        ),
         Parameter("flip", False, "reverse the facets' orientation (the other side is outside)", bool),
     ),
-)  # fmt: skip
+)

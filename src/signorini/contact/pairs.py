@@ -109,8 +109,12 @@ def facet_owner_normals(mesh: Mesh, facets: np.ndarray) -> tuple[np.ndarray, np.
     b = blocks[0] if len(blocks) == 1 else None
     if b is None:  # 2D triangles and quads (edges alike): faces of every block, with their cells
         loc = None
-        faces = np.vstack([blk.cells[:, np.array(reference_element(blk.cell_type).facets)].reshape(-1, facets.shape[1])
-                           for blk in blocks])  # fmt: skip
+        faces = np.vstack(
+            [
+                blk.cells[:, np.array(reference_element(blk.cell_type).facets)].reshape(-1, facets.shape[1])
+                for blk in blocks
+            ]
+        )
     else:
         loc = np.array(reference_element(b.cell_type).facets)
         faces = b.cells[:, loc].reshape(-1, loc.shape[1])  # every cell face, outward order
@@ -233,8 +237,13 @@ def _curved_normals(P: np.ndarray, N: np.ndarray, kind: str) -> np.ndarray:
 def _closest_on_triangles(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a, b, c = P[:, 0], P[:, 1], P[:, 2]
     e1, e2 = b - a, c - a
-    G = np.stack([np.stack([np.einsum("md,md->m", e1, e1), np.einsum("md,md->m", e1, e2)], -1),
-                  np.stack([np.einsum("md,md->m", e2, e1), np.einsum("md,md->m", e2, e2)], -1)], -2)  # fmt: skip
+    G = np.stack(
+        [
+            np.stack([np.einsum("md,md->m", e1, e1), np.einsum("md,md->m", e1, e2)], -1),
+            np.stack([np.einsum("md,md->m", e2, e1), np.einsum("md,md->m", e2, e2)], -1),
+        ],
+        -2,
+    )
     r = np.stack([np.einsum("md,md->m", x - a, e1), np.einsum("md,md->m", x - a, e2)], -1)
     st = np.linalg.solve(G, r[..., None])[..., 0]
     N = np.column_stack([1 - st.sum(axis=1), st[:, 0], st[:, 1]])
@@ -296,8 +305,9 @@ class FacetRows:
     inactive: int  # nodes laterally off the surface at t = 0 (no row, unless ``every``)
 
 
-def node_to_facet_rows(mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int, every: bool = False
-                       ) -> FacetRows:  # fmt: skip
+def node_to_facet_rows(
+    mesh: Mesh, nodes: np.ndarray, facets: np.ndarray, n_dofs: int, every: bool = False
+) -> FacetRows:
     """The linearized gap rows of ``nodes`` against the surface of ``facets`` (boundary facets
     of the mesh) at t = 0 (the module docstring): closest facet among the :data:`CANDIDATES`
     nearest centres, exact closest point, the facet's outward normal there; nodes laterally
@@ -369,12 +379,15 @@ def pair_rows(mesh: Mesh, pair: ContactPair, n_dofs: int, every: bool = False) -
     slave = mesh.nodes_of(pair.slave)
     facets = mesh.facets_of(pair.master)
     if np.intersect1d(slave, np.unique(facets)).size:
-        raise InputError(f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
-                         "surfaces that can touch (of two bodies, or two parts of one body's boundary)")  # fmt: skip
+        raise InputError(
+            f"contact pair {pair.slave!r} / {pair.master!r}: the two tags share nodes; a pair is two "
+            "surfaces that can touch (of two bodies, or two parts of one body's boundary)"
+        )
     r = node_to_facet_rows(mesh, slave, facets, n_dofs, every)
     weights = facet_weights(mesh, pair.slave, positive=True)[r.nodes]
-    return PairRows(r.nodes, -r.normals, r.gaps, weights, r.B, r.facet, r.xi, r.facet_nodes, np.unique(facets),
-                    r.inactive)  # fmt: skip
+    return PairRows(
+        r.nodes, -r.normals, r.gaps, weights, r.B, r.facet, r.xi, r.facet_nodes, np.unique(facets), r.inactive
+    )
 
 
 def _quad_normal(P: np.ndarray, N: np.ndarray) -> np.ndarray:
@@ -448,8 +461,15 @@ def master_geometry(mesh: Mesh, pair: ContactPair) -> tuple[np.ndarray, np.ndarr
     return facet_owner_normals(mesh, mesh.facets_of(pair.master))
 
 
-def slid_rows(mesh: Mesh, pair: ContactPair, rows: np.ndarray, slave: np.ndarray, facet: np.ndarray,
-              U: np.ndarray, geometry: tuple[np.ndarray, np.ndarray] | None = None) -> SlidRows | None:  # fmt: skip
+def slid_rows(
+    mesh: Mesh,
+    pair: ContactPair,
+    rows: np.ndarray,
+    slave: np.ndarray,
+    facet: np.ndarray,
+    U: np.ndarray,
+    geometry: tuple[np.ndarray, np.ndarray] | None = None,
+) -> SlidRows | None:
     """Small sliding of one pair: the rows ``rows`` (slave nodes ``slave``, current facets
     ``facet``) whose slave node's projection left its facet in the configuration X + U are
     projected again, in that configuration, on the closest master facet; their new row is
@@ -662,11 +682,15 @@ def pair_side_warning(mesh: Mesh, pair: ContactPair) -> str:
     hm, nm = facet_sizes_and_normals(mesh, pair.master)
     swap = f"swap them (slave = {pair.master!r}, master = {pair.slave!r})"
     if float(np.mean(hs)) > COARSER_SLAVE_RATIO * float(np.mean(hm)):
-        return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is the coarser one (facets "
-                f"{np.mean(hs):.3g} against {np.mean(hm):.3g}); node to facet enforces contact at the slave nodes "
-                f"only, so the master's finer nodes may cross between them: {swap} (docs/bodies.md)")  # fmt: skip
+        return (
+            f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is the coarser one (facets "
+            f"{np.mean(hs):.3g} against {np.mean(hm):.3g}); node to facet enforces contact at the slave nodes "
+            f"only, so the master's finer nodes may cross between them: {swap} (docs/bodies.md)"
+        )
     if mesh.dim > 1 and _is_flat(ns) and not _is_flat(nm):
-        return (f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is flat and the master curved; the "
-                f"curved side touches between the slave nodes, which node to facet does not see (a shorter, "
-                f"stiffer contact): {swap} (docs/bodies.md)")  # fmt: skip
+        return (
+            f"contact pair {pair.slave!r} / {pair.master!r}: the slave side is flat and the master curved; the "
+            f"curved side touches between the slave nodes, which node to facet does not see (a shorter, "
+            f"stiffer contact): {swap} (docs/bodies.md)"
+        )
     return ""

@@ -230,8 +230,10 @@ def choose_condensation(condensation: str, backend: str, B: sp.csr_matrix, budge
     supported = factor_class(backend).supports_schur
     if condensation == "schur" and not supported:
         why = " (PETSc has no parallel MUMPS Schur complement)" if backend_traits(backend).distributed else ""
-        raise InputError(f"solver option condensation='schur' needs the pardiso backend, not {backend!r}{why}; "
-                         "use condensation='lazy' or 'full' with this backend")  # fmt: skip
+        raise InputError(
+            f"solver option condensation='schur' needs the pardiso backend, not {backend!r}{why}; "
+            "use condensation='lazy' or 'full' with this backend"
+        )
     if condensation != "auto":
         return condensation
     nc, n = B.shape
@@ -776,8 +778,10 @@ def make_contact_solver(
         raise InputError(f"friction needs the Delassus matrix of a direct backend ({direct}), not {backend}")
     if traits.chooses and opts["condensation"] == "schur":
         if not has_pardiso():
-            raise InputError("solver option condensation='schur' needs the pardiso backend, which is not installed "
-                             "(pip install '.[pardiso]'); use condensation='lazy' or 'full'")  # fmt: skip
+            raise InputError(
+                "solver option condensation='schur' needs the pardiso backend, which is not installed "
+                "(pip install '.[pardiso]'); use condensation='lazy' or 'full'"
+            )
         backend = "pardiso"  # the only backend that computes the Schur complement
     if backend_traits(backend).chooses:
         budget = opts["memory_budget"] or 0.4 * total_memory()
@@ -808,9 +812,16 @@ def make_contact_solver(
                 rigid = modes() if modes is not None and pc == "gamg" else None
                 nodes = np.arange(K.shape[0]) if nodes is None else nodes
                 solver = DistributedCGSolver(
-                    K, B, gap_scale, nodes, rigid, pc, opts["rtol"], opts["max_iter"],
+                    K,
+                    B,
+                    gap_scale,
+                    nodes,
+                    rigid,
+                    pc,
+                    opts["rtol"],
+                    opts["max_iter"],
                     opts["max_newton"],
-                )  # fmt: skip
+                )
                 check_options_used(opts, f"petsc-cg's {pc} preconditioner ({why})")
                 return solver
             solver = CondensedContactSolver(
@@ -830,10 +841,25 @@ def make_contact_solver(
         return solver
     if traits.iterative:
         return ActiveSetCGSolver(
-            K, B, gap_scale, opts.get("preconditioner", "jacobi"), opts.get("rtol", 1e-12),
-            opts.get("max_iter", 2000), opts.get("max_newton", 30), nodes, opts.get("spmv_threads", 0), opts["spmv"],
-        )  # fmt: skip
+            K,
+            B,
+            gap_scale,
+            opts.get("preconditioner", "jacobi"),
+            opts.get("rtol", 1e-12),
+            opts.get("max_iter", 2000),
+            opts.get("max_newton", 30),
+            nodes,
+            opts.get("spmv_threads", 0),
+            opts["spmv"],
+        )
     return CondensedContactSolver(
-        K, B, gap_scale, backend, opts["condense_budget"], opts["lcp_max_iter"], opts["condensation"], components,
+        K,
+        B,
+        gap_scale,
+        backend,
+        opts["condense_budget"],
+        opts["lcp_max_iter"],
+        opts["condensation"],
+        components,
         opts["reproducible"],
-    )  # fmt: skip
+    )

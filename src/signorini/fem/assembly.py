@@ -456,8 +456,9 @@ def nodal_average(mesh: Mesh, cell_values: np.ndarray) -> np.ndarray:
     return out.reshape((mesh.n_nodes,) + cell_values.shape[1:])
 
 
-def cell_means(mesh: Mesh, material: Material, u: np.ndarray,
-               tensors: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:  # fmt: skip
+def cell_means(
+    mesh: Mesh, material: Material, u: np.ndarray, tensors: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The cell means (over the quadrature points, weighted by |J| w) of the von Mises stress (n_cells,) and, with
     ``tensors``, of the small strain and the Cauchy stress of ``u`` as 3D tensors (n_cells, 3, 3) each (plane
     strain in 2D: eps_zz = 0, sigma_zz = lam tr(eps); in 1D the bar's axial eps_xx and sigma_xx = E eps_xx, the

@@ -116,8 +116,9 @@ def _p1(dim: int, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _vertex() -> ReferenceElement:
-    return ReferenceElement("vertex", 0, np.zeros((1, 0)), np.zeros((1, 0)), np.ones(1), np.ones((1, 1)),
-                            np.zeros((1, 1, 0)), (), True)  # fmt: skip
+    return ReferenceElement(
+        "vertex", 0, np.zeros((1, 0)), np.zeros((1, 0)), np.ones(1), np.ones((1, 1)), np.zeros((1, 1, 0)), (), True
+    )
 
 
 def _line() -> ReferenceElement:

@@ -285,8 +285,9 @@ HYPERELASTIC_LAWS: dict[str, type[HyperelasticLaw]] = {
 }
 
 
-def _parts(mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
-           ) -> list[tuple[Mesh, HyperelasticLaw, np.ndarray]]:  # fmt: skip
+def _parts(
+    mesh: Mesh, law: HyperelasticLaw, cells: np.ndarray | None = None
+) -> list[tuple[Mesh, HyperelasticLaw, np.ndarray]]:
     """The one-type parts of ``mesh`` (only its cells ``cells``, sorted indices; None: all) with the law
     restricted to their cells, and the mesh's numbers of those cells."""
     if mesh.dim == 1:
@@ -609,8 +610,9 @@ def _out_of_plane_stress(law: HyperelasticLaw, C: np.ndarray) -> np.ndarray:
     return lam * 0.5 * np.log(determinants(C))
 
 
-def cell_fields(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+def cell_fields(
+    mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per cell of ``cells`` (None: every cell), volume-weighted means over its quadrature points:
     (ids (k,), Cauchy stress sigma = F S F^T / J (k, 3, 3) in the current configuration, Green-Lagrange
     strain E (k, 3, 3) and stored energy density W (k,) [stress, 1, energy / volume]).  Plane strain: the

@@ -227,8 +227,12 @@ class CellMaterial:
 Material = IsotropicElastic | CellMaterial
 
 
-def cell_material(n_cells: int, regions: dict[str, np.ndarray], default: IsotropicElastic,
-                  materials: dict[str, IsotropicElastic] | None) -> Material:  # fmt: skip
+def cell_material(
+    n_cells: int,
+    regions: dict[str, np.ndarray],
+    default: IsotropicElastic,
+    materials: dict[str, IsotropicElastic] | None,
+) -> Material:
     """The material of every cell: ``materials[tag]`` on the cells of region ``tag``
     (``regions``: tag -> cell indices), ``default`` on the cells of no listed region.
 

@@ -95,8 +95,9 @@ class Mesh:
         if isinstance(self.cell_type, (list, tuple)):  # blocks of cells, maybe of several types
             types, arrays = list(self.cell_type), list(self.cells)
             if len(types) != len(arrays) or not types:
-                raise MeshError(f"a mesh of blocks needs one cell type per block, got {len(types)} types for "
-                                f"{len(arrays)} blocks")  # fmt: skip
+                raise MeshError(
+                    f"a mesh of blocks needs one cell type per block, got {len(types)} types for {len(arrays)} blocks"
+                )
             if len(set(types)) == 1:  # one type after all: one block
                 self.cell_type, self.cells = types[0], np.vstack([np.asarray(a) for a in arrays])
             else:
@@ -173,8 +174,9 @@ class Mesh:
         if self._blocks is None:  # itself (not cached: the mesh would hold itself, freed only by a full collection)
             return [(self, slice(0, self.n_cells))]
         if "parts" not in self._cache:
-            self._cache["parts"] = [(Mesh(self.points, b.cells, b.cell_type), slice(b.start, b.stop))
-                                    for b in self._blocks]  # fmt: skip
+            self._cache["parts"] = [
+                (Mesh(self.points, b.cells, b.cell_type), slice(b.start, b.stop)) for b in self._blocks
+            ]
         return self._cache["parts"]
 
     def cell_nodes(self, cells: np.ndarray | None = None) -> np.ndarray:
@@ -459,14 +461,22 @@ def join(parts: dict[str, Mesh]) -> Mesh:
         return _join_blocks(parts)
     offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
     first = np.cumsum([0] + [m.n_cells for m in meshes])
-    facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
-              for t, f in m.facets.items()}  # fmt: skip
+    facets = {
+        f"{name}_{t}": f + off
+        for (name, m), off in zip(parts.items(), offsets, strict=False)
+        for t, f in m.facets.items()
+    }
     regions = {}
     for (name, m), c0 in zip(parts.items(), first, strict=False):
         regions[name] = c0 + np.arange(m.n_cells)
         regions.update({f"{name}_{r}": c0 + c for r, c in m.regions.items()})
-    return Mesh(np.vstack([m.points for m in meshes]), np.vstack([m.cells + o for m, o in zip(meshes, offsets,
-                strict=False)]), meshes[0].cell_type, facets, regions=regions)  # fmt: skip
+    return Mesh(
+        np.vstack([m.points for m in meshes]),
+        np.vstack([m.cells + o for m, o in zip(meshes, offsets, strict=False)]),
+        meshes[0].cell_type,
+        facets,
+        regions=regions,
+    )
 
 
 def _join_blocks(parts: dict[str, Mesh]) -> Mesh:
@@ -474,8 +484,11 @@ def _join_blocks(parts: dict[str, Mesh]) -> Mesh:
     meshes = list(parts.values())
     offsets = np.cumsum([0] + [m.n_nodes for m in meshes])
     first = np.cumsum([0] + [m.n_cells for m in meshes])
-    facets = {f"{name}_{t}": f + off for (name, m), off in zip(parts.items(), offsets, strict=False)
-              for t, f in m.facets.items()}  # fmt: skip
+    facets = {
+        f"{name}_{t}": f + off
+        for (name, m), off in zip(parts.items(), offsets, strict=False)
+        for t, f in m.facets.items()
+    }
     regions = {}
     types, arrays = [], []
     for (name, m), c0, off in zip(parts.items(), first, offsets, strict=False):
@@ -816,9 +829,11 @@ def _tagged_cells(m, cell_type: str, names: dict[int, str], dim: int) -> dict[st
         fd = (m.field_data or {}).get(name)
         if name.startswith("gmsh:") or fd is None or len(fd) < 2 or int(fd[1]) != dim:
             continue
-        found = [starts[k] + np.asarray(idx, dtype=np.int64)
-                 for k, (keep, idx) in enumerate(zip(blocks, per_block, strict=False))
-                 if keep and idx is not None and len(idx)]  # fmt: skip
+        found = [
+            starts[k] + np.asarray(idx, dtype=np.int64)
+            for k, (keep, idx) in enumerate(zip(blocks, per_block, strict=False))
+            if keep and idx is not None and len(idx)
+        ]
         if found:
             regions[name] = found
     return {k: np.concatenate(v) for k, v in regions.items()}
@@ -893,14 +908,18 @@ def read_mesh(path: str | Path) -> Mesh:
     for ftype in sorted({FACET_TYPES[t] for t in top}):
         for k, v in _tagged_facets(m, ftype, names, dim - 1).items():
             if k in facets:
-                raise MeshError(f"{p.name}: tag {k!r} holds facets of two types (triangles and quads); a tag holds "
-                                "one type: split it into two physical groups")  # fmt: skip
+                raise MeshError(
+                    f"{p.name}: tag {k!r} holds facets of two types (triangles and quads); a tag holds "
+                    "one type: split it into two physical groups"
+                )
             facets[k] = v
     for other in sorted({FACET_TYPES[t] for t in FACET_TYPES if _DIM_OF.get(t) == dim} - {FACET_TYPES[t] for t in top}):
         for k in _tagged_facets(m, other, names, dim - 1):  # facets no cell of this mesh has: never dropped
-            raise MeshError(f"{p.name}: tag {k!r} holds {other} facets, but the mesh's cells ({', '.join(top)}) have "
-                            f"no {other} faces; remove them from the physical group (or mesh the part with cells "
-                            "that have them)")  # fmt: skip
+            raise MeshError(
+                f"{p.name}: tag {k!r} holds {other} facets, but the mesh's cells ({', '.join(top)}) have "
+                f"no {other} faces; remove them from the physical group (or mesh the part with cells "
+                "that have them)"
+            )
     ftype = " or ".join(sorted({FACET_TYPES[t] for t in top}))  # named in the message below
     for k, v in facets.items():
         _check_indices(p.name, f"facets of tag {k!r}", np.vstack(v), len(m.points))

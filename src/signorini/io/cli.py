@@ -108,8 +108,10 @@ def _dispatch(args: argparse.Namespace) -> int:
             try:
                 ranks = launched()[1]
                 if ranks > 1 and args.command not in ("run", "resume"):
-                    raise InputError(f"started as {ranks} MPI ranks: only `signorini run ... --backend petsc` (and "
-                                     f"its resume) runs on several ranks, not `signorini {args.command}`")  # fmt: skip
+                    raise InputError(
+                        f"started as {ranks} MPI ranks: only `signorini run ... --backend petsc` (and "
+                        f"its resume) runs on several ranks, not `signorini {args.command}`"
+                    )
                 return args.func(args)
             finally:
                 _report_warnings(caught, isinstance(sys.exc_info()[1], KeyboardInterrupt))

@@ -69,9 +69,17 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     def work(tmp: Path) -> None:
         res = study(
-            args.benchmark, args.scheme, args.mass, args.n0, args.levels, args.T, args.ratio, args.ref_level, overrides,
+            args.benchmark,
+            args.scheme,
+            args.mass,
+            args.n0,
+            args.levels,
+            args.T,
+            args.ratio,
+            args.ref_level,
+            overrides,
             check_refs,
-        )  # fmt: skip
+        )
         md = table_markdown(res)
         (tmp / "study.md").write_text(md)
         table_csv(res, tmp / "study.csv")
@@ -112,13 +120,19 @@ def compare_plan(args: argparse.Namespace):
 
         controls = []  # each pair's control as `signorini run FILE --scheme S --mass M` takes it
         for pair in pairs:
-            control = case_control(SimpleNamespace(dt_control=None), case.control, pair.scheme.name, {}, pair.mass,
-                                   pair.scheme.option_dict)  # fmt: skip
+            control = case_control(
+                SimpleNamespace(dt_control=None), case.control, pair.scheme.name, {}, pair.mass, pair.scheme.option_dict
+            )
             controls.append(((pair.scheme.label, pair.mass), control))
         target = cmp.CaseTarget(
-            Path(args.target).name, load, case.dt, case.T, tuple(sorted(_checked(sol).items())),
-            friction=args.friction, controls=tuple(controls),
-        )  # fmt: skip
+            Path(args.target).name,
+            load,
+            case.dt,
+            case.T,
+            tuple(sorted(_checked(sol).items())),
+            friction=args.friction,
+            controls=tuple(controls),
+        )
         plan = cmp.plan_case(target, pairs, case.problem)
         check_compare_size(plan, args.jobs, _limits(args, case.limits))
         return plan
@@ -127,8 +141,9 @@ def compare_plan(args: argparse.Namespace):
     levels = cmp.DEFAULT_LEVELS if args.levels is None else args.levels
     ratio = cmp.DEFAULT_RATIO if args.ratio is None else args.ratio
     _, sol = _options(args, {}, {})
-    plan = cmp.plan_benchmark(args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref, args.friction,
-                              _checked(sol))  # fmt: skip
+    plan = cmp.plan_benchmark(
+        args.target, pairs, levels, args.n0, args.T, ratio, overrides, ref, args.friction, _checked(sol)
+    )
     check_compare_size(plan, args.jobs, _limits(args, {}))
     return plan
 
@@ -192,8 +207,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     run_into(out, args.overwrite, lambda tmp: holder.update(s=reproduce(tmp, size)))
     if holder["s"].get("status") == "interrupted":
         done = holder["s"]["sections_done"]
-        print(f"signorini: interrupted during {holder['s']['interrupted_in']}: {out / 'report.md'} holds the "
-              f"{len(done)} section(s) finished ({', '.join(done) or 'none'})", file=sys.stderr)  # fmt: skip
+        print(
+            f"signorini: interrupted during {holder['s']['interrupted_in']}: {out / 'report.md'} holds the "
+            f"{len(done)} section(s) finished ({', '.join(done) or 'none'})",
+            file=sys.stderr,
+        )
         return EXIT_CODES["interrupted"]
     if not args.quiet:
         h = holder["s"]["bar2d_histories"]
@@ -201,8 +219,10 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         for k, v in h.items():
             print(f"  {k:32s} oscillation index {v['oscillation_index']:.2f}, E(T)/E(0) {v['energy_ratio_final']:.3f}")
         if "hertz" in holder["s"] and holder["s"]["hertz"] is None:
-            print('  section 7 (Hertz impact) skipped: gmsh is not installed; pip install ".[mesh]" and run again '
-                  "for it (a bare Debian also needs the X/OpenGL libraries the README lists)")  # fmt: skip
+            print(
+                '  section 7 (Hertz impact) skipped: gmsh is not installed; pip install ".[mesh]" and run again '
+                "for it (a bare Debian also needs the X/OpenGL libraries the README lists)"
+            )
     return 0
 
 

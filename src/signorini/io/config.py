@@ -173,14 +173,17 @@ def _pairs(mesh: Mesh, table: dict) -> list:
 
     given = table.get("pairs", [])
     if not isinstance(given, list) or not all(isinstance(p, dict) for p in given):
-        raise InputError(f"'contact.pairs' must be a list of tables {{ slave = \"tag\", master = \"tag\" }}, "
-                         f"got {_short(given)}")  # fmt: skip
+        raise InputError(
+            f'\'contact.pairs\' must be a list of tables {{ slave = "tag", master = "tag" }}, got {_short(given)}'
+        )
     out = []
     for k, p in enumerate(given):
         extra = sorted(set(p) - {"slave", "master", "friction"})
         if extra or not {"slave", "master"} <= set(p):
-            raise InputError(f"'contact.pairs[{k}]' needs the keys slave and master (facet tags) and optionally "
-                             f"friction; got {sorted(p)}")  # fmt: skip
+            raise InputError(
+                f"'contact.pairs[{k}]' needs the keys slave and master (facet tags) and optionally "
+                f"friction; got {sorted(p)}"
+            )
         for side in ("slave", "master"):
             if not isinstance(p[side], str):
                 raise InputError(f"'contact.pairs[{k}].{side}' must be a facet tag, got {_short(p[side])}")
@@ -199,8 +202,10 @@ def _where(table: dict):
         raise InputError(f"'contact.where' must be an expression string such as \"z < 0.2\", got {_short(text)}")
     ex = Expression("contact.where", text, conditions=True)
     if not ex.is_condition:  # a number would be taken as "!= 0": say what is expected instead
-        raise InputError(f"'contact.where' must be a condition, a comparison such as \"z < 0.2\" (< <= > >= == !=, "
-                         f"combined with and, or, not), got {text!r}")  # fmt: skip
+        raise InputError(
+            f"'contact.where' must be a condition, a comparison such as \"z < 0.2\" (< <= > >= == !=, "
+            f"combined with and, or, not), got {text!r}"
+        )
     if "t" in ex.variables:
         raise InputError("'contact.where' may use x, y and z only (the contact nodes do not change in time)")
     return lambda p: check_finite("contact.where", text, ex(p), p, 0.0) != 0
@@ -263,8 +268,9 @@ def _mesh(m: dict, base: Path, guard=None, files: list | None = None) -> Mesh:
     return box(*cells, *size, cell=cell, order=order)
 
 
-def _material(t: dict, key: str = "material", allowed: set[str] | None = None, model: str = "linear"
-              ) -> IsotropicElastic:  # fmt: skip
+def _material(
+    t: dict, key: str = "material", allowed: set[str] | None = None, model: str = "linear"
+) -> IsotropicElastic:
     """``[material]`` (or one of its ``regions`` entries, ``key`` naming it in messages; ``model``: the
     model when the table gives none)."""
     _keys(key, t, SECTIONS["material"] if allowed is None else allowed)
@@ -311,8 +317,10 @@ def _material_regions(t: dict, mesh: Mesh) -> dict[str, IsotropicElastic]:
     """``[material] regions = [{ tag = "plate", E = ..., nu = ..., rho = ... }, ...]``."""
     given = t.get("regions", [])
     if not isinstance(given, list):
-        raise InputError(f"'material.regions' must be a list of tables {{ tag = \"region\", E = ..., rho = ... }}, "
-                         f"got {_short(given)}")  # fmt: skip
+        raise InputError(
+            f"'material.regions' must be a list of tables {{ tag = \"region\", E = ..., rho = ... }}, "
+            f"got {_short(given)}"
+        )
     out: dict[str, IsotropicElastic] = {}
     allowed = SECTIONS["material"] - {"regions"}
     for k, entry in enumerate(given):
@@ -354,8 +362,9 @@ def _initial_regions(init: dict, mesh: Mesh) -> list:
 
     given = init.get("regions", [])
     if not isinstance(given, list):
-        raise InputError(f"'initial.regions' must be a list of tables {{ tag = \"region\", velocity = [...] }}, "
-                         f"got {_short(given)}")  # fmt: skip
+        raise InputError(
+            f"'initial.regions' must be a list of tables {{ tag = \"region\", velocity = [...] }}, got {_short(given)}"
+        )
     out = []
     for k, entry in enumerate(given):
         key = f"initial.regions[{k}]"
@@ -470,8 +479,9 @@ def _rotation(key: str, table: Any, dim: int) -> Rotation:
     of t [rad]; axis in 3D only (in 2D the axis is out of the plane); center optional (the
     obstacle's default) except for a surface."""
     if not isinstance(table, dict):
-        raise InputError(f"'{key}' must be an inline table {{ angle = ..., axis = [...], center = [...] }}, "
-                         f"got {_short(table)}")  # fmt: skip
+        raise InputError(
+            f"'{key}' must be an inline table {{ angle = ..., axis = [...], center = [...] }}, got {_short(table)}"
+        )
     _keys(key, table, {p.name for p in ROTATION_KEYS})
     if dim == 1:
         raise InputError(f"'{key}': a 1D obstacle cannot rotate")
@@ -636,9 +646,11 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     rigid = not pairs or "tag" in c or "obstacle" in c
     tag = _contact_tags(mesh, c) if rigid else None
     if not rigid and "where" in c:
-        raise InputError("'contact.where' restricts the contact nodes of [contact] tag against the rigid obstacle; "
-                         "this case has contact pairs only, where it would not apply: remove it (a pair's slave "
-                         "nodes are those of its slave tag)")  # fmt: skip
+        raise InputError(
+            "'contact.where' restricts the contact nodes of [contact] tag against the rigid obstacle; "
+            "this case has contact pairs only, where it would not apply: remove it (a pair's slave "
+            "nodes are those of its slave tag)"
+        )
     where = _where(c) if rigid else None
     obstacle = _obstacle(c.get("obstacle"), dim, path.parent, files) if rigid else None
     friction = make_friction(c["friction"], "contact.friction") if "friction" in c else None
@@ -652,8 +664,9 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     initial_regions = _initial_regions(init, mesh)
     acceleration = init.get("acceleration", "equilibrium")
     if acceleration not in INITIAL_ACCELERATIONS:
-        raise InputError(f"'initial.acceleration' must be one of {', '.join(map(repr, INITIAL_ACCELERATIONS))}, "
-                         f"got {acceleration!r}")  # fmt: skip
+        raise InputError(
+            f"'initial.acceleration' must be one of {', '.join(map(repr, INITIAL_ACCELERATIONS))}, got {acceleration!r}"
+        )
     equilibrium = _bool("initial.equilibrium", init.get("equilibrium", False))
     loads = data.get("loads", {})
     _keys("loads", loads, SECTIONS["loads"])
@@ -668,18 +681,49 @@ def load_case(path: str | Path, limits: dict | None = None, size_check=None, bac
     mass, solver_opts = _solver(data.get("solver", {}))
     out, every, checkpoint_every = _output(data.get("output", {}))
     problem = Problem(
-        mesh, material, tag, obstacle, dirichlet, u0, v0, body, tractions, name=path.stem, contact_where=where,
-        friction=friction, follow_mass=follow_mass, initial_acceleration=acceleration, pairs=pairs,
-        materials=materials, initial_regions=initial_regions, gravity=gravity, damping=damping,
+        mesh,
+        material,
+        tag,
+        obstacle,
+        dirichlet,
+        u0,
+        v0,
+        body,
+        tractions,
+        name=path.stem,
+        contact_where=where,
+        friction=friction,
+        follow_mass=follow_mass,
+        initial_acceleration=acceleration,
+        pairs=pairs,
+        materials=materials,
+        initial_regions=initial_regions,
+        gravity=gravity,
+        damping=damping,
         initial_equilibrium=equilibrium,
-    )  # fmt: skip
+    )
     named = "mass" in data.get("solver", {})
     from ..dynamics.observe.events import parse_stop_at
 
     stop_at = parse_stop_at(data["time"].get("stop_at"), "time.stop_at")
     control = _control(data["time"], dt)
-    return Case(problem, scheme, dt, T, mass, out, every, scheme_options, solver_opts, limits, named, stop_at,
-                checkpoint_every, files, control)  # fmt: skip
+    return Case(
+        problem,
+        scheme,
+        dt,
+        T,
+        mass,
+        out,
+        every,
+        scheme_options,
+        solver_opts,
+        limits,
+        named,
+        stop_at,
+        checkpoint_every,
+        files,
+        control,
+    )
 
 
 def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
@@ -702,8 +746,10 @@ def _control(tm: dict, dt: Any) -> dict[str, Any] | None:
         smallest = min(s["dt"] for s in dt) if isinstance(dt, list) else dt
         low = smallest / 2**MAX_LEVELS
         if not low <= options["dt_min"] <= smallest:
-            raise InputError(f"'time.dt_min' must satisfy dt / 2^{MAX_LEVELS} = {low:.4g} <= dt_min <= dt = "
-                             f"{smallest:g}, got {options['dt_min']!r}")  # fmt: skip
+            raise InputError(
+                f"'time.dt_min' must satisfy dt / 2^{MAX_LEVELS} = {low:.4g} <= dt_min <= dt = "
+                f"{smallest:g}, got {options['dt_min']!r}"
+            )
     return {"control": name, **{k: v for k, v in options.items() if k in given}}
 
 

@@ -103,8 +103,9 @@ def _compile(
     node: ast.AST, key: str, text: str, used: set[str], conditions: bool = False
 ) -> Callable[[dict], np.ndarray]:
     def bad(what: str) -> InputError:
-        return InputError(f"'{key}': {what} is not allowed in expression {text!r}; allowed: numbers, + - * / ** %, "
-                          f"{allowed_names()}")  # fmt: skip
+        return InputError(
+            f"'{key}': {what} is not allowed in expression {text!r}; allowed: numbers, + - * / ** %, {allowed_names()}"
+        )
 
     if isinstance(node, ast.Expression):
         return _compile(node.body, key, text, used, conditions)
@@ -132,8 +133,10 @@ def _compile(
         if isinstance(node.op, ast.Pow):
             exponent = _constant_value(node.right)
             if exponent is None or abs(exponent) > MAX_EXPONENT:
-                raise bad(f"the power '{ast.unparse(node)}' (the exponent must be a number of size <= "
-                          f"{MAX_EXPONENT:g}; use exp() and log() for other powers)")  # fmt: skip
+                raise bad(
+                    f"the power '{ast.unparse(node)}' (the exponent must be a number of size <= "
+                    f"{MAX_EXPONENT:g}; use exp() and log() for other powers)"
+                )
         op, left, right = (
             _BINARY[type(node.op)],
             _compile(node.left, key, text, used, conditions),

@@ -85,15 +85,19 @@ def check_fields(source: Path) -> None:
         except OSError:
             regular = False
         if not regular:
-            raise InputError(f"the fields of the run to resume: {str(f)!r} is missing or not a regular file; "
-                             "resume with --snapshot-every 0 to leave the earlier fields out")  # fmt: skip
+            raise InputError(
+                f"the fields of the run to resume: {str(f)!r} is missing or not a regular file; "
+                "resume with --snapshot-every 0 to leave the earlier fields out"
+            )
     text = source.read_text(errors="replace")
     formats = set(re.findall(r'Format="([^"]*)"', text))
     files = {m.split(":")[0].strip() for m in re.findall(r">\s*([^<>\s]+:/[^<>\s]*)\s*<", text)}
     if formats - {"HDF"} or files - {h5.name}:
-        raise InputError(f"the fields of the run to resume: {source.name} reads other data than its {h5.name} "
-                         f"(formats {sorted(formats)}, files {sorted(files)}): not a field file of signorini; resume "
-                         "with --snapshot-every 0 to leave the earlier fields out")  # fmt: skip
+        raise InputError(
+            f"the fields of the run to resume: {source.name} reads other data than its {h5.name} "
+            f"(formats {sorted(formats)}, files {sorted(files)}): not a field file of signorini; resume "
+            "with --snapshot-every 0 to leave the earlier fields out"
+        )
     try:
         with meshio.xdmf.TimeSeriesReader(str(source)) as reader:
             reader.read_points_cells()
@@ -146,8 +150,10 @@ class FieldWriter(Observer):
         self._mesh, self._material = mesh, run.ctx.disc.material  # per cell with regions
         # every cell's region (k + 1: the k-th region tag in sorted order, 0: none) and body
         ids, body = region_ids(mesh), bodies(mesh)[mesh.first_nodes()]
-        self._cell_data = {"region": [ids[b.start : b.stop] for b in mesh.blocks],
-                           "body": [body[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
+        self._cell_data = {
+            "region": [ids[b.start : b.stop] for b in mesh.blocks],
+            "body": [body[b.start : b.stop] for b in mesh.blocks],
+        }
         self._nodes = run.ctx.disc.contact.nodes
         self._elastic = getattr(run.ctx, "elastic", None)
         self._weights = run.ctx.disc.contact.weights
@@ -197,14 +203,20 @@ class FieldWriter(Observer):
             f = elastic.cell_fields(s.U)
             vm = nodal_average(mesh, von_mises_of(f["cauchy_stress"]))
             per_block = lambda a: [a[b.start : b.stop] for b in mesh.blocks]  # noqa: E731
-            cell_data = {**cell_data, "cauchy_stress": per_block(f["cauchy_stress"].reshape(-1, 9)),
-                         "green_lagrange": per_block(f["green_lagrange"].reshape(-1, 9)),
-                         "strain_energy_density": per_block(f["strain_energy_density"])}  # fmt: skip
+            cell_data = {
+                **cell_data,
+                "cauchy_stress": per_block(f["cauchy_stress"].reshape(-1, 9)),
+                "green_lagrange": per_block(f["green_lagrange"].reshape(-1, 9)),
+                "strain_energy_density": per_block(f["strain_energy_density"]),
+            }
         else:  # the small strain and the Cauchy stress of the linear model, cell means
             vm, eps, sig = cell_means(mesh, self._material, s.U)
             vm = nodal_average(mesh, vm)
-            cell_data = {**cell_data, "cauchy_stress": [sig.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks],
-                         "strain": [eps.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks]}  # fmt: skip
+            cell_data = {
+                **cell_data,
+                "cauchy_stress": [sig.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks],
+                "strain": [eps.reshape(-1, 9)[b.start : b.stop] for b in mesh.blocks],
+            }
         c = self._contact
         traction = np.zeros((mesh.n_nodes, 3))
         force = c.normals * s.lam[:, None]
@@ -216,8 +228,14 @@ class FieldWriter(Observer):
         status = np.full(mesh.n_nodes, -1.0)
         info_status = s.info.status if s.info is not None else None
         status[self._nodes] = info_status if info_status is not None else np.where(s.lam < 0, 2.0, 0.0)
-        data = {"displacement": u, "velocity": v, "von_mises": vm, "contact_pressure": p,
-                "contact_traction": traction, "contact_status": status}  # fmt: skip
+        data = {
+            "displacement": u,
+            "velocity": v,
+            "von_mises": vm,
+            "contact_pressure": p,
+            "contact_traction": traction,
+            "contact_status": status,
+        }
         data = {k: to_user_nodes(mesh, a) for k, a in data.items()}  # a renumbered mesh: the user's order
         try:
             self._writer.data(float(s.t), data, cell_data)

@@ -256,10 +256,14 @@ def _add_resume(sub) -> None:
     r.add_argument(
         "--checkpoint-every", type=int, default=None, metavar="K", help="checkpoint every K steps (default: the run's)"
     )
-    add_limit_arguments(r, "runs with more steps (as `signorini run`)",
-                        "runs whose estimated memory exceeds this many GiB (as `signorini run`)")  # fmt: skip
-    add_output_arguments(r, None, "output directory (required; a new directory, or --overwrite)", "no progress bar "
-                         "and no summary")  # fmt: skip
+    add_limit_arguments(
+        r,
+        "runs with more steps (as `signorini run`)",
+        "runs whose estimated memory exceeds this many GiB (as `signorini run`)",
+    )
+    add_output_arguments(
+        r, None, "output directory (required; a new directory, or --overwrite)", "no progress bar and no summary"
+    )
     r.set_defaults(func=cmd_resume)
 
 

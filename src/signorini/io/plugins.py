@@ -75,8 +75,10 @@ def load_scheme(name: str):
             "module:Class (module importable from the working directory) or path/to/file.py:Class"
         ) from None
     except SystemExit as exc:  # the user's module ended the process on import: its error, not a result
-        raise InputError(f"--scheme {name!r}: importing it called sys.exit({exc.code!r}); a scheme module must "
-                         "not exit when imported") from None  # fmt: skip
+        raise InputError(
+            f"--scheme {name!r}: importing it called sys.exit({exc.code!r}); a scheme module must "
+            "not exit when imported"
+        ) from None
     except Exception as exc:  # any other failure of the user's own code on import
         raise InputError(f"--scheme {name!r}: importing it raised {type(exc).__name__}: {exc}") from None
     if not (isinstance(obj, type) and issubclass(obj, Scheme)):

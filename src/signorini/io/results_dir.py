@@ -382,8 +382,12 @@ class ResultDirectory:
         """A complete checkpoint is in the temporary directory: if this process is killed
         before the commit, the watchdog publishes it with ``summary`` as summary.json (status
         ``killed``) instead of removing it, so that ``signorini resume`` can continue it."""
-        marker = {"written_by": "signorini", "version": __version__, "pid": os.getpid(),
-                  "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}  # fmt: skip
+        marker = {
+            "written_by": "signorini",
+            "version": __version__,
+            "pid": os.getpid(),
+            "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        }
         self._tell("checkpoint", {"summary": summary, "marker": marker})
 
     def _stop_watchdog(self, done: bool) -> None:

@@ -63,11 +63,25 @@ class RunSpec:
 #: the JSON type of each kept argument: an edited checkpoint's invocation is checked against
 #: it, by name, before anything of it is used
 INVOCATION_TYPES: dict[str, tuple[type, ...]] = {
-    "target": (str,), "scheme": (str,), "scheme_option": (list,), "mass": (str,), "friction": (str,),
-    "backend": (str,), "solver_option": (list,), "n": (int,), "dt": (int, float), "T": (int, float),
-    "set": (list,), "stop_at": (str,), "snapshot_every": (int,), "checkpoint_every": (int,), "max_steps": (int,),
-    "max_memory": (int, float), "yes": (bool,), "dt_control": (str,),
-}  # fmt: skip
+    "target": (str,),
+    "scheme": (str,),
+    "scheme_option": (list,),
+    "mass": (str,),
+    "friction": (str,),
+    "backend": (str,),
+    "solver_option": (list,),
+    "n": (int,),
+    "dt": (int, float),
+    "T": (int, float),
+    "set": (list,),
+    "stop_at": (str,),
+    "snapshot_every": (int,),
+    "checkpoint_every": (int,),
+    "max_steps": (int,),
+    "max_memory": (int, float),
+    "yes": (bool,),
+    "dt_control": (str,),
+}
 
 
 #: the arguments of ``signorini run`` a checkpoint keeps to build the run again
@@ -193,8 +207,10 @@ def _check_out_given(args: argparse.Namespace) -> None:
     if getattr(args, "scheme", None) is not None and not args.scheme.strip():
         from ..dynamics.schemes import SCHEMES
 
-        raise InputError(f"--scheme must not be empty; allowed: {', '.join(SCHEMES.names())}, module:Class or "
-                         "path/to/file.py:Class (omit it for the default)")  # fmt: skip
+        raise InputError(
+            f"--scheme must not be empty; allowed: {', '.join(SCHEMES.names())}, module:Class or "
+            "path/to/file.py:Class (omit it for the default)"
+        )
 
 
 def benchmark_spec(args: argparse.Namespace) -> RunSpec:
@@ -224,10 +240,25 @@ def benchmark_spec(args: argparse.Namespace) -> RunSpec:
     measure = bench.measure(params) if bench.measure is not None else None
     control = getattr(args, "dt_control", None) or "fixed"  # the paper's benchmarks keep their fixed grids
     meta["time_control_chosen_by"] = "command line" if getattr(args, "dt_control", None) else "default (a benchmark)"
-    return RunSpec(problem, scheme, dt, T, args.mass or DEFAULT_MASS, Path(args.out or "out/run"), args.target,
-                   sch, sol, args.snapshot_every or 0, meta, limits=limits, measure=measure,
-                   events=parse_stop_at(args.stop_at), checkpoint_every=_checkpoint_every(args, 0),
-                   invocation=invocation(args), control=control)  # fmt: skip
+    return RunSpec(
+        problem,
+        scheme,
+        dt,
+        T,
+        args.mass or DEFAULT_MASS,
+        Path(args.out or "out/run"),
+        args.target,
+        sch,
+        sol,
+        args.snapshot_every or 0,
+        meta,
+        limits=limits,
+        measure=measure,
+        events=parse_stop_at(args.stop_at),
+        checkpoint_every=_checkpoint_every(args, 0),
+        invocation=invocation(args),
+        control=control,
+    )
 
 
 def _control_name(control: Any) -> str:
@@ -243,8 +274,14 @@ def _control_name(control: Any) -> str:
 CONTACT_INERTIA_MASSES = ("standard", "lumped")
 
 
-def case_control(args: argparse.Namespace, case_control: dict | None, scheme: Any, meta: dict,
-                 mass: str = "", scheme_options: dict | None = None) -> Any:  # fmt: skip
+def case_control(
+    args: argparse.Namespace,
+    case_control: dict | None,
+    scheme: Any,
+    meta: dict,
+    mass: str = "",
+    scheme_options: dict | None = None,
+) -> Any:
     """The control of a case file's run: ``--dt-control``, else the file's ``[time] control``,
     else ``energy`` (the default of a user's run; docs/schemes.md), which a scheme that cannot
     change its step (paoli-schatzman) or a mass with contact inertia (standard, lumped) turns
@@ -253,8 +290,10 @@ def case_control(args: argparse.Namespace, case_control: dict | None, scheme: An
     if given:
         meta["time_control_chosen_by"] = "command line"
         if case_control is not None and case_control.get("control") != given:
-            meta.setdefault("overrides", {})["control"] = {"case_file": case_control.get("control"),
-                                                            "command_line": given}  # fmt: skip
+            meta.setdefault("overrides", {})["control"] = {
+                "case_file": case_control.get("control"),
+                "command_line": given,
+            }
         if given == "energy" and case_control is not None and case_control.get("control") == "energy":
             return case_control
         return given
@@ -269,16 +308,20 @@ def case_control(args: argparse.Namespace, case_control: dict | None, scheme: An
         why = ""
     if why:
         meta["time_control_chosen_by"] = "default"
-        meta["time_control_note"] = (f"control 'energy' (the default for case files) cannot run this scheme: {why}; "
-                                     "the steps asked for were taken ([time] control = \"fixed\" says so in the "
-                                     "file)")  # fmt: skip
+        meta["time_control_note"] = (
+            f"control 'energy' (the default for case files) cannot run this scheme: {why}; "
+            'the steps asked for were taken ([time] control = "fixed" says so in the '
+            "file)"
+        )
         return "fixed"
     meta["time_control_chosen_by"] = "default"
     if mass in CONTACT_INERTIA_MASSES:
-        meta["time_control_note"] = (f"control 'energy' (the default for case files) is not used with the {mass!r} "
-                                     "mass: its contact nodes keep their inertia and its contact chatters at every "
-                                     "step, which halving cannot resolve (docs/schemes.md); the steps asked for were "
-                                     "taken ([time] control = \"energy\" runs it anyway and reports it)")  # fmt: skip
+        meta["time_control_note"] = (
+            f"control 'energy' (the default for case files) is not used with the {mass!r} "
+            "mass: its contact nodes keep their inertia and its contact chatters at every "
+            "step, which halving cannot resolve (docs/schemes.md); the steps asked for were "
+            'taken ([time] control = "energy" runs it anyway and reports it)'
+        )
         return "fixed"
     return "energy"
 
@@ -353,10 +396,26 @@ def case_spec(args: argparse.Namespace) -> RunSpec:
         meta["overrides"] = overrides
     events = parse_stop_at(args.stop_at) if args.stop_at is not None else case.stop_at
     control = case_control(args, case.control, scheme, meta, args.mass or case.mass, sch)
-    return RunSpec(problem, scheme, dt, T, args.mass or case.mass, out, Path(args.target).name,
-                   sch, sol, every, meta, Path(args.target), limits, events=events,
-                   checkpoint_every=_checkpoint_every(args, case.checkpoint_every), invocation=invocation(args),
-                   case_hash=case_text_hash(Path(args.target), case.files), control=control)  # fmt: skip
+    return RunSpec(
+        problem,
+        scheme,
+        dt,
+        T,
+        args.mass or case.mass,
+        out,
+        Path(args.target).name,
+        sch,
+        sol,
+        every,
+        meta,
+        Path(args.target),
+        limits,
+        events=events,
+        checkpoint_every=_checkpoint_every(args, case.checkpoint_every),
+        invocation=invocation(args),
+        case_hash=case_text_hash(Path(args.target), case.files),
+        control=control,
+    )
 
 
 class LazyFieldWriter:
@@ -373,8 +432,10 @@ class LazyFieldWriter:
         if self.source is None or self.inner is None:
             return
         if not self.source.is_file():  # a killed run: its partial fields were not kept
-            self.warning = (f"the fields before the resumed level {n} are not in this result: the run it continues "
-                            f"has no {self.source.name} (killed, or run without --snapshot-every)")  # fmt: skip
+            self.warning = (
+                f"the fields before the resumed level {n} are not in this result: the run it continues "
+                f"has no {self.source.name} (killed, or run without --snapshot-every)"
+            )
             return
         with _rank0_only():
             self.inner.copy_from(self.source, run.level_times, n)
@@ -413,8 +474,15 @@ def write_setup_failure(rd: ResultDirectory, spec: RunSpec, exc: Exception) -> N
     from ..dynamics.observe.history import COUNTER_KEYS
 
     tmp = rd.create()
-    summary = {"status": "failed", "success": False, "message": f"set-up: {exc}", "problem": spec.label,
-               "steps": 0, "counters": dict.fromkeys(COUNTER_KEYS, 0), **spec.meta}  # fmt: skip
+    summary = {
+        "status": "failed",
+        "success": False,
+        "message": f"set-up: {exc}",
+        "problem": spec.label,
+        "steps": 0,
+        "counters": dict.fromkeys(COUNTER_KEYS, 0),
+        **spec.meta,
+    }
     (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     rd.commit()
 
@@ -512,8 +580,14 @@ def keep_after_write_failure(rd: ResultDirectory, tmp: Path, H, spec: RunSpec, e
     if exc.filename and Path(exc.filename).parent == tmp:
         Path(exc.filename).unlink(missing_ok=True)  # a partial file of this run
     resumable = (tmp / "checkpoint.h5").is_file()
-    how = (f"checkpoint.h5 holds the {H.steps} step(s) computed: `signorini resume {spec.out} --T <later T> --out "
-           "<new directory>` continues it") if resumable else "no checkpoint was written"  # fmt: skip
+    how = (
+        (
+            f"checkpoint.h5 holds the {H.steps} step(s) computed: `signorini resume {spec.out} --T <later T> --out "
+            "<new directory>` continues it"
+        )
+        if resumable
+        else "no checkpoint was written"
+    )
     message = f"the run {H.status} ({H.steps} step(s)) but writing {name} failed: {why}; {how}"
     try:
         s = {**H.summary(), "status": "failed", "success": False, "message": message, "resumable": resumable}
@@ -525,8 +599,11 @@ def keep_after_write_failure(rd: ResultDirectory, tmp: Path, H, spec: RunSpec, e
         kept = f"what was computed is in {str(spec.out)!r}"
     except OSError as again:
         kept = f"the result directory could not be published either ({again.strerror or again})"
-    return OSError(exc.errno, f"writing {name} failed: {why}; the run computed {H.steps} step(s); {kept}"
-                   + (" (resumable from its checkpoint.h5)" if resumable else ""))  # fmt: skip
+    return OSError(
+        exc.errno,
+        f"writing {name} failed: {why}; the run computed {H.steps} step(s); {kept}"
+        + (" (resumable from its checkpoint.h5)" if resumable else ""),
+    )
 
 
 def execute_follower(spec: RunSpec, comm) -> int:
@@ -538,9 +615,19 @@ def execute_follower(spec: RunSpec, comm) -> int:
         return 2
     observers = spec.measure.observers() if spec.measure is not None else []
     try:
-        H = simulate(spec.problem, spec.scheme, spec.dt, spec.T, mass=spec.mass, scheme_options=spec.scheme_options,
-                     solver_options=spec.solver_options, observers=observers, events=spec.events,
-                     control=spec.control, **_checkpoint_arguments(spec, None))  # fmt: skip
+        H = simulate(
+            spec.problem,
+            spec.scheme,
+            spec.dt,
+            spec.T,
+            mass=spec.mass,
+            scheme_options=spec.scheme_options,
+            solver_options=spec.solver_options,
+            observers=observers,
+            events=spec.events,
+            control=spec.control,
+            **_checkpoint_arguments(spec, None),
+        )
     except ConvergenceError:
         return EXIT_CODES["failed"]
     # the loop's stop is agreed: a signal from now on must not end this rank on its own
@@ -569,18 +656,31 @@ def report_run(H, spec: RunSpec, args: argparse.Namespace) -> None:
 def _checkpoint_arguments(spec: RunSpec, path) -> dict:
     """simulate's checkpoint arguments of a run of the command line (every run checkpoints its
     last level; rank 0 writes, the other ranks compute the same contents and write nothing)."""
-    return {"checkpoint": path if path is not None else Path("/nonexistent/checkpoint.h5"),
-            "checkpoint_every": spec.checkpoint_every, "checkpoint_meta": {"invocation": spec.invocation},
-            "case_hash": spec.case_hash, "resume": spec.resume}  # fmt: skip
+    return {
+        "checkpoint": path if path is not None else Path("/nonexistent/checkpoint.h5"),
+        "checkpoint_every": spec.checkpoint_every,
+        "checkpoint_meta": {"invocation": spec.invocation},
+        "case_hash": spec.case_hash,
+        "resume": spec.resume,
+    }
 
 
 def killed_summary(spec: RunSpec, c: dict) -> dict:
     """summary.json of a run killed outright after the checkpoint ``c`` (the watchdog writes it)."""
-    return {"status": "killed", "success": False, "problem": spec.label, "steps": c["level"],
-            "message": f"killed (SIGKILL, a job limit or the kernel) after the checkpoint of level {c['level']} "
-                       f"(t = {c['t']:.6g}); continue it with `signorini resume <this directory> --T ... --out ...`",
-            "resumable": True, "checkpoint": {"level": c["level"], "t": c["t"]}, "counters": c["counters"],
-            "scheme": c["scheme"], "mass": c["mass"], **spec.meta}  # fmt: skip
+    return {
+        "status": "killed",
+        "success": False,
+        "problem": spec.label,
+        "steps": c["level"],
+        "message": f"killed (SIGKILL, a job limit or the kernel) after the checkpoint of level {c['level']} "
+        f"(t = {c['t']:.6g}); continue it with `signorini resume <this directory> --T ... --out ...`",
+        "resumable": True,
+        "checkpoint": {"level": c["level"], "t": c["t"]},
+        "counters": c["counters"],
+        "scheme": c["scheme"],
+        "mass": c["mass"],
+        **spec.meta,
+    }
 
 
 def _kept_invocation(attrs: dict, where: str) -> dict:
@@ -588,8 +688,10 @@ def _kept_invocation(attrs: dict, where: str) -> dict:
     :data:`INVOCATION_TYPES` (an edited file is refused by name, never used as is)."""
     inv = (attrs.get("meta") or {}).get("invocation") if isinstance(attrs.get("meta"), dict) else None
     if not isinstance(inv, dict) or not inv.get("target"):
-        raise InputError(f"{where} was not written by `signorini run` (no command to rebuild the run from); "
-                         "resume it from Python: simulate(..., resume=PATH)")  # fmt: skip
+        raise InputError(
+            f"{where} was not written by `signorini run` (no command to rebuild the run from); "
+            "resume it from Python: simulate(..., resume=PATH)"
+        )
     for key, value in inv.items():
         kinds = INVOCATION_TYPES.get(key)
         if kinds is None:
@@ -599,8 +701,9 @@ def _kept_invocation(attrs: dict, where: str) -> dict:
             ok = all(isinstance(x, str) for x in value)
         if not ok:
             allowed = " or ".join(k.__name__ for k in kinds)
-            raise InputError(f"{where}: malformed checkpoint: invocation argument {key!r} is {value!r}, "
-                             f"expected {allowed} or null")  # fmt: skip
+            raise InputError(
+                f"{where}: malformed checkpoint: invocation argument {key!r} is {value!r}, expected {allowed} or null"
+            )
     return inv
 
 
@@ -655,8 +758,10 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
     ns.resuming = True
     spec = case_spec(ns) if case else benchmark_spec(ns)
     if case and spec.case_hash != meta.get("identity", {}).get("case_file"):
-        raise InputError(f"the case file {ns.target!r} or a file it reads (mesh, surface obstacle) changed since "
-                         f"the checkpoint of {str(result)!r}; resume needs the same files")  # fmt: skip
+        raise InputError(
+            f"the case file {ns.target!r} or a file it reads (mesh, surface obstacle) changed since "
+            f"the checkpoint of {str(result)!r}; resume needs the same files"
+        )
     t_ckpt = float(meta["t"])
     if args.dt is not None:
         from ..errors import check_positive
@@ -666,12 +771,16 @@ def resume_spec(args: argparse.Namespace) -> RunSpec:
         # an adaptive run's: its largest step (the checkpoint's dt is the refined step it was on)
         spec.dt = _plan_dt(meta, where) if "time_control" in meta else float(meta["dt"])
     if _control_name(spec.control) == "energy" and not isinstance(meta.get("time_control"), dict):
-        raise InputError(f"checkpoint {str(where)!r}: the energy control's state is missing or malformed (a run under "
-                         "the control keeps it in every checkpoint); resume from an intact checkpoint")  # fmt: skip
+        raise InputError(
+            f"checkpoint {str(where)!r}: the energy control's state is missing or malformed (a run under "
+            "the control keeps it in every checkpoint); resume from an intact checkpoint"
+        )
     if not spec.T > t_ckpt:
         if args.T is None:
-            raise InputError(f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
-                             "give a later --T to continue it")  # fmt: skip
+            raise InputError(
+                f"the run of {str(result)!r} already reached its final time T = {t_ckpt:.10g}; "
+                "give a later --T to continue it"
+            )
         raise InputError(f"--T {args.T:g} must be after the checkpoint's t = {t_ckpt:.10g}")
     from ..dynamics.stepping.time_grid import TimeGrid
 
@@ -704,17 +813,24 @@ def _plan_dt(meta: dict[str, Any], where: Any) -> float:
     tc = meta["time_control"]
     plan = tc.get("plan_dt") if isinstance(tc, dict) else None
     if isinstance(plan, bool) or not isinstance(plan, (int, float)) or not (math.isfinite(plan) and plan > 0):
-        raise InputError(f"checkpoint {str(where)!r}: the energy control's largest step plan_dt {plan!r} is not a "
-                         "positive number")  # fmt: skip
+        raise InputError(
+            f"checkpoint {str(where)!r}: the energy control's largest step plan_dt {plan!r} is not a positive number"
+        )
     k, segment = tc.get("k"), meta.get("segment")
     try:
         step = float(segment[1])
     except (TypeError, ValueError, IndexError):
         raise InputError(f"checkpoint {str(where)!r}: its segment {segment!r} is malformed") from None
-    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= 64 or not (
-            abs(step - plan / 2**k) <= 1e-12 * plan):  # fmt: skip
-        raise InputError(f"checkpoint {str(where)!r}: its step {step:g} is not the energy control's largest step "
-                         f"plan_dt = {plan:g} / 2^k at its level k = {k!r}")  # fmt: skip
+    if (
+        isinstance(k, bool)
+        or not isinstance(k, int)
+        or not 0 <= k <= 64
+        or not (abs(step - plan / 2**k) <= 1e-12 * plan)
+    ):
+        raise InputError(
+            f"checkpoint {str(where)!r}: its step {step:g} is not the energy control's largest step "
+            f"plan_dt = {plan:g} / 2^k at its level k = {k!r}"
+        )
     return float(plan)
 
 
@@ -760,13 +876,17 @@ def agreed(build) -> RunSpec:
     if bad:
         if len(bad) == size and all(e == errors[0] for e in errors):
             raise InputError(errors[0])
-        raise InputError(f"rank {bad[0]} of {size} refused its input ({errors[bad[0]]}) and "
-                         f"{size - len(bad)} rank(s) did not: every rank must read the same input (a file that "
-                         "differs between the machines?)")  # fmt: skip
+        raise InputError(
+            f"rank {bad[0]} of {size} refused its input ({errors[bad[0]]}) and "
+            f"{size - len(bad)} rank(s) did not: every rank must read the same input (a file that "
+            "differs between the machines?)"
+        )
     ids = comm.gather(_spec_identity(spec))
     other = [k for k, i in enumerate(ids) if i != ids[0]]
     if other:
-        raise InputError(f"rank {other[0]} of {size} read another input than rank 0 (the arguments, the case file or "
-                         "a file it reads differ): every rank must read the same input (a node-local copy that "
-                         "differs?)")  # fmt: skip
+        raise InputError(
+            f"rank {other[0]} of {size} read another input than rank 0 (the arguments, the case file or "
+            "a file it reads differ): every rank must read the same input (a node-local copy that "
+            "differs?)"
+        )
     return spec

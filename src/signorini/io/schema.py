@@ -199,9 +199,9 @@ SECTIONS: tuple[Section, ...] = (
             Key("dt", "number > 0, or a schedule [{until, dt}, ...]", "required", "time",
                 "time step; a schedule changes it: from the previous until (0 first) to its own, its dt "
                 "(e.g. [{until = 0.2, dt = 1e-3}, {until = 1.0, dt = 1e-2}]; T then defaults to the last until)",
-                _ex("0.0125", "0.0125", "0.0125")),  # fmt: skip
+                _ex("0.0125", "0.0125", "0.0125")),
             Key("T", "number >= dt", "required (a dt schedule: its last until)", "time", "final time",
-                _ex("3.0", "1.0", "0.5")),  # fmt: skip
+                _ex("3.0", "1.0", "0.5")),
             Key("stop_at", "string or list of strings", "none", "",
                 "end the run (status finished) at the first level where an event occurs: first-contact, "
                 "separation, rest[:FRACTION] (summary.json events)"),
@@ -233,7 +233,7 @@ SECTIONS: tuple[Section, ...] = (
             Key("snapshot_every", "integer >= 0", "0", "steps", "XDMF fields every k steps and at the end (0: none)"),
             Key("checkpoint_every", "integer >= 0", "0", "steps",
                 "checkpoint.h5 every k steps (0: only at the end; every run writes one at its end), for "
-                "`signorini resume`"),  # fmt: skip
+                "`signorini resume`"),
         ),
     ),
     Section(

@@ -83,8 +83,10 @@ class Progress:
         self.last = now
         self.lines += 1
         state = "done" if i == n else f"ETA {self._eta(now, i, n):.0f} s"
-        self.stream.write(f"{self.label}: {first}step {i}/{self._total(n)} ({100 * i / n:.0f}%), "
-                          f"{now - self.t0:.0f} s elapsed, {state}\n")  # fmt: skip
+        self.stream.write(
+            f"{self.label}: {first}step {i}/{self._total(n)} ({100 * i / n:.0f}%), "
+            f"{now - self.t0:.0f} s elapsed, {state}\n"
+        )
         self.stream.flush()
 
 
@@ -145,8 +147,10 @@ def material_line(H, s: dict) -> str:
     it = H.columns()["nonlinear_iterations"][1:]
     mean = f", {float(np.mean(it)):.3g} per step (max {int(np.max(it))})" if it.size else ""
     projected = "; velocities projected on the momenta (momentum_projection)" if s.get("momentum_projection") else ""
-    return (f"  finite strain ({', '.join(s.get('material_model') or [])}): Newton {int(np.sum(it))} iterations{mean}, "
-            f"{c.get('tangent_factorizations', 0)} tangent factorizations{projected}\n")  # fmt: skip
+    return (
+        f"  finite strain ({', '.join(s.get('material_model') or [])}): Newton {int(np.sum(it))} iterations{mean}, "
+        f"{c.get('tangent_factorizations', 0)} tangent factorizations{projected}\n"
+    )
 
 
 def friction_line(H, s: dict) -> str:
@@ -181,20 +185,26 @@ def bodies_lines(s: dict) -> str:
         mass = f"mass {b['mass']:.6g}" if b.get("mass") is not None else "mass n/a"
         end = ""
         if b.get("momentum") is not None:
-            end = (f", at the end momentum [{', '.join(f'{x:.4g}' for x in b['momentum'])}], "
-                   f"kinetic energy {b['kinetic_energy']:.4g}")  # fmt: skip
+            end = (
+                f", at the end momentum [{', '.join(f'{x:.4g}' for x in b['momentum'])}], "
+                f"kinetic energy {b['kinetic_energy']:.4g}"
+            )
         out.append(f"  body {k}{regions}: {b['nodes']} nodes, {mass}{end}\n")
     if s.get("master_penetration_max"):  # node-to-facet: the master nodes are free to enter the slave surface
-        out.append(f"  master nodes through the slave surface: at most {s['master_penetration_max']:.3g} (node "
-                   f"{s['master_penetration_node']} at t = {s['master_penetration_time']:.6g}); contact constrains "
-                   "the slave nodes only (docs/bodies.md: the finer side as slave)\n")  # fmt: skip
+        out.append(
+            f"  master nodes through the slave surface: at most {s['master_penetration_max']:.3g} (node "
+            f"{s['master_penetration_node']} at t = {s['master_penetration_time']:.6g}); contact constrains "
+            "the slave nodes only (docs/bodies.md: the finer side as slave)\n"
+        )
     for p in s.get("pairs") or []:
         law = (p.get("friction") or {}).get("law", "frictionless")
         again = f", {p['repaired_rows']} re-paired" if p.get("repaired_rows") else ""
         end = p.get("slave_nodes_facing_nothing_at_end")
         end = "" if end is None else f", {end} at the end"
-        out.append(f"  pair {p['slave']} / {p['master']}: {p['rows']} rows ({p['inactive_slave_nodes']} slave nodes "
-                   f"facing nothing at t = 0{end}), {law}{again}\n")  # fmt: skip
+        out.append(
+            f"  pair {p['slave']} / {p['master']}: {p['rows']} rows ({p['inactive_slave_nodes']} slave nodes "
+            f"facing nothing at t = 0{end}), {law}{again}\n"
+        )
     return "".join(out)
 
 
@@ -235,8 +245,10 @@ def equilibrium_line(s: dict) -> str:
     if not e.get("solved"):
         return f"  initial equilibrium not solved: {e.get('reason', '')}\n"
     free = f", free bodies {e['free_bodies']} keep their state" if e.get("free_bodies") else ""
-    return (f"  initial equilibrium: bodies {e['held_bodies']} start in static equilibrium ({e['iterations']} "
-            f"iteration(s), force left {e['force_left']:.2g} of {e['scale']:.3g}){free}\n")  # fmt: skip
+    return (
+        f"  initial equilibrium: bodies {e['held_bodies']} start in static equilibrium ({e['iterations']} "
+        f"iteration(s), force left {e['force_left']:.2g} of {e['scale']:.3g}){free}\n"
+    )
 
 
 def time_lines(s: dict) -> str:
@@ -284,9 +296,11 @@ def time_control_line(tc: dict) -> str:
         # changes with the mesh says so)
         how = f"from the mesh, h/L = {tc['mesh_resolution']:.3g}" if tc.get("tolerance_from_mesh") else "given"
         told = f"tolerance {tc['tolerance']:.3g} ({how}), "
-    return (f"  time steps: energy control, {told}{tc['dt_largest_used']:.4g} s largest used, "
-            f"{tc['dt_smallest_used']:.4g} s smallest; {tc['steps_accepted']} accepted, {tc['steps_rejected']} "
-            f"rejected, {tc['factorizations']} factorization(s){where}\n")  # fmt: skip
+    return (
+        f"  time steps: energy control, {told}{tc['dt_largest_used']:.4g} s largest used, "
+        f"{tc['dt_smallest_used']:.4g} s smallest; {tc['steps_accepted']} accepted, {tc['steps_rejected']} "
+        f"rejected, {tc['factorizations']} factorization(s){where}\n"
+    )
 
 
 def _value(x) -> str:

@@ -504,8 +504,9 @@ def factor_class(backend: str) -> type[Factor]:
     return getattr(importlib.import_module(module, __package__), cls)
 
 
-def factorize(K: sp.spmatrix, backend: str = "superlu", schur_dofs: np.ndarray | None = None,
-              reproducible: bool = False) -> Factor:  # fmt: skip
+def factorize(
+    K: sp.spmatrix, backend: str = "superlu", schur_dofs: np.ndarray | None = None, reproducible: bool = False
+) -> Factor:
     """Factorize the SPD matrix ``K`` once with the direct backend ``backend``; with
     ``schur_dofs`` (a backend with ``supports_schur``) also its Schur complement there;
     ``reproducible``: a backend whose parallel factorization is not reproducible by default

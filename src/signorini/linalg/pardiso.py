@@ -111,11 +111,23 @@ class PardisoFactor(Factor):
 
         pt_type = np.ctypeslib.as_ctypes_type(s.pt.dtype)  # pypardiso's handle: 64 integers of the platform's size
         s.libmkl.pardiso(  # the MKL function pypardiso declared (its argtypes)
-            s.pt.ctypes.data_as(ctypes.POINTER(pt_type)), ref(1), ref(1), ref(2), ref(phase), ref(self._n),
-            self._A.data.ctypes.data_as(f64), self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
-            self._perm.ctypes.data_as(i32), ref(nrhs), s.iparm.ctypes.data_as(i32), ref(0),
-            b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err),
-        )  # fmt: skip
+            s.pt.ctypes.data_as(ctypes.POINTER(pt_type)),
+            ref(1),
+            ref(1),
+            ref(2),
+            ref(phase),
+            ref(self._n),
+            self._A.data.ctypes.data_as(f64),
+            self._ia.ctypes.data_as(i32),
+            self._ja.ctypes.data_as(i32),
+            self._perm.ctypes.data_as(i32),
+            ref(nrhs),
+            s.iparm.ctypes.data_as(i32),
+            ref(0),
+            b.ctypes.data_as(f64),
+            x.ctypes.data_as(f64),
+            ctypes.byref(err),
+        )
         if err.value != 0:
             raise RuntimeError(f"MKL Pardiso error {err.value} in phase {phase}")
 

@@ -183,12 +183,27 @@ class MKLProduct:
             f64,
         ]
         lib.mkl_sparse_d_create_bsr.argtypes = [
-            handle_p, ctypes.c_int, ctypes.c_int, ctypes.c_int32, ctypes.c_int32, ctypes.c_int32, i32, i32, i32, f64,
-        ]  # fmt: skip
+            handle_p,
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.c_int32,
+            ctypes.c_int32,
+            ctypes.c_int32,
+            i32,
+            i32,
+            i32,
+            f64,
+        ]
         lib.mkl_sparse_d_create_csr.restype = lib.mkl_sparse_d_create_bsr.restype = ctypes.c_int
         lib.mkl_sparse_d_mv.argtypes = [
-            ctypes.c_int, ctypes.c_double, ctypes.c_void_p, _MatrixDescr, f64, ctypes.c_double, f64,
-        ]  # fmt: skip
+            ctypes.c_int,
+            ctypes.c_double,
+            ctypes.c_void_p,
+            _MatrixDescr,
+            f64,
+            ctypes.c_double,
+            f64,
+        ]
         lib.mkl_sparse_d_mv.restype = ctypes.c_int
         lib.mkl_sparse_destroy.argtypes = [ctypes.c_void_p]
         lib.MKL_Set_Num_Threads_Local.argtypes = [ctypes.c_int]
@@ -201,9 +216,17 @@ class MKLProduct:
         if b > 1:
             rows, cols = A.shape[0] // b, A.shape[1] // b
             status = lib.mkl_sparse_d_create_bsr(
-                ctypes.byref(self._handle), _INDEX_BASE_ZERO, _LAYOUT_ROW_MAJOR, rows, cols, b, starts, ends,
-                indices, data,
-            )  # fmt: skip
+                ctypes.byref(self._handle),
+                _INDEX_BASE_ZERO,
+                _LAYOUT_ROW_MAJOR,
+                rows,
+                cols,
+                b,
+                starts,
+                ends,
+                indices,
+                data,
+            )
         else:
             status = lib.mkl_sparse_d_create_csr(
                 ctypes.byref(self._handle), _INDEX_BASE_ZERO, A.shape[0], A.shape[1], starts, ends, indices, data
@@ -230,9 +253,14 @@ class MKLProduct:
             previous = self._lib.MKL_Set_Num_Threads_Local(self._threads)
         try:
             status = self._lib.mkl_sparse_d_mv(
-                _OPERATION_NON_TRANSPOSE, 1.0, self._handle, self._descr,
-                x.ctypes.data_as(self._f64), 0.0, y.ctypes.data_as(self._f64),
-            )  # fmt: skip
+                _OPERATION_NON_TRANSPOSE,
+                1.0,
+                self._handle,
+                self._descr,
+                x.ctypes.data_as(self._f64),
+                0.0,
+                y.ctypes.data_as(self._f64),
+            )
         finally:
             if self._threads:
                 self._lib.MKL_Set_Num_Threads_Local(previous)

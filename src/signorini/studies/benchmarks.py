@@ -149,8 +149,11 @@ class Benchmark:
                 "and masses on a case file with [mesh] order = 2 (one level, no errors)"
             )
         if not self.nested:
-            how = "is meshed by gmsh and compared with Hertz's theory" if self.name.startswith("hertz") else (
-                "prints its closed-form values beside the computed ones")  # fmt: skip
+            how = (
+                "is meshed by gmsh and compared with Hertz's theory"
+                if self.name.startswith("hertz")
+                else ("prints its closed-form values beside the computed ones")
+            )
             raise InputError(
                 f"{command} needs nested structured levels with an exact solution or a reference (the bars); "
                 f"{self.name!r} {how} by: signorini run {self.name} [--n N] [--set NAME=VALUE]"
@@ -287,9 +290,15 @@ def _exact_bar1d(p: dict, T: float) -> ExactBar1D:
 
 def _exact_impact(p: dict, T: float) -> ExactBar1D:
     return ExactBar1D.bar1d_impact(
-        p["L"], p["E"], p["rho"], p["gap"], p["velocity"], T,
-        clamp_velocity=p["clamp_velocity"], obstacle_velocity=p["obstacle_velocity"],
-    )  # fmt: skip
+        p["L"],
+        p["E"],
+        p["rho"],
+        p["gap"],
+        p["velocity"],
+        T,
+        clamp_velocity=p["clamp_velocity"],
+        obstacle_velocity=p["obstacle_velocity"],
+    )
 
 
 BENCHMARKS = Registry("benchmark")
@@ -301,38 +310,118 @@ def _register(b: Benchmark) -> None:
 
 
 for _b in (
-    Benchmark("bar1d", 1, {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.5, **_MOTION}, _bar1d, _exact_bar1d,
-              "1D clamped bar released from a compressed state (exact solution, period 3L/c)"),
-    Benchmark("bar1d-impact", 1, {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.2, "velocity": 0.5, **_MOTION},
-              _bar1d_impact, _exact_impact, "1D clamped bar moving towards the obstacle (exact solution)"),
+    Benchmark(
+        "bar1d",
+        1,
+        {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.5, **_MOTION},
+        _bar1d,
+        _exact_bar1d,
+        "1D clamped bar released from a compressed state (exact solution, period 3L/c)",
+    ),
+    Benchmark(
+        "bar1d-impact",
+        1,
+        {"L": 1.0, "E": 1.0, "rho": 1.0, "gap": 0.2, "velocity": 0.5, **_MOTION},
+        _bar1d_impact,
+        _exact_impact,
+        "1D clamped bar moving towards the obstacle (exact solution)",
+    ),
     Benchmark("bar2d", 2, dict(_BAR), _bar(2), None, "the seed's 2D bar (plane strain, Q1)"),
     Benchmark("bar3d", 3, dict(_BAR), _bar(3), None, "the seed's 3D bar (Q1 hexahedra)"),
-    *(Benchmark(f"hertz{d}d", d, dict(hertz.HERTZ_DEFAULTS), hertz.builder(d), None,
-                f"elastic {'ball' if d == 3 else 'disc (plane strain)'} hitting a rigid plane vs Hertz's impact theory",
-                hertz.DEFAULT_LEVEL[d], hertz.sizes(d), hertz.run_times(d), hertz.measure(d), hertz.check_params)
-      for d in (2, 3)),
-    Benchmark("collision1d", 1, dict(collision.COLLISION_DEFAULTS), collision.build, None,
-              "two equal free bars colliding (contact pair): duration 2L/c, force rho c v/2, velocities exchanged",
-              40, collision.sizes, collision.run_times, collision.measure(), collision.check_params),
-    *(Benchmark(f"collision{d}d", d, dict(collision_balls.BALLS_DEFAULTS), collision_balls.builder(d), None,
-                f"two elastic {'balls' if d == 3 else 'discs (plane strain)'} of their own radii and materials meeting "
-                "head-on (contact pair) vs Hertz's two-body impact", collision_balls.DEFAULT_LEVEL[d],
-                collision_balls.sizes(d), collision_balls.run_times(d), collision_balls.measure(d),
-                collision_balls.check_params)
-      for d in (2, 3)),
-    *(Benchmark(f"incline{d}d", d, dict(incline.INCLINE_DEFAULTS), incline.builder(d), None,
-                "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
-                2, incline.sizes(d), incline.run_times, incline.measure(d), incline.check_params, True)
-      for d in (2, 3)),
-    *(Benchmark(f"spin{d}d", d, dict(spin.SPIN_DEFAULTS), spin.builder(d), None,
-                f"a free elastic {'ball' if d == 3 else 'disc (plane strain)'} spinning (finite strain: energy and "
-                "angular momentum kept; the linear model's spurious strain energy)", spin.DEFAULT_LEVEL[d],
-                spin.sizes(d), spin.run_times, spin.measure(d), spin.check_params)
-      for d in (2, 3)),
-    Benchmark("rings2d", 2, dict(rings.RINGS_DEFAULTS), rings.build, None,
-              "two Neo-Hookean rings colliding obliquely (contact pair in the current configuration, plane strain)",
-              1, rings.sizes, rings.run_times, rings.measure, rings.check_params),
-):  # fmt: skip
+    *(
+        Benchmark(
+            f"hertz{d}d",
+            d,
+            dict(hertz.HERTZ_DEFAULTS),
+            hertz.builder(d),
+            None,
+            f"elastic {'ball' if d == 3 else 'disc (plane strain)'} hitting a rigid plane vs Hertz's impact theory",
+            hertz.DEFAULT_LEVEL[d],
+            hertz.sizes(d),
+            hertz.run_times(d),
+            hertz.measure(d),
+            hertz.check_params,
+        )
+        for d in (2, 3)
+    ),
+    Benchmark(
+        "collision1d",
+        1,
+        dict(collision.COLLISION_DEFAULTS),
+        collision.build,
+        None,
+        "two equal free bars colliding (contact pair): duration 2L/c, force rho c v/2, velocities exchanged",
+        40,
+        collision.sizes,
+        collision.run_times,
+        collision.measure(),
+        collision.check_params,
+    ),
+    *(
+        Benchmark(
+            f"collision{d}d",
+            d,
+            dict(collision_balls.BALLS_DEFAULTS),
+            collision_balls.builder(d),
+            None,
+            f"two elastic {'balls' if d == 3 else 'discs (plane strain)'} of their own radii and materials meeting "
+            "head-on (contact pair) vs Hertz's two-body impact",
+            collision_balls.DEFAULT_LEVEL[d],
+            collision_balls.sizes(d),
+            collision_balls.run_times(d),
+            collision_balls.measure(d),
+            collision_balls.check_params,
+        )
+        for d in (2, 3)
+    ),
+    *(
+        Benchmark(
+            f"incline{d}d",
+            d,
+            dict(incline.INCLINE_DEFAULTS),
+            incline.builder(d),
+            None,
+            "elastic block on a tilted plane, Coulomb friction, vs the sliding acceleration g (sin a - mu cos a)",
+            2,
+            incline.sizes(d),
+            incline.run_times,
+            incline.measure(d),
+            incline.check_params,
+            True,
+        )
+        for d in (2, 3)
+    ),
+    *(
+        Benchmark(
+            f"spin{d}d",
+            d,
+            dict(spin.SPIN_DEFAULTS),
+            spin.builder(d),
+            None,
+            f"a free elastic {'ball' if d == 3 else 'disc (plane strain)'} spinning (finite strain: energy and "
+            "angular momentum kept; the linear model's spurious strain energy)",
+            spin.DEFAULT_LEVEL[d],
+            spin.sizes(d),
+            spin.run_times,
+            spin.measure(d),
+            spin.check_params,
+        )
+        for d in (2, 3)
+    ),
+    Benchmark(
+        "rings2d",
+        2,
+        dict(rings.RINGS_DEFAULTS),
+        rings.build,
+        None,
+        "two Neo-Hookean rings colliding obliquely (contact pair in the current configuration, plane strain)",
+        1,
+        rings.sizes,
+        rings.run_times,
+        rings.measure,
+        rings.check_params,
+    ),
+):
     _register(_b)
 
 

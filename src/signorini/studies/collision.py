@@ -48,9 +48,15 @@ def build(n: int, p: dict) -> Problem:
         return np.where(x[:, 0] < x_mid, v, 0.0)[:, None]
 
     return Problem(
-        mesh, IsotropicElastic.from_young(p["E"], 0.0, p["rho"]), None, None, u0=0.0, v0=v0,
-        pairs=[ContactPair("right_xmin", "left_xmax")], name="collision1d",
-    )  # fmt: skip
+        mesh,
+        IsotropicElastic.from_young(p["E"], 0.0, p["rho"]),
+        None,
+        None,
+        u0=0.0,
+        v0=v0,
+        pairs=[ContactPair("right_xmin", "left_xmax")],
+        name="collision1d",
+    )
 
 
 def exact(p: dict) -> dict:

@@ -51,7 +51,7 @@ from .hertz import (
     figure_rows,
     impact_ode,
     p_wave_speed,
-    sphere_force,  # fmt: skip
+    sphere_force,
 )
 
 BALLS_DEFAULTS = {
@@ -129,8 +129,9 @@ def prediction(dim: int, p: dict) -> HertzPrediction:
     v = p["velocity"]
     if dim == 3:
         d = (15 * m * v**2 / (16 * Es * math.sqrt(R))) ** 0.4
-        pred = HertzPrediction(d, float(sphere_force(d, R, Es)), SPHERE_DURATION_FACTOR * d / v, math.sqrt(R * d), m,
-                               Es, "two spheres")  # fmt: skip
+        pred = HertzPrediction(
+            d, float(sphere_force(d, R, Es)), SPHERE_DURATION_FACTOR * d / v, math.sqrt(R * d), m, Es, "two spheres"
+        )
     else:
         try:
             d, F, tc = impact_ode(lambda x: line_force(x, p), m, v)
@@ -168,9 +169,16 @@ def builder(dim: int) -> Callable[[int, dict], Problem]:
         mesh = join(balls)
         e = np.eye(dim)[-1]
         mats = {k: IsotropicElastic.from_young(p[f"E{i}"], p[f"nu{i}"], p[f"rho{i}"]) for i, k in ((1, "a"), (2, "b"))}
-        return Problem(mesh, mats["a"], None, None, materials={"b": mats["b"]},
-                       initial_regions=[RegionInitial("a", velocity=-p["velocity"] * e)],
-                       pairs=[ContactPair("a_cap", "b_cap")], name=f"collision{dim}d")  # fmt: skip
+        return Problem(
+            mesh,
+            mats["a"],
+            None,
+            None,
+            materials={"b": mats["b"]},
+            initial_regions=[RegionInitial("a", velocity=-p["velocity"] * e)],
+            pairs=[ContactPair("a_cap", "b_cap")],
+            name=f"collision{dim}d",
+        )
 
     return build
 
@@ -221,9 +229,12 @@ class BallsMeasure:
         force = -H.lambda_sum
         dt = float(H.t[1] - H.t[0]) if H.t.size > 1 else 0.0
         on = np.flatnonzero(force > 1e-12 * max(float(force.max(initial=0.0)), 1e-300))
-        comp: dict = {"duration": float((on[-1] - on[0] + 1) * dt) if on.size else 0.0,
-                      "peak_force": float(force.max(initial=0.0)), "contact_levels": int(on.size),
-                      "contact_ended": bool(on.size and on[-1] < force.size - 1)}  # fmt: skip
+        comp: dict = {
+            "duration": float((on[-1] - on[0] + 1) * dt) if on.size else 0.0,
+            "peak_force": float(force.max(initial=0.0)),
+            "contact_levels": int(on.size),
+            "contact_ended": bool(on.size and on[-1] < force.size - 1),
+        }
         if self.coms and self.coms[0].position.size == H.t.size:
             a, b = self.coms
             approach = -((a.position - a.position[0]) - (b.position - b.position[0]))
@@ -240,19 +251,35 @@ class BallsMeasure:
             validity[f"velocity_over_wave_speed_{i}"] = p["velocity"] / c
             validity[f"wave_transit_over_duration_{i}"] = 2 * p[f"R{i}"] / c / self.pred.duration
         validity["contact_radius_over_R"] = self.pred.contact_radius / effective(self.dim, p)[0]
-        definitions = {**DEFINITIONS, "approach": "relative displacement of the two balls' centres of mass (the "
-                       "run's mass matrix) along the line of centres"}  # fmt: skip
-        return {"hertz": {"law": self.pred.law, "per_unit_thickness": self.dim == 2, "mass": self.pred.mass,
-                          "E_star": self.pred.E_star, "R_effective": effective(self.dim, p)[0], "predicted": pred,
-                          "computed": comp, "relative_deviation": dev, "validity": validity,
-                          "definitions": definitions}}  # fmt: skip
+        definitions = {
+            **DEFINITIONS,
+            "approach": "relative displacement of the two balls' centres of mass (the "
+            "run's mass matrix) along the line of centres",
+        }
+        return {
+            "hertz": {
+                "law": self.pred.law,
+                "per_unit_thickness": self.dim == 2,
+                "mass": self.pred.mass,
+                "E_star": self.pred.E_star,
+                "R_effective": effective(self.dim, p)[0],
+                "predicted": pred,
+                "computed": comp,
+                "relative_deviation": dev,
+                "validity": validity,
+                "definitions": definitions,
+            }
+        }
 
     @staticmethod
     def text(summary: dict) -> str:
         h = summary["hertz"]
         unit = " per unit thickness" if h["per_unit_thickness"] else ""
-        rows = [f"  Hertz ({h['law']}{unit}, R = {h['R_effective']:.4g}, E* = {h['E_star']:.4g}, m = {h['mass']:.4g}): "
-                "quasi-static prediction vs computed", *figure_rows(h)]  # fmt: skip
+        rows = [
+            f"  Hertz ({h['law']}{unit}, R = {h['R_effective']:.4g}, E* = {h['E_star']:.4g}, m = {h['mass']:.4g}): "
+            "quasi-static prediction vs computed",
+            *figure_rows(h),
+        ]
         r = h["computed"].get("restitution")
         if r is not None:
             rows.append(f"    restitution {r:.4g} (relative velocity of the centres after / before)")

@@ -142,8 +142,9 @@ def force_curve(dim: int, p: dict, t: np.ndarray) -> np.ndarray:
     R, Es, m, v = p["R"], pred.E_star, pred.mass, p["velocity"]
     law = (lambda x: float(sphere_force(x, R, Es))) if dim == 3 else (lambda x: cylinder_force(x, R, Es))
     half = pred.duration / 2
-    sol = solve_ivp(lambda s, y: [y[1], -law(y[0]) / m], (0.0, half), [0.0, v], rtol=1e-10, atol=1e-14 * v,
-                    dense_output=True)  # fmt: skip
+    sol = solve_ivp(
+        lambda s, y: [y[1], -law(y[0]) / m], (0.0, half), [0.0, v], rtol=1e-10, atol=1e-14 * v, dense_output=True
+    )
     tt = np.asarray(t, dtype=float)
     mirrored = np.where(tt <= half, tt, pred.duration - tt)  # symmetric about the turning point
     out = np.array([law(max(float(sol.sol(min(max(s, 0.0), half))[0]), 0.0)) for s in mirrored])

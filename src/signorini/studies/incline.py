@@ -39,8 +39,16 @@ from ..errors import InputError
 from ..fem.material import IsotropicElastic
 from ..fem.mesh import box, rectangle
 
-INCLINE_DEFAULTS = {"E": 1000.0, "nu": 0.3, "rho": 1.0, "g": 1.0, "angle": 30.0, "mu": 0.3, "width": 1.0,
-                    "height": 0.25}  # fmt: skip
+INCLINE_DEFAULTS = {
+    "E": 1000.0,
+    "nu": 0.3,
+    "rho": 1.0,
+    "g": 1.0,
+    "angle": 30.0,
+    "mu": 0.3,
+    "width": 1.0,
+    "height": 0.25,
+}
 #: the fit of x_G(t) leaves out the first quarter of the run (settling)
 SETTLING_FRACTION = 0.25
 

@@ -18,20 +18,34 @@ import numpy as np
 from ..fem.assembly import von_mises
 
 PAPER_FIGURES = {
-    1: ("fig1_cn_contact", "Crank-Nicolson: normal displacement and Lagrange multiplier at the contact nodes, "
-        "standard mass (left) vs modified mass `seed` (right), each with its own scale"),
-    2: ("fig2_cn_energy", "Crank-Nicolson: energy history, standard vs modified mass, and energy error norms "
-        "against the reference"),
-    3: ("fig3_cn_convergence", "Crank-Nicolson: error curves for U (displacement, velocity) and lambda "
-        "(contact force) against the refinement level"),
+    1: (
+        "fig1_cn_contact",
+        "Crank-Nicolson: normal displacement and Lagrange multiplier at the contact nodes, "
+        "standard mass (left) vs modified mass `seed` (right), each with its own scale",
+    ),
+    2: (
+        "fig2_cn_energy",
+        "Crank-Nicolson: energy history, standard vs modified mass, and energy error norms against the reference",
+    ),
+    3: (
+        "fig3_cn_convergence",
+        "Crank-Nicolson: error curves for U (displacement, velocity) and lambda "
+        "(contact force) against the refinement level",
+    ),
     4: ("fig4_von_mises_standard", "3D bar, Crank-Nicolson, standard mass: von Mises stress on the face x = 0"),
-    5: ("fig5_von_mises_seed", "3D bar, Crank-Nicolson, modified mass `seed`: von Mises stress on the face x = 0 "
-        "(same colour scale as Fig. 4)"),
-    6: ("fig6_be_contact", "backward Euler: normal displacement and Lagrange multiplier at the contact nodes, "
-        "standard mass (left) vs modified mass `seed` (right), each with its own scale"),
+    5: (
+        "fig5_von_mises_seed",
+        "3D bar, Crank-Nicolson, modified mass `seed`: von Mises stress on the face x = 0 "
+        "(same colour scale as Fig. 4)",
+    ),
+    6: (
+        "fig6_be_contact",
+        "backward Euler: normal displacement and Lagrange multiplier at the contact nodes, "
+        "standard mass (left) vs modified mass `seed` (right), each with its own scale",
+    ),
     7: ("fig7_be_energy", "backward Euler: energy history, standard vs modified mass, and energy error norms"),
     8: ("fig8_be_convergence", "backward Euler: error curves for U and lambda against the refinement level"),
-}  # fmt: skip
+}
 
 T_LABEL = "t (nondimensional)"
 SCHEME_TITLE = {"crank-nicolson": "Crank-Nicolson", "backward-euler": "backward Euler"}
@@ -123,8 +137,13 @@ def contact_figure(runs: dict, scheme: str, number: int, png: Path, csv_path: Pa
             a.grid(alpha=0.3)
         limits[mass] = {"gap": list(ax[0, j].get_ylim()), "lambda": list(ax[1, j].get_ylim())}
     name = SCHEME_TITLE.get(scheme, scheme)
-    _save(fig, png, _paper_title(number, f"{name}, contact nodes; standard (left) vs modified mass (right), "
-                                         "each with its own y scale"))  # fmt: skip
+    _save(
+        fig,
+        png,
+        _paper_title(
+            number, f"{name}, contact nodes; standard (left) vs modified mass (right), each with its own y scale"
+        ),
+    )
     _write_csv(csv_path, header, cols)
     return {"nodes": [int(i) for i in nodes], "ylim": limits}
 
@@ -169,8 +188,14 @@ def energy_figure(runs: dict, conv: dict | None, scheme: str, number: int, png: 
         a.set_title(f"energy error norms over [0, {c0['T']:g}] vs refinement", fontsize=9)
         a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2, frameon=False)
     name = SCHEME_TITLE.get(scheme, scheme)
-    _save(fig, png, _paper_title(number, f"{name} energy; standard vs modified mass"
-                                         + (", error norms against the reference" if conv else "")))  # fmt: skip
+    _save(
+        fig,
+        png,
+        _paper_title(
+            number,
+            f"{name} energy; standard vs modified mass" + (", error norms against the reference" if conv else ""),
+        ),
+    )
     _write_csv(csv_path, header, cols)
 
 
@@ -231,8 +256,16 @@ def convergence_figure(conv: dict, scheme: str, number: int, png: Path, csv_path
     fig.legend(handles, labels, fontsize=8, loc="outside lower center", ncol=len(labels), frameon=False)
     ref = first["reference"]
     name = SCHEME_TITLE.get(scheme, scheme)
-    _save(fig, png, _wrap(_paper_title(number, f"{name} error curves, T = {first['T']:g}; reference: "
-                                               f"{ref.get('description', 'exact')}"), 40 * len(keys)))  # fmt: skip
+    _save(
+        fig,
+        png,
+        _wrap(
+            _paper_title(
+                number, f"{name} error curves, T = {first['T']:g}; reference: {ref.get('description', 'exact')}"
+            ),
+            40 * len(keys),
+        ),
+    )
     with open(csv_path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["mass", "norm", "n", "relative_error", "reference_level"])
@@ -302,7 +335,7 @@ def von_mises_figures(runs: dict, figures: dict, t_contact: float, near_layer: f
                 f"3D bar, Crank-Nicolson, {MASS_TITLE[mass]}: von Mises stress on the face "
                 f"x = 0 (y horizontal, z vertical); colour scale [0, {vmax:.3g}] shared "
                 "with the other mass",
-            ),  # fmt: skip
+            ),
             fontsize=9,
         )
         import matplotlib.pyplot as plt
@@ -401,8 +434,10 @@ def compare_time_figure(result: dict, series: dict, quantity: str, png: Path, cs
             d = np.abs(y - 1.0)
             ax[0, 1].plot(s["t"][1:], np.maximum(d[1:], DRIFT_FLOOR), color=st["color"], ls=st["ls"], lw=1.2)
             extra = [(float(v),) for v in d]
-        rows += [(p["label"], p["scheme_label"], p["mass"], float(t), float(v), float(w), *e)
-                 for t, v, w, e in zip(s["t"], s[spec[0]], y, extra, strict=True)]  # fmt: skip
+        rows += [
+            (p["label"], p["scheme_label"], p["mass"], float(t), float(v), float(w), *e)
+            for t, v, w, e in zip(s["t"], s[spec[0]], y, extra, strict=True)
+        ]
     for b in ax[0]:
         b.set_xlabel(f"t ({units})")
         b.grid(alpha=0.3)
@@ -440,8 +475,16 @@ def _penetration_axis(a, peaks: list[float], result: dict) -> None:
     if top <= tiny:
         a.set_ylim(0.0, max(10 * top, tiny))
         what = "0" if top == 0 else f"at most {top:.2g} (round-off)"
-        a.text(0.5, 0.5, f"penetration {what} at every time step for every pair:\ncontact enforced exactly",
-               transform=a.transAxes, ha="center", va="center", fontsize=9, color="0.3")  # fmt: skip
+        a.text(
+            0.5,
+            0.5,
+            f"penetration {what} at every time step for every pair:\ncontact enforced exactly",
+            transform=a.transAxes,
+            ha="center",
+            va="center",
+            fontsize=9,
+            color="0.3",
+        )
     else:
         a.set_ylim(bottom=0.0)
 
@@ -488,27 +531,46 @@ def compare_error_figure(result: dict, png: Path, csv_path: Path) -> str:
             if rate is not None:
                 h = np.array([q[1] for q in pts])
                 c = np.exp(np.mean(np.log(e) - rate * np.log(h)))
-                a.plot(n, c * h**rate, ls=st["ls"], color=st["color"], lw=1, marker=st["marker"], ms=0,
-                       label=f"{rate:.2f}")  # fmt: skip
+                a.plot(
+                    n, c * h**rate, ls=st["ls"], color=st["color"], lw=1, marker=st["marker"], ms=0, label=f"{rate:.2f}"
+                )
         a.set_yscale("log")
         if a.has_data():
             _level_axis(a, levels, [{"n": levels[0], "h": result["h"][0]}], result["ratio"])
         a.set_ylabel("relative error")
         a.set_title(ERROR_PANELS.get(k, k), fontsize=9)
         if any(line.get_label()[0] != "_" for line in a.get_lines()):  # below the panel, off the data
-            a.legend(fontsize=6.5, title="fitted slope (same line style as the pair)", title_fontsize=7,
-                     loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3, frameon=False)  # fmt: skip
+            a.legend(
+                fontsize=6.5,
+                title="fitted slope (same line style as the pair)",
+                title_fontsize=7,
+                loc="upper center",
+                bbox_to_anchor=(0.5, -0.16),
+                ncol=3,
+                frameon=False,
+            )
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], ls=styles[p["label"]]["ls"], color=styles[p["label"]]["color"],
-                      marker=styles[p["label"]]["marker"], ms=5) for p in pairs]  # fmt: skip
+    handles = [
+        Line2D(
+            [],
+            [],
+            ls=styles[p["label"]]["ls"],
+            color=styles[p["label"]]["color"],
+            marker=styles[p["label"]]["marker"],
+            ms=5,
+        )
+        for p in pairs
+    ]
     labels = [p["label"] for p in pairs]
     if handles:
         fig.legend(handles, labels, fontsize=7, loc="outside lower center", ncol=ncol, frameon=False)
     ref = result["reference"]
     against = "the exact solution" if ref["kind"] == "exact" else f"the reference {ref['description']}"
-    title = (f"Relative error vs refinement, markers = runs, lines = least-squares fits; {result['target']}, "
-             f"T = {result['T']:g}, against {against}{_unavailable_note(result)}")  # fmt: skip
+    title = (
+        f"Relative error vs refinement, markers = runs, lines = least-squares fits; {result['target']}, "
+        f"T = {result['T']:g}, against {against}{_unavailable_note(result)}"
+    )
     import matplotlib.pyplot as plt
 
     fig.suptitle(_wrap(title, 150), fontsize=9)
@@ -536,17 +598,30 @@ def compare_cost_figure(result: dict, png: Path, csv_path: Path) -> str:
         text = f" {v:.3g} ms" + (f" = {ratio:.2f} x bare {m['bare_op']}" if ratio is not None else "")
         a.text(v, yi, text, va="center", fontsize=7)
         bare = v / ratio if ratio else None
-        rows.append((p["label"], p["scheme_label"], p["mass"], result["levels"][-1], v, m["bare_op"] or "",
-                     bare if bare is not None else "", ratio if ratio is not None else ""))  # fmt: skip
+        rows.append(
+            (
+                p["label"],
+                p["scheme_label"],
+                p["mass"],
+                result["levels"][-1],
+                v,
+                m["bare_op"] or "",
+                bare if bare is not None else "",
+                ratio if ratio is not None else "",
+            )
+        )
     a.set_xlim(0, max(ms, default=1.0) * 1.6 or 1.0)
     a.set_xlabel("wall time per time step (ms)")
     a.grid(alpha=0.3, axis="x")
     where = f"n = {result['levels'][-1]}" if result["kind"] == "benchmark" else "the case file's mesh"
-    title = (f"Cost per step at {where} ({result['target']}; {result['jobs']} process(es) ran concurrently), "
-             f"with its ratio to one bare solve of the same factor{_unavailable_note(result)}")  # fmt: skip
+    title = (
+        f"Cost per step at {where} ({result['target']}; {result['jobs']} process(es) ran concurrently), "
+        f"with its ratio to one bare solve of the same factor{_unavailable_note(result)}"
+    )
     _save(fig, png, _wrap(title))
-    _write_csv_rows(csv_path, ["pair", "scheme", "mass", "n", "ms_per_step", "bare_op", "bare_ms", "step_over_bare"],
-                    rows)  # fmt: skip
+    _write_csv_rows(
+        csv_path, ["pair", "scheme", "mass", "n", "ms_per_step", "bare_op", "bare_ms", "step_over_bare"], rows
+    )
     return title
 
 

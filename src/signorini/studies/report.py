@@ -544,8 +544,13 @@ def section_2d_convergence(cfg: dict, out: Path, summary: dict, ctx: dict) -> li
         "",
     ]
     md += convergence_table(conv, CONV_COLUMNS_2D)
-    md += _rates_block(conv, "Observed rates (successive levels, against the reference above):",
-                       "### Do the rates depend on the reference?", summary, "bar2d_rate_agreement")  # fmt: skip
+    md += _rates_block(
+        conv,
+        "Observed rates (successive levels, against the reference above):",
+        "### Do the rates depend on the reference?",
+        summary,
+        "bar2d_rate_agreement",
+    )
     md += [*figure_md(2), *figure_md(3), *figure_md(7), *figure_md(8)]
     return md
 
@@ -566,8 +571,9 @@ def section_3d_convergence(cfg: dict, out: Path, summary: dict, ctx: dict) -> li
     first = next(iter(conv3.values()))
     md = [f"## 3b. 3D convergence, T = {T:g}, dt = {ratio:g} h (no paper figure)", "", _reference_intro(first, T), ""]
     md += convergence_table(conv3, CONV_COLUMNS_3D)
-    return md + _rates_block(conv3, "Observed rates:", "Rates against references of different fineness:",
-                             summary, "bar3d_rate_agreement")  # fmt: skip
+    return md + _rates_block(
+        conv3, "Observed rates:", "Rates against references of different fineness:", summary, "bar3d_rate_agreement"
+    )
 
 
 def section_3d_von_mises(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
@@ -641,10 +647,15 @@ def section_hertz(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
     if importlib.util.find_spec("gmsh") is None:
         summary["hertz"] = None
         return [title, "", 'Skipped: gmsh is not installed (`pip install ".[mesh]"`).', ""]
-    md = [title, "", "CN + seed, default parameters (R = E = rho = 1, nu = 0.3, v = 0.002), dt = t_c/(25 n); "
-          "deviation = computed / Hertz - 1 (docs/verification.md discusses what limits it).", "",
-          "| benchmark | n | dofs | contact nodes | duration | dev | peak force | dev | max approach | dev |",
-          "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    md = [
+        title,
+        "",
+        "CN + seed, default parameters (R = E = rho = 1, nu = 0.3, v = 0.002), dt = t_c/(25 n); "
+        "deviation = computed / Hertz - 1 (docs/verification.md discusses what limits it).",
+        "",
+        "| benchmark | n | dofs | contact nodes | duration | dev | peak force | dev | max approach | dev |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     rows, curves = [], []
     for name in ("hertz2d", "hertz3d"):
         b = get_benchmark(name)
@@ -662,15 +673,30 @@ def section_hertz(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]:
                 f"{c['max_approach']:.4g} | {100 * d['max_approach']:+.1f}% |"
             )
         pred = h["predicted"]
-        curves.append({"label": f"{name} n = {n}", "t": H.t, "force": -H.lambda_sum, "t_c": pred["duration"],
-                       "F": pred["peak_force"], "hertz": hertz.force_curve(b.dim, p, H.t)})  # fmt: skip
-        md.append(f"| {name} Hertz | | | | {pred['duration']:.4g} | | {pred['peak_force']:.4g} | | "
-                  f"{pred['max_approach']:.4g} | |")  # fmt: skip
+        curves.append(
+            {
+                "label": f"{name} n = {n}",
+                "t": H.t,
+                "force": -H.lambda_sum,
+                "t_c": pred["duration"],
+                "F": pred["peak_force"],
+                "hertz": hertz.force_curve(b.dim, p, H.t),
+            }
+        )
+        md.append(
+            f"| {name} Hertz | | | | {pred['duration']:.4g} | | {pred['peak_force']:.4g} | | "
+            f"{pred['max_approach']:.4g} | |"
+        )
     summary["hertz"] = rows
     hertz_figure(curves, out / "hertz_impact.png", out / "hertz_impact.csv")
-    md += ["", "![Hertz impact](hertz_impact.png)", "",
-           "*Hertz impact* (`hertz_impact.png`): total contact force of the finest runs against time, "
-           "scaled by Hertz's duration and peak force, with Hertz's quasi-static 1-dof model dotted.", ""]  # fmt: skip
+    md += [
+        "",
+        "![Hertz impact](hertz_impact.png)",
+        "",
+        "*Hertz impact* (`hertz_impact.png`): total contact force of the finest runs against time, "
+        "scaled by Hertz's duration and peak force, with Hertz's quasi-static 1-dof model dotted.",
+        "",
+    ]
     return md
 
 
@@ -712,10 +738,14 @@ def section_compare(cfg: dict, out: Path, summary: dict, ctx: dict) -> list[str]
     t_on, t_off = _exact_impact(b1, cfg["Tcmp1d"])
     p1 = b1.params()
     schemes, masses = COMPARE_SCHEMES, COMPARE_MASSES
-    cmd1 = (f"signorini compare bar1d-impact --schemes '{schemes}' --masses {masses} --n0 {l1[0]} "
-            f"--levels {len(l1)} --T {cfg['Tcmp1d']:g} --ratio {ratio:g}")  # fmt: skip
-    cmd2 = (f"signorini compare bar2d --schemes '{schemes}' --masses {masses} --n0 {l2[0]} --levels {len(l2)} "
-            f"--T {cfg['Tconv']:g} --ratio {ratio:g} --reference {r2['reference']['level']}")  # fmt: skip
+    cmd1 = (
+        f"signorini compare bar1d-impact --schemes '{schemes}' --masses {masses} --n0 {l1[0]} "
+        f"--levels {len(l1)} --T {cfg['Tcmp1d']:g} --ratio {ratio:g}"
+    )
+    cmd2 = (
+        f"signorini compare bar2d --schemes '{schemes}' --masses {masses} --n0 {l2[0]} --levels {len(l2)} "
+        f"--T {cfg['Tconv']:g} --ratio {ratio:g} --reference {r2['reference']['level']}"
+    )
     md = [
         "## 6. Scheme x mass comparison (`signorini compare`)",
         "",
@@ -810,9 +840,13 @@ def reproduce(out: Path, size: str = "quick", progress=None) -> dict:
     except KeyboardInterrupt:
         done = list(summary["section_seconds"])
         summary.update(status="interrupted", interrupted_in=current, sections_done=done)
-        md += ["", f"**Interrupted** (SIGINT or SIGTERM) during `{current}`: this report holds the "
-               f"{len(done)} section(s) finished before it ({', '.join(done) or 'none'}); files that section "
-               "had written are left as they were.", ""]  # fmt: skip
+        md += [
+            "",
+            f"**Interrupted** (SIGINT or SIGTERM) during `{current}`: this report holds the "
+            f"{len(done)} section(s) finished before it ({', '.join(done) or 'none'}); files that section "
+            "had written are left as they were.",
+            "",
+        ]
         (out / "report.md").write_text("\n".join(md))
         (out / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
         return summary

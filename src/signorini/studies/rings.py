@@ -83,10 +83,15 @@ def build(n: int, p: dict) -> Problem:
     a.points = a.points + [-shift, -0.5 * p["offset"] * R]
     b.points = b.points + [shift, 0.5 * p["offset"] * R]
     mesh = join({"left": a, "right": b})
-    return Problem(mesh, NeoHookean.from_young(p["E"], p["nu"], p["rho"]), None, None,
-                   pairs=[ContactPair("left_outer", "right_outer")],
-                   initial_regions=[RegionInitial("left", velocity=[v, 0.0]),
-                                    RegionInitial("right", velocity=[-v, 0.0])], name="rings2d")  # fmt: skip
+    return Problem(
+        mesh,
+        NeoHookean.from_young(p["E"], p["nu"], p["rho"]),
+        None,
+        None,
+        pairs=[ContactPair("left_outer", "right_outer")],
+        initial_regions=[RegionInitial("left", velocity=[v, 0.0]), RegionInitial("right", velocity=[-v, 0.0])],
+        name="rings2d",
+    )
 
 
 def sizes(n: int, p: dict) -> tuple[float, int, int, int, int]:
@@ -115,18 +120,20 @@ class RingsMeasure:
         on = np.flatnonzero(c["active_contacts"] > 0)
         scale = float(np.linalg.norm(P[0])) or float(np.abs(P).max()) or 1.0  # the bodies' momenta cancel
         each = float(self.params["rho"] * self.params["velocity"])  # a momentum scale per unit area
-        return {"rings": {
-            "energy_max_relative_drift": float(np.abs(E - E[0]).max() / abs(E[0])),
-            "momentum_max_drift": float(np.abs(P - P[0]).max()),
-            "momentum_scale": max(scale, each),
-            "angular_momentum_max_drift": float(np.abs(L - L[0]).max()),
-            "contact_start": float(H.t[on[0]]) if on.size else None,
-            "contact_end": float(H.t[on[-1]]) if on.size else None,
-            "peak_contact_force": float(-np.min(c["lambda_sum"])) if on.size else 0.0,
-            "contact_at_T": bool(on.size and on[-1] == len(E) - 1),
-            "definition": "drifts: max over the levels of |X^n - X^0| (momenta: absolute, the two rings' cancel); "
-                          "contact from the first to the last level with an active row",
-        }}  # fmt: skip
+        return {
+            "rings": {
+                "energy_max_relative_drift": float(np.abs(E - E[0]).max() / abs(E[0])),
+                "momentum_max_drift": float(np.abs(P - P[0]).max()),
+                "momentum_scale": max(scale, each),
+                "angular_momentum_max_drift": float(np.abs(L - L[0]).max()),
+                "contact_start": float(H.t[on[0]]) if on.size else None,
+                "contact_end": float(H.t[on[-1]]) if on.size else None,
+                "peak_contact_force": float(-np.min(c["lambda_sum"])) if on.size else 0.0,
+                "contact_at_T": bool(on.size and on[-1] == len(E) - 1),
+                "definition": "drifts: max over the levels of |X^n - X^0| (momenta: absolute, the two rings' cancel); "
+                "contact from the first to the last level with an active row",
+            }
+        }
 
     @staticmethod
     def text(summary: dict) -> str:
@@ -134,11 +141,15 @@ class RingsMeasure:
         span = "no contact"
         if s["contact_start"] is not None:
             end = f"{s['contact_end']:.4g}" + (", still in contact at T" if s.get("contact_at_T") else "")
-            span = (f"contact from t = {s['contact_start']:.4g} to {end} (the case's time unit), peak force "
-                    f"{s['peak_contact_force']:.4g} per unit thickness")  # fmt: skip
-        return (f"  rings: {span}; energy drift {s['energy_max_relative_drift']:.2e} of E0, linear momentum drift "
-                f"{s['momentum_max_drift']:.2e}, angular momentum drift "
-                f"{s['angular_momentum_max_drift']:.2e}")  # fmt: skip
+            span = (
+                f"contact from t = {s['contact_start']:.4g} to {end} (the case's time unit), peak force "
+                f"{s['peak_contact_force']:.4g} per unit thickness"
+            )
+        return (
+            f"  rings: {span}; energy drift {s['energy_max_relative_drift']:.2e} of E0, linear momentum drift "
+            f"{s['momentum_max_drift']:.2e}, angular momentum drift "
+            f"{s['angular_momentum_max_drift']:.2e}"
+        )
 
 
 def measure(p: dict) -> RingsMeasure:

@@ -55,8 +55,9 @@ def check_params(p: dict) -> None:
     if p["revolutions"] <= 0:
         raise InputError(f"parameter 'revolutions' must be > 0, got {p['revolutions']}")
     if p["model"] not in MODELS:
-        raise InputError(f"parameter 'model' must be 0 (linear), 1 (saint-venant-kirchhoff) or 2 (neo-hookean), "
-                         f"got {p['model']:g}")  # fmt: skip
+        raise InputError(
+            f"parameter 'model' must be 0 (linear), 1 (saint-venant-kirchhoff) or 2 (neo-hookean), got {p['model']:g}"
+        )
 
 
 def material(p: dict) -> IsotropicElastic:
@@ -160,32 +161,37 @@ class SpinMeasure:
     def summary(self, H) -> dict:
         c = H.columns()
         E, Ee = c["energy"], c["elastic_energy"]
-        L = np.column_stack([c[k] for k in ("angular_momentum_x", "angular_momentum_y", "angular_momentum_z")
-                             if k in c])  # fmt: skip
+        L = np.column_stack(
+            [c[k] for k in ("angular_momentum_x", "angular_momentum_y", "angular_momentum_z") if k in c]
+        )
         ok = np.isfinite(E)
         L0 = float(np.linalg.norm(L[0]))
-        return {"spin": {
-            "omega": omega(self.params),
-            "tip_speed_over_wave_speed": self.params["tip"],
-            "revolutions": float(H.t[ok][-1] * omega(self.params) / (2 * math.pi)),
-            "energy_max_relative_drift": float(np.abs(E[ok] - E[0]).max() / abs(E[0])),
-            "angular_momentum_max_relative_drift": float(np.linalg.norm(L[ok] - L[0], axis=1).max() / L0),
-            "strain_energy_share_max": float(np.abs(Ee[ok]).max() / abs(E[0])),
-            "radius_change": self.radius.radius / self.params["R"] - 1.0,
-            "definition": "drifts: max over the levels of |X^n - X^0| / |X^0|; strain energy share: max elastic "
-                          "energy / E0; radius change: the largest distance of a node to the centroid at the end "
-                          "over R, less 1 (finite strain: the centrifugal stretch; linear: the body's spurious "
-                          "growth along the tangents)",
-        }}  # fmt: skip
+        return {
+            "spin": {
+                "omega": omega(self.params),
+                "tip_speed_over_wave_speed": self.params["tip"],
+                "revolutions": float(H.t[ok][-1] * omega(self.params) / (2 * math.pi)),
+                "energy_max_relative_drift": float(np.abs(E[ok] - E[0]).max() / abs(E[0])),
+                "angular_momentum_max_relative_drift": float(np.linalg.norm(L[ok] - L[0], axis=1).max() / L0),
+                "strain_energy_share_max": float(np.abs(Ee[ok]).max() / abs(E[0])),
+                "radius_change": self.radius.radius / self.params["R"] - 1.0,
+                "definition": "drifts: max over the levels of |X^n - X^0| / |X^0|; strain energy share: max elastic "
+                "energy / E0; radius change: the largest distance of a node to the centroid at the end "
+                "over R, less 1 (finite strain: the centrifugal stretch; linear: the body's spurious "
+                "growth along the tangents)",
+            }
+        }
 
     @staticmethod
     def text(summary: dict) -> str:
         s = summary["spin"]
-        return (f"  spin: {s['revolutions']:.3g} turn(s) at tip speed {s['tip_speed_over_wave_speed']:g} c: energy "
-                f"drift {s['energy_max_relative_drift']:.2e}, angular momentum drift "
-                f"{s['angular_momentum_max_relative_drift']:.2e}, strain energy up to "
-                f"{100 * s['strain_energy_share_max']:.3g}% of E0, radius {100 * s['radius_change']:+.3g}% at the "
-                "end")  # fmt: skip
+        return (
+            f"  spin: {s['revolutions']:.3g} turn(s) at tip speed {s['tip_speed_over_wave_speed']:g} c: energy "
+            f"drift {s['energy_max_relative_drift']:.2e}, angular momentum drift "
+            f"{s['angular_momentum_max_relative_drift']:.2e}, strain energy up to "
+            f"{100 * s['strain_energy_share_max']:.3g}% of E0, radius {100 * s['radius_change']:+.3g}% at the "
+            "end"
+        )
 
 
 def measure(dim: int) -> Callable[[dict], SpinMeasure]:

@@ -95,8 +95,12 @@ def render() -> str:
     ]
     for model in MATERIAL_MODELS:
         notes: list[str] = []
-        md += [f"## `{model}`", "", "| scheme | " + " | ".join(f"`{m}`" for m in masses) + " |",
-               "|---|" + "---|" * len(masses)]  # fmt: skip
+        md += [
+            f"## `{model}`",
+            "",
+            "| scheme | " + " | ".join(f"`{m}`" for m in masses) + " |",
+            "|---|" + "---|" * len(masses),
+        ]
         for e in SCHEMES:
             cells = []
             for mass in masses:

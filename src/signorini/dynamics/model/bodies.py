@@ -54,8 +54,19 @@ def region_summaries(mesh: Mesh, default, materials: dict) -> list[dict]:
     out = []
     for k, tag in enumerate(sorted(mesh.regions)):
         m = materials.get(tag, default)
-        out.append({"tag": tag, "id": k + 1, "cells": int(mesh.regions[tag].size), "material": {
-            "E": float(m.young), "nu": float(m.poisson), "rho": float(m.rho), "listed": tag in materials}})  # fmt: skip
+        out.append(
+            {
+                "tag": tag,
+                "id": k + 1,
+                "cells": int(mesh.regions[tag].size),
+                "material": {
+                    "E": float(m.young),
+                    "nu": float(m.poisson),
+                    "rho": float(m.rho),
+                    "listed": tag in materials,
+                },
+            }
+        )
     return out
 
 
@@ -91,8 +102,9 @@ def body_summaries(mesh: Mesh, M, rho: float | np.ndarray, V: np.ndarray | None)
             entry["mass_effect"] = mass_effect(Mb, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells])
         else:  # sum over the body's x rows of M 1_body (the first component's); the effect by products with M
             entry["mass"] = float(ME[dofs[component(0, d)], k].sum())
-            entry["mass_effect"] = body_mass_effect(M, mesh, nodes, sub, rho if np.ndim(rho) == 0 else
-                                                    np.asarray(rho)[cells])  # fmt: skip
+            entry["mass_effect"] = body_mass_effect(
+                M, mesh, nodes, sub, rho if np.ndim(rho) == 0 else np.asarray(rho)[cells]
+            )
         if MV is not None:
             entry["momentum"] = [float(MV[dofs][component(k, d)].sum()) for k in range(d)]
             entry["kinetic_energy"] = 0.5 * float(V[dofs] @ MV[dofs])

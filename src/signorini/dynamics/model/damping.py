@@ -61,8 +61,10 @@ class Rayleigh:
             if not np.isfinite(x) or x < 0:
                 raise InputError(f"damping {name} must be a finite number >= 0, got {v!r}")
             if x != 0 and not RANGE[0] <= x <= RANGE[1]:
-                raise InputError(f"damping {name} = {x:g} is outside {RANGE[0]:g} <= {name} <= {RANGE[1]:g} (or 0): "
-                                 "products of such values leave double precision; change units")  # fmt: skip
+                raise InputError(
+                    f"damping {name} = {x:g} is outside {RANGE[0]:g} <= {name} <= {RANGE[1]:g} (or 0): "
+                    "products of such values leave double precision; change units"
+                )
             object.__setattr__(self, name, x)
 
     @property
@@ -150,8 +152,10 @@ class RegionalRayleigh:
             differ = shared[(alpha[shared] != r.alpha) | (beta[shared] != r.beta)]
             if differ.size:
                 other = self.regions[int(owner[differ[0]])][0]
-                raise InputError(f"damping regions {other!r} and {tag!r} share {differ.size} cell(s) and give "
-                                 "them different damping; list each cell's region once")  # fmt: skip
+                raise InputError(
+                    f"damping regions {other!r} and {tag!r} share {differ.size} cell(s) and give "
+                    "them different damping; list each cell's region once"
+                )
             owner[cells] = k
             alpha[cells], beta[cells] = r.alpha, r.beta
         return alpha, beta

@@ -278,8 +278,9 @@ def nearest_free_nodes(mesh: Mesh, seeds: sp.csr_matrix, is_c: np.ndarray, name:
         mine = np.flatnonzero(row_body == b)
         free = np.flatnonzero(~is_c & (label == b))  # of the same body: never across two bodies
         if free.size == 0:
-            raise InputError(f"mass {name!r}: every node of body {int(b)} is a contact node: no node of it can carry "
-                             "their mass")  # fmt: skip
+            raise InputError(
+                f"mass {name!r}: every node of body {int(b)} is a contact node: no node of it can carry their mass"
+            )
         _, idx = cKDTree(mesh.points[free]).query(centres[mine], k=1)
         out[todo[mine], free[np.asarray(idx).ravel()]] = 1.0
     return out.tocsr()

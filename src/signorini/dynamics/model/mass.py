@@ -255,8 +255,9 @@ def seed_normal_mass(mesh: Mesh, rho: float, contact_nodes: np.ndarray, normals:
         return sum_of(parts) if parts else None
 
     # the projected part per cell type
-    projected = over_blocks(mesh, lambda part, cut: _projected_mass(part, part_value(rho, cut), contact_nodes, nu),
-                            present)  # fmt: skip
+    projected = over_blocks(
+        mesh, lambda part, cut: _projected_mass(part, part_value(rho, cut), contact_nodes, nu), present
+    )
     return out if projected is None else (out + projected).tocsr()
 
 

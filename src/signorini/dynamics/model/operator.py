@@ -70,8 +70,9 @@ class Operator:
         (1, stiffness S + c C)."""
         if self.viscous is None:
             return self.stiffness, self.stiffness_matrix(S)
-        return 1.0, linear_combination(self.stiffness, self.stiffness_matrix(S), self.viscous.coefficient,
-                                       self.viscous.matrix)  # fmt: skip
+        return 1.0, linear_combination(
+            self.stiffness, self.stiffness_matrix(S), self.viscous.coefficient, self.viscous.matrix
+        )
 
     def coefficients(self) -> list[float]:
         """[mass, stiffness] and, with ``viscous``, its coefficient (what a checkpoint records)."""

@@ -47,8 +47,9 @@ class RegionInitial:
     displacement: Value | None = None
 
 
-def initial_field(mesh: Mesh, space: VectorSpace, base: Value, regions: Sequence[RegionInitial],
-                  attribute: str) -> np.ndarray:  # fmt: skip
+def initial_field(
+    mesh: Mesh, space: VectorSpace, base: Value, regions: Sequence[RegionInitial], attribute: str
+) -> np.ndarray:
     """The nodal field (n_dofs,) of ``base`` with the values of ``regions`` (their ``attribute``:
     ``velocity`` or ``displacement``) on the nodes of their cells."""
     U = space.interpolate(base)
@@ -62,8 +63,9 @@ def initial_field(mesh: Mesh, space: VectorSpace, base: Value, regions: Sequence
         v = value(x) if callable(value) else np.broadcast_to(np.asarray(value, dtype=float), x.shape)
         v = np.asarray(v, dtype=float)
         if v.shape != x.shape:
-            raise InputError(f"initial region {r.tag!r}: {attribute} must have {d} component(s) per node, "
-                             f"got shape {v.shape}")  # fmt: skip
+            raise InputError(
+                f"initial region {r.tag!r}: {attribute} must have {d} component(s) per node, got shape {v.shape}"
+            )
         U.reshape(-1, d)[nodes] = v
     return U
 
@@ -172,8 +174,10 @@ def run_friction(problem: Problem) -> Friction:
     kinds = sorted({law.law for _, law in used if law.frictional})
     if len(kinds) > 1:
         names = "; ".join(f"{who} {law.label}" for who, law in used if law.frictional)
-        raise InputError(f"contact laws {names}: the frictional rows of a run share one law (all coulomb or all "
-                         "tresca, each pair its own value; frictionless pairs go with either)")  # fmt: skip
+        raise InputError(
+            f"contact laws {names}: the frictional rows of a run share one law (all coulomb or all "
+            "tresca, each pair its own value; frictionless pairs go with either)"
+        )
     if not kinds:
         return FRICTIONLESS
     if problem.friction.law == kinds[0] and any(law is problem.friction for _, law in used):
@@ -344,8 +348,9 @@ def _uniform(f, mesh: Mesh) -> np.ndarray | None:
     return v[0].copy() if np.all(v == v[0]) else None
 
 
-def _load_parts(problem: Problem, mesh: Mesh, n: int, red: Redistribution,
-                material: Material) -> tuple[np.ndarray, list]:  # fmt: skip
+def _load_parts(
+    problem: Problem, mesh: Mesh, n: int, red: Redistribution, material: Material
+) -> tuple[np.ndarray, list]:
     """Constant part of F and builders of the time-dependent parts; body forces follow the mass.
 
     A uniform body force density f follows the mass as M (f / rho) when the density is one
@@ -393,8 +398,9 @@ def _gravity_vector(g, mesh: Mesh) -> np.ndarray:
     point (an expression of t only, evaluated at one time); InputError otherwise."""
     v = _uniform(g, mesh)
     if v is None or v.size != mesh.dim:
-        raise InputError(f"gravity must be one acceleration vector of {mesh.dim} component(s) (it may depend on t, "
-                         "not on x, y, z)")  # fmt: skip
+        raise InputError(
+            f"gravity must be one acceleration vector of {mesh.dim} component(s) (it may depend on t, not on x, y, z)"
+        )
     return v
 
 
@@ -471,8 +477,10 @@ def contact_node_count(problem: Problem) -> int:
 def _check_pairs(problem: Problem, mass: str) -> None:
     """What contact pairs do not carry yet: ``seed-normal`` (InputError)."""
     if mass == "seed-normal":
-        raise InputError("mass 'seed-normal' needs one normal per contact node; with contact pairs use 'seed', "
-                         "'moment-preserving' or another variant")  # fmt: skip
+        raise InputError(
+            "mass 'seed-normal' needs one normal per contact node; with contact pairs use 'seed', "
+            "'moment-preserving' or another variant"
+        )
 
 
 def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discretization:

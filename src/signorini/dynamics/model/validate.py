@@ -135,8 +135,10 @@ def check_problem(problem) -> None:
             )
         ob_dim = getattr(problem.obstacle, "dim", None)
         if ob_dim is not None and ob_dim != problem.mesh.dim:
-            raise InputError(f"the obstacle is {ob_dim}D and the mesh {problem.mesh.dim}D: give the obstacle's "
-                             f"vectors (or the surface's points) {problem.mesh.dim} components")  # fmt: skip
+            raise InputError(
+                f"the obstacle is {ob_dim}D and the mesh {problem.mesh.dim}D: give the obstacle's "
+                f"vectors (or the surface's points) {problem.mesh.dim} components"
+            )
         tag = problem.contact_tag
         tags = [tag] if isinstance(tag, str) else tag
         if not isinstance(tags, Sequence) or not tags or not all(isinstance(t, str) for t in tags):
@@ -159,7 +161,9 @@ def check_problem(problem) -> None:
     if not isinstance(problem.initial_equilibrium, bool):
         raise InputError(f"initial_equilibrium must be True or False, got {_short(problem.initial_equilibrium)}")
     if problem.initial_acceleration not in INITIAL_ACCELERATIONS:
-        raise InputError(f"initial_acceleration must be one of {', '.join(INITIAL_ACCELERATIONS)}, "
-                         f"got {_short(problem.initial_acceleration)}")  # fmt: skip
+        raise InputError(
+            f"initial_acceleration must be one of {', '.join(INITIAL_ACCELERATIONS)}, "
+            f"got {_short(problem.initial_acceleration)}"
+        )
     if problem.contact_where is not None and not callable(problem.contact_where):
         raise InputError(f"contact_where must be a function of the points or None, got {_short(problem.contact_where)}")

@@ -92,12 +92,14 @@ def events_list(events: Any) -> list:
     try:
         out = list(events)
     except TypeError:
-        raise InputError(f"events must be event names, Event objects or a list of them, got "
-                         f"{type(events).__name__}") from None  # fmt: skip
+        raise InputError(
+            f"events must be event names, Event objects or a list of them, got {type(events).__name__}"
+        ) from None
     for e in out:
         if not isinstance(e, (str, Event)):
-            raise InputError(f"events: {e!r} is neither an event name ({', '.join(EVENTS.names(aliases=False))}) "
-                             "nor an Event")  # fmt: skip
+            raise InputError(
+                f"events: {e!r} is neither an event name ({', '.join(EVENTS.names(aliases=False))}) nor an Event"
+            )
     return out
 
 
@@ -107,20 +109,24 @@ def parse_stop_at(spec: str | Sequence[str] | None, where: str = "--stop-at") ->
     if spec is None:
         return []
     if not isinstance(spec, (str, list, tuple)):
-        raise InputError(f"{where} must be an event name or a list of them ({', '.join(EVENTS.names(aliases=False))}"
-                         f"), got {spec!r}")  # fmt: skip
+        raise InputError(
+            f"{where} must be an event name or a list of them ({', '.join(EVENTS.names(aliases=False))}), got {spec!r}"
+        )
     items = [x.strip() for x in spec.split(",")] if isinstance(spec, str) else list(spec)
     out = []
     for item in items:
         if not isinstance(item, str) or not item:
-            raise InputError(f"{where}: an event name is a non-empty string, got {item!r}; allowed: "
-                             f"{', '.join(EVENTS.names(aliases=False))}")  # fmt: skip
+            raise InputError(
+                f"{where}: an event name is a non-empty string, got {item!r}; allowed: "
+                f"{', '.join(EVENTS.names(aliases=False))}"
+            )
         name, _, value = item.partition(":")
         try:
             entry = EVENTS.get(name)
         except InputError:
-            raise InputError(f"{where}: unknown event {name!r}; allowed: {', '.join(EVENTS.names(aliases=False))} "
-                             "(rest:FRACTION)") from None  # fmt: skip
+            raise InputError(
+                f"{where}: unknown event {name!r}; allowed: {', '.join(EVENTS.names(aliases=False))} (rest:FRACTION)"
+            ) from None
         if value:
             if not entry.parameters:
                 raise InputError(f"{where}: event {entry.name!r} takes no value, got {item!r}")
@@ -156,8 +162,13 @@ class EventWatch(Observer):
 
     def saved(self, n: int) -> dict:
         memory = [list(getattr(e.function, "memory", [])) for e in self.events]
-        return {"previous": list(self.previous), "done": [int(x) for x in self.done], "memory": memory,
-                "met": [dict(m) for m in self.met], "names": [e.name for e in self.events]}  # fmt: skip
+        return {
+            "previous": list(self.previous),
+            "done": [int(x) for x in self.done],
+            "memory": memory,
+            "met": [dict(m) for m in self.met],
+            "names": [e.name for e in self.events],
+        }
 
     def resume(self, run: Run, n: int, state: State, data: dict) -> None:
         names = [e.name for e in self.events]

@@ -65,8 +65,18 @@ def angular_columns(dim: int) -> tuple[str, ...]:
 
 def history_columns(dim: int) -> tuple[str, ...]:
     """The header of ``history.csv`` for a run in ``dim`` space dimensions (then the reactions)."""
-    return (HISTORY_COLUMNS + FORCE_COLUMNS[:dim] + FRICTION_COLUMNS + LATER_COLUMNS + MOMENTUM_COLUMNS[:dim]
-            + STEP_COLUMNS + DAMPING_COLUMNS + angular_columns(dim) + NONLINEAR_COLUMNS + PAIR_COLUMNS)  # fmt: skip
+    return (
+        HISTORY_COLUMNS
+        + FORCE_COLUMNS[:dim]
+        + FRICTION_COLUMNS
+        + LATER_COLUMNS
+        + MOMENTUM_COLUMNS[:dim]
+        + STEP_COLUMNS
+        + DAMPING_COLUMNS
+        + angular_columns(dim)
+        + NONLINEAR_COLUMNS
+        + PAIR_COLUMNS
+    )
 
 
 def angular_momentum(points: np.ndarray, U: np.ndarray, MV: np.ndarray) -> np.ndarray:
@@ -236,18 +246,27 @@ class History:
             "slip_nodes": slip,
             "friction_dissipation": -fw,
             "load_potential": _or_nan(self.load_potential, self.t.size),
-            **{name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
-               for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])},
+            **{
+                name: (self.momentum[:, k] if self.momentum is not None else np.full(self.t.size, np.nan))
+                for k, name in enumerate(MOMENTUM_COLUMNS[: self.dim])
+            },
             "dt": np.concatenate([[np.nan], np.diff(self.t)]) if self.t.size else self.t,
             "damping_dissipation": 0.0 - _or_nan(self.damping_work, self.t.size),  # 0.0 - x: no "-0" when undamped
-            **{name: (self.angular_momentum[:, k] if self.angular_momentum is not None
-                      else np.full(self.t.size, np.nan)) for k, name in enumerate(angular_columns(self.dim))},
-            "nonlinear_iterations": (self.nonlinear_iterations if self.nonlinear_iterations is not None
-                                     else np.zeros(self.t.size, dtype=np.int64)),
+            **{
+                name: (
+                    self.angular_momentum[:, k] if self.angular_momentum is not None else np.full(self.t.size, np.nan)
+                )
+                for k, name in enumerate(angular_columns(self.dim))
+            },
+            "nonlinear_iterations": (
+                self.nonlinear_iterations
+                if self.nonlinear_iterations is not None
+                else np.zeros(self.t.size, dtype=np.int64)
+            ),
             "solver_work": _or_nan(self.solver_work, self.t.size),
             "master_penetration": _or_nan(self.master_penetration, self.t.size),
             **self._reaction_columns(),
-        }  # fmt: skip
+        }
 
     def _reaction_columns(self) -> dict[str, np.ndarray]:
         """``reaction_<tag>_<axis>`` (one per Dirichlet tag and component), after every other column."""
@@ -328,16 +347,25 @@ class History:
             if self.tangents is not None:
                 extra["tangents"] = self.tangents
         np.savez_compressed(
-            path, t=self.t, gap=self.gap, lam=self.lam, lambda_n=self.lam, coordinates=self.coordinates,
-            weights=self.weights, **extra,
-        )  # fmt: skip
+            path,
+            t=self.t,
+            gap=self.gap,
+            lam=self.lam,
+            lambda_n=self.lam,
+            coordinates=self.coordinates,
+            weights=self.weights,
+            **extra,
+        )
 
     def save(self, out: str | Path) -> None:
         """Write ``history.csv``, ``contact.npz`` and ``summary.json`` into ``out``."""
         out = Path(out)
         text = json.dumps(finite_json(self.summary()), indent=2, default=_json_default)
-        for name, write in (("history.csv", self.write_csv), ("contact.npz", self.write_contact_npz),
-                            ("summary.json", lambda p: p.write_text(text))):  # fmt: skip
+        for name, write in (
+            ("history.csv", self.write_csv),
+            ("contact.npz", self.write_contact_npz),
+            ("summary.json", lambda p: p.write_text(text)),
+        ):
             try:
                 write(out / name)
             except OSError as exc:  # a full disk, a file-size limit: the error names the file
@@ -387,8 +415,12 @@ class History:
         if not pairs or not self.meta.get("finite_strain") or self.pair is None or self.gap.ndim != 2:
             return {}
         off = np.isposinf(self.gap[-1])
-        return {"pairs": [dict(p, slave_nodes_facing_nothing_at_end=int(np.sum(off & (self.pair == k))))
-                          for k, p in enumerate(pairs)]}  # fmt: skip
+        return {
+            "pairs": [
+                dict(p, slave_nodes_facing_nothing_at_end=int(np.sum(off & (self.pair == k))))
+                for k, p in enumerate(pairs)
+            ]
+        }
 
     def _untagged_max(self) -> float | None:
         """Largest untagged penetration of the levels kept, or of the level a failure stopped at."""

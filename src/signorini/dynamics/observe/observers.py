@@ -117,8 +117,12 @@ class HistoryRecorder(Observer):
                 series = {**series, k: np.full((n + 1,) + v.shape[1:], np.nan if v.dtype.kind == "f" else 0, v.dtype)}
         _restore_series(self.series, series, n, "history")
         times = np.asarray(series.get("times", []), dtype=float)
-        if times.shape != (n + 1,) or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0) or (
-                times[-1] != state.t):  # fmt: skip
+        if (
+            times.shape != (n + 1,)
+            or not np.all(np.isfinite(times))
+            or np.any(np.diff(times) <= 0)
+            or (times[-1] != state.t)
+        ):
             raise InputError("checkpoint: the levels' times are not increasing up to the checkpoint's t")
         self.times[: n + 1] = times
         self._prev = self.last = state
@@ -188,8 +192,9 @@ def _restore_series(series: dict[str, np.ndarray], data: dict[str, Any], n: int,
         if a.dtype != v.dtype:
             raise InputError(f"checkpoint: the {what} series {k!r} is {a.dtype}, expected {v.dtype}")
         if a.shape != (n + 1,) + v.shape[1:]:
-            raise InputError(f"checkpoint: the {what} series {k!r} has shape {a.shape}, expected "
-                             f"{(n + 1,) + v.shape[1:]}")  # fmt: skip
+            raise InputError(
+                f"checkpoint: the {what} series {k!r} has shape {a.shape}, expected {(n + 1,) + v.shape[1:]}"
+            )
         v[: n + 1] = a
 
 
@@ -267,8 +272,18 @@ class EnergyRecorder(Observer):
     #: part counts)
     obstacle_moves = False
 
-    KEYS = ("kinetic_energy", "elastic_energy", "load_potential", "predicted_increment", "external", "contact",
-            "numerical", "friction", "damping", "solver")  # fmt: skip
+    KEYS = (
+        "kinetic_energy",
+        "elastic_energy",
+        "load_potential",
+        "predicted_increment",
+        "external",
+        "contact",
+        "numerical",
+        "friction",
+        "damping",
+        "solver",
+    )
     PARTS = ("external", "contact", "numerical", "friction", "damping", "solver")
     checkpoint_key = "energy"
 
@@ -298,9 +313,14 @@ class EnergyRecorder(Observer):
             raise InputError(f"checkpoint: the energy's step {self._dt!r} is not a positive number")
 
     def saved(self, n: int) -> dict[str, Any]:
-        return {"series": {k: v[: n + 1] for k, v in self.series.items()}, "dt": float(self._dt),
-                "cycles_open": self._open.copy(), "cycles_created": float(self._rows_created),
-                "cycles_destroyed": float(self._rows_destroyed), "cycles_first": int(self.created_first)}  # fmt: skip
+        return {
+            "series": {k: v[: n + 1] for k, v in self.series.items()},
+            "dt": float(self._dt),
+            "cycles_open": self._open.copy(),
+            "cycles_created": float(self._rows_created),
+            "cycles_destroyed": float(self._rows_destroyed),
+            "cycles_first": int(self.created_first),
+        }
 
     def _reset_cycles(self, run: Run) -> None:
         self._open = np.zeros(run.ctx.disc.contact.size)  # each row's net work of its open cycle
@@ -481,21 +501,32 @@ class EnergyRecorder(Observer):
         """Whether the energy created (:attr:`created`) exceeds :data:`SPURIOUS_TOLERANCE` of the scale."""
         return self.created_relative() > SPURIOUS_TOLERANCE
 
-    def spurious_message(self, single_level: int = 0, t_first: float | None = None,
-                         duration: float | None = None, dt: float | None = None, controlled: bool = False,
-                         mass: str = "") -> str:  # fmt: skip
+    def spurious_message(
+        self,
+        single_level: int = 0,
+        t_first: float | None = None,
+        duration: float | None = None,
+        dt: float | None = None,
+        controlled: bool = False,
+        mass: str = "",
+    ) -> str:
         """The warning of a run whose scheme created more than :data:`SPURIOUS_TOLERANCE` of its
         energy scale: how much, from which level, the contact episodes a single level long, and the fix."""
         where = ""
         if self.created_first >= 0:
             at = f", t = {t_first:.6g}" if t_first is not None else ""
             where = f"; above {100 * SPURIOUS_TOLERANCE:g}% from level {self.created_first}{at} on"
-        single = (f"; {single_level} contact episode(s) lasted a single level: the step does not resolve the "
-                  "contact") if single_level else ""  # fmt: skip
+        single = (
+            (f"; {single_level} contact episode(s) lasted a single level: the step does not resolve the contact")
+            if single_level
+            else ""
+        )
         fix = "a smaller time step"
         if duration is not None and dt is not None:
-            fix = (f"a time step well below the contact duration (about {duration:.3g} s for this body: 2 x its size "
-                   f"along the obstacle's normal / its wave speed; dt = {dt:.3g} s)")  # fmt: skip
+            fix = (
+                f"a time step well below the contact duration (about {duration:.3g} s for this body: 2 x its size "
+                f"along the obstacle's normal / its wave speed; dt = {dt:.3g} s)"
+            )
         if mass in ("standard", "lumped"):  # its contact chatters whatever the step
             fix = (
                 f"a mass without contact inertia (the default, moment-preserving; the {mass!r} mass's contact chatters)"
@@ -525,8 +556,9 @@ class EnergyRecorder(Observer):
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
         self.series = {k: v[: n_last + 1] for k, v in self.series.items()}
 
-    def report(self, meta: dict[str, Any], lam: np.ndarray, t: np.ndarray, run: Run, failed: bool,
-               adaptive: bool) -> None:  # fmt: skip
+    def report(
+        self, meta: dict[str, Any], lam: np.ndarray, t: np.ndarray, run: Run, failed: bool, adaptive: bool
+    ) -> None:
         """What the recorder found, in a run's ``meta``: the warning of an identity that did not
         close; ``spurious_energy`` and ``single_level_contacts`` (``lam``: the multipliers per
         level; ``t``: the levels' times), and the warning of a run whose scheme created more
@@ -538,11 +570,16 @@ class EnergyRecorder(Observer):
             meta["warnings"].append(self.message())
         single = single_level_contacts(lam)
         meta["single_level_contacts"] = single
-        meta["spurious_energy"] = {"absolute": self.spurious, "relative": self.spurious_relative(),
-                                   "scale": self.energy_scale, "first_level": self.spurious_first,
-                                   "created": self.created, "destroyed": self.destroyed,
-                                   "created_relative": self.created_relative(),
-                                   "created_first_level": self.created_first}  # fmt: skip
+        meta["spurious_energy"] = {
+            "absolute": self.spurious,
+            "relative": self.spurious_relative(),
+            "scale": self.energy_scale,
+            "first_level": self.spurious_first,
+            "created": self.created,
+            "destroyed": self.destroyed,
+            "created_relative": self.created_relative(),
+            "created_first_level": self.created_first,
+        }
         if self.spurious_exceeded() and not (failed and self.check == "fail"):  # energy_check=fail: its message
             first = self.created_first
             t_first = float(t[first]) if 0 <= first < t.size else None

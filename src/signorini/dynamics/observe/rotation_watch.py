@@ -129,11 +129,16 @@ class RotationWatch(Observer):
 
     def _checked(self, value: Any, what: str) -> tuple[float, int, float]:
         """A checkpoint's (rotation, cell, t), checked (a forged file: a one-line InputError)."""
-        numbers = isinstance(value, list) and len(value) == 3 and all(
-            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)  # fmt: skip
+        numbers = (
+            isinstance(value, list)
+            and len(value) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)
+        )
         if not (numbers and value[0] >= 0 and isinstance(value[1], int) and -1 <= value[1] < self.n_cells):
-            raise InputError(f"checkpoint: the rotation watch's {what} rotation {value!r} is not [rotation >= 0 "
-                             "(rad), a cell of the mesh or -1, t]")  # fmt: skip
+            raise InputError(
+                f"checkpoint: the rotation watch's {what} rotation {value!r} is not [rotation >= 0 "
+                "(rad), a cell of the mesh or -1, t]"
+            )
         return float(value[0]), int(value[1]), float(value[2])
 
     def _centre(self, cell: int) -> str:
@@ -150,8 +155,9 @@ class RotationWatch(Observer):
         if not self.active:
             return
         value, cell, t = self.worst
-        meta.update(rotation_max=value, rotation_cell=cell if cell >= 0 else None,
-                    rotation_time=t if cell >= 0 else None)  # fmt: skip
+        meta.update(
+            rotation_max=value, rotation_cell=cell if cell >= 0 else None, rotation_time=t if cell >= 0 else None
+        )
         if self.first[1] >= 0:
             v1, c1, t1 = self.first
             meta["warnings"].append(

@@ -127,8 +127,9 @@ def _masters(mesh: Mesh, pairs) -> list[tuple[int, str, str, str, np.ndarray]]:
     return out
 
 
-def pair_watch(mesh: Mesh, pairs, n_dofs: int, current: bool = False, masters: bool = False
-               ) -> PairWatch | CurrentPairWatch | None:  # fmt: skip
+def pair_watch(
+    mesh: Mesh, pairs, n_dofs: int, current: bool = False, masters: bool = False
+) -> PairWatch | CurrentPairWatch | None:
     """The untagged watch of the contact pairs (module docstring); None without pairs; ``current`` (finite
     strain): in the current configuration (:class:`CurrentPairWatch`); ``masters``: the master tags' own nodes
     against the slave surfaces instead of the untagged nodes."""
@@ -182,8 +183,9 @@ class UntaggedContact(Observer):
         # no rigid obstacle (contact pairs only): nothing to watch against it
         self.nodes = np.setdiff1d(boundary_nodes(mesh), rigid) if disc.problem.obstacle is not None else rigid[:0]
         self.pair_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite)
-        self.master_watch = pair_watch(mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite,
-                                       masters=True)  # fmt: skip
+        self.master_watch = pair_watch(
+            mesh, disc.problem.pairs, disc.space.n_dofs, current=run.ctx.elastic.finite, masters=True
+        )
         extra = self.pair_watch.nodes if self.pair_watch is not None else self.nodes[:0]
         self.all_nodes = np.concatenate([self.nodes, extra])
         self._surface = ""  # the surface the worst node crossed (a pair's tag), "" for the rigid obstacle
@@ -261,9 +263,12 @@ class UntaggedContact(Observer):
     checkpoint_key = "untagged"
 
     def saved(self, n: int) -> dict:
-        return {"series": {"penetration": self.series[: n + 1], "master_penetration": self.master_series[: n + 1]},
-                "worst": list(self.worst), "surface": self._surface,
-                "master_worst": list(self.master_worst)}  # fmt: skip
+        return {
+            "series": {"penetration": self.series[: n + 1], "master_penetration": self.master_series[: n + 1]},
+            "worst": list(self.worst),
+            "surface": self._surface,
+            "master_worst": list(self.master_worst),
+        }
 
     def resume(self, run: Run, n: int, state: State, data: dict) -> None:
         series = np.asarray(data.get("series", {}).get("penetration", []))
@@ -272,8 +277,9 @@ class UntaggedContact(Observer):
         self.series[: n + 1] = series
         masters = np.asarray(data.get("series", {}).get("master_penetration", np.full(n + 1, np.nan)))
         if masters.shape != (n + 1,) or masters.dtype != self.master_series.dtype:  # (nan: a checkpoint of before it)
-            raise InputError(f"checkpoint: the master penetration series has shape {masters.shape}, expected "
-                             f"{(n + 1,)}")  # fmt: skip
+            raise InputError(
+                f"checkpoint: the master penetration series has shape {masters.shape}, expected {(n + 1,)}"
+            )
         self.master_series[: n + 1] = masters
         self.worst = self._checked(data.get("worst"), "untagged watch")
         self._surface = str(data["surface"])
@@ -282,11 +288,15 @@ class UntaggedContact(Observer):
 
     def _checked(self, value, what: str) -> tuple[float, int, float]:
         """A checkpoint's (penetration, node, t) of a watch, checked (a forged file: a one-line InputError)."""
-        numbers = isinstance(value, list) and len(value) == 3 and all(
-            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)  # fmt: skip
+        numbers = (
+            isinstance(value, list)
+            and len(value) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)
+        )
         if not (numbers and value[0] >= 0 and isinstance(value[1], int) and -1 <= value[1] < self.mesh.n_nodes):
-            raise InputError(f"checkpoint: the {what}'s worst {value!r} is not [penetration >= 0, a node of the "
-                             "mesh or -1, t]")  # fmt: skip
+            raise InputError(
+                f"checkpoint: the {what}'s worst {value!r} is not [penetration >= 0, a node of the mesh or -1, t]"
+            )
         return float(value[0]), int(value[1]), float(value[2])
 
     def close(self, run: Run, status: str, n_last: int, state: State) -> None:
@@ -303,8 +313,11 @@ class UntaggedContact(Observer):
         if self.master_watch is None:
             return None
         p, node, t = self.master_worst
-        return {"master_penetration_max": p, "master_penetration_node": self.mesh.node_id(node) if node >= 0 else None,
-                "master_penetration_time": t if node >= 0 else None}  # fmt: skip
+        return {
+            "master_penetration_max": p,
+            "master_penetration_node": self.mesh.node_id(node) if node >= 0 else None,
+            "master_penetration_time": t if node >= 0 else None,
+        }
 
     def exceeded(self) -> bool:
         return self.worst[0] > self.tolerance

@@ -124,16 +124,24 @@ def _scheme_source_hash(scheme) -> str | None:
 
 def compare_identity(saved: dict[str, Any], mine: dict[str, Any], where: str) -> None:
     """InputError naming the first item of the identity that differs."""
-    names = {"case_file": "the case file (its text changed since the checkpoint)", "mass_matrix": "the mass matrix",
-             "contact": "the contact rows or gaps", "initial_state": "the initial state", "loads": "the loads",
-             "mesh": "the mesh", "stiffness": "the stiffness (materials)", "dofs": "the number of dofs",
-             "contact_rows": "the number of contact rows", "fixed_dofs": "the Dirichlet dofs",
-             "friction": "the friction law or its coefficients",
-             "damping": "the damping ([material] damping: absent on one side, or other coefficients)",
-             "material_model": "the material model ([material] model: linear on one side, or other models)",
-             "scheme_source": "the source file of the scheme of your own (its code changed since the checkpoint)",
-             "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
-                           "kind of backend, or give solver option node_order=mesh to both)"}  # fmt: skip
+    names = {
+        "case_file": "the case file (its text changed since the checkpoint)",
+        "mass_matrix": "the mass matrix",
+        "contact": "the contact rows or gaps",
+        "initial_state": "the initial state",
+        "loads": "the loads",
+        "mesh": "the mesh",
+        "stiffness": "the stiffness (materials)",
+        "dofs": "the number of dofs",
+        "contact_rows": "the number of contact rows",
+        "fixed_dofs": "the Dirichlet dofs",
+        "friction": "the friction law or its coefficients",
+        "damping": "the damping ([material] damping: absent on one side, or other coefficients)",
+        "material_model": "the material model ([material] model: linear on one side, or other models)",
+        "scheme_source": "the source file of the scheme of your own (its code changed since the checkpoint)",
+        "node_order": "the node numbering (a distributed backend renumbers the mesh: resume on the same "
+        "kind of backend, or give solver option node_order=mesh to both)",
+    }
     order = (
         "case_file",
         "problem",
@@ -208,8 +216,12 @@ def state_arrays(run, state: State) -> tuple[dict[str, np.ndarray], dict[str, An
 
 def _expected_shape(kind: str, run) -> tuple[int, ...]:
     n, nc = run.ctx.disc.space.n_dofs, run.ctx.disc.contact.size
-    return {"dofs": (n,), "contact": (nc,), "contact_t": (nc, run.ctx.rows.components - 1),
-            "fixed": (run.ctx.fixed.size,)}[kind]  # fmt: skip
+    return {
+        "dofs": (n,),
+        "contact": (nc,),
+        "contact_t": (nc, run.ctx.rows.components - 1),
+        "fixed": (run.ctx.fixed.size,),
+    }[kind]
 
 
 def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: float) -> State:
@@ -242,9 +254,15 @@ def restore_state(run, arrays: dict[str, np.ndarray], flags: dict[str, Any], t: 
             raise InputError(f"checkpoint: flag {key!r} is not data of scheme {run.scheme.name}")
         extra[key] = bool(v)
     lam_t = arrays.get("lam_t") if run.ctx.rows.components > 1 else None
-    return State(float(t), arrays["U"].copy(), arrays["V"].copy(), arrays["A"].copy(), arrays["lam"].copy(),
-                 extra={k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in extra.items()},
-                 lam_t=None if lam_t is None else lam_t.copy())  # fmt: skip
+    return State(
+        float(t),
+        arrays["U"].copy(),
+        arrays["V"].copy(),
+        arrays["A"].copy(),
+        arrays["lam"].copy(),
+        extra={k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in extra.items()},
+        lam_t=None if lam_t is None else lam_t.copy(),
+    )
 
 
 # ----------------------------------------------------------------------------- file
@@ -347,8 +365,12 @@ class SeriesLog:
         if self.written < n + 1:
             rows = slice(self.written, n + 1)
             block = np.concatenate(
-                [np.ascontiguousarray(np.asarray(series[k])[rows]).view(np.uint8).reshape(rows.stop - rows.start, -1)
-                 for k, _, _ in layout], axis=1)  # fmt: skip
+                [
+                    np.ascontiguousarray(np.asarray(series[k])[rows]).view(np.uint8).reshape(rows.stop - rows.start, -1)
+                    for k, _, _ in layout
+                ],
+                axis=1,
+            )
             with open(path, "r+b" if self.written and path.exists() else "wb") as fh:
                 fh.seek(self.written * self.record_bytes())
                 fh.write(block.tobytes())
@@ -376,8 +398,10 @@ def read_series(path: Path, layout: list, records: int, digest: str, where: str)
         raise InputError(f"{where}: its series file {p.name} is missing (it holds the levels before the checkpoint)")
     need = size * records
     if records < 0 or size <= 0 or need > p.stat().st_size:  # checked before anything is read or allocated
-        raise InputError(f"{where}: its series file {p.name} is shorter than the checkpoint says ({records} records of "
-                         f"{size} bytes; a truncated or forged file)")  # fmt: skip
+        raise InputError(
+            f"{where}: its series file {p.name} is shorter than the checkpoint says ({records} records of "
+            f"{size} bytes; a truncated or forged file)"
+        )
     with open(p, "rb") as fh:
         raw = fh.read(need)
     if len(raw) != need:
@@ -416,8 +440,10 @@ def _open(path: Path, arrays: bool) -> dict[str, Any]:
     if attrs.get("format") != FORMAT:
         raise InputError(f"{where}: not a signorini checkpoint (format {attrs.get('format')!r})")
     if not isinstance(attrs.get("version"), int) or attrs["version"] > VERSION:
-        raise InputError(f"{where}: format version {attrs.get('version')!r} is newer than this signorini reads "
-                         f"({VERSION}); resume it with the signorini that wrote it")  # fmt: skip
+        raise InputError(
+            f"{where}: format version {attrs.get('version')!r} is newer than this signorini reads "
+            f"({VERSION}); resume it with the signorini that wrote it"
+        )
     return {"arrays": data, "attrs": attrs}
 
 
@@ -453,8 +479,14 @@ def check_attrs(attrs: dict[str, Any], where: str) -> None:
         except OverflowError:
             return False
 
-    if seg is not None and (not isinstance(seg, list) or len(seg) != 3 or not all(finite(x) for x in seg)
-                            or not seg[1] > 0 or not isinstance(seg[2], int) or not 0 <= seg[2] <= level):  # fmt: skip
+    if seg is not None and (
+        not isinstance(seg, list)
+        or len(seg) != 3
+        or not all(finite(x) for x in seg)
+        or not seg[1] > 0
+        or not isinstance(seg[2], int)
+        or not 0 <= seg[2] <= level
+    ):
         raise bad(f"segment {seg!r} is not [start, dt > 0, first level <= level]")
 
 
@@ -522,8 +554,13 @@ class CheckpointLog:
         self.written += 1
 
     def summary(self) -> dict[str, Any]:
-        out = {"every": self.every, "written": self.written, "seconds": self.seconds, "bytes": self.bytes,
-               "level": self.level}  # fmt: skip
+        out = {
+            "every": self.every,
+            "written": self.written,
+            "seconds": self.seconds,
+            "bytes": self.bytes,
+            "level": self.level,
+        }
         if self.error:
             out["error"], out["failed"] = self.error, self.failed
         return out

@@ -153,8 +153,10 @@ class SolverStates:
                 a = data.get(f"{k}/{name}")
                 old = np.asarray(getattr(sys.solver, name))
                 if a is None or a.shape != old.shape:
-                    raise InputError(f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
-                                     f"has another shape (another backend?)")  # fmt: skip
+                    raise InputError(
+                        f"checkpoint {where!r}: the warm start {name!r} of solver {k} is missing or "
+                        f"has another shape (another backend?)"
+                    )
                 setattr(sys.solver, name, a.astype(old.dtype, copy=True))
                 restored.setdefault(id(sys), {})[name] = getattr(sys.solver, name).copy()
             prefix = f"{k}/delassus/"

@@ -225,8 +225,9 @@ class ContactRows:
         for name in ("level_B", "level_T"):
             if f"{name}_data" in data:
                 shape = (c.size * (1 if name == "level_B" else self.components - 1), n)
-                level.append(sp.csr_matrix((data[f"{name}_data"], data[f"{name}_indices"], data[f"{name}_indptr"]),
-                                           shape=shape))  # fmt: skip
+                level.append(
+                    sp.csr_matrix((data[f"{name}_data"], data[f"{name}_indices"], data[f"{name}_indptr"]), shape=shape)
+                )
             else:
                 level.append(None)
         if level[0] is not None:
@@ -240,8 +241,9 @@ class ContactRows:
             return self._level_rows[1], self._level_rows[2]
         return self.B, self.T
 
-    def contact_on_fixed(self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None
-                         ) -> np.ndarray | float:  # fmt: skip
+    def contact_on_fixed(
+        self, lam: np.ndarray, lam_t: np.ndarray | None = None, t: float | None = None
+    ) -> np.ndarray | float:
         """(B^T lambda + T^T lambda_t) on the Dirichlet dofs (the contact part of their reactions),
         0.0 when no contact row touches a fixed dof; ``t``: the multipliers of that level
         (:meth:`rows_of`)."""

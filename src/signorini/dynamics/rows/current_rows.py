@@ -108,8 +108,7 @@ class CurrentRows:
             H[:, :, a] = -(self.obstacle.body_normals(x + step, t) - self.obstacle.body_normals(x - step, t)) / (2 * h)
         if not np.any(H):
             return None
-        return _blocks_matrix(0.5 * (H + H.transpose(0, 2, 1)) * lam[pressed, None, None], c.dofs[pressed],
-                              self.n_dofs)  # fmt: skip
+        return _blocks_matrix(0.5 * (H + H.transpose(0, 2, 1)) * lam[pressed, None, None], c.dofs[pressed], self.n_dofs)
 
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         """The size of the numbers the obstacle's distance is computed from at U (its round-off's scale)
@@ -208,8 +207,11 @@ class CurrentPairRows:
         last = self._last
         if last is not None and np.array_equal(last[0], U) and np.array_equal(last[1], c.master_facet):
             return last[2]
-        out = [(r, f(c.nodes[r], U, c.master_facet[r])) for r, f in zip(self.pair_rows, self.pairings, strict=True)
-               if r.size]  # fmt: skip
+        out = [
+            (r, f(c.nodes[r], U, c.master_facet[r]))
+            for r, f in zip(self.pair_rows, self.pairings, strict=True)
+            if r.size
+        ]
         self._last = (np.array(U, copy=True), c.master_facet.copy(), out)
         return out
 
@@ -274,15 +276,18 @@ class CurrentPairRows:
                 plus, minus = flat.copy(), flat.copy()
                 plus[:, a] += h[:, 0]
                 minus[:, a] -= h[:, 0]
-                H[:, :, a] = (pairing.gap_gradient(plus.reshape(local.shape), facet)
-                              - pairing.gap_gradient(minus.reshape(local.shape), facet)) / (2.0 * h)  # fmt: skip
+                H[:, :, a] = (
+                    pairing.gap_gradient(plus.reshape(local.shape), facet)
+                    - pairing.gap_gradient(minus.reshape(local.shape), facet)
+                ) / (2.0 * h)
             blocks.append(0.5 * (H + H.transpose(0, 2, 1)))
             dofs.append(self._dofs(np.concatenate([c.nodes[r][:, None], pairing.oriented[facet]], axis=1)))
             weights.append(lam[r])
         if not blocks:
             return None
-        return _blocks_matrix(np.concatenate(blocks) * np.concatenate(weights)[:, None, None], np.concatenate(dofs),
-                              self.n_dofs)  # fmt: skip
+        return _blocks_matrix(
+            np.concatenate(blocks) * np.concatenate(weights)[:, None, None], np.concatenate(dofs), self.n_dofs
+        )
 
     def distance_scale(self, U: np.ndarray, t: float) -> float:
         """The largest coordinate of the slave and master nodes at U (the gaps' round-off scale) [length]."""
@@ -387,8 +392,11 @@ class CurrentRowsAndPairs:
         return self.obstacle.contact_force(U, t, lam) + self.pairs.contact_force(U, t, lam)
 
     def geometric_stiffness(self, U: np.ndarray, t: float, lam: np.ndarray) -> sp.csr_matrix | None:
-        parts = [K for K in (self.obstacle.geometric_stiffness(U, t, lam), self.pairs.geometric_stiffness(U, t, lam))
-                 if K is not None]  # fmt: skip
+        parts = [
+            K
+            for K in (self.obstacle.geometric_stiffness(U, t, lam), self.pairs.geometric_stiffness(U, t, lam))
+            if K is not None
+        ]
         return None if not parts else (parts[0] if len(parts) == 1 else (parts[0] + parts[1]).tocsr())
 
     def gaps(self, U: np.ndarray, t: float, outside: float | None = None) -> np.ndarray:

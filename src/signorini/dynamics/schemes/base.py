@@ -101,8 +101,12 @@ STATE_FIELD_KINDS = ("dofs", "contact", "contact_t", "fixed", "flag")
 #: damping force C V_d is made of (:func:`damping_velocity`, :func:`damping_force`)
 #: ``newton_residual``: the force residual r (n,) a finite-strain step's Newton left at its solution
 #: (:attr:`~signorini.contact.solver.StepInfo.force_residual`), whose work is the next steps' ``solver`` part too
-COMMON_STATE_FIELDS = {"R0": "dofs", "damping_velocity": "dofs", "damping_acceleration": "dofs",
-                       "newton_residual": "dofs"}  # fmt: skip
+COMMON_STATE_FIELDS = {
+    "R0": "dofs",
+    "damping_velocity": "dofs",
+    "damping_acceleration": "dofs",
+    "newton_residual": "dofs",
+}
 
 
 @dataclass
@@ -203,8 +207,10 @@ class Scheme:
     def _needs_condensed_solve(self, ctx: Context, prepared: bool, what: str) -> None:
         uncondensed = any(getattr(s, "condensation", "") == "none" for s in ctx.solvers)
         if self.needs_condensed_solve and prepared and uncondensed:
-            raise InputError(f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
-                             "(superlu, pardiso, cholmod or petsc), not cg or petsc-cg")  # fmt: skip
+            raise InputError(
+                f"scheme {self.name}: {what} need the condensed contact solve of a direct backend "
+                "(superlu, pardiso, cholmod or petsc), not cg or petsc-cg"
+            )
 
     @property
     def label(self) -> str:
@@ -476,8 +482,9 @@ def newton_residual(s: State) -> np.ndarray | None:
     return s.extra.get("newton_residual")
 
 
-def solver_work(ctx: Context, dU: np.ndarray, old: State, new: State, w_old: float, w_new: float,
-                massless_old: float | None = None) -> float:  # fmt: skip
+def solver_work(
+    ctx: Context, dU: np.ndarray, old: State, new: State, w_old: float, w_new: float, massless_old: float | None = None
+) -> float:
     """The step's ``solver`` part of the energy identity [energy]: dU.(w_old r^n + w_new r^{n+1}), r the levels' force
     residuals left by Newton (:func:`newton_residual`; a level without one counts 0), the weights of each level's
     balance in the scheme's identity (Crank-Nicolson: 1/2, 1/2; theta: 1 - theta, theta); ``massless_old``: the

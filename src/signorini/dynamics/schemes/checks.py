@@ -24,8 +24,11 @@ def check_friction_schemes(friction: Friction, schemes: Sequence, finite: bool =
     if not friction.frictional:
         return
     for scheme in schemes:
-        name, why = (scheme, SCHEMES.get(scheme).obj.friction_refusal) if isinstance(scheme, str) else (
-            scheme.name, scheme.friction_refusal)  # fmt: skip
+        name, why = (
+            (scheme, SCHEMES.get(scheme).obj.friction_refusal)
+            if isinstance(scheme, str)
+            else (scheme.name, scheme.friction_refusal)
+        )
         if why:
             able = [s for s in friction_schemes() if not finite or s in finite_strain_schemes()]
             which = f"schemes that do{' with finite strain' if finite else ''}: {', '.join(able)}"
@@ -42,36 +45,48 @@ def check_finite_strain(ctx: Context, schemes: list) -> None:
     what = f"finite strain ([material] model {', '.join(m for m in ctx.elastic.models if m != 'linear')})"
     for s in schemes:
         if s.finite_strain_refusal:
-            raise InputError(f"scheme {s.name} cannot run {what}: {s.finite_strain_refusal}; schemes that do: "
-                             f"{', '.join(finite_strain_schemes())}")  # fmt: skip
+            raise InputError(
+                f"scheme {s.name} cannot run {what}: {s.finite_strain_refusal}; schemes that do: "
+                f"{', '.join(finite_strain_schemes())}"
+            )
     problem = ctx.disc.problem
     if ctx.disc.space.dim == 1:
         raise InputError(f"{what} needs a 2D (plane strain) or 3D mesh, not a 1D bar; use model 'linear'")
     if problem.pairs and ctx.solver_options.get("pairing", "small-sliding") == "frozen":
-        raise InputError(f"solver option pairing='frozen' does not apply to {what}: its contact pairs are paired "
-                         "in the current configuration at every Newton iteration (large sliding); leave pairing "
-                         "out, or use model 'linear'")  # fmt: skip
+        raise InputError(
+            f"solver option pairing='frozen' does not apply to {what}: its contact pairs are paired "
+            "in the current configuration at every Newton iteration (large sliding); leave pairing "
+            "out, or use model 'linear'"
+        )
     ob = problem.obstacle
     kind = "" if ob is None else type(ob).__name__.removesuffix("Obstacle").lower()
     if ob is not None and ctx.disc.contact.size and ob.body_normals(ctx.disc.contact.points[:1], 0.0) is None:
-        raise InputError(f"{what} against a {kind} obstacle is not done yet (its normals in the current "
-                         "configuration); a plane or a sphere, fixed or moving, is")  # fmt: skip
+        raise InputError(
+            f"{what} against a {kind} obstacle is not done yet (its normals in the current "
+            "configuration); a plane or a sphere, fixed or moving, is"
+        )
     backend = ctx.solver_options.get("backend", "auto")
     if not backend_traits(backend).finite_strain:
-        raise InputError(f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
-                         "iterate; use superlu, cholmod, pardiso, petsc or auto")  # fmt: skip
+        raise InputError(
+            f"{what} with backend {backend!r} is not done yet: its Newton step factorizes a tangent per "
+            "iterate; use superlu, cholmod, pardiso, petsc or auto"
+        )
     beta = 0.0 if ctx.damping is None else ctx.damping.beta
     if beta and hasattr(ctx.damping, "cell_coefficients"):  # per region: only the hyperelastic cells' beta matters
         mesh = ctx.disc.problem.mesh
         hyper = cell_models(ctx.disc.material, mesh.n_cells) != "linear"
         beta = float(ctx.damping.cell_coefficients(mesh)[1][hyper].max(initial=0.0))
     if beta:
-        raise InputError(f"{what} with stiffness-proportional damping (beta = {beta:g} on its cells) is refused: "
-                         "beta S V with the reference stiffness S damps rigid rotations; use alpha only")  # fmt: skip
+        raise InputError(
+            f"{what} with stiffness-proportional damping (beta = {beta:g} on its cells) is refused: "
+            "beta S V with the reference stiffness S damps rigid rotations; use alpha only"
+        )
     if ctx.disc.mass_name == "seed-normal":
-        raise InputError(f"{what} with mass 'seed-normal' is refused: it removes the inertia along the contact "
-                         "normal only, so a rotating body does not keep its angular momentum; use a mass that "
-                         "treats every component alike (moment-preserving, seed, standard, lumped)")  # fmt: skip
+        raise InputError(
+            f"{what} with mass 'seed-normal' is refused: it removes the inertia along the contact "
+            "normal only, so a rotating body does not keep its angular momentum; use a mass that "
+            "treats every component alike (moment-preserving, seed, standard, lumped)"
+        )
 
 
 def check_finite_strain_solvers(ctx: Context) -> None:

@@ -52,8 +52,10 @@ from .step_problem import StepProblem, solve_step
 
 class EnergyMomentum(Scheme):
     name = "energy-momentum"
-    description = ("midpoint rule with a discrete-gradient stress: a free body keeps its energy, linear and angular "
-                   "momentum (finite strain too); contact at t_{n+1}")  # fmt: skip
+    description = (
+        "midpoint rule with a discrete-gradient stress: a free body keeps its energy, linear and angular "
+        "momentum (finite strain too); contact at t_{n+1}"
+    )
     energy_definition = "E = 1/2 V.MV + Pi(U) - U.F(t)"
     friction_refusal = None
     finite_strain_refusal = None
@@ -123,9 +125,19 @@ class EnergyMomentum(Scheme):
             return (J + sp.diags(ml.astype(float)) @ el.tangent(U) if ml.any() else J).tocsr()
 
         f0 = products(ctx, s)[1]  # f_alg(U^n, U^n) = f(U^n): g(U^n) without evaluating it
-        step = StepProblem(self, s, t, (2.0 / dt) * s.V, Fw, law, force=force, tangent=tangent,
-                           force_start=np.where(ml, f0, 2.0 * f0), potential=False,
-                           jacobian=jacobian)  # fmt: skip
+        step = StepProblem(
+            self,
+            s,
+            t,
+            (2.0 / dt) * s.V,
+            Fw,
+            law,
+            force=force,
+            tangent=tangent,
+            force_start=np.where(ml, f0, 2.0 * f0),
+            potential=False,
+            jacobian=jacobian,
+        )
         U, mu, info = solve_step(ctx, step)
         lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu
         if info.lam_t is not None:  # the tangential forces of the halved rows, doubled back alike
@@ -206,9 +218,13 @@ class EnergyMomentum(Scheme):
             numerical += self._projection_work(ctx, old, new)
         # Newton's r of the halved balance: its work r^{n+1} on the rows with mass; the massless rows' balances at
         # both levels (each 2 r, averaged)
-        return EnergyParts(external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, f0, f1),
-                           contact=contact, numerical=numerical, friction=friction,
-                           solver=solver_work(ctx, dU, old, new, 0.0, 1.0, massless_old=1.0))  # fmt: skip
+        return EnergyParts(
+            external=load_work(ctx, old, new, 0.5) + self._prescribed_work(ctx, old, new, w, f0, f1),
+            contact=contact,
+            numerical=numerical,
+            friction=friction,
+            solver=solver_work(ctx, dU, old, new, 0.0, 1.0, massless_old=1.0),
+        )
 
     def _projection_work(self, ctx, old: State, new: State) -> float:
         """(V + dV/2) . M dV: the kinetic energy the momentum projection gave the step, dV = V^{n+1} - V_s on the
@@ -230,7 +246,8 @@ class EnergyMomentum(Scheme):
             contact = ctx.rows.contact_force(
                 w * new.lam, weighted(new.lam_t, None, w) if new.lam_t is not None else None
             )
-            contact = contact + ctx.rows.contact_force((1.0 - w) * old.lam, weighted(None, old.lam_t, w)
-                                                  if old.lam_t is not None else None, old.t)  # fmt: skip
+            contact = contact + ctx.rows.contact_force(
+                (1.0 - w) * old.lam, weighted(None, old.lam_t, w) if old.lam_t is not None else None, old.t
+            )
         R = (ctx.M @ (new.V - old.V)) / dt + g - 0.5 * (ctx.load(old.t) + ctx.load(new.t)) - contact
         return float((new.U - old.U)[D] @ R[D])

@@ -146,9 +146,14 @@ class GeneralizedAlpha(Newmark):
         damping, rest = damping_split(ctx, dU, old, new, 1 - af)
         # Newton's r is the weighted balance over (1 - a_f): its work (1 - a_f) r^{n+1}; the massless rows' balances
         # at both levels, weighted as their forces (measured: tests/dynamics/test_solver_work.py)
-        parts = EnergyParts(external=load_work(ctx, old, new, 1 - af), contact=normal, friction=tangential,
-                            damping=damping, numerical=rest,
-                            solver=solver_work(ctx, dU, old, new, 0.0, 1 - af, massless_old=af))  # fmt: skip
+        parts = EnergyParts(
+            external=load_work(ctx, old, new, 1 - af),
+            contact=normal,
+            friction=tangential,
+            damping=damping,
+            numerical=rest,
+            solver=solver_work(ctx, dU, old, new, 0.0, 1 - af, massless_old=af),
+        )
         if ctx.massless.size:  # massless rows balanced at t_{n+1}: the level-0 imbalance R0 works once
             parts.numerical += reaction_work(ctx, old, new, 1 - af)[1]
         if ctx.has_fixed and ctx.disc.dirichlet_varies:
@@ -159,7 +164,8 @@ class GeneralizedAlpha(Newmark):
                 on_fixed = ctx.rows.contact_on_fixed(lam_w, lam_t_w)
             else:  # a contact pair re-paired between the levels: each level through its own rows
                 on_fixed = (1 - af) * ctx.rows.contact_on_fixed(new.lam, new.lam_t, new.t) + af * (
-                    ctx.rows.contact_on_fixed(old.lam, old.lam_t, old.t))  # fmt: skip
+                    ctx.rows.contact_on_fixed(old.lam, old.lam_t, old.t)
+                )
             f_w = (1 - af) * products(ctx, new)[1][D] + af * products(ctx, old)[1][D]
             RD = ctx.M[D] @ A_w + f_w - F_w[D] - on_fixed
             Fd0, Fd1 = damping_force(ctx, old), damping_force(ctx, new)

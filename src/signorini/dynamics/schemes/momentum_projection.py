@@ -102,8 +102,16 @@ def groups(labels: np.ndarray, joined: np.ndarray) -> list[np.ndarray]:
     return [node_group == g for g in range(int(group_of.max()) + 1)]
 
 
-def velocity_correction(M, X: np.ndarray, U0: np.ndarray, U1: np.ndarray, h: np.ndarray, dt: float,
-                        massive: np.ndarray, nodes: list[np.ndarray] | None = None) -> np.ndarray:  # fmt: skip
+def velocity_correction(
+    M,
+    X: np.ndarray,
+    U0: np.ndarray,
+    U1: np.ndarray,
+    h: np.ndarray,
+    dt: float,
+    massive: np.ndarray,
+    nodes: list[np.ndarray] | None = None,
+) -> np.ndarray:
     """dV (N d,): per group of ``nodes`` (bool (N,) each; default one group), the rigid field on its dofs with
     mass (``massive``, bool (N d,)) closest to 0 in M's norm with momenta(x1, M dV) = dt momenta(x_mid, h) over
     the group (module docstring); M (N d, N d) the mass matrix, X (N, d) the reference points, U0, U1 (N d,)

@@ -87,8 +87,10 @@ class Newmark(Scheme):
         """Newmark is unconditionally stable for 2 beta >= gamma >= 1/2 only; below, a step the
         control changes may cross its stability limit (beta = 0.01 blew up at level 88)."""
         if 2.0 * float(self.beta) < float(self.gamma):
-            return (f"it is only conditionally stable with beta = {float(self.beta):g} < gamma / 2 = "
-                    f"{float(self.gamma) / 2:g} (a changing step may cross its stability limit)")  # fmt: skip
+            return (
+                f"it is only conditionally stable with beta = {float(self.beta):g} < gamma / 2 = "
+                f"{float(self.gamma) / 2:g} (a changing step may cross its stability limit)"
+            )
         return super().step_control_refusal()
 
     def local_error(self, ctx, old: State, new: State) -> np.ndarray:

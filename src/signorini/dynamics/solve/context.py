@@ -86,10 +86,14 @@ class _System:
         f, D = ctx.free, ctx.fixed
         if ctx.rows.sliding:  # the Schur complement is of the contact dofs of t = 0: lazy or full columns follow
             if options.get("condensation") == "schur":
-                raise InputError("solver option condensation='schur' cannot follow contact pairs as they slide; "
-                                 "use condensation='lazy' or 'full', or pairing='frozen'")  # fmt: skip
-            options = {**options, "condensation": "lazy" if options.get("condensation", "auto") == "auto" else
-                       options["condensation"]}  # fmt: skip
+                raise InputError(
+                    "solver option condensation='schur' cannot follow contact pairs as they slide; "
+                    "use condensation='lazy' or 'full', or pairing='frozen'"
+                )
+            options = {
+                **options,
+                "condensation": "lazy" if options.get("condensation", "auto") == "auto" else options["condensation"],
+            }
         # only the free block and its coupling to the fixed dofs are formed; on the ranks of
         # a distributed backend, only this rank's block of their rows (no rank holds all of K)
         if ctx.distributed:
@@ -115,9 +119,16 @@ class _System:
             B = ctx.rows.Hf if ctx.rows.components > 1 else ctx.rows.Bf  # with friction: the nodal frames' rows
             free = f if D.size else np.arange(Kff.shape[0])
             self.solver: ContactSolver = make_contact_solver(
-                Kff, B, gap_scale, dim, options, nodes, cg_friendly, ctx.rows.components,
+                Kff,
+                B,
+                gap_scale,
+                dim,
+                options,
+                nodes,
+                cg_friendly,
+                ctx.rows.components,
                 lambda: ctx.disc.space.rigid_body_modes(free),
-            )  # fmt: skip
+            )
         except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
             raise InputError(
                 f"the operator {op} on the free dofs cannot be factorized ({type(exc).__name__}: {exc}): it is "
@@ -149,8 +160,15 @@ class DirichletElimination:
     def __init__(self, free: np.ndarray, fixed: np.ndarray, n: int):
         self.free, self.fixed, self.n = free, fixed, n
 
-    def reduce(self, lift: Callable[[np.ndarray], Any], s: float, rhs: np.ndarray, bound: np.ndarray | None,
-               fixed_values: np.ndarray | None, rows: ContactRows) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
+    def reduce(
+        self,
+        lift: Callable[[np.ndarray], Any],
+        s: float,
+        rhs: np.ndarray,
+        bound: np.ndarray | None,
+        fixed_values: np.ndarray | None,
+        rows: ContactRows,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """(rhs_f - s K_fD x_D, bound - (rows on D) x_D): a solve of K x = rhs with x_D = ``fixed_values``
         (0 when None) on the free dofs; ``lift`` is the system's K_fD x_D, ``rows`` the contact rows."""
         if not self.fixed.size:

@@ -70,8 +70,9 @@ class Elasticity:
         """f(U) on the dofs ``rows`` (the reactions of the Dirichlet dofs); ``S_rows``: S[rows] taken once."""
         return (self.ctx.S[rows] if S_rows is None else S_rows) @ U
 
-    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None,
-                          f1: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    def algorithmic_force(
+        self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None, f1: np.ndarray | None = None
+    ) -> np.ndarray:
         """The energy-momentum force (n,): S (U0 + U1)/2 = (f0 + f1)/2, so that f . (U1 - U0) = Pi(U1) - Pi(U0)
         [force]; ``f0``, ``f1``: f(U0), f(U1) when already computed."""
         if f0 is not None and f1 is not None:
@@ -83,8 +84,9 @@ class Elasticity:
         there, given for the interface's sake)."""
         return 0.5 * self.ctx.S
 
-    def work_error(self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray,
-                   w: float) -> float:  # fmt: skip
+    def work_error(
+        self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray, w: float
+    ) -> float:
         """Delta Pi - dU . (w f1 + (1 - w) f0) [energy]: what a scheme's weighting of the internal force misses of
         the stored energy's change between U0 and U1 = U0 + dU (f0, f1 their forces).  Linear:
         (1/2 - w) dU . S dU = (1/2 - w) dU . (f1 - f0), zero for w = 1/2 (the trapezoid is exact)."""
@@ -197,8 +199,9 @@ class FiniteStrain(Elasticity):
         (:meth:`_rank_groups`)."""
         self.tangents += 1
         groups = self._rank_groups()
-        mats = [tangent_stiffness(self.mesh, law, U, cells, project) for law, cells in groups
-                if cells is None or cells.size]  # fmt: skip
+        mats = [
+            tangent_stiffness(self.mesh, law, U, cells, project) for law, cells in groups if cells is None or cells.size
+        ]
         if self.S_linear is not None:
             mats.append(self.S_linear)
         n = self.mesh.n_nodes * self.mesh.dim
@@ -220,12 +223,14 @@ class FiniteStrain(Elasticity):
 
             d = self.mesh.dim
             near = cells_near(self.mesh, np.arange(block_of(M.lo, d), block_of(M.hi, d)), 1)
-            self._by_rows = [(law, near if cells is None else np.intersect1d(cells, near))
-                             for law, cells in self.groups]  # fmt: skip
+            self._by_rows = [
+                (law, near if cells is None else np.intersect1d(cells, near)) for law, cells in self.groups
+            ]
         return self._by_rows
 
-    def algorithmic_force(self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None,
-                          f1: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    def algorithmic_force(
+        self, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray | None = None, f1: np.ndarray | None = None
+    ) -> np.ndarray:
         """The energy-momentum force (n,): Gonzalez's discrete gradient on the hyperelastic cells,
         S (U0 + U1)/2 on the linear ones, so that f . (U1 - U0) = Pi(U1) - Pi(U0) [force] (``f0``, ``f1``
         unused: the discrete gradient is not their mean)."""
@@ -248,8 +253,9 @@ class FiniteStrain(Elasticity):
     def force_rows(self, U: np.ndarray, rows: np.ndarray, S_rows: Any = None) -> np.ndarray:
         return self.force(U)[rows]
 
-    def work_error(self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray,
-                   w: float) -> float:  # fmt: skip
+    def work_error(
+        self, dU: np.ndarray, U0: np.ndarray, U1: np.ndarray, f0: np.ndarray, f1: np.ndarray, w: float
+    ) -> float:
         """Delta Pi - dU . (w f1 + (1 - w) f0) from the stored energies (third order in dU for w = 1/2)."""
         return self.energy(U1, f1) - self.energy(U0, f0) - float(dU @ (w * f1 + (1 - w) * f0))
 

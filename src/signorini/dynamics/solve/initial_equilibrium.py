@@ -106,8 +106,11 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
     held, labels, nb = held_nodes(ctx, U0)
     held_dofs = np.repeat(held, d)
     held_bodies = np.unique(labels[held])
-    report: dict[str, Any] = {"solved": True, "held_bodies": held_bodies.tolist(),
-                              "free_bodies": np.setdiff1d(np.arange(nb), held_bodies).tolist()}  # fmt: skip
+    report: dict[str, Any] = {
+        "solved": True,
+        "held_bodies": held_bodies.tolist(),
+        "free_bodies": np.setdiff1d(np.arange(nb), held_bodies).tolist(),
+    }
     lam = np.zeros(ctx.disc.contact.size)
     if not held.any():
         report.update(solved=False, reason="no body is held by a support or rests in contact")
@@ -137,8 +140,16 @@ def static_equilibrium(ctx: Context, U0: np.ndarray, F: np.ndarray) -> tuple[np.
     )
 
 
-def _proximal(ctx: Context, op: Any, U: np.ndarray, F: np.ndarray, f: np.ndarray, held_dofs: np.ndarray,
-              fixed: np.ndarray | None, scale: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:  # fmt: skip
+def _proximal(
+    ctx: Context,
+    op: Any,
+    U: np.ndarray,
+    F: np.ndarray,
+    f: np.ndarray,
+    held_dofs: np.ndarray,
+    fixed: np.ndarray | None,
+    scale: float,
+) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The proximal iterations of the module docstring from U (f = S U): (U, lambda, iterations, the force
     |delta M dU| left, the load scale), stopped at :data:`TOLERANCE`, at a motion that runs away, or after
     :data:`MAX_ITERATIONS`."""

@@ -88,9 +88,18 @@ EXACT_RATE = 0.1
 KEPT_CONTRACTION = 0.5
 
 
-def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
-                  lam: np.ndarray, lam_t: np.ndarray | None, inertia: np.ndarray | None = None,
-                  contact_force: Callable | None = None) -> tuple[float, float, float]:  # fmt: skip
+def residual_norm(
+    ctx: Context,
+    op: Operator,
+    X: np.ndarray,
+    rest: np.ndarray,
+    gU: np.ndarray,
+    U: np.ndarray,
+    lam: np.ndarray,
+    lam_t: np.ndarray | None,
+    inertia: np.ndarray | None = None,
+    contact_force: Callable | None = None,
+) -> tuple[float, float, float]:
     """(|r|_inf, scale, floor) of the step's force residual on the free dofs [force], in increments:
 
         r = c_M M X + c_S g(U) - rest - B^T lambda - T^T lambda_t,   X = U - U_base,   rest = rhs - c_M M U_base,
@@ -111,18 +120,34 @@ def residual_norm(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, g
     return float(np.max(np.abs(r[f]), initial=0.0)), scale, floor
 
 
-def _residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
-              lam: np.ndarray, lam_t: np.ndarray | None,
-              contact_force: Callable | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+def _residual(
+    ctx: Context,
+    op: Operator,
+    X: np.ndarray,
+    rest: np.ndarray,
+    gU: np.ndarray,
+    U: np.ndarray,
+    lam: np.ndarray,
+    lam_t: np.ndarray | None,
+    contact_force: Callable | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(r, c_M M X, the contact force), r (n,) the residual of :func:`residual_norm` on every dof [force]."""
     MdU = _mass_part(ctx, op, X)
     contact = ctx.rows.contact_force(lam, lam_t) if contact_force is None else contact_force(U, lam, lam_t)
     return MdU + op.stiffness * gU - rest - contact, MdU, contact
 
 
-def _force_residual(ctx: Context, op: Operator, X: np.ndarray, rest: np.ndarray, gU: np.ndarray, U: np.ndarray,
-                    lam: np.ndarray, lam_t: np.ndarray | None,
-                    contact_force: Callable | None) -> np.ndarray:  # fmt: skip
+def _force_residual(
+    ctx: Context,
+    op: Operator,
+    X: np.ndarray,
+    rest: np.ndarray,
+    gU: np.ndarray,
+    U: np.ndarray,
+    lam: np.ndarray,
+    lam_t: np.ndarray | None,
+    contact_force: Callable | None,
+) -> np.ndarray:
     """r (n,) of :func:`residual_norm` at the solution, 0 on the Dirichlet dofs (their reactions balance them)."""
     r = _residual(ctx, op, X, rest, gU, U, lam, lam_t, contact_force)[0]
     r[ctx.fixed] = 0.0
@@ -174,8 +199,17 @@ class _Potential:
     the mass part from the products M X and M d (exact in the increment), W the stored energy (``energy``).  Made
     only for a line search: W is evaluated there, not at every iteration."""
 
-    def __init__(self, ctx: Context, op: Operator, energy: Callable, base: np.ndarray, X: np.ndarray,
-                 d: np.ndarray, rest: np.ndarray, gU: np.ndarray):  # fmt: skip
+    def __init__(
+        self,
+        ctx: Context,
+        op: Operator,
+        energy: Callable,
+        base: np.ndarray,
+        X: np.ndarray,
+        d: np.ndarray,
+        rest: np.ndarray,
+        gU: np.ndarray,
+    ):
         self.ctx, self.op, self.rest = ctx, op, rest
         self.energy, self.base, self.X, self.d, self.c = energy, base, X, d, op.stiffness
         Md = _mass_part(ctx, op, d)
@@ -307,8 +341,13 @@ def newton_solve(
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
                 continue
             # |r| does not fall (at the first iterate: below |r| there, without contact force): a line search
-            if n_new > allowed and not n_new < (norm if lam is not None else agree(residual_norm(
-                    ctx, op, X, rest, gU, U, np.zeros(ctx.rows.B.shape[0]), None, inertia, through)[0])):  # fmt: skip
+            if n_new > allowed and not n_new < (
+                norm
+                if lam is not None
+                else agree(
+                    residual_norm(ctx, op, X, rest, gU, U, np.zeros(ctx.rows.B.shape[0]), None, inertia, through)[0]
+                )
+            ):
                 if feasible and factor.owned and not agree(factor.convex_along(d)):
                     # a tangent with a negative curvature along d (an indefinite cell): corrected at U, and the
                     # direction taken again
@@ -366,8 +405,10 @@ def _remedy(ctx: Context, rate: float) -> str:
     if np.isfinite(rate) and rate > STALLED:
         why = "the residual stalled (not a slow convergence: more iterations will not help)"
         if free_massless and free_massless > n_free // 2:
-            return (f"{why}; the mass {ctx.disc.mass_name!r} leaves {free_massless} of {n_free} free dofs without "
-                    "inertia: use mass 'lumped' or 'standard', or refine the mesh under the contact skin")  # fmt: skip
+            return (
+                f"{why}; the mass {ctx.disc.mass_name!r} leaves {free_massless} of {n_free} free dofs without "
+                "inertia: use mass 'lumped' or 'standard', or refine the mesh under the contact skin"
+            )
         return f"{why}; raise newton_tol to the residual's level, or reduce the step"
     return "the residual was still falling: raise newton_max, or reduce the step"
 
@@ -416,8 +457,7 @@ class _Factor:
     #: shifts tau of the corrected tangent's diagonal shift tau diag(S) (S the reference stiffness)
     SHIFTS = (1e-3, 1e-1, 1e1)
 
-    def __init__(self, ctx: Context, op: Operator, tangent: Callable, bound, elastic,
-                 jacobian: Callable | None = None):  # fmt: skip
+    def __init__(self, ctx: Context, op: Operator, tangent: Callable, bound, elastic, jacobian: Callable | None = None):
         self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
         self.jacobian = jacobian
         #: whether a fresh tangent contracted |r| by less than EXACT_RATE: the directions of the rest of the step
@@ -429,8 +469,9 @@ class _Factor:
         self.shift = 0
         self._plain: tuple[np.ndarray, sp.csr_matrix | RowBlock] | None = None  # (U, the plain tangent at U)
 
-    def renew(self, U: np.ndarray, lam: np.ndarray | None, use_reference: bool = False,
-              corrected: bool = False) -> None:  # fmt: skip
+    def renew(
+        self, U: np.ndarray, lam: np.ndarray | None, use_reference: bool = False, corrected: bool = False
+    ) -> None:
         """A new operator at U (the reference one when ``use_reference``); ``corrected``: the corrected tangent
         (else the plain one: a correction holds for the operator it was made for, so that Newton converges
         quadratically again where the tangent is definite)."""
@@ -449,8 +490,9 @@ class _Factor:
         self.current, self.owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
         self.elastic.factorizations += 1
 
-    def assembled(self, U: np.ndarray, lam: np.ndarray | None, project: bool = False,
-                  exact: bool = False) -> sp.csr_matrix | RowBlock:  # fmt: skip
+    def assembled(
+        self, U: np.ndarray, lam: np.ndarray | None, project: bool = False, exact: bool = False
+    ) -> sp.csr_matrix | RowBlock:
         """G(U) (``project``: each cell's part PSD; ``exact``: the exact Jacobian ``jacobian``) plus the rows' own
         turning under the multipliers ``lam`` of the iterate, Kc / c_S; the plain one is kept for its iterate (the
         KKT direction asks for it again after a correction at the same U)."""
@@ -498,8 +540,16 @@ class _Factor:
         curvature = float(d @ _mass_part(self.ctx, self.op, d)) + self.op.stiffness * float(d @ (G @ d))
         return curvature > 0.0
 
-    def direction(self, k: int, minus_r: np.ndarray, slack: np.ndarray, fixed_d: np.ndarray | None,
-                  law: ContactLaw, U: np.ndarray, lam: np.ndarray | None):  # fmt: skip
+    def direction(
+        self,
+        k: int,
+        minus_r: np.ndarray,
+        slack: np.ndarray,
+        fixed_d: np.ndarray | None,
+        law: ContactLaw,
+        U: np.ndarray,
+        lam: np.ndarray | None,
+    ):
         """(d, lambda, info, renewed): the Newton direction d (n,), the whole multiplier and the solve's info, the
         operator corrected (renewed at U) until it factorizes."""
         renewed = False
@@ -525,9 +575,16 @@ class _Factor:
                     d, lam_new = kkt
             return d, lam_new, info, renewed
 
-    def exact(self, U: np.ndarray, lam: np.ndarray | None, lam_new: np.ndarray, minus_r: np.ndarray,
-              slack: np.ndarray, fixed_d: np.ndarray | None,
-              law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+    def exact(
+        self,
+        U: np.ndarray,
+        lam: np.ndarray | None,
+        lam_new: np.ndarray,
+        minus_r: np.ndarray,
+        slack: np.ndarray,
+        fixed_d: np.ndarray | None,
+        law: ContactLaw,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """The Newton direction of the exact Jacobian J(U) (``jacobian``, not symmetric) with the active set of the
         symmetric tangent's direction held (the empty one too), or else the last iterate's, (d, lambda); None when
         each answer leaves the contact conditions (a multiplier that pulls, a free row through its bound).
@@ -551,8 +608,16 @@ class _Factor:
                 return out
         return None
 
-    def kkt(self, U: np.ndarray, lam: np.ndarray, lam_new: np.ndarray, minus_r: np.ndarray, slack: np.ndarray,
-            fixed_d: np.ndarray | None, law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+    def kkt(
+        self,
+        U: np.ndarray,
+        lam: np.ndarray,
+        lam_new: np.ndarray,
+        minus_r: np.ndarray,
+        slack: np.ndarray,
+        fixed_d: np.ndarray | None,
+        law: ContactLaw,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """The Newton direction of the plain (indefinite) tangent with the active set held, (d, lambda), when the
         corrected direction's active set is the last iterate's and not empty; None when it is not, or the answer
         leaves the contact conditions (a multiplier that pulls, a free row through its bound).
@@ -583,9 +648,16 @@ class _Factor:
             H = H + self.op.viscous.coefficient * self.op.viscous.matrix
         return sp.csr_matrix(H)
 
-    def _held(self, H: sp.csr_matrix, active: np.ndarray, lam_new: np.ndarray, minus_r: np.ndarray,
-              slack: np.ndarray, fixed_d: np.ndarray | None,
-              law: ContactLaw) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+    def _held(
+        self,
+        H: sp.csr_matrix,
+        active: np.ndarray,
+        lam_new: np.ndarray,
+        minus_r: np.ndarray,
+        slack: np.ndarray,
+        fixed_d: np.ndarray | None,
+        law: ContactLaw,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """(d, lambda) of the system of :meth:`kkt` with the step's matrix H (:meth:`_hessian`) and the rows
         ``active`` held at their bound (one sparse LU); None when it is singular, or its multipliers pull, or a free
         row goes through its bound."""
@@ -625,9 +697,14 @@ def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) ->
     """Whether a step's direction may be taken from the plain tangent with the active set held (:meth:`_Factor.kkt`):
     frictionless exact contact on one process (a distributed or frictional system is not assembled whole), after a
     contact solve that reached complementarity (its active set is the one to hold); ``rows``: with contact rows."""
-    return (ctx.rows.components == 1 and law.compliance is None and info.lam_t is None
-            and not isinstance(ctx.M, RowBlock) and (ctx.rows.B.shape[0] > 0 or not rows)
-            and bool(info.residual <= MAX_CONTACT_RESIDUAL))  # fmt: skip
+    return (
+        ctx.rows.components == 1
+        and law.compliance is None
+        and info.lam_t is None
+        and not isinstance(ctx.M, RowBlock)
+        and (ctx.rows.B.shape[0] > 0 or not rows)
+        and bool(info.residual <= MAX_CONTACT_RESIDUAL)
+    )
 
 
 def _plus(G: sp.csr_matrix | RowBlock, K: sp.spmatrix) -> sp.csr_matrix | RowBlock:

@@ -191,9 +191,14 @@ def estimate_compare(runs: list[RunEstimate], returned: list[bool], workers: int
     largest = sorted((r.total_bytes for r in runs), reverse=True)[:w]
     held = sum(r.fields_bytes for r, back in zip(runs, returned, strict=True) if back)
     return CompareEstimate(
-        len(runs), w, max(r.steps for r in runs), max(r.dofs for r in runs), float(sum(largest)), float(held),
+        len(runs),
+        w,
+        max(r.steps for r in runs),
+        max(r.dofs for r in runs),
+        float(sum(largest)),
+        float(held),
         float(sum(r.fields_bytes for r in runs)),
-    )  # fmt: skip
+    )
 
 
 def check_run_size(

@@ -121,8 +121,15 @@ class Checkpointer:
             ckpt.flatten(part.key, data, arrays, attrs)
         level = self._level or {}
         attrs.update(level.get("grid") or self.grid_attrs())
-        attrs.update(level=n, t=float(s.state.t), identity=self.identity, counters=level.get("counters") or s.counters,
-                     meta=self.meta, scheme=run.scheme.name, created=time.strftime("%Y-%m-%dT%H:%M:%S"))  # fmt: skip
+        attrs.update(
+            level=n,
+            t=float(s.state.t),
+            identity=self.identity,
+            counters=level.get("counters") or s.counters,
+            meta=self.meta,
+            scheme=run.scheme.name,
+            created=time.strftime("%Y-%m-%dT%H:%M:%S"),
+        )
         return {"arrays": arrays, "attrs": attrs, "series": series}
 
     def save(self, path: str | Path | None = None) -> Path | None:
@@ -147,8 +154,15 @@ class Checkpointer:
             self.log.level = s.n
             if self.policy.on_checkpoint is not None:
                 a = contents["attrs"]
-                self.policy.on_checkpoint({"level": a["level"], "t": a["t"], "counters": a["counters"],
-                                           "scheme": s.run.scheme.label, "mass": s.run.ctx.disc.mass_name})  # fmt: skip
+                self.policy.on_checkpoint(
+                    {
+                        "level": a["level"],
+                        "t": a["t"],
+                        "counters": a["counters"],
+                        "scheme": s.run.scheme.label,
+                        "mass": s.run.ctx.disc.mass_name,
+                    }
+                )
         else:
             write()
         return target
@@ -170,8 +184,13 @@ class Checkpointer:
         ckpt.compare_identity(attrs["identity"], self.identity, f"checkpoint {where!r}")
         n, t = int(attrs["level"]), float(attrs["t"])
         info = attrs.get("series", {})
-        series = ckpt.read_series(Path(where), info.get("layout", []), info.get("records", -1), info.get("digest", ""),
-                                  f"checkpoint {where!r}")  # fmt: skip
+        series = ckpt.read_series(
+            Path(where),
+            info.get("layout", []),
+            info.get("records", -1),
+            info.get("digest", ""),
+            f"checkpoint {where!r}",
+        )
         if any(len(v) != n + 1 for v in series.values()):
             raise InputError(f"checkpoint {where!r}: its series hold {info.get('records')} levels, not {n + 1}")
         times = series.get("history/times")
@@ -185,8 +204,12 @@ class Checkpointer:
                 key = part.series_key
                 data["series"] = {k[len(key) + 1 :]: v for k, v in series.items() if k.startswith(f"{key}/")}
             part.resume(data)
-        return {"level": n, "t": t, "counters": {k: int(v) for k, v in attrs["counters"].items() if k != "steps"},
-                "created": attrs.get("created", "")}  # fmt: skip
+        return {
+            "level": n,
+            "t": t,
+            "counters": {k: int(v) for k, v in attrs["counters"].items() if k != "steps"},
+            "created": attrs.get("created", ""),
+        }
 
     def summary(self, meta: dict[str, Any]) -> None:
         """``summary.json`` ``checkpoints`` and the warning of checkpoints not written."""
@@ -195,5 +218,6 @@ class Checkpointer:
         meta["checkpoints"] = self.log.summary()
         if self.log.error:
             last = f"the last written is of level {self.log.level}" if self.log.level >= 0 else "none was written"
-            meta["warnings"].append(f"{self.log.failed} checkpoint(s) could not be written (the last: "
-                                    f"{self.log.error}); {last}")  # fmt: skip
+            meta["warnings"].append(
+                f"{self.log.failed} checkpoint(s) could not be written (the last: {self.log.error}); {last}"
+            )

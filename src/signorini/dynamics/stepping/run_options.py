@@ -47,8 +47,9 @@ class CheckpointPolicy:
 
     def __post_init__(self) -> None:
         if not isinstance(self.path, (str, Path)) and not callable(self.path):
-            raise InputError(f"the checkpoint's path must be a path or a function returning one, got "
-                             f"{type(self.path).__name__}")  # fmt: skip
+            raise InputError(
+                f"the checkpoint's path must be a path or a function returning one, got {type(self.path).__name__}"
+            )
         _check_every(self.every)
         if self.meta is None:
             object.__setattr__(self, "meta", {})
@@ -117,8 +118,9 @@ class RunOptions:
         if isinstance(c, (str, Path)):  # a path: written when the run ends (CheckpointPolicy(path, every=K) for more)
             object.__setattr__(self, "checkpoint", CheckpointPolicy(c))
         elif c is not None and not isinstance(c, CheckpointPolicy):
-            raise InputError(f"the run option 'checkpoint' must be a CheckpointPolicy or a path, got "
-                             f"{type(c).__name__}")  # fmt: skip
+            raise InputError(
+                f"the run option 'checkpoint' must be a CheckpointPolicy or a path, got {type(c).__name__}"
+            )
 
     @classmethod
     def of(cls, options: RunOptions | Mapping[str, Any] | None) -> RunOptions:

@@ -49,9 +49,11 @@ def number_of_steps(dt: float, T: float) -> int:
     for name, v in (("dt", dt), ("T", T)):
         if isinstance(v, np.floating) and np.finfo(v).bits < 64:  # its decimal form is not its value
             short = np.format_float_positional(v)
-            raise InputError(f"{name} must be a double (a Python float or numpy.float64), got {type(v).__name__} "
-                             f"{short}, which is {float(v)!r} in double; pass the intended value, "
-                             f"e.g. {short}")  # fmt: skip
+            raise InputError(
+                f"{name} must be a double (a Python float or numpy.float64), got {type(v).__name__} "
+                f"{short}, which is {float(v)!r} in double; pass the intended value, "
+                f"e.g. {short}"
+            )
     dt = check_positive("dt", dt)
     T = check_positive("T", T)
     if not DT_RANGE[0] <= dt <= DT_RANGE[1]:
@@ -328,8 +330,10 @@ def set_up(
     if mesh.mixed and opts.get("backend") in BACKENDS and not backend_traits(opts["backend"]).mixed_meshes:
         types = ", ".join(sorted({b.cell_type for b in mesh.blocks}))
         able = ", ".join(e.name for e in BACKENDS if e.traits.mixed_meshes)
-        raise InputError(f"backend {opts['backend']!r} does not run meshes of several cell types ({types}) yet; use "
-                         f"one that does ({able})")  # fmt: skip
+        raise InputError(
+            f"backend {opts['backend']!r} does not run meshes of several cell types ({types}) yet; use "
+            f"one that does ({able})"
+        )
     if comm is not None and not isinstance(problem, Discretization):  # rows of nearby nodes per rank
         order = choose_order(opts.get("node_order", "auto"), problem.mesh)
         if order != "mesh" and problem.mesh.grid is not None and MASS_VARIANTS.resolve(mass) in GRID_MASSES:
@@ -396,8 +400,7 @@ def finish_history(
     disc = run.ctx.disc
     last = getattr(recorder, "last", None)
     H.meta["regions"] = region_summaries(disc.space.mesh, disc.problem.material, disc.problem.materials)
-    H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.material.rho,
-                                      None if last is None else last.V)  # fmt: skip
+    H.meta["bodies"] = body_summaries(disc.space.mesh, disc.M, disc.material.rho, None if last is None else last.V)
     bodies = H.meta["bodies"]
     if len(bodies) > 1:  # what the variant does to each body (the whole's figures can hide it)
         for k, b in enumerate(bodies):
@@ -420,8 +423,10 @@ def _body_force_convention(disc) -> str:
     if not disc.problem.follow_mass:
         return "consistent int f phi (whatever the mass)"
     if disc.material is not None and np.ndim(disc.material.rho):
-        return ("regions of different densities: f is a force density applied as it is (T^T int f phi for the "
-                "extrapolated variants), not M_used f / rho; give an acceleration as [loads] gravity")  # fmt: skip
+        return (
+            "regions of different densities: f is a force density applied as it is (T^T int f phi for the "
+            "extrapolated variants), not M_used f / rho; give an acceleration as [loads] gravity"
+        )
     return "M_used f / rho (follows the mass variant)"
 
 

@@ -91,16 +91,22 @@ def run_options(options: RunOptions | Mapping[str, Any] | None, keywords: Mappin
     :data:`POLICY_KEYWORDS`); an InputError for both, or for a name that is neither."""
     if options is not None:
         if keywords:
-            raise InputError(f"simulate takes its run options either as options=... or as keywords, not both "
-                             f"(got options and {', '.join(sorted(keywords))})")  # fmt: skip
+            raise InputError(
+                f"simulate takes its run options either as options=... or as keywords, not both "
+                f"(got options and {', '.join(sorted(keywords))})"
+            )
         return RunOptions.of(options)
     fields = [f.name for f in dataclasses.fields(RunOptions) if f.name != "checkpoint"]
     unknown = sorted(set(keywords) - set(fields) - set(POLICY_KEYWORDS))
     if unknown:
         allowed = ", ".join([*fields, *POLICY_KEYWORDS, "options", "resume", "handle_signals"])
         raise InputError(f"simulate: unknown keyword(s) {', '.join(map(repr, unknown))}; allowed: {allowed}")
-    policy = CheckpointPolicy.of(keywords.get("checkpoint"), keywords.get("checkpoint_every", 0),
-                                 keywords.get("checkpoint_meta"), keywords.get("on_checkpoint"))  # fmt: skip
+    policy = CheckpointPolicy.of(
+        keywords.get("checkpoint"),
+        keywords.get("checkpoint_every", 0),
+        keywords.get("checkpoint_meta"),
+        keywords.get("on_checkpoint"),
+    )
     return RunOptions(**{k: v for k, v in keywords.items() if k in fields}, checkpoint=policy)
 
 

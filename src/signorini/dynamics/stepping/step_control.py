@@ -82,7 +82,7 @@ TIME_CONTROLS.register(
             float,
             0.0,
             1.0,
-        ),  # fmt: skip
+        ),
         Parameter("dt_min", 0.0, "smallest step [s] (0: dt / 2^10)", float, 0.0),
         Parameter("grow_after", 4, "accepted calm steps before the step grows by 2", int, 1, 10**6),
     ),
@@ -231,8 +231,9 @@ class EnergyControl:
         bouncing Hertz ball, 110 of its 142 rejections."""
         return self.grow_after * 2 ** min(self.backoff, MAX_BACKOFF)
 
-    def calm_step(self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float,
-                  eta: float = 0.0) -> bool:  # fmt: skip
+    def calm_step(
+        self, delta: float, conserving: bool, scale: float, h: float, dt_piece: float, eta: float = 0.0
+    ) -> bool:
         """Whether the step was well inside its allowance (a quarter of it), energy and error alike."""
         excess = max(abs(delta) if conserving else delta, eta)
         return excess <= 0.25 * self.allowed(scale, h, dt_piece)
@@ -258,13 +259,18 @@ class EnergyControl:
             return False
         same = bool(np.array_equal(before != 0, after != 0) and np.any(after != 0))
         a, b = float(np.sum(before)), float(np.sum(after))
-        ok = same and self.persistent and self.prev_sum is not None and self.steady_force(
-            np.array([0.5 * (self.prev_sum + a)]), np.array([0.5 * (a + b)]))  # fmt: skip
+        ok = (
+            same
+            and self.persistent
+            and self.prev_sum is not None
+            and self.steady_force(np.array([0.5 * (self.prev_sum + a)]), np.array([0.5 * (a + b)]))
+        )
         self.prev_sum, self.persistent = a, same
         return ok
 
-    def note_accepted(self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0,
-                      excess: float = 0.0) -> None:  # fmt: skip
+    def note_accepted(
+        self, t0: float, t1: float, h: float, dt_piece: float, verdict: str, n: int = 0, excess: float = 0.0
+    ) -> None:
         """Count the level n (t0 -> t1, step h) just accepted, and the stretch of refined levels it extends."""
         self.accepted += 1
         self.smallest, self.largest = min(self.smallest, h), max(self.largest, h)
@@ -317,21 +323,31 @@ class EnergyControl:
     def unresolved_message(self) -> str:
         """The warning of a run whose steps at dt_min still exceeded their allowance."""
         at = "" if self.first_unresolved_t is None else f", the first at t = {self.first_unresolved_t:.6g}"
-        return (f"the energy control accepted {self.unresolved} step(s) at its smallest step {self.smallest:.3g} s "
-                f"above its tolerance{at}: the impact is not resolved there; give a smaller dt_min "
-                "(or dt)")  # fmt: skip
+        return (
+            f"the energy control accepted {self.unresolved} step(s) at its smallest step {self.smallest:.3g} s "
+            f"above its tolerance{at}: the impact is not resolved there; give a smaller dt_min "
+            "(or dt)"
+        )
 
     def state(self) -> dict[str, Any]:
         """What a checkpoint keeps of the control (a resume continues on the same ladder)."""
-        return {"k": self.k, "calm": self.calm, "accepted": self.accepted, "rejected": self.rejected,
-                "failed_trials": self.failed_trials,
-                "event_refinements": self.event_refinements,
-                "smallest": self.smallest if math.isfinite(self.smallest) else -1.0, "largest": self.largest,
-                "refined": [list(map(float, r)) for r in self.refined],
-                "refined_levels": [list(map(int, r)) for r in self.refined_levels],
-                "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess],
-                "prev_sum": self.prev_sum, "persistent": self.persistent, "backoff": self.backoff,
-                "just_grown": self.just_grown}  # fmt: skip
+        return {
+            "k": self.k,
+            "calm": self.calm,
+            "accepted": self.accepted,
+            "rejected": self.rejected,
+            "failed_trials": self.failed_trials,
+            "event_refinements": self.event_refinements,
+            "smallest": self.smallest if math.isfinite(self.smallest) else -1.0,
+            "largest": self.largest,
+            "refined": [list(map(float, r)) for r in self.refined],
+            "refined_levels": [list(map(int, r)) for r in self.refined_levels],
+            "unresolved_excess": [list(map(float, r)) for r in self.unresolved_excess],
+            "prev_sum": self.prev_sum,
+            "persistent": self.persistent,
+            "backoff": self.backoff,
+            "just_grown": self.just_grown,
+        }
 
     def restore(self, data: dict[str, Any], level: int | None = None, t: float | None = None) -> None:
         """Take back :meth:`state` (types checked: a checkpoint is data from outside), and, given the checkpoint's
@@ -362,8 +378,9 @@ class EnergyControl:
         self.prev_sum, self.persistent = (None if prev is None else float(prev)), persistent
         backoff, grown = data.get("backoff", 0), data.get("just_grown", False)  # (a checkpoint of before: none)
         if isinstance(backoff, bool) or not isinstance(backoff, int) or not 0 <= backoff <= MAX_BACKOFF:
-            raise InputError(f"checkpoint: time control 'backoff' must be an integer in [0, {MAX_BACKOFF}], got "
-                             f"{backoff!r}")  # fmt: skip
+            raise InputError(
+                f"checkpoint: time control 'backoff' must be an integer in [0, {MAX_BACKOFF}], got {backoff!r}"
+            )
         if not isinstance(grown, bool):
             raise InputError(f"checkpoint: time control 'just_grown' must be true or false, got {grown!r}")
         self.backoff, self.just_grown = backoff, grown
@@ -392,8 +409,9 @@ def _rows(data: dict[str, Any], key: str, width: int, kind: type, what: str) -> 
             return False
         return math.isfinite(x)
 
-    if not isinstance(rows, list) or any(not isinstance(r, list) or len(r) != width or not all(map(ok, r))
-                                         for r in rows):  # fmt: skip
+    if not isinstance(rows, list) or any(
+        not isinstance(r, list) or len(r) != width or not all(map(ok, r)) for r in rows
+    ):
         raise InputError(f"checkpoint: time control {key!r} must be a list of {what}")
     return [[kind(x) for x in r] for r in rows]
 
@@ -419,8 +437,9 @@ class AdaptiveSteps:
         self.force_before: np.ndarray | None = None
 
     @classmethod
-    def build(cls, stepper: ControlledStepper, scheme: Any, grid: Any, energy: bool, options: dict[str, Any],
-              mesh: Any = None) -> AdaptiveSteps:  # fmt: skip
+    def build(
+        cls, stepper: ControlledStepper, scheme: Any, grid: Any, energy: bool, options: dict[str, Any], mesh: Any = None
+    ) -> AdaptiveSteps:
         """The control of ``options`` (:func:`control_spec`) for ``scheme`` on ``grid``; an
         InputError for a scheme that refuses it, a run without energy, or a dt_min outside
         [dt / 2^MAX_LEVELS, dt].  A tolerance of 0 (the default) is made from ``mesh``
@@ -438,12 +457,15 @@ class AdaptiveSteps:
         smallest = min(piece[2] for piece in grid.plan)
         ctl.dt_min_used = ctl.dt_min or smallest / 2 ** ctl.k_max(smallest)
         if ctl.dt_min > smallest:
-            raise InputError(f"control 'energy': dt_min = {ctl.dt_min:g} is above the step {smallest:g}; give "
-                             "dt_min <= dt")  # fmt: skip
+            raise InputError(
+                f"control 'energy': dt_min = {ctl.dt_min:g} is above the step {smallest:g}; give dt_min <= dt"
+            )
         if 0 < ctl.dt_min < smallest / 2**MAX_LEVELS:
-            raise InputError(f"control 'energy': dt_min = {ctl.dt_min:g} is below dt / 2^{MAX_LEVELS} = "
-                             f"{smallest / 2**MAX_LEVELS:.4g} (the energy identity is lost to round-off at such "
-                             "steps); give a larger dt_min")  # fmt: skip
+            raise InputError(
+                f"control 'energy': dt_min = {ctl.dt_min:g} is below dt / 2^{MAX_LEVELS} = "
+                f"{smallest / 2**MAX_LEVELS:.4g} (the energy identity is lost to round-off at such "
+                "steps); give a larger dt_min"
+            )
         return cls(stepper, ctl)
 
     def step(self, n: int) -> tuple[Any, str]:
@@ -472,16 +494,22 @@ class AdaptiveSteps:
                 verdict = ctl.judge(delta, run.scheme.conserving, scale, h, dt_piece, eta)
                 if comm.any(verdict == "reject"):
                     verdict = "reject"
-            if verdict == "accept" and s.watch is not None and ctl.k < ctl.k_max(dt_piece) and comm.any(
-                    s.watch.would_stop(new)):  # a terminal event inside the step: located within dt_min  # fmt: skip
+            if (
+                verdict == "accept"
+                and s.watch is not None
+                and ctl.k < ctl.k_max(dt_piece)
+                and comm.any(s.watch.would_stop(new))
+            ):  # a terminal event inside the step: located within dt_min
                 verdict = "reject"
                 ctl.event_refinements += 1
             if verdict == "unresolved" and s.energies.check == "fail":  # energy_check=fail: levels kept
                 s.step_parts.rollback(marked)
                 allowed = ctl.allowed(scale, h, dt_piece)
-                return None, (f"step {n} (t = {s.grid.time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
-                              f"creates or destroys {abs(delta):.3g} of energy (its error estimate: {eta:.3g}), above "
-                              f"the allowance {allowed:.3g} (energy_check=fail); give a smaller dt_min")  # fmt: skip
+                return None, (
+                    f"step {n} (t = {s.grid.time_of(n):.6g}): at the smallest step {h:.3g} s the step still "
+                    f"creates or destroys {abs(delta):.3g} of energy (its error estimate: {eta:.3g}), above "
+                    f"the allowance {allowed:.3g} (energy_check=fail); give a smaller dt_min"
+                )
             if verdict in ("accept", "unresolved"):
                 self.verdict = (verdict, delta, scale, h, dt_piece, eta)
                 s.step_parts.release()

@@ -124,8 +124,14 @@ class Stepper:
         stepper._build(problem, scheme, grid, options, Path(checkpoint))
         return stepper
 
-    def _build(self, problem: Problem | Discretization, scheme: str | type[Scheme] | Scheme, grid: Any,
-               options: RunOptions | Mapping[str, Any] | None, resume: Path | None) -> None:  # fmt: skip
+    def _build(
+        self,
+        problem: Problem | Discretization,
+        scheme: str | type[Scheme] | Scheme,
+        grid: Any,
+        options: RunOptions | Mapping[str, Any] | None,
+        resume: Path | None,
+    ) -> None:
         dt, T = check_problem_and_grid(problem, grid, resume)
         o = RunOptions.of(options)
         saved = ckpt.read(resume) if resume is not None else None  # a bad file: refused before the set-up
@@ -138,8 +144,10 @@ class Stepper:
             a = saved["attrs"]
             self.grid = TimeGrid.build(dt, T, int(a["level"]), float(a["t"]), a.get("segment"))
             if int(a["level"]) > self.grid.n_steps:
-                raise InputError(f"checkpoint {str(resume)!r} is at t = {a['t']:.10g} (level {a['level']}), after "
-                                 f"this run's T = {self.grid.T:.10g}; give a later T")  # fmt: skip
+                raise InputError(
+                    f"checkpoint {str(resume)!r} is at t = {a['t']:.10g} (level {a['level']}), after "
+                    f"this run's T = {self.grid.T:.10g}; give a later T"
+                )
         sch = make_scheme(scheme, o.scheme_options)
         self.adaptive: AdaptiveSteps | None = None
         if control_name == "energy":
@@ -147,8 +155,10 @@ class Stepper:
             self.adaptive = AdaptiveSteps.build(self, sch, self.grid, o.energy, control_options, mesh)
         steps = {s.dt for s in self.grid.segments} | ({float(saved["attrs"]["dt"])} if saved is not None else set())
         if len(steps) > 1 and not getattr(sch, "variable_step", True):
-            raise InputError(f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
-                             "dt (and resume with the run's own)")  # fmt: skip
+            raise InputError(
+                f"scheme {sch.name} cannot change its time step ({sch.variable_step_refusal}); give one "
+                "dt (and resume with the run's own)"
+            )
         opts = run_options(o.snapshot_every, o.backend, o.memory_budget, o.solver_options)
         events = events_list(o.events)
         if events:
@@ -162,8 +172,9 @@ class Stepper:
         self.run, self.starter = set_up(problem, o.mass, sch, self.grid, opts, dt_initial=dt0)
         self.setup_seconds = time.perf_counter() - t0
         run = self.run
-        self.recorder, self.energies, self.snaps, obs = make_observers(o.snapshot_every, o.energy, o.progress,
-                                                                       o.observers)  # fmt: skip
+        self.recorder, self.energies, self.snaps, obs = make_observers(
+            o.snapshot_every, o.energy, o.progress, o.observers
+        )
         if self.energies is not None:
             self.energies.check = run.ctx.solver_options.get("energy_check", "warn")
         self.untagged = UntaggedContact(run.ctx.solver_options.get("untagged_contact", "warn"))
@@ -207,8 +218,12 @@ class Stepper:
                     where = self.checkpointer.restore(saved, str(resume))
                 self.n = self._first = where["level"]
                 self._counters_before = where["counters"]
-                self.resumed_from = {"level": where["level"], "t": where["t"], "checkpoint": str(resume),
-                                     "created": where["created"]}  # fmt: skip
+                self.resumed_from = {
+                    "level": where["level"],
+                    "t": where["t"],
+                    "checkpoint": str(resume),
+                    "created": where["created"],
+                }
                 self._base_counters = run.ctx.counters()  # after the operators the restore factorized
         except BaseException:
             self.close_observers()
@@ -274,8 +289,10 @@ class Stepper:
         if not new.is_finite():
             return None, f"step {n} (t = {self.grid.time_of(n):.6g}): non-finite value in the state"
         if new.info is not None and not new.info.residual <= MAX_CONTACT_RESIDUAL:
-            return None, (f"step {n} (t = {self.grid.time_of(n):.6g}): the contact solve did not reach complementarity "
-                          f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})")  # fmt: skip
+            return None, (
+                f"step {n} (t = {self.grid.time_of(n):.6g}): the contact solve did not reach complementarity "
+                f"(residual {new.info.residual:.3g} > {MAX_CONTACT_RESIDUAL:g})"
+            )
         return new, ""
 
     def _step(self) -> str:
@@ -388,8 +405,17 @@ class Stepper:
 
     def _assemble(self) -> History:
         run = self.run
-        H = finish_history(run, self.n, self.recorder, self.energies, self.snaps, self.setup_seconds,
-                           self._loop_seconds, counters=self.counters, steps=self.n - self._first)  # fmt: skip
+        H = finish_history(
+            run,
+            self.n,
+            self.recorder,
+            self.energies,
+            self.snaps,
+            self.setup_seconds,
+            self._loop_seconds,
+            counters=self.counters,
+            steps=self.n - self._first,
+        )
         if self.watch is not None:
             H.meta["events"] = self.watch.met
             H.meta["stop_at"] = [e.name for e in getattr(self.watch, "events", []) if e.terminal]
@@ -413,8 +439,13 @@ class Stepper:
             self.adaptive.summary(H.meta, self.energies.energy_scale, factorizations, failed)
         else:
             steps = [seg.dt for seg in self.grid.segments]
-            H.meta["time_control"] = {"control": "fixed", "dt_smallest_used": min(steps), "dt_largest_used": max(steps),
-                                      "steps_accepted": self.n - self._first, "steps_rejected": 0}  # fmt: skip
+            H.meta["time_control"] = {
+                "control": "fixed",
+                "dt_smallest_used": min(steps),
+                "dt_largest_used": max(steps),
+                "steps_accepted": self.n - self._first,
+                "steps_rejected": 0,
+            }
         steps = schedule_of(H.t)
         if len(steps) > 1:
             H.meta["dt_schedule"] = steps
@@ -427,11 +458,13 @@ def check_problem_and_grid(problem: Any, grid: Any, resume: Any = None) -> tuple
     """The (dt, T) of ``grid``, the problem's type and the step checked first (a one-line InputError before
     anything is built)."""
     if not isinstance(problem, (Problem, Discretization)):
-        raise InputError(f"simulate's problem must be a signorini Problem or Discretization, got "
-                         f"{type(problem).__name__}")  # fmt: skip
+        raise InputError(
+            f"simulate's problem must be a signorini Problem or Discretization, got {type(problem).__name__}"
+        )
     if not isinstance(grid, (tuple, list)) or len(grid) != 2:
-        raise InputError(f"the stepper's grid must be a pair (dt, T): Stepper(problem, scheme, (dt, T), options), "
-                         f"got {grid!r}")  # fmt: skip
+        raise InputError(
+            f"the stepper's grid must be a pair (dt, T): Stepper(problem, scheme, (dt, T), options), got {grid!r}"
+        )
     dt, T = grid
     if not isinstance(dt, (list, tuple)) and resume is None:
         number_of_steps(dt, T)
@@ -451,13 +484,16 @@ def adaptive_grid(dt: Any, T: float, attrs: dict[str, Any], where: str) -> TimeG
     if not (np.isfinite([t, start, step]).all() and step > 0 and 0 <= first <= level and 0.0 <= start <= t):
         raise InputError(f"checkpoint {where!r}: its segment {attrs['segment']!r} does not hold level {level}")
     if t >= grid.T * (1 - 1e-12):
-        raise InputError(f"checkpoint {where!r} is at t = {t:.10g}, at or after this run's T = {grid.T:.10g}; give a "
-                         "later T")  # fmt: skip
+        raise InputError(
+            f"checkpoint {where!r} is at t = {t:.10g}, at or after this run's T = {grid.T:.10g}; give a later T"
+        )
     _, _, dt_piece = grid.piece(t)
     k = np.log2(dt_piece / step)
     if not (0 <= round(k) <= 64 and abs(k - round(k)) < 1e-9):
-        raise InputError(f"checkpoint {where!r}: its step {step:g} is not dt / 2^k of this run's dt {dt_piece:g}; "
-                         "resume with the run's own dt")  # fmt: skip
+        raise InputError(
+            f"checkpoint {where!r}: its step {step:g} is not dt / 2^k of this run's dt {dt_piece:g}; "
+            "resume with the run's own dt"
+        )
     grid.continue_with(level, t, step, start=start, first=first)
     return grid
 

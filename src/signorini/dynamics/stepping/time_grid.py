@@ -67,12 +67,13 @@ def parse_schedule(dt: Any, where: str = "dt") -> list[tuple[float, float]]:
             from .setup import DT_RANGE
 
             if not DT_RANGE[0] <= out[-1][1] <= DT_RANGE[1]:  # as one dt: dt^2 a normal double
-                raise InputError(f"'{where}[{k}].dt' must be between {DT_RANGE[0]:g} and {DT_RANGE[1]:g} (dt^2 must be "
-                                 f"a normal double), got {out[-1][1]:g}")  # fmt: skip
+                raise InputError(
+                    f"'{where}[{k}].dt' must be between {DT_RANGE[0]:g} and {DT_RANGE[1]:g} (dt^2 must be "
+                    f"a normal double), got {out[-1][1]:g}"
+                )
         for k in range(1, len(out)):
             if out[k][0] <= out[k - 1][0]:
-                raise InputError(f"'{where}': the until values must increase, got {out[k - 1][0]:g} then "
-                                 f"{out[k][0]:g}")  # fmt: skip
+                raise InputError(f"'{where}': the until values must increase, got {out[k - 1][0]:g} then {out[k][0]:g}")
         return out
     raise InputError(f"'{where}' must be a number or a schedule [{{until = ..., dt = ...}}, ...], got {dt!r}")
 
@@ -82,8 +83,10 @@ def _steps(length: float, dt: float, where: str) -> int:
     n = round(ratio)
     if n < 1 or abs(n * dt - length) > GRID_RTOL * max(length, dt):
         lo, hi = max(math.floor(ratio), 1), max(math.ceil(ratio), 1)
-        raise InputError(f"{where}: a length of {length:.10g} is not an integer multiple of dt = {dt:g} (ratio "
-                         f"{ratio:.6g}); nearest valid dt: {length / hi:.10g} or {length / lo:.10g}")  # fmt: skip
+        raise InputError(
+            f"{where}: a length of {length:.10g} is not an integer multiple of dt = {dt:g} (ratio "
+            f"{ratio:.6g}); nearest valid dt: {length / hi:.10g} or {length / lo:.10g}"
+        )
     return int(n)
 
 
@@ -140,8 +143,14 @@ class TimeGrid:
         return len({s.dt for s in self.segments}) > 1
 
     @classmethod
-    def build(cls, dt: Any, T: float | None, start_level: int = 0, start_time: float = 0.0,
-              segment: Sequence[float] | None = None) -> TimeGrid:  # fmt: skip
+    def build(
+        cls,
+        dt: Any,
+        T: float | None,
+        start_level: int = 0,
+        start_time: float = 0.0,
+        segment: Sequence[float] | None = None,
+    ) -> TimeGrid:
         """The grid of ``dt`` (a number or a schedule) up to ``T`` (None: the schedule's last
         until), from level ``start_level`` at ``start_time`` (a resumed run; ``segment``: the
         (start, dt, first) of the checkpoint's segment, continued as it is when ``dt`` is its
@@ -168,8 +177,9 @@ class TimeGrid:
             schedule = parse_schedule(dt)
             T = schedule[-1][0] if T is None else check_positive("T", T)
             if T > schedule[-1][0] * (1 + GRID_RTOL):
-                raise InputError(f"T = {T:g} is after the schedule's last until = {schedule[-1][0]:g}; extend the "
-                                 "schedule")  # fmt: skip
+                raise InputError(
+                    f"T = {T:g} is after the schedule's last until = {schedule[-1][0]:g}; extend the schedule"
+                )
             pieces, begin = [], 0.0
             for until, step in schedule:
                 end = min(until, T)
@@ -186,9 +196,11 @@ class TimeGrid:
                 ratio = (start_time - begin) / step
                 if abs(ratio - round(ratio)) > 1e-6:  # not one of its levels: a new grid from t_n
                     if len(pieces) > 1:
-                        raise InputError(f"the resumed time t = {start_time:.10g} is not a level of the segment "
-                                         f"[{begin:g}, {end:g}] of dt = {step:g}; resume with --dt to change the "
-                                         "step")  # fmt: skip
+                        raise InputError(
+                            f"the resumed time t = {start_time:.10g} is not a level of the segment "
+                            f"[{begin:g}, {end:g}] of dt = {step:g}; resume with --dt to change the "
+                            "step"
+                        )
                     begin = start_time
                     first = start_level
                 else:

@@ -39,12 +39,15 @@ def _reference(plan: Plan, outcome: Outcome | None) -> Reference | None:
         return None
     scheme, mass, level = plan.reference
     if outcome.status != "finished":
-        raise ConvergenceError(f"the reference run ({scheme.label} + {mass} at n = {level}) did not finish: "
-                               f"{outcome.status} ({outcome.reason})")  # fmt: skip
+        raise ConvergenceError(
+            f"the reference run ({scheme.label} + {mass} at n = {level}) did not finish: "
+            f"{outcome.status} ({outcome.reason})"
+        )
     b = plan.target.bench
     p = plan.target.problem(level)
-    return Reference(b.name, level, scheme.label, mass, outcome.history, p, b.h(level, plan.target.params),
-                     plan.target.params)  # fmt: skip
+    return Reference(
+        b.name, level, scheme.label, mass, outcome.history, p, b.h(level, plan.target.params), plan.target.params
+    )
 
 
 def fitted_rate(hs: Sequence[float], errors: Sequence[float | None]) -> float | None:

@@ -172,10 +172,18 @@ def plan_benchmark(
     problem = target.problem(ns[0])  # parameters, mesh and friction valid before anything runs
     _check_friction(problem, pairs)
     return Plan(
-        target, list(pairs), ns, dts, T, ratio, hs, ref, tuple(sorted((solver_options or {}).items())),
+        target,
+        list(pairs),
+        ns,
+        dts,
+        T,
+        ratio,
+        hs,
+        ref,
+        tuple(sorted((solver_options or {}).items())),
         _length_scale(problem),
         friction=friction_summary(problem),
-    )  # fmt: skip
+    )
 
 
 def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
@@ -183,15 +191,26 @@ def plan_case(target: CaseTarget, pairs: list[Pair], problem=None) -> Plan:
     if not pairs:
         raise InputError("nothing to compare: give at least one scheme and one mass")
     if not isinstance(target.dt, (int, float)):
-        raise InputError(f"compare runs every pair with one time step; case file {target.label} gives a schedule "
-                         "([time] dt = [{until, dt}, ...]): give one dt for the comparison")  # fmt: skip
+        raise InputError(
+            f"compare runs every pair with one time step; case file {target.label} gives a schedule "
+            "([time] dt = [{until, dt}, ...]): give one dt for the comparison"
+        )
     _steps(target.dt, target.T, f"case file {target.label}")
     problem = target.problem(None) if problem is None or target.friction else problem
     _check_friction(problem, pairs)
     m = problem.mesh
     counts = (m.n_nodes, m.n_cells, max(b.cells.shape[1] for b in m.blocks), m.dim, contact_node_count(problem))
-    return Plan(target, list(pairs), [None], [target.dt], target.T, solver_options=target.solver_options,
-                length_scale=_length_scale(problem), counts=counts, friction=friction_summary(problem))  # fmt: skip
+    return Plan(
+        target,
+        list(pairs),
+        [None],
+        [target.dt],
+        target.T,
+        solver_options=target.solver_options,
+        length_scale=_length_scale(problem),
+        counts=counts,
+        friction=friction_summary(problem),
+    )
 
 
 def _check_friction(problem, pairs: list[Pair]) -> None:
@@ -227,16 +246,39 @@ def make_jobs(plan: Plan) -> list[Job]:
         for k, (n, dt) in enumerate(zip(plan.levels, plan.dts, strict=True)):
             jobs.append(
                 Job(
-                    (i, k), plan.target, n, pair.scheme, pair.mass, dt, plan.T, plan.solver_options,
-                    snapshots=plan.has_errors, exact_errors=plan.exact, return_history=two_d,
-                    keep_series=k == finest, cost=_cost(plan.target, n, dt, plan.T),
+                    (i, k),
+                    plan.target,
+                    n,
+                    pair.scheme,
+                    pair.mass,
+                    dt,
+                    plan.T,
+                    plan.solver_options,
+                    snapshots=plan.has_errors,
+                    exact_errors=plan.exact,
+                    return_history=two_d,
+                    keep_series=k == finest,
+                    cost=_cost(plan.target, n, dt, plan.T),
                 )
-            )  # fmt: skip
+            )
     if isinstance(plan.reference, tuple):
         scheme, mass, level = plan.reference
         dt = plan.ratio * plan.target.bench.h(level, plan.target.params)
-        jobs.append(Job(("reference",), plan.target, level, scheme, mass, dt, plan.T, plan.solver_options,
-                        snapshots=True, return_history=True, cost=_cost(plan.target, level, dt, plan.T)))  # fmt: skip
+        jobs.append(
+            Job(
+                ("reference",),
+                plan.target,
+                level,
+                scheme,
+                mass,
+                dt,
+                plan.T,
+                plan.solver_options,
+                snapshots=True,
+                return_history=True,
+                cost=_cost(plan.target, level, dt, plan.T),
+            )
+        )
     return jobs
 
 

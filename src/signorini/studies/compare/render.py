@@ -32,17 +32,23 @@ def _law_value(v) -> str:
 
 def setup_text(result: dict) -> str:
     law = result.get("friction") or {"law": "frictionless"}
-    friction = "" if law["law"] == "frictionless" else (
-        f"  Contact law: {law['law']} ({', '.join(f'{k} {_law_value(v)}' for k, v in law.items() if k != 'law')}) "
-        "in every run."
-    )  # fmt: skip
+    friction = (
+        ""
+        if law["law"] == "frictionless"
+        else (
+            f"  Contact law: {law['law']} ({', '.join(f'{k} {_law_value(v)}' for k, v in law.items() if k != 'law')}) "
+            "in every run."
+        )
+    )
     given = result.get("solver_options") or {}
     if given:
         friction += "  Solver: " + ", ".join(f"{k} = {v}" for k, v in sorted(given.items())) + " in every run."
     if result["kind"] != "benchmark":
-        return (f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}, fixed steps in "
-                f"every run (a comparison is on one grid; `signorini run` takes dt as the largest step of its energy "
-                f"control).{friction}")  # fmt: skip
+        return (
+            f"Case file `{result['target']}`: dt = {result['dt'][0]:.6g}, T = {result['T']:g}, fixed steps in "
+            f"every run (a comparison is on one grid; `signorini run` takes dt as the largest step of its energy "
+            f"control).{friction}"
+        )
     levels = ", ".join(str(n) for n in result["levels"])
     return (
         f"Benchmark `{result['target']}`, levels n = {levels} (h = {result['h'][0]:.4g} .. {result['h'][-1]:.4g}, "
@@ -68,8 +74,12 @@ def table_markdown(result: dict) -> list[str]:
             continue
         cells = [str(p["rank"]), p["scheme_label"], p["mass"]]
         if errors:
-            cells += [_f(m.get("error_u"), ".3e"), _f(r.get("u_H1"), ".2f"), _f(m.get("error_v"), ".3e"),
-                      _f(r.get("v_L2"), ".2f")]  # fmt: skip
+            cells += [
+                _f(m.get("error_u"), ".3e"),
+                _f(r.get("u_H1"), ".2f"),
+                _f(m.get("error_v"), ".3e"),
+                _f(r.get("v_L2"), ".2f"),
+            ]
         drift = _f(m["energy_drift"], ".2e") if _finite(m["energy_drift"]) else "n/a (E0 = 0)"
         bare = f"{m['step_over_bare']:.2f} x {m['bare_op']}" if _finite(m["step_over_bare"]) else "n/a (not measured)"
         decided = RANK_LABELS.get(p["decided_by"], p["decided_by"] or "(last)")
@@ -86,8 +96,16 @@ def table_markdown(result: dict) -> list[str]:
             else "",
         )
         note = "; ".join(x for x in notes if x)
-        cells += [drift, _f(m["oscillation_index"], ".3f"), _f(m["penetration_max"], ".2e"), kept,
-                  _f(m["step_ms"], ".3g"), bare, decided, note or "-"]  # fmt: skip
+        cells += [
+            drift,
+            _f(m["oscillation_index"], ".3f"),
+            _f(m["penetration_max"], ".2e"),
+            kept,
+            _f(m["step_ms"], ".3g"),
+            bare,
+            decided,
+            note or "-",
+        ]
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return lines
 
