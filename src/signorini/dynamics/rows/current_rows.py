@@ -415,10 +415,40 @@ class CurrentRowsAndPairs:
         return self.pairs.resume(data)
 
 
+class FixedBound:
+    """The bound of a step whose rows do not move (linear rows in the reference configuration): the gaps g(t).
+    The same calls as :class:`FollowingBound` (Newton's one bound type): called with an iterate it returns the
+    gaps, its law is the step's, the contact force is B^T lambda + T^T lambda_t through the rows of the solve,
+    no geometric stiffness, the gaps always settled."""
+
+    #: whether the rows move with the iterate (Newton then also waits for their gaps to settle)
+    moves = False
+
+    def __init__(self, ctx: Context, gaps: np.ndarray) -> None:
+        self.ctx, self.gaps = ctx, gaps
+
+    def __call__(self, U: np.ndarray) -> np.ndarray:
+        return self.gaps
+
+    def law(self, law: ContactLaw) -> ContactLaw:
+        return law
+
+    def contact_force(self, U: np.ndarray, lam: np.ndarray, lam_t: np.ndarray | None) -> np.ndarray:
+        return self.ctx.rows.contact_force(lam, lam_t)
+
+    def geometric_stiffness(self, U: np.ndarray, lam: np.ndarray) -> None:
+        return None
+
+    def converged(self, U: np.ndarray) -> bool:
+        return True
+
+
 class FollowingBound:
     """The bound of a step's rows in the current configuration at time t (:func:`contact_bound`): called with a
     Newton iterate U, it moves the rows to U and returns their bound; :meth:`gap_error` is how far the last
     rows' linearized gaps are from the true ones at a new iterate."""
+
+    moves = True
 
     def __init__(self, ctx: Context, t: float, U0: np.ndarray | None = None, t0: float | None = None):
         self.ctx, self.t = ctx, t
@@ -480,12 +510,13 @@ class FollowingBound:
         return self.gap_error(U) <= max(GAP_TOLERANCE * self.ctx.touch_tolerance, floor)
 
 
-def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> np.ndarray | FollowingBound:
-    """What a finite-strain step from (U0, t0) to t constrains ``B U`` by: the gaps g(t), or with rows in the
-    current configuration a :class:`FollowingBound` (the level's rows kept first, :meth:`CurrentRows.keep_level`)."""
+def contact_bound(ctx: Context, U0: np.ndarray, t0: float, t: float) -> FixedBound | FollowingBound:
+    """What a finite-strain step from (U0, t0) to t constrains ``B U`` by: the gaps g(t) (:class:`FixedBound`), or
+    with rows in the current configuration a :class:`FollowingBound` (the level's rows kept first,
+    :meth:`CurrentRows.keep_level`)."""
     current = ctx.rows.current
     if current is None:
-        return ctx.gaps(t)
+        return FixedBound(ctx, ctx.gaps(t))
     current.keep_level(t0)
     return FollowingBound(ctx, t, U0, t0)
 

@@ -60,6 +60,7 @@ from ...linalg.row_block import RowBlock
 from ..model.operator import Operator, Tangent
 
 if TYPE_CHECKING:
+    from ..rows.current_rows import FixedBound, FollowingBound
     from .context import Context
 
 #: the residual's round-off relative to its largest term (1e3 machine epsilons: sums over a row of a few
@@ -242,7 +243,7 @@ def newton_solve(
     rest: np.ndarray,
     force: Callable[[np.ndarray], np.ndarray],
     tangent: Callable[..., object],
-    bound: np.ndarray | Callable[[np.ndarray], np.ndarray],
+    bound: FixedBound | FollowingBound,
     fixed: np.ndarray | None,
     law: ContactLaw,
     inertia: np.ndarray | None = None,
@@ -260,9 +261,10 @@ def newton_solve(
     and ``tangent(U, project=False)`` dg/dU (sparse, n x n; ``project``: each cell's tangent made positive
     semi-definite).  ``energy(U)``: the stored energy W whose gradient g is (a step that minimizes Pi,
     :class:`_Potential`: Armijo backtracking on Pi), or None (energy-momentum: backtracking on |r|).  ``bound``:
-    the gaps, or (contact in the current configuration, :class:`~.current_rows.FollowingBound`) a function that
-    moves the rows to the iterate and returns their bound; then the iterations also wait for the linearized
-    gaps to be the true ones (to ``GAP_TOLERANCE`` touch tolerances, or their round-off).  ``inertia``: the
+    the rows' bound at an iterate, :class:`~.current_rows.FixedBound` (the gaps) or (contact in the current
+    configuration) :class:`~.current_rows.FollowingBound`, which moves the rows to the iterate and returns their
+    bound; then (``bound.moves``) the iterations also wait for the linearized gaps to be the true ones (to
+    ``GAP_TOLERANCE`` touch tolerances, or their round-off).  ``inertia``: the
     inertial part M q of ``rest``.  ``jacobian(U)``: the exact dg/dU (not symmetric) when ``tangent`` only
     approximates it (energy-momentum); the directions are then taken from it once the step needs a tangent of
     its own (:meth:`_Factor.exact`).  Returns U (n,), lambda (nc,) and the last contact solve's info with
@@ -280,8 +282,8 @@ def newton_solve(
     norm = scale = allowed = np.nan
     full = True
     D = ctx.fixed
-    # rows of the current configuration: the residual's contact force through the rows of each iterate itself
-    through = bound.contact_force if callable(bound) else None
+    # the residual's contact force through the rows of the iterate (the current configuration's move with it)
+    through = bound.contact_force
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
@@ -296,9 +298,9 @@ def newton_solve(
                 refactor = factor.current is None or not modified or not full or _renew(norm, previous, allowed)
                 if refactor:
                     factor.renew(U, lam, use_reference=k == 1 and reference)
-            bnd = bound(U) if callable(bound) else bound
+            bnd = bound(U)
             # the slip measured in the frames of the rows just moved to U; the rows that face nothing left out
-            law_k = _shifted(bound.law(law) if callable(bound) else law, ctx, U)
+            law_k = _shifted(bound.law(law), ctx, U)
             minus_r = rest - _mass_part(ctx, op, X) - op.stiffness * gU
             slack = bnd - ctx.rows.B @ U
             feasible = energy is not None and agree(bool(np.all(slack >= -ctx.touch_tolerance)))
@@ -375,7 +377,7 @@ def newton_solve(
                 factor.exact_wanted = True
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
-            gaps_ok = not callable(bound) or agree(bool(bound.converged(U)))
+            gaps_ok = not bound.moves or agree(bool(bound.converged(U)))
             solved = not info.residual > MAX_CONTACT_RESIDUAL  # a contact solve short of complementarity: go on
             if full and norm <= allowed and gaps_ok and solved:
                 info.nonlinear_iterations = k
@@ -498,13 +500,13 @@ class _Factor:
         KKT direction asks for it again after a correction at the same U)."""
         if exact:
             G = self.jacobian(U)
-            Kc = self.bound.geometric_stiffness(U, lam) if callable(self.bound) and lam is not None else None
+            Kc = self.bound.geometric_stiffness(U, lam) if lam is not None else None
             return G if Kc is None else _plus(G, Kc / self.op.stiffness)
         if not project and self._plain is not None and self._plain[0] is U:
             return self._plain[1]
         G = self.tangent(U, project=True) if project else self.tangent(U)
         bound = self.bound
-        Kc = bound.geometric_stiffness(U, lam) if callable(bound) and lam is not None else None
+        Kc = bound.geometric_stiffness(U, lam) if lam is not None else None
         if Kc is not None:  # the rows' own turning under the multipliers of the last iterate
             G = _plus(G, Kc / self.op.stiffness)
         if not project:
