@@ -221,3 +221,35 @@ def test_observed_rates_by_hand():
     e = [0.4, 0.1, 0.0, 0.01]
     r = observed_rates(e, h)
     assert abs(r[0] - 2.0) <= 1e-14 and np.isnan(r[1]) and np.isnan(r[2])  # measured 0
+
+
+def test_quadratic_cells_are_evaluated_with_their_own_shape_functions():
+    """Issue 54: on ``line3`` cells a displacement quadratic in x (and a velocity quadratic in x) is represented
+    exactly, so its errors against itself are round-off; read as piecewise linear between the same nodes (the
+    former evaluation) the L2 error of u would be (h^2/8)^2-sized, not zero."""
+    b = get_benchmark("bar1d")
+    problem = b.problem(4, {"order": 2})
+    x = problem.mesh.points[:, 0]
+    t = np.array([0.0, 0.25, 0.5])
+    a = np.array([0.0, 1.0, -2.0])
+
+    def u(X, T):
+        return np.interp(T, t, a) * X * (1.0 - X)
+
+    exact = SimpleNamespace(
+        u=u,
+        u_x=lambda X, T: np.interp(T, t, a) * (1.0 - 2.0 * X),
+        u_t=lambda X, T: 3.0 * X**2,
+        contact_stress=lambda T: np.ones_like(T),
+        energy=lambda T: np.ones_like(T),
+    )
+    U = u(x[None, :], t[:, None])
+    V = np.repeat(3.0 * x[None, :] ** 2, t.size, axis=0)
+    H = SimpleNamespace(t=t, snapshots={"t": t, "u": U, "v": V}, lam=np.ones((3, 1)), weights=np.ones(1),
+                        energy=np.ones(3))  # fmt: skip
+    got = errors_1d(H, problem, exact)
+    assert got["u_L2"] <= 1e-14 and got["u_H1"] <= 1e-14 and got["v_L2"] <= 1e-14, got
+    linear = b.problem(4, {})  # P1 cells on the vertices only: the quadratic is not representable there
+    Ul = u(linear.mesh.points[None, :, 0], t[:, None])
+    Hl = SimpleNamespace(**{**vars(H), "snapshots": {"t": t, "u": Ul, "v": Ul}})
+    assert errors_1d(Hl, linear, exact)["u_L2"] > 1e-3

@@ -140,13 +140,15 @@ class Benchmark:
         return self.sizes is None or self.structured
 
     def require_nested(self, command: str, overrides: dict | None = None) -> None:
-        """InputError for a command that measures errors against a finer nested level (on linear cells: the
-        levels' errors interpolate nested grids of P1/Q1 cells)."""
-        if self.params(overrides).get("order", 1.0) != 1.0:
+        """InputError for a command that measures errors against a finer nested level (2D/3D: the levels' errors
+        interpolate nested grids of P1/Q1 cells; 1D benchmarks are measured against their exact solution with the
+        cells' own shape functions, quadratic ones too)."""
+        if self.params(overrides).get("order", 1.0) != 1.0 and self.dim > 1:
             raise InputError(
-                f"{command} measures errors between nested levels of linear cells; order = 2 (quadratic cells) is not "
-                f"supported there yet: run one level by signorini run {self.name} --set order=2, or compare schemes "
-                "and masses on a case file with [mesh] order = 2 (one level, no errors)"
+                f"{command} measures the errors of a {self.dim}D benchmark against a finer nested level of linear "
+                f"cells; order = 2 (quadratic cells) is not supported there yet (1D is: its exact solution): run one "
+                f"level by signorini run {self.name} --set order=2, or compare schemes and masses on a case file "
+                "with [mesh] order = 2 (one level, no errors)"
             )
         if not self.nested:
             how = (
