@@ -95,6 +95,40 @@ def test_prolongation_is_exact_for_bilinear_fields():
         assert np.allclose(out[0], _bilinear(fine.points, dim), rtol=0, atol=1e-14)  # values <= 1.2: measured 2.2e-16
 
 
+def _biquadratic(p, dim):
+    x, y = p[:, 0], p[:, 1]
+    z = p[:, 2] if dim == 3 else 0.0
+    f = 1 + 2 * x - y + 3 * x * y + 5 * x * x * y * y - 2 * y * y + (x * x * z * z if dim == 3 else 0.0)
+    return np.stack([f] + [x * x - y * y + z] * (dim - 1), 1).ravel()
+
+
+def test_quadratic_prolongation_is_exact_for_q2_fields_and_not_for_q1():
+    """Issue 54: levels of quad9 / hexahedron27 cells (elevated, numbered vertices first) prolonged with their own
+    shape functions: a field in Q2 on the coarse cells is reproduced at every node of the nested fine level; the
+    Q1 interpolation of the same nodes (a linear lattice of them) is not exact."""
+    from signorini.studies.reference_study import Lattice, lattice, lattice_prolongation
+
+    cases = ((rectangle(2, 3, 0.1, 1.0, order=2), rectangle(4, 12, 0.1, 1.0, order=2), 2, (2, 3)),
+             (box(1, 2, 2, 0.1, 0.2, 1.0, order=2), box(2, 4, 4, 0.1, 0.2, 1.0, order=2), 3, (1, 2, 2)))  # fmt: skip
+    for coarse, fine, dim, cells in cases:
+        c, f = lattice(coarse), lattice(fine)
+        assert c.order == f.order == 2 and [a.size for a in c.axes] == [2 * n + 1 for n in cells]
+        P = lattice_prolongation(c, f, dim)
+        out = P @ _biquadratic(coarse.points, dim)
+        ref = _biquadratic(fine.points, dim)
+        assert np.allclose(out, ref, rtol=0, atol=1e-13 * np.abs(ref).max())  # measured 4.4e-16 of the largest
+        as_q1 = lattice_prolongation(Lattice(c.axes, 1, c.index), Lattice(f.axes, 1, f.index), dim)
+        assert np.abs(as_q1 @ _biquadratic(coarse.points, dim) - ref).max() > 1e-6
+
+
+def test_a_mesh_without_a_tensor_lattice_is_refused_by_name():
+    from signorini.errors import InputError
+    from signorini.studies.reference_study import lattice
+
+    with pytest.raises(InputError, match="tensor grid"):
+        lattice(rectangle(2, 2, 1.0, 1.0, "triangle", order=2))
+
+
 def test_time_interpolation_linear():
     t_c = np.linspace(0, 1, 5)
     field = np.stack([3 * t_c - 1, t_c], 1)

@@ -336,7 +336,8 @@ def _add_compare(sub) -> None:
         "run a matrix of schemes x mass variants on a benchmark or a case file and rank the pairs",
         "Run every scheme x mass pair; benchmarks on nested levels n0 2^k (k < levels) with dt = ratio h "
         "(T must be a multiple of every level's dt), errors at every level against the exact solution (1D) or "
-        "a reference run (2D/3D; default CN + seed 4x finer than the finest level) and least-squares rates; "
+        "a reference run (2D/3D; default CN + seed, on quadratic cells CN + moment-preserving, 4x finer than the "
+        "finest level) and least-squares rates; "
         "a case file on its own mesh, dt and T (diagnostics only).  A pair the problem refuses (e.g. a mass "
         "variant that needs a generated grid) is reported as n/a with the reason.  Writes compare.md (one "
         "ranking table: lexicographic on the error, then energy drift, oscillation index, penetration; the "
@@ -372,8 +373,9 @@ def _add_compare(sub) -> None:
         "--reference",
         default=None,
         metavar="LEVEL|SCHEME:MASS:LEVEL",
-        help="2D/3D reference run: a level (CN + seed) or scheme:mass:level, a multiple of every level "
-        "(default crank-nicolson:seed at 4x the finest level, same dt/h ratio); 1D uses the exact solution",
+        help="2D/3D reference run: a level (CN + seed; on quadratic cells CN + moment-preserving) or "
+        "scheme:mass:level, a multiple of every level (default crank-nicolson:seed at 4x the finest level, same "
+        "dt/h ratio); 1D uses the exact solution",
     )
     cb.add_argument(
         "--T",

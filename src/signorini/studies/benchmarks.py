@@ -140,16 +140,16 @@ class Benchmark:
         return self.sizes is None or self.structured
 
     def require_nested(self, command: str, overrides: dict | None = None) -> None:
-        """InputError for a command that measures errors against a finer nested level (2D/3D: the levels' errors
-        interpolate nested grids of P1/Q1 cells; 1D benchmarks are measured against their exact solution with the
-        cells' own shape functions, quadratic ones too)."""
-        if self.params(overrides).get("order", 1.0) != 1.0 and self.dim > 1:
-            raise InputError(
-                f"{command} measures the errors of a {self.dim}D benchmark against a finer nested level of linear "
-                f"cells; order = 2 (quadratic cells) is not supported there yet (1D is: its exact solution): run one "
-                f"level by signorini run {self.name} --set order=2, or compare schemes and masses on a case file "
-                "with [mesh] order = 2 (one level, no errors)"
-            )
+        """InputError for a command that measures errors against a finer nested level, unless the benchmark's
+        levels are nested (the bars: 1D against its exact solution; 2D/3D against a finer level, their nodes on a
+        tensor grid: linear cells, or with ``order = 2`` Q2 cells, :func:`~.reference_study.lattice`)."""
+        if self.nested and self.dim > 1 and self.params(overrides).get("order", 1.0) != 1.0:
+            from .reference_study import lattice
+
+            try:
+                lattice(self.problem(1, overrides).mesh)
+            except InputError as exc:
+                raise InputError(f"{command} of {self.name!r} with order = 2: {exc}") from None
         if not self.nested:
             how = (
                 "is meshed by gmsh and compared with Hertz's theory"

@@ -13,8 +13,9 @@ references (``check_references``) so that the rates can be compared
 (:func:`rate_comparison`).
 
 Coarse solutions are interpolated linearly in time to the reference time levels
-t <= T and prolonged to the reference mesh by Q1 interpolation (a sparse tensor
-product of 1D interpolation matrices).  Relative norms, time integrals as rectangle
+t <= T and prolonged to the reference mesh by interpolation with the levels' own cells, Q1 or (``--set
+order=2``: ``quad9``, ``hexahedron27``) Q2: a sparse tensor product of 1D interpolation matrices on the
+:class:`Lattice` of the nodes.  Relative norms, time integrals as rectangle
 sums over the reference levels in [0, T]:
 
 ``u_H1``     |e_u|_{L2(0,T; H1)} with the energy norm sqrt(e^T S e) of the reference mesh
@@ -84,6 +85,85 @@ def time_interpolate(t_c: np.ndarray, field: np.ndarray, t_f: np.ndarray) -> np.
     return field[i] * (1 - w) + field[i + 1] * w
 
 
+def _interp_1d_quadratic(xc: np.ndarray, xf: np.ndarray) -> sp.csr_matrix:
+    """Quadratic interpolation from the 1D nodes ``xc`` of P2 cells (2m + 1 points: vertices at the even
+    indices, the cells' midpoints between) to the points ``xf`` (inside them)."""
+    vertices = xc[::2]
+    m = vertices.size - 1
+    j = np.clip(np.searchsorted(vertices, xf, side="right") - 1, 0, m - 1)
+    xi = (xf - vertices[j]) / (vertices[j + 1] - vertices[j])
+    vals = np.stack([2.0 * (xi - 0.5) * (xi - 1.0), 4.0 * xi * (1.0 - xi), 2.0 * xi * (xi - 0.5)], 1)
+    cols = np.stack([2 * j, 2 * j + 1, 2 * j + 2], 1)
+    P = sp.csr_matrix((vals.ravel(), (np.repeat(np.arange(xf.size), 3), cols.ravel())), shape=(xf.size, xc.size))
+    P.eliminate_zeros()
+    return P
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """The tensor grid the nodes of a structured level lie on: its axes (coordinates per direction), the order
+    of its cells, and each node's index in the grid (first axis fastest; None: the nodes are in that order, as
+    the linear generators number them).  ``key`` names the level in the reference's caches."""
+
+    axes: tuple[np.ndarray, ...]
+    order: int = 1
+    index: np.ndarray | None = None
+
+    @property
+    def key(self) -> tuple[int, ...]:
+        return (self.order, *(a.size for a in self.axes))
+
+
+#: quadratic cells whose structured meshes' nodes fill a tensor grid (Q2: each cell's 3^dim nodes)
+TENSOR_QUADRATIC = ("line3", "quad9", "hexahedron27")
+
+
+def lattice(mesh) -> Lattice:
+    """The :class:`Lattice` of a structured level: the generators' grid (linear cells), or the tensor grid of the
+    nodes of Q2 cells (``quad9``, ``hexahedron27``, ``line3``); an InputError for a mesh that has neither."""
+    if mesh.grid is not None:
+        return Lattice(tuple(np.asarray(g, dtype=float) for g in mesh.grid))
+    if mesh.order == 2 and mesh.cell_type in TENSOR_QUADRATIC:
+        axes, where = [], []
+        for k in range(mesh.dim):
+            x = mesh.points[:, k]
+            span = max(float(np.ptp(x)), 1.0)
+            s = np.sort(x)
+            axis = s[np.concatenate([[True], np.diff(s) > _TOL * span])]
+            i = np.clip(np.searchsorted(axis, x - _TOL * span), 0, axis.size - 1)
+            if np.abs(axis[i] - x).max(initial=0.0) > _TOL * span:
+                break
+            axes.append(axis)
+            where.append(i)
+        else:
+            sizes = [a.size for a in axes]
+            index = np.ravel_multi_index(tuple(where[::-1]), sizes[::-1])  # the first axis fastest
+            if np.unique(index).size == mesh.n_nodes == int(np.prod(sizes)):
+                return Lattice(tuple(axes), 2, index)
+    raise InputError(
+        f"a convergence study needs structured levels whose nodes fill a tensor grid (the generators' linear cells, "
+        f"or {', '.join(TENSOR_QUADRATIC)}); this mesh of {mesh.cell_type} cells has none"
+    )
+
+
+def lattice_prolongation(coarse: Lattice, fine: Lattice, dim: int) -> sp.csr_matrix:
+    """Interpolation of nodal vectors (``node * dim + component``) from a level to a nested finer one of the same
+    order, with the coarse cells' shape functions (Q1: :func:`prolongation_matrix`; Q2: quadratic per axis)."""
+    if coarse.order != fine.order:
+        raise InputError(f"levels of order {coarse.order} and {fine.order} cannot be compared (one order per study)")
+    if coarse.order == 1 and coarse.index is None and fine.index is None:
+        return prolongation_matrix(coarse.axes, fine.axes, dim)
+    one_d = _interp_1d if coarse.order == 1 else _interp_1d_quadratic
+    P = None
+    for xc, xf in zip(coarse.axes, fine.axes, strict=True):
+        Pk = one_d(xc, xf)
+        P = Pk if P is None else sp.kron(Pk, P, format="csr")
+    rows = np.arange(P.shape[0]) if fine.index is None else fine.index
+    cols = np.arange(P.shape[1]) if coarse.index is None else coarse.index
+    P = P[rows][:, cols].tocsr()
+    return sp.kron(P, sp.identity(dim, format="csr"), format="csr")
+
+
 def _is_nested(coarse_grid, fine_grid) -> bool:
     for xc, xf in zip(coarse_grid, fine_grid, strict=True):
         d = np.abs(np.asarray(xf)[None, :] - np.asarray(xc)[:, None]).min(axis=1)
@@ -119,6 +199,12 @@ class Reference:
     def mesh(self):
         return self.problem.mesh
 
+    @property
+    def lattice(self) -> Lattice:
+        if "lattice" not in self._cache:
+            self._cache["lattice"] = lattice(self.mesh)
+        return self._cache["lattice"]
+
     def matrices(self):
         if "S" not in self._cache:
             self._cache["S"] = stiffness_matrix(self.mesh, self.problem.material)
@@ -129,21 +215,21 @@ class Reference:
         """Number of reference time levels in [0, T]."""
         return int(np.searchsorted(self.history.t, T * (1 + _TOL) + _TOL, side="right"))
 
-    def prepare(self, grids, T: float) -> None:
+    def prepare(self, lattices, T: float) -> None:
         """One pass over the reference levels in [0, T]: the squared norms |u|_S^2 and
-        |v|_M^2, and for every coarse grid the projections P^T S u_ref, P^T M v_ref and the
+        |v|_M^2, and for every coarse level's :class:`Lattice` the projections P^T S u_ref, P^T M v_ref and the
         Galerkin matrices P^T S P, P^T M P (cached; see :func:`relative_errors`)."""
         k = self.window(T)
         if self._cache.get("k") != k:
             self._cache.update(k=k, proj={}, norms=None)
         proj = self._cache["proj"]
         todo = {}
-        for g in grids:
-            key = tuple(np.asarray(x).size for x in g)
+        for g in lattices:
+            key = g.key
             if key not in proj and key not in todo:
-                if not _is_nested(g, self.mesh.grid):
-                    raise InputError(f"a mesh ({key}) is not nested in the reference mesh (n = {self.level})")
-                todo[key] = prolongation_matrix(g, self.mesh.grid, self.mesh.dim)
+                if not _is_nested(g.axes, self.lattice.axes):
+                    raise InputError(f"a mesh ({key[1:]}) is not nested in the reference mesh (n = {self.level})")
+                todo[key] = lattice_prolongation(g, self.lattice, self.mesh.dim)
         need_norms = self._cache["norms"] is None
         if not todo and not need_norms:
             return
@@ -173,10 +259,10 @@ class Reference:
         self.prepare((), T)
         return self._cache["norms"]
 
-    def projection(self, grid, T: float):
-        """(P^T S u_ref, P^T M v_ref, P^T S P, P^T M P) for the coarse ``grid``."""
-        self.prepare([grid], T)
-        return self._cache["proj"][tuple(np.asarray(x).size for x in grid)]
+    def projection(self, coarse: Lattice, T: float):
+        """(P^T S u_ref, P^T M v_ref, P^T S P, P^T M P) for the coarse level's :class:`Lattice`."""
+        self.prepare([coarse], T)
+        return self._cache["proj"][coarse.key]
 
     def info(self, finest: int | None = None, finest_dt: float | None = None) -> dict:
         """What the reference is, and how much finer it is than level ``finest``."""
@@ -279,7 +365,8 @@ def relative_errors(H: History, mesh_c, ref: Reference, T: float) -> dict[str, f
     about 1e-16 of |u_ref|^2, i.e. relative errors below ~1e-7 are not resolved; a
     negative result of the cancellation is set to 0.)
     """
-    if not _is_nested(mesh_c.grid, ref.mesh.grid):
+    coarse = lattice(mesh_c)
+    if not _is_nested(coarse.axes, ref.lattice.axes):
         raise InputError(f"the mesh of this level is not nested in the reference mesh (n = {ref.level})")
     if H.t[-1] < T * (1 - _TOL) - _TOL:
         raise InputError(f"the run ends at t = {H.t[-1]:.6g} before T = {T:.6g}")
@@ -288,7 +375,7 @@ def relative_errors(H: History, mesh_c, ref: Reference, T: float) -> dict[str, f
         raise InputError("the convergence study needs snapshots at every step (simulate(..., snapshot_every=1))")
     k = ref.window(T)
     tf = ref.history.t[:k]
-    Qu, Qv, Sc, Mc = ref.projection(mesh_c.grid, T)
+    Qu, Qv, Sc, Mc = ref.projection(coarse, T)
     u2, v2 = ref.norms(T)
     uc = time_interpolate(snaps["t"], snaps["u"], tf)
     vc = time_interpolate(snaps["t"], snaps["v"], tf)
@@ -338,7 +425,7 @@ def _rows_against(runs: dict, ref: Reference, T: float, bench: str, params) -> l
     b = get_benchmark(bench)
     rows = []
     use = [n for n in sorted(runs) if n < ref.level and not ref.level % n]
-    ref.prepare([runs[n][0].mesh.grid for n in use], T)
+    ref.prepare([lattice(runs[n][0].mesh) for n in use], T)
     for n in use:
         p, H = runs[n]
         rows.append({"n": n, "h": b.h(n, params), **relative_errors(H, p.mesh, ref, T)})

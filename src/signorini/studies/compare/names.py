@@ -107,13 +107,14 @@ def make_pairs(schemes: Sequence[SchemeSpec], masses: Sequence[str]) -> list[Pai
     return [Pair(s, m) for s in schemes for m in masses]
 
 
-def parse_reference(text: str) -> tuple[SchemeSpec, str, int]:
-    """``LEVEL`` (CN + seed) or ``scheme:mass:LEVEL``."""
+def parse_reference(text: str) -> tuple[SchemeSpec, str | None, int]:
+    """``LEVEL`` (CN and the default reference mass: None here, :func:`~.plan.reference_mass`) or
+    ``scheme:mass:LEVEL``."""
     parts = text.rsplit(":", 2)
     if len(parts) not in (1, 3):
         raise InputError(f"--reference expects LEVEL or scheme:mass:LEVEL, got {text!r}")
     scheme = parse_scheme(parts[0], "--reference") if len(parts) == 3 else SchemeSpec("crank-nicolson")
-    mass = MASS_VARIANTS.resolve(parts[1]) if len(parts) == 3 else "seed"
+    mass = MASS_VARIANTS.resolve(parts[1]) if len(parts) == 3 else None
     try:
         level = int(parts[-1])
     except ValueError:

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ...dynamics.model.mass import DEFAULT_MASS
 from ...dynamics.model.problem import (
     contact_node_count,
     friction_summary,
@@ -120,6 +121,13 @@ def _steps(dt: float, T: float, where: str) -> int:
         raise InputError(f"{where}: {exc}") from None
 
 
+def reference_mass(params: dict) -> str:
+    """The default mass of a 2D/3D reference run: ``seed`` (the paper's) on linear cells; the default mass
+    (``moment-preserving``) on quadratic cells, where ``seed`` is refused (it would leave interior mid-side
+    nodes without mass)."""
+    return "seed" if params.get("order", 1.0) == 1.0 else DEFAULT_MASS
+
+
 def plan_benchmark(
     name: str,
     pairs: list[Pair],
@@ -132,7 +140,7 @@ def plan_benchmark(
     friction: str | None = None,
     solver_options: dict | None = None,
 ) -> Plan:
-    """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + seed
+    """Levels n0 2^k (k < levels), dt = ratio h; a 2D/3D reference (default CN + :func:`reference_mass`
     ``DEFAULT_REFERENCE_FACTOR`` x finer than the finest level); ``solver_options`` (the
     backend among them) for every run.  Raises InputError."""
     b = get_benchmark(name)
@@ -165,7 +173,8 @@ def plan_benchmark(
         if ref.t_end < T * (1 - 1e-9):
             raise InputError(f"the reference (n = {ref.level}) ends at t = {ref.t_end:.6g}, before T = {T:g}")
     else:
-        scheme, mass, level = reference or (SchemeSpec("crank-nicolson"), "seed", DEFAULT_REFERENCE_FACTOR * ns[-1])
+        scheme, mass, level = reference or (SchemeSpec("crank-nicolson"), None, DEFAULT_REFERENCE_FACTOR * ns[-1])
+        mass = mass or reference_mass(params)
         check_levels(ns, level)
         _steps(ratio * b.h(level, params), T, f"reference level n = {level}")
         ref = (scheme, mass, level)
