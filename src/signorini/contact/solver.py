@@ -795,6 +795,21 @@ def make_contact_solver(
                 "more than the memory budget; raise solver.memory_budget or coarsen the contact boundary"
             )
     traits = backend_traits(backend)
+
+    def condensed() -> CondensedContactSolver:
+        """A direct backend's solver (serial, or the petsc factor's)."""
+        return CondensedContactSolver(
+            K,
+            B,
+            gap_scale,
+            backend,
+            opts["condense_budget"],
+            opts["lcp_max_iter"],
+            opts["condensation"],
+            components,
+            opts["reproducible"],
+        )
+
     if traits.distributed:
         from ..linalg.petsc.factor import check_options_used, clear_options, set_options
 
@@ -824,17 +839,7 @@ def make_contact_solver(
                 )
                 check_options_used(opts, f"petsc-cg's {pc} preconditioner ({why})")
                 return solver
-            solver = CondensedContactSolver(
-                K,
-                B,
-                gap_scale,
-                backend,
-                opts["condense_budget"],
-                opts["lcp_max_iter"],
-                opts["condensation"],
-                components,
-                opts["reproducible"],
-            )
+            solver = condensed()
             check_options_used(opts)
         finally:
             clear_options(opts)
@@ -852,14 +857,4 @@ def make_contact_solver(
             opts.get("spmv_threads", 0),
             opts["spmv"],
         )
-    return CondensedContactSolver(
-        K,
-        B,
-        gap_scale,
-        backend,
-        opts["condense_budget"],
-        opts["lcp_max_iter"],
-        opts["condensation"],
-        components,
-        opts["reproducible"],
-    )
+    return condensed()
