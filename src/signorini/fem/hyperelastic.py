@@ -102,9 +102,16 @@ class HyperelasticLaw:
         """S = dW/dE (..., d, d) [stress]."""
         return self.stress_C(_green(F)[0])
 
-    def piola(self, F: np.ndarray) -> np.ndarray:
-        """The first Piola-Kirchhoff stress P = F S (..., d, d) [stress]; laws override it with a closed form."""
-        return np.matmul(F, self.stress(F))
+    def piola(self, F: np.ndarray, grad: np.ndarray | None = None) -> np.ndarray:
+        """The first Piola-Kirchhoff stress P = F S (..., d, d) [stress]; ``grad`` = F - I, the displacement
+        gradient as computed (None: F - I here), from which the strain is formed without cancellation:
+        E = (grad + grad^T + grad^T grad) / 2 (at the small strains of a stiff body, E from F^T F - I keeps
+        eps / |E| of its digits: a steel beam under its weight, 1e-11 of the stress)."""
+        return np.matmul(F, self.stress_E(_strain(F, grad)))
+
+    def stress_E(self, E: np.ndarray) -> np.ndarray:
+        """S (..., d, d) from the Green-Lagrange strain E [stress]."""
+        return self.stress_C(2.0 * E + np.eye(E.shape[-1]))
 
     def tangent(self, F: np.ndarray) -> np.ndarray:
         """CC = dS/dE (..., d, d, d, d) [stress], with the minor and major symmetries."""
@@ -164,6 +171,29 @@ def _green(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return C, 0.5 * (C - np.eye(F.shape[-1]))
 
 
+def _strain(F: np.ndarray, grad: np.ndarray | None) -> np.ndarray:
+    """E = (H + H^T + H^T H) / 2 with H = ``grad`` (F - I when None)."""
+    H = F - np.eye(F.shape[-1]) if grad is None else grad
+    Ht = np.ascontiguousarray(np.swapaxes(H, -1, -2))
+    return 0.5 * (H + Ht + np.matmul(Ht, H))
+
+
+def _log_det(F: np.ndarray, grad: np.ndarray | None) -> np.ndarray:
+    """ln det F with det F - 1 from the invariants of H = ``grad`` = F - I (log1p: no cancellation near 1):
+    det(I + H) - 1 = tr H + det H in 2D, tr H + ((tr H)^2 - tr H^2) / 2 + det H in 3D (written per entry)."""
+    if grad is None:
+        return np.log(determinants(F))
+    if grad.shape[-1] == 2:
+        a, b, c, d = grad[..., 0, 0], grad[..., 0, 1], grad[..., 1, 0], grad[..., 1, 1]
+        return np.log1p(a + d + (a * d - b * c))
+    a, b, c = grad[..., 0, 0], grad[..., 0, 1], grad[..., 0, 2]
+    d, e, f = grad[..., 1, 0], grad[..., 1, 1], grad[..., 1, 2]
+    g, h, i = grad[..., 2, 0], grad[..., 2, 1], grad[..., 2, 2]
+    ei_fh, di_fg, dh_eg = e * i - f * h, d * i - f * g, d * h - e * g
+    second = a * e + a * i + e * i - b * d - c * g - f * h
+    return np.log1p((a + e + i) + second + (a * ei_fh - b * di_fg + c * dh_eg))
+
+
 def _symmetric_identity(d: int) -> np.ndarray:
     """(delta_IK delta_JL + delta_IL delta_JK) (d, d, d, d)."""
     eye = np.eye(d)
@@ -187,10 +217,12 @@ class SaintVenantKirchhoffLaw(HyperelasticLaw):
         return 0.5 * lam * trE**2 + mu * np.einsum("...IJ,...IJ->...", E, E)
 
     def stress_C(self, C: np.ndarray) -> np.ndarray:
-        E = 0.5 * (C - np.eye(C.shape[-1]))
+        return self.stress_E(0.5 * (C - np.eye(C.shape[-1])))
+
+    def stress_E(self, E: np.ndarray) -> np.ndarray:
         trE = np.trace(E, axis1=-2, axis2=-1)
         lam, mu = _lame(self.lam, E.shape), _lame(self.mu, E.shape)
-        return lam * trE[..., None, None] * np.eye(C.shape[-1]) + 2.0 * mu * E
+        return lam * trE[..., None, None] * np.eye(E.shape[-1]) + 2.0 * mu * E
 
     def tangent_C(self, C: np.ndarray) -> np.ndarray:
         d = C.shape[-1]
@@ -263,11 +295,16 @@ class NeoHookeanLaw(HyperelasticLaw):
         sym = np.einsum("...IK,...JL->...IJKL", Ci, Ci) + np.einsum("...IL,...JK->...IJKL", Ci, Ci)
         return lam * outer + (mu - lam * lnJ) * sym
 
-    def piola(self, F: np.ndarray) -> np.ndarray:
-        """P = mu (F - H) + lam ln(J) H, H = F^-T (no C and no C^-1)."""
-        H = np.swapaxes(_inv(F), -1, -2)
+    def piola(self, F: np.ndarray, grad: np.ndarray | None = None) -> np.ndarray:
+        """P = mu (F - H) + lam ln(J) H, H = F^-T (no C and no C^-1).  With ``grad`` = F - I as computed, F - H =
+        grad + (F^-1 grad)^T (as I - F^-1 = F^-1 grad) and ln J = log1p(det F - 1) from grad's invariants: no
+        difference of numbers near 1 (the base class's ``piola``)."""
+        Fi = _inv(F)
+        H = np.swapaxes(Fi, -1, -2)
         lam, mu = _lame(self.lam, F.shape), _lame(self.mu, F.shape)
-        return mu * (F - H) + (lam * np.log(determinants(F))[..., None, None]) * H
+        if grad is None:
+            return mu * (F - H) + (lam * np.log(determinants(F))[..., None, None]) * H
+        return mu * (grad + np.swapaxes(np.matmul(Fi, grad), -1, -2)) + (lam * _log_det(F, grad)[..., None, None]) * H
 
     def tangent_terms(self, F: np.ndarray) -> TangentTerms:
         """A_iJjL = lam H_iJ H_jL + (mu - lam ln J) H_iL H_jJ + mu delta_ij delta_JL,
@@ -314,6 +351,13 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
     node-major.  On P1 cells (``ReferenceElement.constant_gradients``) one point per cell (q = 1, its weight the
     cell's measure): F is constant there, so every integrand of F is integrated exactly with a quarter of the
     work (tetrahedra)."""
+    grad, wdet, G = displacement_gradients(mesh, U)
+    return grad + np.eye(mesh.dim), wdet, G
+
+
+def displacement_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(grad_X u, wdet, G): :func:`deformation_gradients` with F - I as summed from the nodes (the strain of a stiff
+    body is formed from it without cancellation, not from F)."""
     wdet, G = geometry(mesh)
     if reference_element(mesh.cell_type).constant_gradients:  # G and F constant on a cell: one point is exact
         wdet, G = mesh.cached("one-point geometry", lambda: (wdet.sum(axis=1, keepdims=True), G[:, :1].copy()))
@@ -321,13 +365,13 @@ def deformation_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nda
     e, q, nv, _ = G.shape
     if q == 1:  # F_iJ = delta_iJ + (D U)_eiJ: one sparse product (measured: 0.37 against 1.0 ms on 5,740 tetrahedra)
         D = _gradient_operator(mesh, G)
-        return (D @ np.asarray(U, dtype=float)).reshape(e, 1, d, d) + np.eye(d), wdet, G
+        return (D @ np.asarray(U, dtype=float)).reshape(e, 1, d, d), wdet, G
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
     Gr = _gradients_by_cell(mesh, G)
     # F_iJ = sum_a u_ai dN_a/dX_J at every point: one (d, nv) x (nv, q d) product per cell (measured: 1.5 against 2.9
     # ms with a product per point, 5,120 hexahedra)
-    F = np.matmul(u.transpose(0, 2, 1), Gr).reshape(e, d, q, d).transpose(0, 2, 1, 3) + np.eye(d)
-    return F, wdet, G
+    grad = np.matmul(u.transpose(0, 2, 1), Gr).reshape(e, d, q, d).transpose(0, 2, 1, 3)
+    return grad, wdet, G
 
 
 def _gradients_by_cell(mesh: Mesh, G: np.ndarray) -> np.ndarray:
@@ -372,9 +416,10 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
     d = mesh.dim
     f = np.zeros(mesh.n_nodes * d)
     for part, part_law, cut in _parts(mesh, law, cells):
-        F, wdet, G = deformation_gradients(part, U)
+        grad, wdet, G = displacement_gradients(part, U)
+        F = grad + np.eye(d)
         check_orientation(part, F, cut)
-        P = part_law.piola(F)
+        P = part_law.piola(F, grad)
         wP = wdet[..., None, None] * P
         e, q, nv, _ = G.shape
         if q == 1:  # one point (simplices): f = D^T (w P), the gradient operator's transpose
