@@ -170,7 +170,7 @@ SECTIONS: tuple[Section, ...] = (
                 "A0: from M A0 = F(0) - S U0, or zero (GetFEM's Newmark start); summary.json conventions"),
             Key("equilibrium", "true or false", "false", "",
                 "true: the bodies held by supports or resting in contact (gap 0 at t = 0) start in static "
-                "equilibrium under the loads at t = 0 (a static contact solve of the linear model, frictionless; "
+                "equilibrium under the loads at t = 0 (a static contact solve with the material's model, frictionless; "
                 "free bodies keep their displacement; docs/initial_equilibrium.md); summary.json "
                 "initial_equilibrium says what was solved"),
             Key("regions", "array of inline tables", "none", "",
