@@ -1,5 +1,6 @@
-"""docs/architecture.md stays true: every module it names exists, every package folder is named, every name it
-places in a module is defined there, and its layer list is the one tests/test_layout.py enforces."""
+"""docs/architecture.md stays true: every module it names exists, every module is in its generated module map,
+every package folder is named, every name it places in a module is defined there, and its layer list is the one
+tests/test_layout.py enforces."""
 
 import re
 from pathlib import Path
@@ -55,3 +56,16 @@ def test_the_claim_check_can_fail():
     ((name, module),) = CLAIM.findall("the `NoSuchClass` (`signorini/fem/mesh.py`) ...")
     text = (ROOT / "src" / module).read_text()
     assert not re.search(rf"^\s*(class|def)\s+{name}\b|^{name}\s*[:=]", text, re.M)
+
+
+def test_every_module_is_in_the_module_map_with_a_line_of_its_own():
+    """Issue 53, item 4: the page's table names every module of the package (generated from the docstrings)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import module_map
+
+    assert module_map.render() in DOC, "run python3 scripts/module_map.py --write"
+    rows = module_map.rows()
+    assert len(rows) == len(list((ROOT / "src" / "signorini").rglob("*.py")))
+    assert [m for m, line in rows if not line] == []  # a module without a docstring fails here

@@ -1,0 +1,1 @@
+"""The command line, case files, result directories and field output."""

@@ -1,0 +1,1 @@
+"""Benchmarks, exact solutions, convergence studies, comparisons of schemes and masses, the report of reproduce."""
