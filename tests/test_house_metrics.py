@@ -72,3 +72,14 @@ def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
 def test_the_formatter_lays_out_the_package():
     """Issue 53 counted 294 ``# fmt: skip`` in src (325 before they went): none is left."""
     assert hm.formatter_escapes() == []
+
+
+def test_the_design_records_are_per_topic_and_short():
+    """Issue 53, item 5: docs/design.md is an index of dated decision records, one file per topic in docs/design/,
+    none longer than ~300 lines; the index names every file."""
+    docs = Path(__file__).parents[1] / "docs"
+    files = sorted((docs / "design").glob("*.md"))
+    index = (docs / "design.md").read_text()
+    assert len(files) >= 10 and len(index.splitlines()) <= 60
+    assert [f.name for f in files if len(f.read_text().splitlines()) > 300] == []
+    assert [f.name for f in files if f"design/{f.name}" not in index] == []
