@@ -58,6 +58,7 @@ def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
         "        raise ValueError('refused by name')\n"
         "    x = other._hidden\n"
         "    y = node * d + 1\n"
+        "    z = dof // d  # fmt: skip\n"
         "    return opts['backend'] == 'superlu'\n"
     )
     monkeypatch.setattr(hm, "PKG", pkg)
@@ -65,8 +66,9 @@ def test_the_checkers_see_what_they_look_for(tmp_path, monkeypatch):
     assert len(hm.mixed_branches()) == 2  # the refusal is not a branch
     assert hm.forwarding_getattr() == [("signorini/bad.py", "Forward")]
     assert [p[2] for p in hm.private_access()] == ["other._hidden"]
-    assert len(hm.hand_dofs()) == 1
+    assert len(hm.hand_dofs()) == 2
     assert len(hm.backend_comparisons()) == 1
+    assert hm.formatter_escapes() == [("signorini/bad.py", 57)]
 
 
 def test_the_formatter_lays_out_the_package():
