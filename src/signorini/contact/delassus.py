@@ -434,8 +434,9 @@ class ColumnsUndo:
     retried step would see another round-off (1e-13 of the contact force, measured on rings2d).
     """
 
-    #: what a rollback leaves as it is: the work done (counted), the factor, this object
-    KEPT = ("factor", "solved", "seconds", "replayed", "undo")
+    #: what a rollback leaves as it is: the work done (counted), the factor, this object; and the log, which a step
+    #: only appends to (cut back to its length, not copied: it holds every change of the run)
+    KEPT = ("factor", "solved", "seconds", "replayed", "undo", "log")
 
     def __init__(self, columns: DelassusColumns) -> None:
         self.columns = columns
@@ -458,10 +459,12 @@ class ColumnsUndo:
                 for k, v in vars(self.columns).items()
                 if k not in self.KEPT
             }
+            self.copy["log length"] = len(self.columns.log)
 
     def rollback(self) -> None:
         """The columns, their slots, B and the log as at :meth:`mark`, if the step changed B's rows since."""
         if self.copy is not None:
+            del self.columns.log[self.copy.pop("log length") :]
             for k, v in self.copy.items():
                 setattr(self.columns, k, v)
         self.copy = None
