@@ -446,8 +446,12 @@ def _piola_exact(law, H: np.ndarray) -> np.ndarray:
         Hq = mat(h)
         F = [[Hq[i][j] + (1 if i == j else 0) for j in range(3)] for i in range(3)]
         if isinstance(law, NeoHookeanLaw):
-            cof = [[F[(j + 1) % 3][(i + 1) % 3] * F[(j + 2) % 3][(i + 2) % 3]
-                    - F[(j + 1) % 3][(i + 2) % 3] * F[(j + 2) % 3][(i + 1) % 3] for j in range(3)] for i in range(3)]  # fmt: skip
+
+            def minor(i, j, F=F):
+                a, b, c, d = (j + 1) % 3, (j + 2) % 3, (i + 1) % 3, (i + 2) % 3
+                return F[a][c] * F[b][d] - F[a][d] * F[b][c]
+
+            cof = [[minor(i, j) for j in range(3)] for i in range(3)]
             det = sum(F[0][k] * cof[k][0] for k in range(3))
             Ht = [[cof[j][i] / det for j in range(3)] for i in range(3)]  # F^-T: the transposed inverse
             log_j = Fraction(math.log1p(float(det - 1)))
