@@ -15,8 +15,8 @@ process, alternated twice (the best of each):
 4. ``hertz3d`` at its default level and dt (the ball touching the plane at t = 0: every step inside the
    impact, mass-dominated), Crank-Nicolson and the default mass: the median Neo-Hookean step against the
    linear one (issue 41 asks at most x3), with the Newton iterations and factorizations per step, and the same
-   at dt / 10 and dt / 100, where the mass dominates the step's operator (needs gmsh: skipped with a message
-   otherwise);
+   at dt / 10 and dt / 100, where the mass dominates the step's operator, each with and without Anderson's mixing
+   of the Newton iterates (solver option ``acceleration``; needs gmsh: skipped with a message otherwise);
 5. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
    hexahedra (about 100k dofs) against the linear stiffness assembly, on the structured grid (whose
    cells are translates: the linear assembly computes one element matrix) and on the same grid with its
@@ -115,18 +115,21 @@ def hertz(steps: int, divisor: int = 1) -> dict | None:
     dt = b.run_times(n)[0] / divisor
     best: dict[str, float] = {}
     info: dict[str, dict] = {}
+    runs = {"neo-hookean": ("neo-hookean", "anderson"), "neo-hookean, no acceleration": ("neo-hookean", "none"),
+            "linear": ("linear", "anderson")}  # fmt: skip
     for _ in range(2):
-        for model in ("neo-hookean", "linear"):
+        for key, (model, acceleration) in runs.items():
             q = dataclasses.replace(p, material=with_model(p.material, model))
-            s = Stepper(q, "crank-nicolson", (dt, steps * dt))
-            best[model] = min(best.get(model, np.inf), median_step(s))
+            s = Stepper(q, "crank-nicolson", (dt, steps * dt), {"solver_options": {"acceleration": acceleration}})
+            best[key] = min(best.get(key, np.inf), median_step(s))
             H = s.finish()
-            info[model] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
-                           "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0)),
-                           "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
+            info[key] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
+                         "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0)),
+                         "dofs": int(H.meta["dofs"]), "backend": H.meta.get("backend")}  # fmt: skip
     return {"case": f"hertz3d n = {n}, dt = {dt:.3g}, crank-nicolson, {steps} steps",
             "step_finite_s": best["neo-hookean"], "step_linear_s": best["linear"],
             "finite_over_linear": best["neo-hookean"] / best["linear"],
+            "plain_over_linear": best["neo-hookean, no acceleration"] / best["linear"],
             "newton": info}  # fmt: skip
 
 
@@ -174,9 +177,12 @@ def main(argv=None) -> int:
     else:
         dofs = h["newton"]["linear"]["dofs"]
         for x in [h, *smaller]:
+            plain = x["newton"]["neo-hookean, no acceleration"]
             print(f"{x['case']} ({dofs} dofs): a Neo-Hookean step is x{x['finite_over_linear']:.2f} of the linear one"
                   f" ({x['newton']['neo-hookean']['newton_per_step']:.2f} Newton iterations per step, "
-                  f"{x['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations)")  # fmt: skip
+                  f"{x['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations); "
+                  f"without Anderson's mixing x{x['plain_over_linear']:.2f} "
+                  f"({plain['newton_per_step']:.2f} iterations)")  # fmt: skip
     for x in a:
         print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
               f"linear stiffness assembly ({x['tangent_s']:.3f} against {x['linear_s']:.3f} s)")  # fmt: skip

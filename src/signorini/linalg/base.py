@@ -360,6 +360,16 @@ SOLVER_OPTIONS = (
         choices=("full", "modified"),
     ),
     Parameter(
+        "acceleration",
+        "anderson",
+        "finite strain: anderson (the default: the Newton iterates of a kept operator, the scheme's own or a kept "
+        "tangent, mixed with the last five by Anderson's method while the contact rows held stay the same and no "
+        "friction acts: a Krylov method preconditioned by the factorized operator, one solve per iteration as before; "
+        "docs/finite_strain.md) or none (the plain iterates)",
+        str,
+        choices=("anderson", "none"),
+    ),
+    Parameter(
         "momentum_projection",
         True,
         "energy-momentum with finite strain: after each step the velocities of the nodes with mass get the rigid "

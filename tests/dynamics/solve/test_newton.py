@@ -187,7 +187,9 @@ def test_energy_momentum_takes_spin3d_at_twice_its_step_with_the_exact_jacobian(
     assert H.counters["exact_directions"] > 0 and H.nonlinear_iterations[1:].max() <= 8
     assert H.summary()["energy_identity_residual"] <= 1e-9
     monkeypatch.setattr(newton._Factor, "exact", lambda self, *a: None)
-    H = simulate(problem, "energy-momentum", 2 * dt, 4 * dt)
+    # without the exact directions Anderson's mixing of the symmetric tangent's iterates (the default) takes 21-23
+    # iterations a step (measured); without both, step 1 fails
+    H = simulate(problem, "energy-momentum", 2 * dt, 4 * dt, solver_options={"acceleration": "none"})
     assert H.status == "failed" and "did not converge in 25 iterations" in H.summary()["message"]
 
 

@@ -142,6 +142,7 @@ class FiniteStrain(Elasticity):
         self.tangent_corrections = 0
         self.kkt_directions = 0
         self.exact_directions = 0
+        self.accelerated_iterations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         #: the last two (U, energy) pairs
         self._energies: list[tuple[np.ndarray, float]] = []
@@ -307,6 +308,7 @@ class FiniteStrain(Elasticity):
             "tangent_corrections": self.tangent_corrections,
             "kkt_directions": self.kkt_directions,
             "exact_directions": self.exact_directions,
+            "accelerated_iterations": self.accelerated_iterations,
         }
 
 

@@ -33,6 +33,10 @@ direction that did not lower |r|, is rebuilt with each cell's matrix positive se
 few more iterations (:func:`_renew`) and refactorizes at the iterate where it does not (a step that starts near
 the reference configuration starts with the scheme's linear operator, :data:`REFERENCE_GRADIENT`); each step starts from
 the tangent at U^n, so that a step depends on its starting level only (a checkpoint resumes bit for bit).
+While the operator is kept (the scheme's own or a kept tangent), ``acceleration=anderson`` (the default) mixes
+the iterates with the last ones (:mod:`~.anderson`: a Krylov method preconditioned by the factorized operator) as
+long as the rows held at their bound stay the same and no friction acts; a mixed iterate that does not lower |r|,
+or leaves the contact conditions, is replaced by the plain one.
 A step that does not converge in ``newton_max`` iterations raises :class:`ConvergenceError` (the run
 fails, exit 3, levels kept; the energy control rejects and halves the step).
 
@@ -58,6 +62,7 @@ from ...errors import ConvergenceError, InputError
 from ...fem.hyperelastic import InvertedCellError
 from ...linalg.row_block import RowBlock
 from ..model.operator import Operator, Tangent
+from .anderson import Anderson
 
 if TYPE_CHECKING:
     from ..rows.current_rows import FixedBound, FollowingBound
@@ -288,6 +293,7 @@ def newton_solve(
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
     factor = _Factor(ctx, op, tangent, bound, elastic, jacobian)
+    accel = Anderson(ctx.free) if opts.get("acceleration", "anderson") == "anderson" else None
     recent = [X]  # the last iterates (the non-monotone search's reference: the largest Pi among them)
     keep = False  # the operator was just corrected at this iterate: no renewal before its direction
     try:
@@ -311,20 +317,40 @@ def newton_solve(
             lt0 = None if info.lam_t is None else (np.zeros_like(info.lam_t) if lam_t is None else lam_t)
             lt1 = info.lam_t
 
-            def at(a: float, d=d, lam0=lam0, lam1=lam_new, lt0=lt0, lt1=lt1, X=X):
-                """(X, U, g, lambda, lambda_t, |r|, scale, floor) a along d, or None where a cell inverts."""
-                Xa = X + a * d
-                Ua = base + Xa
-                try:
-                    ga = force(Ua)
-                except InvertedCellError:
-                    return None
-                la = lam1 if a == 1.0 else lam0 + a * (lam1 - lam0)
-                lta = lt1 if a == 1.0 or lt0 is None else lt0 + a * (lt1 - lt0)
-                norms = agree(residual_norm(ctx, op, Xa, rest, ga, Ua, la, lta, inertia, through))
-                return (Xa, Ua, ga, la, lta, *norms)
+            def along(d: np.ndarray, lam1: np.ndarray, lam0=lam0, lt0=lt0, lt1=lt1, X=X) -> Callable:
+                """The trial of a step length along d whose solve gave the multiplier ``lam1``."""
 
+                def trial_at(s: float):
+                    """(X, U, g, lambda, lambda_t, |r|, scale, floor) s along d, or None where a cell inverts."""
+                    Xs = X + s * d
+                    Us = base + Xs
+                    try:
+                        gs = force(Us)
+                    except InvertedCellError:
+                        return None
+                    ls = lam1 if s == 1.0 else lam0 + s * (lam1 - lam0)
+                    lts = lt1 if s == 1.0 or lt0 is None else lt0 + s * (lt1 - lt0)
+                    norms = agree(residual_norm(ctx, op, Xs, rest, gs, Us, ls, lts, inertia, through))
+                    return (Xs, Us, gs, ls, lts, *norms)
+
+                return trial_at
+
+            plain = None
+            if accel is not None:
+                if fresh or info.lam_t is not None:  # a new operator (or friction): the history starts here
+                    accel.reset()
+                mixed = None if info.lam_t is not None else accel.mix(X, d, lam_new, agree)
+                if mixed is not None and agree(_admissible(ctx, law_k, mixed, slack)):
+                    plain, (d, lam_new) = (d, lam_new), mixed
+            at = along(d, lam_new)
             a, trial = 1.0, at(1.0)
+            if plain is not None and (trial is None or not trial[5] < norm):  # the mixed iterate did not help
+                accel.reset(keep_last=True)
+                d, lam_new = plain
+                at = along(d, lam_new)
+                a, trial = 1.0, at(1.0)
+            elif plain is not None:
+                accel.taken += 1
             while trial is None:  # the full step inverts a cell: back along d until none is
                 if a < 0.5**BACKTRACKS:
                     force(base + X + a * d)  # raises the inverted cell's error, naming it
@@ -362,7 +388,7 @@ def newton_solve(
                     allowance = max([0.0] + [phi.total(Y) - here for Y in recent[:-1]])
                     b = _armijo(phi, elastic, a, allowance, agree)
                 elif lam is not None:  # energy-momentum: halvings on |r|
-                    b = _halvings(lambda b: np.inf if (x := at(b)) is None else x[5], norm, elastic, a)
+                    b = _halvings(lambda b, at=at: np.inf if (x := at(b)) is None else x[5], norm, elastic, a)
                 else:
                     b = a
                 if b < a:
@@ -385,6 +411,8 @@ def newton_solve(
                 return U, lam, info
     finally:
         factor.release()
+        if accel is not None:
+            elastic.accelerated_iterations += accel.taken
     if norm <= allowed:  # the forces balance; the rows of the current configuration did not settle
         raise ConvergenceError(
             f"Newton's method did not converge in {most} iterations: the forces balance (residual {norm / scale:.3g} "
@@ -693,6 +721,18 @@ class _Factor:
         if np.any(out[active] > ROUNDOFF * scale) or np.any(through > ctx.touch_tolerance):
             return None
         return d, out
+
+
+def _admissible(ctx: Context, law: ContactLaw, mixed: tuple[np.ndarray, np.ndarray], slack: np.ndarray) -> bool:
+    """Whether an accelerated (d, lambda) (:mod:`~.anderson`) keeps the contact conditions of the rows at the
+    iterate: no multiplier pulls (beyond the round-off of the largest) and no free row goes through its bound
+    (beyond the touch tolerance)."""
+    d, lam = mixed
+    active = lam < 0.0
+    if np.any(lam > ROUNDOFF * float(np.max(np.abs(lam), initial=0.0))):
+        return False
+    rows = ~active if law.subset is None else np.asarray(law.subset, dtype=bool) & ~active
+    return not bool(np.any((ctx.rows.B @ d)[rows] - slack[rows] > ctx.touch_tolerance))
 
 
 def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) -> bool:
