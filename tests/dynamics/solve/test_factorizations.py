@@ -59,3 +59,44 @@ def test_the_ladder_keeps_steps_passes_warm_starts_and_drops_the_least_recently_
     f.use(0.25, [Operator(16.0, 1.0)], keep_bytes=150)  # two kept steps of 100 bytes: the older goes
     assert [dt for dt, _ in f.by_step()] == [1.0, 0.25]
     assert f.counters()["factorizations"] == 3  # the dropped step's counters are kept
+
+
+def test_a_schedule_step_that_cannot_be_factorized_fails_the_run_keeping_its_levels(tmp_path, monkeypatch, capsys):
+    """Issue 52, a hostile input: a dt schedule whose second step's operator cannot be factorized (here SuperLU's
+    "Factor is exactly singular" on the second factorization of a fixed-step run, the first piece's being the set-up's).
+    The run fails there with one line naming the operator, exit 3, its levels and summary written; before, the
+    released systems left none for the summary and the command ended in "internal error: IndexError" (exit 1), the
+    levels lost."""
+    import json
+
+    import scipy.sparse.linalg as spla
+
+    import signorini.linalg.superlu as superlu
+    from signorini.io.cli import main
+
+    case = tmp_path / "case.toml"
+    case.write_text(
+        '[mesh]\ngenerator = "rectangle"\ncells = [8, 4]\nsize = [0.02, 0.01]\ncell = "quad"\n'
+        "[material]\nE = 210e9\nnu = 0.3\nrho = 7850.0\n"
+        '[contact]\ntag = "ymin"\nobstacle = { type = "plane", point = [0.0, -1e-6], normal = [0.0, 1.0] }\n'
+        "[initial]\nvelocity = [0.0, -1.0]\n"
+        '[time]\nscheme = "crank-nicolson"\ndt = [{until = 1e-5, dt = 5e-6}, {until = 3e-5, dt = 1e-6}]\n'
+    )
+    real, calls = spla.splu, []
+
+    def splu(*args, **kwargs):
+        calls.append(1)
+        if len(calls) >= 2:
+            raise RuntimeError("Factor is exactly singular")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(superlu.spla, "splu", splu)
+    out = tmp_path / "out"
+    rc = main(["run", str(case), "--dt-control", "fixed", "--solver-option", "backend=superlu", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 3, err
+    assert "internal error" not in err and "cannot be factorized" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["backend"] == "superlu"
+    levels = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1, usecols=0)
+    assert levels.size == 3 and levels[-1] == pytest.approx(1e-5, rel=1e-12, abs=0.0)  # t = 0, 5 and 10 us

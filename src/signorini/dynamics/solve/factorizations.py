@@ -46,6 +46,9 @@ class Factorizations:
         self._ladder: dict[float, tuple[list[Any], dict]] = {}
         #: the counters of the systems released (:meth:`replace`, :meth:`use`)
         self.retired: dict[str, int] = {}
+        #: the contact solver of the first system made for the latest step (its backend and condensation, for
+        #: the run's summary when a new step's factorization failed and left no system: the run then fails)
+        self.main: ContactSolver | None = None
 
     def system(self, op: Operator) -> tuple[Any, float]:
         """(system, s) with ``op = s * system.op``: a system of the current step that serves ``op``,
@@ -64,6 +67,8 @@ class Factorizations:
                 return sys, s
         sys = self._build(op)
         self.current.append(sys)
+        if len(self.current) == 1:
+            self.main = sys.solver
         return sys, 1.0
 
     def _retire(self, systems: list[Any]) -> None:

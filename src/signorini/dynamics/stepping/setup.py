@@ -196,7 +196,8 @@ def run_warnings(disc: Discretization) -> list[str]:
 
 def run_meta(disc: Discretization, ctx: Context, scheme: Scheme, dt: float, N: int, timings: dict) -> dict:
     """The inputs, sizes and timings of a run, as stored in ``History.meta`` / summary.json."""
-    main = ctx.solvers[0]
+    # the current step's first system, or (a step whose factorization failed: the run failed there) the last made
+    main = ctx.solvers[0] if ctx.solvers else ctx.factors.main
     return {
         "problem": disc.problem.name,
         "scheme": scheme.label,
