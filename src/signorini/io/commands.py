@@ -41,7 +41,7 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     from ..dynamics.observe.history import _json_default
     from ..errors import check_positive
-    from ..studies.benchmarks import get_benchmark
+    from ..studies.benchmarks import STUDY_T, get_benchmark
     from ..studies.reference_study import DEFAULT_REFERENCE_FACTOR, check_levels, study, table_csv, table_markdown
 
     bench = get_benchmark(args.benchmark)
@@ -54,6 +54,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.n0 < 1:
         raise InputError(f"--n0 must be a positive integer, got {args.n0}")
     check_positive("--ratio", args.ratio)
+    if args.T is None:
+        args.T = STUDY_T[bench.dim]
     check_positive("--T", args.T)
     levels = [args.n0 * 2**k for k in range(args.levels)]
     check_refs = tuple(args.check_ref_level or ())

@@ -302,7 +302,12 @@ def _add_study(sub) -> None:
         help="also measure the rates against a reference at level N (repeatable) and compare them",
     )
     st.add_argument("--ratio", type=float, default=0.5, help="time step over mesh size, dt = ratio h (default 0.5)")
-    st.add_argument("--T", type=float, default=1.0, help="final time (default 1)")
+    st.add_argument(
+        "--T",
+        type=float,
+        default=None,
+        help="final time (default 3 in 1D: one period of bar1d, whose contact is on [1, 2); 1 in 2D/3D)",
+    )
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a benchmark parameter")
     add_limit_arguments(
         st,

@@ -304,6 +304,9 @@ def _exact_impact(p: dict, T: float) -> ExactBar1D:
 
 
 BENCHMARKS = Registry("benchmark")
+#: the final time of ``study`` and ``compare`` of a benchmark without --T: in 1D one period 3L/c of bar1d (its
+#: contact is on [1, 2)), in 2D/3D the bars' first impact
+STUDY_T = {1: 3.0, 2: 1.0, 3: 1.0}
 
 
 def _register(b: Benchmark) -> None:

@@ -19,7 +19,7 @@ from ...dynamics.schemes.checks import check_friction_schemes
 from ...dynamics.stepping.budget import CompareEstimate, estimate_compare, estimate_run
 from ...dynamics.stepping.simulate import number_of_steps
 from ...errors import InputError, check_positive
-from ..benchmarks import get_benchmark
+from ..benchmarks import STUDY_T, get_benchmark
 from ..reference_study import DEFAULT_REFERENCE_FACTOR, Reference, check_levels
 from .names import Pair, SchemeSpec
 from .pool import Job, default_jobs
@@ -27,7 +27,7 @@ from .pool import Job, default_jobs
 DEFAULT_RATIO = 0.5
 DEFAULT_LEVELS = 3
 DEFAULT_N0 = {1: 20, 2: 1, 3: 1}
-DEFAULT_T = {1: 3.0, 2: 1.0, 3: 1.0}  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
+DEFAULT_T = STUDY_T  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
 CONTACT_NORM = {1: "stress", 2: "force", 3: "force"}  # contact error of errors_1d / relative_errors
 
 
