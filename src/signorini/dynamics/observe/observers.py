@@ -402,7 +402,9 @@ class EnergyRecorder(Observer):
         # force must be resolved; the free vibrations an impact leaves in a body are not judged
         # (CN carries them without energy error; resolving them would take dt_min everywhere)
         touching = bool(np.any(state.lam) or np.any(self._prev.lam))
-        e = run.scheme.local_error(run.ctx, self._prev, state) if touching else None
+        # the step that made the level before (the energy's _dt, checkpointed); none at level 0
+        dt_before = self._dt if n >= 2 else None
+        e = run.scheme.local_error(run.ctx, self._prev, state, dt_before) if touching else None
         if e is not None and run.ctx.has_fixed:  # a prescribed motion has no error of integration (and its
             e = e.copy()  # V and A on the Dirichlet dofs are not the scheme's: a kink there is not a step's)
             e[run.ctx.fixed] = 0.0

@@ -265,9 +265,10 @@ class Scheme:
         ``by_row``: row by row (nc,), or None when it is 0 (exact contact)."""
         return None if by_row else 0.0
 
-    def local_error(self, ctx: Context, old: State, new: State) -> np.ndarray | None:
+    def local_error(self, ctx: Context, old: State, new: State, dt_before: float | None = None) -> np.ndarray | None:
         """An estimate of the step's local error in the displacement (n,), or None when the
-        scheme has none (the energy control then judges the step by its energy alone)."""
+        scheme has none (the energy control then judges the step by its energy alone).
+        ``dt_before``: the step that made ``old`` (None at level 0)."""
         return None
 
     def energy(self, ctx: Context, state: State) -> tuple[float, float]:

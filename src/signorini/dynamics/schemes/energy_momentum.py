@@ -73,7 +73,7 @@ class EnergyMomentum(Scheme):
         if ctx.rotated_kernel:
             self._refuse_massless(ctx, "its massless rows are balanced by components")
 
-    def local_error(self, ctx, old: State, new: State) -> np.ndarray:
+    def local_error(self, ctx, old: State, new: State, dt_before: float | None = None) -> np.ndarray:
         """(U^{n+1} - U^n - dt V^n - dt^2/2 A^n) / 3, as Crank-Nicolson's (a second-order scheme)."""
         return (new.U - self.taylor_guess(ctx, old)) / 3.0
 

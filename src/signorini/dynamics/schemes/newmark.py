@@ -95,26 +95,30 @@ class Newmark(Scheme):
             )
         return super().step_control_refusal()
 
-    def local_error(self, ctx, old: State, new: State) -> np.ndarray:
-        """Zienkiewicz and Xie's estimate (beta - 1/6) dt^2 (A^{n+1} - A^n), with the step's mean accelerations in
+    def local_error(self, ctx, old: State, new: State, dt_before: float | None = None) -> np.ndarray:
+        """Zienkiewicz and Xie's estimate (beta - 1/6) dt^2 (A^{n+1} - A^n), with the steps' mean accelerations in
         place of A where there is mass:
 
-            e = (beta - 1/6) dt^2 (Abar^{n+1/2} - Abar^{n-1/2}),   Abar^{n+1/2} = (V^{n+1} - V^n) / dt_n
+            e = (beta - 1/6) dt^2 (Abar^{n+1/2} - Abar^{n-1/2}) 2 dt / (dt + dt_before),
+            Abar^{n+1/2} = (V^{n+1} - V^n) / dt
 
-        (``mean_acceleration`` of each level; the same order in dt for a smooth motion).  Crank–Nicolson moves U and
-        V by A's mean over a step only, so an alternating part of A (a contact force that alternates level to level
-        while the body rests: the damping velocity's (-1)^n mode on massless contact dofs) changes neither, yet
-        entered A^{n+1} - A^n: a damped steel block at rest held the step at dt/8 by it (issue 52).  On massless
-        dofs, where A = 0, and at a level without its mean acceleration (level 0, a checkpoint written before it),
-        (beta - 1/6) / beta (U^{n+1} - U^n - dt V^n - dt^2/2 A^n) (Newmark's own update: that difference is beta dt^2
-        (A^{n+1} - A^n); the second difference of U where A = 0)."""
+        (``mean_acceleration`` of each level; Abar^{n+1/2} - Abar^{n-1/2} = A' (dt + dt_before) / 2 for a smooth
+        motion, so the factor gives back the former's A' dt whatever the two steps).  Crank–Nicolson moves U and V by
+        A's mean over a step only, so an alternating part of A (a contact force that alternates level to level while
+        the body rests: the damping velocity's (-1)^n mode on massless contact dofs) changes neither, yet entered
+        A^{n+1} - A^n: a damped steel block at rest held the step at dt/8 by it (issue 52).  On massless dofs, where
+        A = 0, in a run whose contact normals are massless (``seed-normal``), and without the level before's mean
+        acceleration or step ``dt_before`` (level 1, a checkpoint written before it): (beta - 1/6) / beta (U^{n+1} -
+        U^n - dt V^n - dt^2/2 A^n) (Newmark's own update: that difference is beta dt^2 (A^{n+1} - A^n); the second
+        difference of U where A = 0)."""
         beta = float(self.beta)
         e = (beta - 1.0 / 6.0) / beta * (new.U - self.taylor_guess(ctx, old))
         before, now = old.extra.get("mean_acceleration"), new.extra.get("mean_acceleration")
-        if before is None or now is None:
+        if before is None or now is None or dt_before is None or not dt_before > 0 or ctx.rotated_kernel:
             return e
+        dt = ctx.dt
         massless = e[ctx.massless]
-        e = (beta - 1.0 / 6.0) * ctx.dt**2 * (now - before)
+        e = (beta - 1.0 / 6.0) * dt * dt * (2.0 * dt / (dt + dt_before)) * (now - before)
         e[ctx.massless] = massless
         return e
 

@@ -66,7 +66,7 @@ class Theta(Scheme):
     def conserving(self) -> bool:
         return self.theta == 0.5
 
-    def local_error(self, ctx, old: State, new: State) -> np.ndarray | None:
+    def local_error(self, ctx, old: State, new: State, dt_before: float | None = None) -> np.ndarray | None:
         """theta = 1/2 (CN): (U^{n+1} - U^n - dt V^n - dt^2/2 A^n) / 3, Zienkiewicz and Xie's
         dt^2/12 (A^{n+1} - A^n).  None for theta > 1/2: its first-order error is the scheme's
         choice (backward Euler's), not a step to refine (the control judges it by energy)."""

@@ -22,7 +22,8 @@ import numpy as np
 
 #: the most differences kept (m); measured in docs/finite_strain.md
 DEPTH = 5
-#: columns of DF whose part of d_k is below this share of |d_k| are dropped (the least-squares problem's conditioning)
+#: the least-squares problem's cut-off: singular values of DF below this times the largest are dropped (``lstsq``'s
+#: ``rcond``; nearly dependent differences, as the iterates converge)
 RCOND = 1e-10
 
 
@@ -59,7 +60,7 @@ class Anderson:
         self._last = (X, d, lam, active)
         if last is None:
             return None
-        if not np.array_equal(active, last[3]):
+        if not agree(bool(np.array_equal(active, last[3]))):  # on rank 0's values: every rank mixes, or none
             self.reset()
             self._last = (X, d, lam, active)
             return None

@@ -337,14 +337,19 @@ def newton_solve(
 
             plain = None
             if accel is not None:
-                if fresh or info.lam_t is not None:  # a new operator (or friction): the history starts here
+                # a new operator, friction, or the corrected tangent (whose directions may be the plain tangent's with
+                # the active set held, :meth:`_Factor.kkt`): the history starts here
+                own = info.lam_t is None and not factor.corrected
+                if fresh or not own:
                     accel.reset()
-                mixed = None if info.lam_t is not None else accel.mix(X, d, lam_new, agree)
-                if mixed is not None and agree(_admissible(ctx, law_k, mixed, slack)):
+                mixed = accel.mix(X, d, lam_new, agree) if own else None
+                if mixed is not None and agree(_admissible(ctx, law_k, mixed, slack, bound.moves)):
                     plain, (d, lam_new) = (d, lam_new), mixed
             at = along(d, lam_new)
             a, trial = 1.0, at(1.0)
-            if plain is not None and (trial is None or not trial[5] < norm):  # the mixed iterate did not help
+            # the mixed iterate must lower |r| as a kept operator's step must (else taken back, a tangent made)
+            enough = norm if fresh else KEPT_CONTRACTION * norm
+            if plain is not None and (trial is None or not trial[5] <= enough):  # the mixed iterate did not help
                 accel.reset(keep_last=True)
                 d, lam_new = plain
                 at = along(d, lam_new)
@@ -723,16 +728,23 @@ class _Factor:
         return d, out
 
 
-def _admissible(ctx: Context, law: ContactLaw, mixed: tuple[np.ndarray, np.ndarray], slack: np.ndarray) -> bool:
+def _admissible(
+    ctx: Context, law: ContactLaw, mixed: tuple[np.ndarray, np.ndarray], slack: np.ndarray, moves: bool = False
+) -> bool:
     """Whether an accelerated (d, lambda) (:mod:`~.anderson`) keeps the contact conditions of the rows at the
     iterate: no multiplier pulls (beyond the round-off of the largest) and no free row goes through its bound
-    (beyond the touch tolerance)."""
+    (beyond the touch tolerance); with rows that move with the iterate (``moves``: the current configuration, whose
+    rows and bounds differ from one iterate to the next, so that a combination of iterates need not hold its active
+    rows) the active rows at their bound too."""
     d, lam = mixed
     active = lam < 0.0
     if np.any(lam > ROUNDOFF * float(np.max(np.abs(lam), initial=0.0))):
         return False
+    Bd = ctx.rows.B @ d
     rows = ~active if law.subset is None else np.asarray(law.subset, dtype=bool) & ~active
-    return not bool(np.any((ctx.rows.B @ d)[rows] - slack[rows] > ctx.touch_tolerance))
+    if np.any(Bd[rows] - slack[rows] > ctx.touch_tolerance):
+        return False
+    return not (moves and bool(np.any(np.abs(Bd[active] - slack[active]) > ctx.touch_tolerance)))
 
 
 def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) -> bool:

@@ -27,7 +27,7 @@ from .pool import Job, default_jobs
 DEFAULT_RATIO = 0.5
 DEFAULT_LEVELS = 3
 DEFAULT_N0 = {1: 20, 2: 1, 3: 1}
-DEFAULT_T = STUDY_T  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
+DEFAULT_T = dict(STUDY_T)  # 1D: one period 3L/c of bar1d; 2D/3D: the first impact
 CONTACT_NORM = {1: "stress", 2: "force", 3: "force"}  # contact error of errors_1d / relative_errors
 
 
