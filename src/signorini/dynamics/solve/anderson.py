@@ -61,8 +61,7 @@ class Anderson:
         if last is None:
             return None
         if not agree(bool(np.array_equal(active, last[3]))):  # on rank 0's values: every rank mixes, or none
-            self.reset()
-            self._last = (X, d, lam, active)
+            self.reset(keep_last=True)
             return None
         self._dX.append(X - last[0])
         self._dF.append(d - last[1])

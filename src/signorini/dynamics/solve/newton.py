@@ -719,11 +719,9 @@ class _Factor:
         d[f] = x[: f.size]
         out = np.zeros_like(lam_new)
         out[active] = x[f.size :]
-        scale = float(np.max(np.abs(lam_new), initial=0.0))
-        rows = np.ones(out.size, dtype=bool) if law.subset is None else np.asarray(law.subset, dtype=bool).copy()
-        rows[active] = False
-        through = B[rows] @ d - slack[rows]
-        if np.any(out[active] > ROUNDOFF * scale) or np.any(through > ctx.touch_tolerance):
+        held = np.zeros(out.size, dtype=bool)
+        held[active] = True
+        if not _keeps_contact(ctx, law, B @ d, out, slack, held, float(np.max(np.abs(lam_new), initial=0.0))):
             return None
         return d, out
 
@@ -738,13 +736,28 @@ def _admissible(
     rows) the active rows at their bound too."""
     d, lam = mixed
     active = lam < 0.0
-    if np.any(lam > ROUNDOFF * float(np.max(np.abs(lam), initial=0.0))):
-        return False
     Bd = ctx.rows.B @ d
-    rows = ~active if law.subset is None else np.asarray(law.subset, dtype=bool) & ~active
-    if np.any(Bd[rows] - slack[rows] > ctx.touch_tolerance):
+    if not _keeps_contact(ctx, law, Bd, lam, slack, active, float(np.max(np.abs(lam), initial=0.0))):
         return False
     return not (moves and bool(np.any(np.abs(Bd[active] - slack[active]) > ctx.touch_tolerance)))
+
+
+def _keeps_contact(
+    ctx: Context,
+    law: ContactLaw,
+    Bd: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    active: np.ndarray,
+    scale: float,
+) -> bool:
+    """Whether a direction d (its row values ``Bd`` = B d) with multipliers ``lam`` (nc,) keeps the contact
+    conditions at the iterate: no multiplier pulls beyond :data:`ROUNDOFF` ``scale`` and no free row (outside the
+    boolean ``active``, within the law's ``subset``) goes through its bound ``slack`` beyond the touch tolerance."""
+    if np.any(lam > ROUNDOFF * scale):
+        return False
+    free = ~active if law.subset is None else np.asarray(law.subset, dtype=bool) & ~active
+    return not bool(np.any(Bd[free] - slack[free] > ctx.touch_tolerance))
 
 
 def _kkt_ok(ctx: Context, law: ContactLaw, info: StepInfo, rows: bool = True) -> bool:
