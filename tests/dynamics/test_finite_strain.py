@@ -346,7 +346,12 @@ def test_ball_contact_resumes_bit_for_bit(tmp_path):
     for _ in range(170):
         part.step()
     part.finish()
+    import signorini.dynamics.restart.checkpoint as ckpt
+
+    # the level's kept Newton tangent is in the checkpoint and factorized again on resume (issue 51, item 3)
+    assert any(k.endswith("/tangent/indptr") for k in ckpt.read(tmp_path / "c.h5")["arrays"])
     b = finish(Stepper.resume(tmp_path / "c.h5", block_on_ball(), "crank-nicolson", (2e-5, 0.006)))
+    assert a.counters["kept_tangent_steps"] >= 250  # measured 288 of the 300 steps
     assert a.lam[170].min() < 0 and a.lam[171].min() < 0  # the checkpoint's level is inside the contact
     assert np.array_equal(a.lam, b.lam) and np.array_equal(a.energy, b.energy) and np.array_equal(a.gap, b.gap)
 
@@ -376,6 +381,43 @@ def test_a_checkpoint_with_forged_contact_normals_is_refused_by_name(tmp_path, f
     contents["arrays"]["pairing/normals"] = forge(contents["arrays"]["pairing/normals"])
     ckpt.write(tmp_path / "c.h5", {"arrays": contents["arrays"], "attrs": contents["attrs"]})
     with pytest.raises(InputError, match=f"checkpoint: the contact normals {words}"):
+        Stepper.resume(tmp_path / "c.h5", block_on_ball(), "crank-nicolson", (2e-5, 0.006))
+
+
+def _forge_tangent(arrays: dict, part: str, change) -> None:
+    (key,) = [k for k in arrays if k.endswith(f"/tangent/{part}")]
+    arrays[key] = change(arrays[key].copy())
+
+
+@pytest.mark.parametrize(
+    "part, change, words",
+    [
+        ("indices", lambda a: a + 10**6, "indices must be"),
+        ("indptr", lambda a: a[::-1], "index pointer"),
+        ("data", lambda a: a * np.nan, "non-finite values"),
+        ("shape", lambda a: a + 1, "a CSR matrix of"),
+        ("indices", lambda a: a.astype(float), "integer indices"),
+        ("use", lambda a: -a, "its use"),
+    ],  # fmt: skip
+    ids=["index", "indptr", "nan", "shape", "dtype", "use"],
+)
+def test_a_checkpoint_with_a_forged_kept_tangent_is_refused_by_name(tmp_path, part, change, words):
+    """The kept Newton tangent's matrix is factorized again on resume: a forged one is an input error naming
+    it, not a crash of the sparse factorization."""
+    import signorini.dynamics.restart.checkpoint as ckpt
+    from signorini.dynamics.stepping.run_options import CheckpointPolicy
+    from signorini.dynamics.stepping.simulate import Stepper
+
+    part_run = Stepper(  # level 15: a tangent is kept (measured: from level 12)
+        block_on_ball(), "crank-nicolson", (2e-5, 0.006), {"checkpoint": CheckpointPolicy(tmp_path / "c.h5", 15)}
+    )
+    for _ in range(15):
+        part_run.step()
+    part_run.finish()
+    contents = ckpt.read(tmp_path / "c.h5")
+    _forge_tangent(contents["arrays"], part, change)
+    ckpt.write(tmp_path / "c.h5", {"arrays": contents["arrays"], "attrs": contents["attrs"]})
+    with pytest.raises(InputError, match=f"has no valid kept tangent.*{words}"):
         Stepper.resume(tmp_path / "c.h5", block_on_ball(), "crank-nicolson", (2e-5, 0.006))
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
-from signorini.dynamics.model.operator import Operator
+from signorini.dynamics.model.operator import Operator, Tangent
 from signorini.dynamics.solve.factorizations import Factorizations
 from signorini.errors import InputError
 
@@ -18,6 +19,10 @@ class _Solver:
         self.counters = {"factorizations": 1, "linear_solves": 0}
         self.factor_bytes = nbytes
         self.active = np.zeros(3, dtype=bool)
+        self.released = False
+
+    def release(self) -> None:
+        self.released = True
 
 
 class _System:
@@ -59,6 +64,47 @@ def test_the_ladder_keeps_steps_passes_warm_starts_and_drops_the_least_recently_
     f.use(0.25, [Operator(16.0, 1.0)], keep_bytes=150)  # two kept steps of 100 bytes: the older goes
     assert [dt for dt, _ in f.by_step()] == [1.0, 0.25]
     assert f.counters()["factorizations"] == 3  # the dropped step's counters are kept
+
+
+def _tangent_system(f: Factorizations, mass: float = 1.0) -> tuple[Operator, _System]:
+    op = Operator(mass, 1.0, Tangent(sp.identity(3, format="csr")))
+    return op, f.system(op)[0]
+
+
+def test_a_kept_tangent_serves_its_coefficients_across_steps_and_replaces_the_one_before():
+    """A Newton tangent kept across levels (issue 51, item 3) leaves the step's list, is found again by its
+    operator and by its coefficients whatever the current step, and is retired when another is kept in its
+    place; its counters stay in the run's."""
+    f = Factorizations(_System, 1.0)
+    f.system(Operator(1.0, 1.0))
+    op, sys = _tangent_system(f)
+    f.keep(op)
+    assert f.kept == [sys] and sys not in f.current and sys in f.every() and f.system(op) == (sys, 1.0)
+    assert f.kept_for(Operator(1.0, 1.0)) is op and f.kept_for(Operator(4.0, 1.0)) is None
+    f.use(0.5, [Operator(4.0, 1.0)], keep_bytes=1e9)  # another step: still kept (a step of its coefficients)
+    assert f.kept == [sys] and f.kept_for(Operator(1.0, 1.0)) is op
+    op2, sys2 = _tangent_system(f, 4.0)
+    f.keep(op2)
+    assert f.kept == [sys2] and sys.solver.released and f.counters()["factorizations"] == 4
+
+
+def test_a_rejected_steps_kept_tangent_is_retired_and_the_one_before_kept_again():
+    """While a step is on trial the tangent it replaces stays factorized: its rollback keeps it again (and
+    retires the step's), its acceptance retires it."""
+    f = Factorizations(_System, 1.0)
+    op, sys = _tangent_system(f)
+    f.keep(op)
+    f.mark_kept()
+    op2, sys2 = _tangent_system(f)
+    f.keep(op2)
+    assert f.kept == [sys2] and not sys.solver.released
+    f.rollback_kept()
+    assert f.kept == [sys] and sys2.solver.released and not sys.solver.released
+    f.mark_kept()
+    op3, sys3 = _tangent_system(f)
+    f.keep(op3)
+    f.release_kept()
+    assert f.kept == [sys3] and sys.solver.released and not sys3.solver.released
 
 
 def test_a_schedule_step_that_cannot_be_factorized_fails_the_run_keeping_its_levels(tmp_path, monkeypatch, capsys):

@@ -14,7 +14,9 @@ key                what                                                         
 =================  ==================================================================  =========
 ``state``          the scheme's state at the level (U, V, A, lambda, declared extras)  no [1]
                    (:class:`StatePart`)
-``solvers``        each factorized system's warm starts and Delassus columns           yes [3]
+``solvers``        each factorized system's warm starts and Delassus columns; a        yes [3]
+                   Newton tangent kept across levels with its matrix (factorized
+                   again on resume) and which one is kept
 ``pairing``        the contact rows: the pairs' pairing, the current configuration's   yes
                    normals and master points (the same ``saved``/``resume`` calls)
 ``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``,             no [1]
@@ -38,9 +40,10 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
+import scipy.sparse as sp
 
 from ...errors import InputError
-from ..model.operator import Operator, Viscous
+from ..model.operator import Operator, Tangent, Viscous
 from ..solve.context import Context
 from . import checkpoint as ckpt
 
@@ -87,9 +90,12 @@ class SolverStates:
         systems = []
         if ctx.comm.size == 1:
             systems = ctx.factors.by_step() if self.kept_steps else [(ctx.dt, s) for s in ctx.factors.current]
+            systems += [(ctx.dt, s) for s in ctx.factors.kept]  # a Newton tangent kept across levels: last
         out = []
         for dt, sys in systems:  # each factorized operator's solver, in order of creation
             warm = _warm_copy(sys)
+            if sys.op.tangent is not None:  # the kept tangent's use (its policy's record)
+                warm["tangent/use"] = np.array(ctx.factors.kept_use)
             delassus = getattr(sys.solver, "delassus", None)
             blocks = len(delassus.log) if hasattr(delassus, "log") else None
             out.append((sys, warm, blocks, dt))
@@ -102,6 +108,10 @@ class SolverStates:
         for k, (sys, arrays, blocks, dt) in enumerate(snapshot):
             out[f"{k}/operator"] = np.array(sys.op.coefficients())
             out[f"{k}/dt"] = np.array(dt)
+            if sys.op.tangent is not None:  # a kept tangent: its matrix, factorized again on resume
+                G = sp.csr_matrix(sys.op.tangent.matrix)
+                out.update({f"{k}/tangent/{name}": getattr(G, name) for name in ("data", "indices", "indptr")})
+                out[f"{k}/tangent/shape"] = np.array(G.shape)
             out.update({f"{k}/{name}": a for name, a in arrays.items()})
             log = sys.solver.delassus.history(blocks) if blocks is not None else None
             if log is not None:  # the Delassus columns solved, to solve them again alike on resume
@@ -138,7 +148,9 @@ class SolverStates:
             if op is None or op.shape not in ((2,), (3,)) or not np.all(np.isfinite(op)):
                 raise InputError(f"checkpoint {where!r}: solver {k} has no valid operator")
             step = data.get(f"{k}/dt")
-            if self.kept_steps and step is not None:  # a step an adaptive control kept: its own systems
+            tangent = self._tangent(data, k) if f"{k}/tangent/indptr" in data else None
+            # a step an adaptive control kept: its own systems (a kept tangent serves any step)
+            if self.kept_steps and step is not None and tangent is None:
                 if step.shape != () or not np.isfinite(step) or not step > 0:
                     raise InputError(f"checkpoint {where!r}: solver {k} has no valid step")
                 ctx.use_step(float(step), ctx.t0, [], self.ladder_bytes)
@@ -148,7 +160,13 @@ class SolverStates:
                     raise InputError(f"checkpoint {where!r}: solver {k} holds a damping matrix this run does not have")
                 viscous = Viscous(float(op[2]), ctx.damping_matrix)
             # made now if the loop made it
-            sys, _ = ctx.factors.system(Operator(float(op[0]), float(op[1]), None, viscous))
+            operator = Operator(float(op[0]), float(op[1]), tangent, viscous)
+            sys, _ = ctx.factors.system(operator)
+            if tangent is not None:
+                use = data.get(f"{k}/tangent/use")
+                if use is None or use.shape != (2,) or use.dtype.kind not in "iu" or np.any(use < 0):
+                    raise InputError(f"checkpoint {where!r}: solver {k} has no valid kept tangent (its use)")
+                ctx.factors.keep(operator, (int(use[0]), int(use[1])))
             for name in _warm_names(sys):
                 a = data.get(f"{k}/{name}")
                 old = np.asarray(getattr(sys.solver, name))
@@ -173,17 +191,40 @@ class SolverStates:
                 for name, a in restored.get(id(sys), {}).items():
                     setattr(sys.solver, name, a.copy())
 
+    def _tangent(self, data: dict[str, Any], k: int) -> Tangent:
+        """The kept tangent of solver ``k`` (a CSR matrix n x n, n the run's dofs), checked."""
+        parts = [data.get(f"{k}/tangent/{name}") for name in ("data", "indices", "indptr", "shape")]
+        n = self.ctx.M.shape[0]
+        bad = f"checkpoint {self.where!r}: solver {k} has no valid kept tangent"
+        if any(a is None for a in parts) or parts[3].shape != (2,) or tuple(parts[3]) != (n, n):
+            raise InputError(f"{bad} (a CSR matrix of {n} x {n})")
+        values, indices, indptr = parts[0], parts[1], parts[2]
+        if values.dtype.kind != "f" or indices.dtype.kind not in "iu" or indptr.dtype.kind not in "iu":
+            raise InputError(f"{bad} (float values, integer indices)")
+        if not np.all(np.isfinite(values)):
+            raise InputError(f"{bad} (non-finite values)")
+        try:
+            G = sp.csr_matrix((values, indices, indptr), shape=(n, n))
+            G.check_format(full_check=True)
+        except ValueError as exc:
+            raise InputError(f"{bad}: {exc}") from None
+        return Tangent(G)
+
     # -- a rollback ----------------------------------------------------------------------
     def mark(self) -> list[tuple[Any, dict[str, np.ndarray]]]:
-        """What a rejected step must put back: the warm starts of the current step's solvers, and every
-        system's Delassus columns as they are now (:class:`~signorini.contact.delassus.ColumnsUndo`:
-        copied only if the step moves their rows; the columns a step only adds stay valid for its operator)."""
-        for sys in self.ctx.factors.every():
+        """What a rejected step must put back: the warm starts of the current step's solvers and of the kept
+        tangent's, which tangent is kept (:meth:`~.factorizations.Factorizations.mark_kept`), and every system's
+        Delassus columns as they are now (:class:`~signorini.contact.delassus.ColumnsUndo`: copied only if the
+        step moves their rows; the columns a step only adds stay valid for its operator)."""
+        factors = self.ctx.factors
+        factors.mark_kept()
+        for sys in factors.every():
             _delassus_call(sys, "mark")
-        return [(sys, _warm_copy(sys)) for sys in self.ctx.factors.current]
+        return [(sys, _warm_copy(sys)) for sys in factors.current + factors.kept]
 
     def rollback(self, mark: list[tuple[Any, dict[str, np.ndarray]]]) -> None:
-        """The solvers as at :meth:`mark`: the Delassus columns, then the warm starts."""
+        """The solvers as at :meth:`mark`: the kept tangent, the Delassus columns, then the warm starts."""
+        self.ctx.factors.rollback_kept()
         for sys in self.ctx.factors.every():
             _delassus_call(sys, "rollback")
         for sys, arrays in mark:
@@ -191,7 +232,9 @@ class SolverStates:
                 setattr(sys.solver, name, a.copy())
 
     def release(self) -> None:
-        """The step was accepted: the marks of :meth:`mark` dropped (nothing is copied after it)."""
+        """The step was accepted: the marks of :meth:`mark` dropped (nothing is copied after it), the kept
+        tangent it replaced retired."""
+        self.ctx.factors.release_kept()
         for sys in self.ctx.factors.every():
             _delassus_call(sys, "release")
 

@@ -143,6 +143,9 @@ class FiniteStrain(Elasticity):
         self.kkt_directions = 0
         self.exact_directions = 0
         self.accelerated_iterations = 0
+        #: steps started with a tangent kept from a level before, and those of them started again without it
+        self.kept_tangent_steps = 0
+        self.kept_tangent_restarts = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         #: the last two (U, energy) pairs
         self._energies: list[tuple[np.ndarray, float]] = []
@@ -300,7 +303,9 @@ class FiniteStrain(Elasticity):
         tangents made positive semi-definite per cell because the plain one could not be factorized or did not give
         a descent direction) and ``kkt_directions`` (Newton directions of the plain indefinite tangent with the
         active contact rows held, where the corrected one converges slowly) and ``exact_directions`` (Newton
-        directions of a scheme's exact Jacobian where its symmetric tangent approximates it: energy-momentum)."""
+        directions of a scheme's exact Jacobian where its symmetric tangent approximates it: energy-momentum),
+        ``kept_tangent_steps`` (steps started with a tangent kept from a level before) and ``kept_tangent_restarts``
+        (those of them started again with an operator of their own)."""
         return {
             "tangent_factorizations": self.factorizations,
             "line_search_steps": self.line_search_steps,
@@ -309,6 +314,8 @@ class FiniteStrain(Elasticity):
             "kkt_directions": self.kkt_directions,
             "exact_directions": self.exact_directions,
             "accelerated_iterations": self.accelerated_iterations,
+            "kept_tangent_steps": self.kept_tangent_steps,
+            "kept_tangent_restarts": self.kept_tangent_restarts,
         }
 
 

@@ -9,6 +9,12 @@ another dt: :meth:`replace`) or keeps them on a ladder (an adaptive control's st
 :meth:`use`), the least recently used dropped first beyond a memory budget.  The counters of
 released systems are kept (:meth:`counters`).
 
+A Newton tangent may be *kept* across levels (:meth:`keep`): its system leaves the step's list and stays found
+by :meth:`system` whatever the step (its operator's coefficients name the step it serves), until another
+tangent is kept in its place or it is dropped (:meth:`drop_kept`).  The one it replaces is retired at once, or,
+while a step is on trial (:meth:`mark_kept`), when the step is accepted (:meth:`release_kept`) or put back by
+its rollback (:meth:`rollback_kept`).
+
 The :class:`~signorini.dynamics.solve.context.Context` of a run holds one, as ``ctx.factors``.
 """
 
@@ -49,12 +55,21 @@ class Factorizations:
         #: the contact solver of the first system made for the latest step (its backend and condensation, for
         #: the run's summary when a new step's factorization failed and left no system: the run then fails)
         self.main: ContactSolver | None = None
+        #: the systems kept across levels (:meth:`keep`: at most one, a Newton tangent)
+        self.kept: list[Any] = []
+        #: (steps, Newton iterations) the kept tangent served, the step that made it included (its owner's policy)
+        self.kept_use: tuple[int, int] = (0, 0)
+        #: the kept systems and their use when a step's trial began (:meth:`mark_kept`), None when none is on trial
+        self._marked: tuple[list[Any], tuple[int, int]] | None = None
 
     def system(self, op: Operator) -> tuple[Any, float]:
         """(system, s) with ``op = s * system.op``: a system of the current step that serves ``op``,
         made (factorized) now when none does."""
         found = self._lookup.get(op)
         if found is None:
+            for sys in self.kept:
+                if sys.op == op:
+                    return sys, 1.0
             found = self._lookup[op] = self._find_or_build(op)
         return found
 
@@ -92,6 +107,49 @@ class Factorizations:
             return
         self.current = [s for s in self.current if s is not sys]
         self._retire([sys])
+
+    def keep(self, op: Operator, use: tuple[int, int] = (0, 0)) -> None:
+        """Keep the system of ``op`` (made by :meth:`system` for the current step) across levels, in place of the
+        one kept before (retired now, or when the step on trial is accepted); ``use``: its :attr:`kept_use`."""
+        sys, _ = self._lookup.pop(op)
+        self.current = [s for s in self.current if s is not sys]
+        self._drop_kept()
+        self.kept, self.kept_use = [sys], (int(use[0]), int(use[1]))
+
+    def _drop_kept(self) -> None:
+        """No system kept: the one kept is retired, now or (on trial) when the step is accepted."""
+        marked = [] if self._marked is None else self._marked[0]
+        self._retire([s for s in self.kept if not any(s is m for m in marked)])
+        self.kept, self.kept_use = [], (0, 0)
+
+    def drop_kept(self) -> None:
+        """The kept tangent serves no longer (its steps cost more than a factorization would)."""
+        self._drop_kept()
+
+    def kept_for(self, op: Operator) -> Operator | None:
+        """The kept tangent's operator when its coefficients (and damping term) are those of ``op``, else None."""
+        for sys in self.kept:
+            if sys.op.mass == op.mass and sys.op.stiffness == op.stiffness and sys.op.viscous == op.viscous:
+                return sys.op
+        return None
+
+    def mark_kept(self) -> None:
+        """A step's trial begins: a kept system replaced during it is retired only when the step is accepted."""
+        self._marked = (list(self.kept), self.kept_use)
+
+    def release_kept(self) -> None:
+        """The step on trial was accepted: the kept systems it replaced are retired."""
+        systems = [] if self._marked is None else self._marked[0]
+        self._marked = None
+        self._retire([s for s in systems if not any(s is k for k in self.kept)])
+
+    def rollback_kept(self) -> None:
+        """The step on trial was rejected: the systems kept when it began are kept again (with their use), those it
+        kept retired."""
+        systems, use = ([], (0, 0)) if self._marked is None else self._marked
+        self._marked = None
+        self._retire([s for s in self.kept if not any(s is m for m in systems)])
+        self.kept, self.kept_use = list(systems), use
 
     def replace(self, dt: float, operators: list[Operator]) -> None:
         """Continue with the step ``dt``: the current systems are released (their counters kept)
@@ -137,8 +195,8 @@ class Factorizations:
         return kept + [(self.dt, s) for s in self.current]
 
     def every(self) -> list[Any]:
-        """The systems of the current step, then those kept for other steps."""
-        return self.current + [sys for systems, _ in self._ladder.values() for sys in systems]
+        """The systems of the current step, then those kept for other steps, then the kept tangent's."""
+        return self.current + [sys for systems, _ in self._ladder.values() for sys in systems] + self.kept
 
     @property
     def solvers(self) -> list[ContactSolver]:

@@ -31,8 +31,13 @@ direction that did not lower |r|, is rebuilt with each cell's matrix positive se
 
 ``tangent=modified`` keeps G of the step's first iterate while |r| falls fast enough to reach the tolerance in a
 few more iterations (:func:`_renew`) and refactorizes at the iterate where it does not (a step that starts near
-the reference configuration starts with the scheme's linear operator, :data:`REFERENCE_GRADIENT`); each step starts from
-the tangent at U^n, so that a step depends on its starting level only (a checkpoint resumes bit for bit).
+the reference configuration starts with the scheme's linear operator, :data:`REFERENCE_GRADIENT`).  On one
+process the last plain tangent a step made is kept across levels (``Factorizations.keep``) and starts the next
+steps of the same coefficients while it contracts as a kept tangent must; a step it does not serve (a renewal, a
+step that did not halve |r|, a solve that fails) starts again from its level as without it, its iterates dropped
+(counted in ``nonlinear_iterations``).  A checkpoint records the kept tangent's matrix and a rejected step's
+rollback keeps the one before again (:mod:`~..restart.protocol`), so a step depends on its level and that
+matrix only: a resume is bit for bit.
 While the operator is kept (the scheme's own or a kept tangent), ``acceleration=anderson`` (the default) mixes
 the iterates with the last ones (:mod:`~.anderson`: a Krylov method preconditioned by the factorized operator) as
 long as the rows held at their bound stay the same and no friction acts; a mixed iterate that does not lower |r|,
@@ -92,6 +97,10 @@ EXACT_RATE = 0.1
 #: a step of a kept (modified) tangent that does not reduce the residual by this factor is taken back and the
 #: tangent renewed at the iterate it started from (a poor stale step leads Newton astray: measured below)
 KEPT_CONTRACTION = 0.5
+#: what a tangent's factorization costs, in Newton iterations, for the choice of keeping a tangent across levels
+#: (:func:`_served`; measured: about 1 on a 2D block of 108 dofs, 12 on the 2,853-dof gmsh bracket of
+#: examples/bracket_tumble.toml, docs/finite_strain.md)
+KEPT_FACTORIZATION = 4.0
 
 
 def residual_norm(
@@ -274,6 +283,69 @@ def newton_solve(
     approximates it (energy-momentum); the directions are then taken from it once the step needs a tangent of
     its own (:meth:`_Factor.exact`).  Returns U (n,), lambda (nc,) and the last contact solve's info with
     ``nonlinear_iterations`` (the Newton iterations) set."""
+    modified = ctx.solver_options.get("tangent", "modified") == "modified"
+    # a tangent kept across levels (serial: a checkpoint records it, :mod:`~..restart.protocol`) serves while it
+    # contracts; a step it does not serve starts again as without it (its iterates dropped)
+    carry = modified and ctx.comm.size == 1
+    kept = ctx.factors.kept_for(op) if carry else None
+    args = (ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian)
+    if kept is not None:
+        ctx.elastic.kept_tangent_steps += 1
+        try:
+            U, lam, info = _iterate(*args, kept=kept, carry=carry)
+        except (_Abandoned, ConvergenceError) as exc:
+            ctx.elastic.kept_tangent_restarts += 1
+            spent = exc.iterations if isinstance(exc, _Abandoned) else int(ctx.solver_options.get("newton_max", 25))
+        else:
+            _served(ctx.factors, info.nonlinear_iterations)
+            return U, lam, info
+        U, lam, info = _iterate(*args, kept=None, carry=carry)
+        info.nonlinear_iterations += spent  # the step's work: the iterations dropped too
+        return U, lam, info
+    return _iterate(*args, kept=None, carry=carry)
+
+
+def _served(factors, iterations: int) -> None:
+    """The kept tangent served a step in ``iterations``: it is dropped (the next step makes its own) when that is
+    more than the mean cost of its steps so far, (KEPT_FACTORIZATION + the iterations of its steps) / its steps,
+    the step that made it included: a tangent growing stale would raise that mean."""
+    steps, total = factors.kept_use
+    steps, total = steps + 1, total + iterations
+    if iterations > (KEPT_FACTORIZATION + total) / steps:
+        factors.drop_kept()
+    else:
+        factors.kept_use = (steps, total)
+
+
+class _Abandoned(Exception):
+    """A step started with a kept tangent needs an operator of its own: it starts again without the kept one
+    (``iterations``: those dropped)."""
+
+    def __init__(self, iterations: int):
+        super().__init__(iterations)
+        self.iterations = iterations
+
+
+def _iterate(
+    ctx: Context,
+    op: Operator,
+    base: np.ndarray,
+    rest: np.ndarray,
+    force: Callable[[np.ndarray], np.ndarray],
+    tangent: Callable[..., object],
+    bound: FixedBound | FollowingBound,
+    fixed: np.ndarray | None,
+    law: ContactLaw,
+    inertia: np.ndarray | None,
+    energy: Callable[[np.ndarray], float] | None,
+    jacobian: Callable[[np.ndarray], object] | None,
+    *,
+    kept: Operator | None,
+    carry: bool,
+) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+    """The iterations of :func:`newton_solve`, started with the tangent ``kept`` from a level before (abandoned,
+    :class:`_Abandoned`, where it needs renewing) or with the step's own operator; ``carry``: the step's last
+    plain tangent is kept for the next levels."""
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
     modified = opts.get("tangent", "modified") == "modified"
@@ -293,6 +365,10 @@ def newton_solve(
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
     factor = _Factor(ctx, op, tangent, bound, elastic, jacobian)
+    if kept is not None:  # its first step is held to KEPT_CONTRACTION of |r| at the level (no contact force)
+        factor.current, factor.carried, reference = kept, True, False
+        norm = agree(residual_norm(ctx, op, X, rest, gU, U, np.zeros(ctx.rows.B.shape[0]), None, inertia, through)[0])
+    converged = 0  # the iterations of a converged step
     accel = Anderson(ctx.free) if opts.get("acceleration", "anderson") == "anderson" else None
     recent = [X]  # the last iterates (the non-monotone search's reference: the largest Pi among them)
     keep = False  # the operator was just corrected at this iterate: no renewal before its direction
@@ -302,6 +378,8 @@ def newton_solve(
                 refactor, keep = True, False
             else:
                 refactor = factor.current is None or not modified or not full or _renew(norm, previous, allowed)
+                if refactor and factor.carried:
+                    raise _Abandoned(k - 1)
                 if refactor:
                     factor.renew(U, lam, use_reference=k == 1 and reference)
             bnd = bound(U)
@@ -370,7 +448,12 @@ def newton_solve(
                 noise = agree(op.stiffness * elastic.force_noise(trial[1]))
                 if n_new <= noise:
                     allowed = n_new
-            if lam is not None and not fresh and n_new > allowed and not n_new <= KEPT_CONTRACTION * norm:
+            if (
+                (lam is not None or factor.carried)
+                and not fresh
+                and n_new > allowed
+                and not n_new <= KEPT_CONTRACTION * norm
+            ):
                 full = False  # a kept tangent's step that does not halve |r|: taken back, the tangent renewed here
                 continue
             # |r| does not fall (at the first iterate: below |r| there, without contact force): a line search
@@ -413,8 +496,12 @@ def newton_solve(
             if full and norm <= allowed and gaps_ok and solved:
                 info.nonlinear_iterations = k
                 info.force_residual = _force_residual(ctx, op, X, rest, gU, U, lam, lam_t, through)
+                converged = k
                 return U, lam, info
     finally:
+        if converged and carry and factor.owned and not factor.corrected:  # the step's own tangent, kept
+            ctx.factors.keep(factor.current, (1, converged))
+            factor.current, factor.owned = None, False
         factor.release()
         if accel is not None:
             elastic.accelerated_iterations += accel.taken
@@ -500,6 +587,8 @@ class _Factor:
         self.exact_wanted = False
         self.current: Operator | None = None
         self.owned = False  # whether ``current`` is this step's tangent (released after it), not the scheme's
+        #: whether ``current`` is the tangent kept from a level before (``Factorizations.keep``; not released here)
+        self.carried = False
         self.corrected = False  # whether ``current`` is the corrected tangent (projected per cell, maybe shifted)
         self.shift = 0
         self._plain: tuple[np.ndarray, sp.csr_matrix | RowBlock] | None = None  # (U, the plain tangent at U)
@@ -511,6 +600,7 @@ class _Factor:
         (else the plain one: a correction holds for the operator it was made for, so that Newton converges
         quadratically again where the tangent is definite)."""
         self.release()
+        self.carried = False
         if not corrected:
             self.corrected, self.shift = False, 0
         if use_reference:
@@ -593,6 +683,8 @@ class _Factor:
                 d, lam_new, info = self.ctx.solve(self.current, minus_r, slack, fixed_d, law)
             except (InputError, np.linalg.LinAlgError, ArithmeticError):  # the tangent (or its Delassus operator)
                 # cannot be factorized: not the set-up's input
+                if self.carried:
+                    raise _Abandoned(k - 1) from None
                 if not self.owned:
                     raise
                 self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
