@@ -146,6 +146,18 @@ def test_an_inverted_cell_is_named_and_1d_is_refused():
 
 
 @pytest.mark.parametrize("cells", list(MESHES))
+def test_the_algorithmic_force_with_its_level_formed_once_is_the_same_force(cells):
+    """A step's iterates share U0: F0 and C0 kept in ``level`` give the force bit for bit."""
+    mesh, lw = MESHES[cells], NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu)
+    U0, dU = _state(mesh, seed=7, size=0.03)
+    level: dict = {}
+    for a in (0.01, 0.03):
+        U1 = U0 + a * dU
+        assert np.array_equal(algorithmic_force(mesh, lw, U0, U1, level=level), algorithmic_force(mesh, lw, U0, U1))
+    assert level and all(len(v) == 2 for v in level.values())
+
+
+@pytest.mark.parametrize("cells", list(MESHES))
 @pytest.mark.parametrize("law", LAWS)
 def test_the_algorithmic_force_keeps_energy_and_both_momenta(cells, law):
     """Gonzalez's discrete gradient between two states 5% of a cell apart: f . dU = Pi(U1) - Pi(U0)

@@ -223,7 +223,8 @@ def test_finite_strain_matches_the_serial_run(tmp_path, ranks):
     with its momentum projection, the whole skin in contact in the current configuration) to t = 8 ms, through
     its first impact.  Each rank assembles its rows of every Newton tangent from the cells around its own
     nodes (``FiniteStrain.tangent``), MUMPS factorizes them: the history equals the serial run's to 1e-8
-    (measured 3e-13 .. 4e-13), the identity closes as in serial (1e-11 of E, the Newton tolerance's), and the
+    (measured 3e-13 .. 4e-13 before the serial run kept its tangents across levels; its iteration counts then
+    differ), the identity closes as in serial (1e-11 of E, the Newton tolerance's), and the
     run makes more than 400 factorizations, past the point where PETSc's MUMPS failed
     before its instances were kept for the next tangent of the same pattern (``linalg/petsc/factor.py``,
     ``KEPT``)."""
@@ -234,8 +235,10 @@ def test_finite_strain_matches_the_serial_run(tmp_path, ranks):
     r = mpirun(ranks, ["case.toml", "--out", "par", "--quiet"], tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
     # energy-momentum's exact directions (one sparse LU of the whole system) are serial only; this run's symmetric
-    # tangents contract fast, so the serial run takes none and the two Newtons are the same (docs/parallel.md)
-    assert compare_runs(tmp_path / "ser", tmp_path / "par") <= TOLERANCE
+    # tangents contract fast, so the serial run takes none.  The serial run keeps a tangent across levels, the ranks
+    # start each step afresh (docs/parallel.md): their Newtons stop at other iterates within the tolerance, in other
+    # iteration counts
+    assert compare_runs(tmp_path / "ser", tmp_path / "par", skip=("nonlinear_iterations",)) <= TOLERANCE
     check_identities(tmp_path / "par", energy_tol=1e-10)
     p = json.loads((tmp_path / "par" / "summary.json").read_text())
     s = json.loads((tmp_path / "ser" / "summary.json").read_text())

@@ -574,20 +574,32 @@ def algorithmic_stress(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> 
 
 
 def algorithmic_force(
-    mesh: Mesh, law: HyperelasticLaw, U0: np.ndarray, U1: np.ndarray, cells: np.ndarray | None = None
+    mesh: Mesh,
+    law: HyperelasticLaw,
+    U0: np.ndarray,
+    U1: np.ndarray,
+    cells: np.ndarray | None = None,
+    level: dict | None = None,
 ) -> np.ndarray:
     """The energy-momentum step's internal force (n_nodes d,): f_a = int F_mid S_alg grad N_a dX,
     F_mid = I + grad (U0 + U1)/2 (spec 12).  f . (U1 - U0) = Pi(U1) - Pi(U0) to round-off, and
     sum f_a = 0, sum x_mid,a x f_a = 0 (x_mid = X + (U0 + U1)/2): a free body keeps its energy and
-    its linear and angular momentum."""
+    its linear and angular momentum.  ``level``: a dict kept by the caller for one U0 (a step's Newton
+    iterates), holding each part's F0 and C0 once formed (the same values: each is formed once a step)."""
     d = mesh.dim
     f = np.zeros(mesh.n_nodes * d)
-    for part, part_law, cut in _parts(mesh, law, cells):
-        F0, wdet, G = deformation_gradients(part, U0)
-        F1, _, _ = deformation_gradients(part, U1)
-        check_orientation(part, F0, cut)
+    for j, (part, part_law, cut) in enumerate(_parts(mesh, law, cells)):
+        if level is not None and j in level:
+            F0, C0 = level[j]
+        else:
+            F0 = deformation_gradients(part, U0)[0]
+            check_orientation(part, F0, cut)
+            C0 = _green(F0)[0]
+            if level is not None:
+                level[j] = (F0, C0)
+        F1, wdet, G = deformation_gradients(part, U1)
         check_orientation(part, F1, cut)
-        S = algorithmic_stress(part_law, _green(F0)[0], _green(F1)[0])
+        S = algorithmic_stress(part_law, C0, _green(F1)[0])
         P = np.matmul(0.5 * (F0 + F1), S)
         f += assemble_nodal(part, np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(1))
     return f

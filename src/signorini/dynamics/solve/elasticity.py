@@ -151,6 +151,8 @@ class FiniteStrain(Elasticity):
         self._energies: list[tuple[np.ndarray, float]] = []
         self._by_rows: list | None = None
         self._abs_S: sp.csr_matrix | None = None
+        #: the level U0 of the last energy-momentum force and each law group's F0, C0 there (formed once a step)
+        self._level: tuple[np.ndarray, list[dict]] | None = None
 
     def force(self, U: np.ndarray) -> np.ndarray:
         last = self._last
@@ -239,8 +241,11 @@ class FiniteStrain(Elasticity):
         S (U0 + U1)/2 on the linear ones, so that f . (U1 - U0) = Pi(U1) - Pi(U0) [force] (``f0``, ``f1``
         unused: the discrete gradient is not their mean)."""
         f = np.zeros(U0.size) if self.S_linear is None else self.S_linear @ (0.5 * (U0 + U1))
-        for law, cells in self.groups:
-            f += algorithmic_force(self.mesh, law, U0, U1, cells)
+        level = self._level
+        if level is None or not (level[0] is U0 or np.array_equal(level[0], U0)):  # a new step: its level's F0, C0
+            level = self._level = (np.array(U0, copy=True), [{} for _ in self.groups])
+        for (law, cells), memo in zip(self.groups, level[1], strict=True):
+            f += algorithmic_force(self.mesh, law, U0, U1, cells, memo)
         return f
 
     def algorithmic_tangent(self, U0: np.ndarray, U1: np.ndarray) -> sp.csr_matrix:
