@@ -292,17 +292,17 @@ def newton_solve(
     if kept is not None:
         ctx.elastic.kept_tangent_steps += 1
         try:
-            U, lam, info = _iterate(*args, kept=kept, carry=carry)
+            U, lam, info = _iterate(args, kept=kept, carry=carry)
         except (_Abandoned, ConvergenceError) as exc:
             ctx.elastic.kept_tangent_restarts += 1
             spent = exc.iterations if isinstance(exc, _Abandoned) else int(ctx.solver_options.get("newton_max", 25))
         else:
             _served(ctx.factors, info.nonlinear_iterations)
             return U, lam, info
-        U, lam, info = _iterate(*args, kept=None, carry=carry)
+        U, lam, info = _iterate(args, kept=None, carry=carry)
         info.nonlinear_iterations += spent  # the step's work: the iterations dropped too
         return U, lam, info
-    return _iterate(*args, kept=None, carry=carry)
+    return _iterate(args, kept=None, carry=carry)
 
 
 def _served(factors, iterations: int) -> None:
@@ -326,26 +326,11 @@ class _Abandoned(Exception):
         self.iterations = iterations
 
 
-def _iterate(
-    ctx: Context,
-    op: Operator,
-    base: np.ndarray,
-    rest: np.ndarray,
-    force: Callable[[np.ndarray], np.ndarray],
-    tangent: Callable[..., object],
-    bound: FixedBound | FollowingBound,
-    fixed: np.ndarray | None,
-    law: ContactLaw,
-    inertia: np.ndarray | None,
-    energy: Callable[[np.ndarray], float] | None,
-    jacobian: Callable[[np.ndarray], object] | None,
-    *,
-    kept: Operator | None,
-    carry: bool,
-) -> tuple[np.ndarray, np.ndarray, StepInfo]:
+def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.ndarray, np.ndarray, StepInfo]:
     """The iterations of :func:`newton_solve`, started with the tangent ``kept`` from a level before (abandoned,
     :class:`_Abandoned`, where it needs renewing) or with the step's own operator; ``carry``: the step's last
-    plain tangent is kept for the next levels."""
+    plain tangent is kept for the next levels.  ``args``: :func:`newton_solve`'s, in its order."""
+    ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian = args
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
     modified = opts.get("tangent", "modified") == "modified"
