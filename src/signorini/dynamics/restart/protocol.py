@@ -164,7 +164,7 @@ class SolverStates:
             sys, _ = ctx.factors.system(operator)
             if tangent is not None:
                 use = data.get(f"{k}/tangent/use")
-                if use is None or use.shape != (2,) or use.dtype.kind not in "iu" or np.any(use < 0):
+                if use is None or use.shape != (2,) or use.dtype.kind not in "iu" or np.any((use < 0) | (use > 2**53)):
                     raise InputError(f"checkpoint {where!r}: solver {k} has no valid kept tangent (its use)")
                 ctx.factors.keep(operator, (int(use[0]), int(use[1])))
             for name in _warm_names(sys):
@@ -199,8 +199,13 @@ class SolverStates:
         if any(a is None for a in parts) or parts[3].shape != (2,) or tuple(parts[3]) != (n, n):
             raise InputError(f"{bad} (a CSR matrix of {n} x {n})")
         values, indices, indptr = parts[0], parts[1], parts[2]
-        if values.dtype.kind != "f" or indices.dtype.kind not in "iu" or indptr.dtype.kind not in "iu":
+        if (
+            values.dtype not in (np.float32, np.float64)
+            or indices.dtype.kind not in "iu"
+            or indptr.dtype.kind not in "iu"
+        ):
             raise InputError(f"{bad} (float values, integer indices)")
+        values = values.astype(np.float64, copy=False)
         if not np.all(np.isfinite(values)):
             raise InputError(f"{bad} (non-finite values)")
         try:

@@ -113,18 +113,15 @@ class Factorizations:
         one kept before (retired now, or when the step on trial is accepted); ``use``: its :attr:`kept_use`."""
         sys, _ = self._lookup.pop(op)
         self.current = [s for s in self.current if s is not sys]
-        self._drop_kept()
+        self.drop_kept()
         self.kept, self.kept_use = [sys], (int(use[0]), int(use[1]))
 
-    def _drop_kept(self) -> None:
-        """No system kept: the one kept is retired, now or (on trial) when the step is accepted."""
+    def drop_kept(self) -> None:
+        """No system kept (the kept tangent serves no longer): it is retired, now or (on trial) when the step is
+        accepted."""
         marked = [] if self._marked is None else self._marked[0]
         self._retire([s for s in self.kept if not any(s is m for m in marked)])
         self.kept, self.kept_use = [], (0, 0)
-
-    def drop_kept(self) -> None:
-        """The kept tangent serves no longer (its steps cost more than a factorization would)."""
-        self._drop_kept()
 
     def kept_for(self, op: Operator) -> Operator | None:
         """The kept tangent's operator when its coefficients (and damping term) are those of ``op``, else None."""
@@ -153,7 +150,8 @@ class Factorizations:
 
     def replace(self, dt: float, operators: list[Operator]) -> None:
         """Continue with the step ``dt``: the current systems are released (their counters kept)
-        and ``operators`` factorized."""
+        and ``operators`` factorized.  A kept tangent stays (a checkpoint written at the level where a schedule
+        changes its step holds it, and a resume does not change the step there)."""
         self._retire(self.current)
         self.current, self._lookup = [], {}
         self.dt = float(dt)

@@ -34,10 +34,12 @@ few more iterations (:func:`_renew`) and refactorizes at the iterate where it do
 the reference configuration starts with the scheme's linear operator, :data:`REFERENCE_GRADIENT`).  On one
 process the last plain tangent a step made is kept across levels (``Factorizations.keep``) and starts the next
 steps of the same coefficients while it contracts as a kept tangent must; a step it does not serve (a renewal, a
-step that did not halve |r|, a solve that fails) starts again from its level as without it, its iterates dropped
-(counted in ``nonlinear_iterations``).  A checkpoint records the kept tangent's matrix and a rejected step's
-rollback keeps the one before again (:mod:`~..restart.protocol`), so a step depends on its level and that
-matrix only: a resume is bit for bit.
+step that did not halve |r|, a solve that fails) starts again from its level with its own operator, its iterates
+dropped (counted in ``nonlinear_iterations``; contact pairs in the current configuration keep the flips at a
+master surface's rim that those iterates counted, as a step's later iterates do), and the kept tangent is dropped;
+on a ``petsc`` backend (operators by rows) none is kept.  A checkpoint records the kept tangent's matrix and a
+rejected step's rollback keeps the one before again (:mod:`~..restart.protocol`), so a step depends on its level
+and that matrix only: a resume is bit for bit.
 While the operator is kept (the scheme's own or a kept tangent), ``acceleration=anderson`` (the default) mixes
 the iterates with the last ones (:mod:`~.anderson`: a Krylov method preconditioned by the factorized operator) as
 long as the rows held at their bound stay the same and no friction acts; a mixed iterate that does not lower |r|,
@@ -285,8 +287,11 @@ def newton_solve(
     ``nonlinear_iterations`` (the Newton iterations) set."""
     modified = ctx.solver_options.get("tangent", "modified") == "modified"
     # a tangent kept across levels (serial: a checkpoint records it, :mod:`~..restart.protocol`) serves while it
-    # contracts; a step it does not serve starts again as without it (its iterates dropped)
-    carry = modified and ctx.comm.size == 1
+    # contracts; a step it does not serve starts again with its own operator (its iterates dropped)
+    # (a petsc backend on one process holds its operators by rows, as on several ranks: not kept there either)
+    carry = modified and ctx.comm.size == 1 and not isinstance(ctx.M, RowBlock)
+    if not carry and ctx.factors.kept:  # another tangent policy (a resume with tangent=full): no longer of use
+        ctx.factors.drop_kept()
     kept = ctx.factors.kept_for(op) if carry else None
     args = (ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian)
     if kept is not None:
@@ -295,7 +300,9 @@ def newton_solve(
             U, lam, info = _iterate(args, kept=kept, carry=carry)
         except (_Abandoned, ConvergenceError) as exc:
             ctx.elastic.kept_tangent_restarts += 1
-            spent = exc.iterations if isinstance(exc, _Abandoned) else int(ctx.solver_options.get("newton_max", 25))
+            most = int(ctx.solver_options.get("newton_max", 25))
+            spent = int(getattr(exc, "iterations", most))  # the iterations of the attempt dropped
+            ctx.factors.drop_kept()  # it did not serve: the next steps do not try it again
         else:
             _served(ctx.factors, info.nonlinear_iterations)
             return U, lam, info
@@ -319,7 +326,8 @@ def _served(factors, iterations: int) -> None:
 
 class _Abandoned(Exception):
     """A step started with a kept tangent needs an operator of its own: it starts again without the kept one
-    (``iterations``: those dropped)."""
+    (``iterations``: those dropped; a :class:`~signorini.errors.ConvergenceError` raised within the iterations
+    carries them too)."""
 
     def __init__(self, iterations: int):
         super().__init__(iterations)
@@ -357,6 +365,7 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
     accel = Anderson(ctx.free) if opts.get("acceleration", "anderson") == "anderson" else None
     recent = [X]  # the last iterates (the non-monotone search's reference: the largest Pi among them)
     keep = False  # the operator was just corrected at this iterate: no renewal before its direction
+    k = 0
     try:
         for k in range(1, most + 1):
             if keep:  # corrected at this iterate already (a fresh operator)
@@ -483,6 +492,9 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
                 info.force_residual = _force_residual(ctx, op, X, rest, gU, U, lam, lam_t, through)
                 converged = k
                 return U, lam, info
+    except ConvergenceError as exc:  # an inverted cell, a solve that failed: after k iterations
+        exc.iterations = k
+        raise
     finally:
         if converged and carry and factor.owned and not factor.corrected:  # the step's own tangent, kept
             ctx.factors.keep(factor.current, (1, converged))
