@@ -14,9 +14,12 @@ from signorini.fem.assembly import stiffness_matrix
 from signorini.fem.hyperelastic import (
     NeoHookeanLaw,
     SaintVenantKirchhoffLaw,
+    _ddot,
+    _mm,
     algorithmic_force,
     algorithmic_stress,
     algorithmic_tangent,
+    displacement_gradients,
     internal_force,
     strain_energy,
     tangent_stiffness,
@@ -490,3 +493,39 @@ def test_the_piola_stress_keeps_its_digits_at_small_strains(law):
     scale = np.abs(exact).max()
     assert np.abs(law.piola(F, H) - exact).max() <= 1e-12 * scale
     assert np.abs(law.piola(F) - exact).max() >= 1e-12 * scale  # the form from F alone: what the test guards
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_entry_wise_products_are_numpys_in_either_memory_order(d):
+    """_mm and _ddot equal numpy's products on cell-major stacks and on component-major ones (each entry contiguous
+    over the cells), and _mm's product is laid out as its first factor."""
+    rng = np.random.default_rng(3)
+    A, B = rng.standard_normal((2, 7, 4, d, d))
+
+    def by_entry(X):
+        return np.moveaxis(np.ascontiguousarray(np.moveaxis(X, (-2, -1), (0, 1))), (0, 1), (-2, -1))
+
+    for a, b in ((A, B), (by_entry(A), by_entry(B)), (by_entry(A), B)):
+        assert np.allclose(_mm(a, b), A @ B, rtol=0.0, atol=1e-14)
+        assert np.allclose(_mm(a, b, transpose_a=True), np.swapaxes(A, -1, -2) @ B, rtol=0.0, atol=1e-14)
+        assert np.allclose(_ddot(a, b), np.einsum("...ij,...ij->...", A, B), rtol=0.0, atol=1e-14)
+        assert _mm(a, b)[..., 0, 1].flags.c_contiguous == a[..., 0, 1].flags.c_contiguous
+
+
+@pytest.mark.parametrize("cells", ["tetra", "hexahedron", "triangle", "quad"])
+def test_the_gradients_are_laid_out_by_entry_and_the_force_is_their_integral(cells):
+    """grad u at the points is sum_a u_a (x) grad N_a, each entry contiguous over the cells and points; the
+    internal force is sum_q w_q P grad N_a summed at the nodes (an einsum and np.add.at as the reference)."""
+    mesh, law = MESHES[cells], NeoHookeanLaw(MATERIAL.lam, MATERIAL.mu)
+    U, _ = _state(mesh, seed=11)
+    grad, wdet, G = displacement_gradients(mesh, U)
+    d = mesh.dim
+    u = U.reshape(-1, d)[mesh.cells]
+    assert grad[..., 0, 1].flags.c_contiguous
+    assert np.allclose(grad, np.einsum("eai,eqaJ->eqiJ", u, G), rtol=0.0, atol=1e-14)
+    P = law.piola(np.ascontiguousarray(grad) + np.eye(d))
+    fe = np.einsum("eq,eqiJ,eqaJ->eai", wdet, P, G)
+    ref = np.zeros((mesh.n_nodes, d))
+    np.add.at(ref, mesh.cells, fe)
+    f = internal_force(mesh, law, U)
+    assert np.abs(f - ref.ravel()).max() <= 1e-13 * np.abs(ref).max()

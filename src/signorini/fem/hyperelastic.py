@@ -107,7 +107,7 @@ class HyperelasticLaw:
         gradient as computed (None: F - I here), from which the strain is formed without cancellation:
         E = (grad + grad^T + grad^T grad) / 2 (at the small strains of a stiff body, E from F^T F - I keeps
         eps / |E| of its digits: a steel beam under its weight, 1e-11 of the stress)."""
-        return np.matmul(F, self.stress_E(_strain(F, grad)))
+        return _mm(F, self.stress_E(_strain(F, grad)))
 
     def stress_E(self, E: np.ndarray) -> np.ndarray:
         """S (..., d, d) from the Green-Lagrange strain E [stress]."""
@@ -156,7 +156,7 @@ def _inv(A: np.ndarray) -> np.ndarray:
         adj = np.stack([np.stack([A[..., 1, 1], -A[..., 0, 1]], -1), np.stack([-A[..., 1, 0], A[..., 0, 0]], -1)], -2)
         return adj / determinants(A)[..., None, None]
     (a, b, c), (d, e, f), (g, h, i) = (tuple(A[..., r, k] for k in range(3)) for r in range(3))
-    adj = np.empty(A.shape)  # the cofactors' transpose, row by row
+    adj = np.empty_like(A, dtype=float)  # the cofactors' transpose, row by row (in A's memory order)
     adj[..., 0, 0], adj[..., 0, 1], adj[..., 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
     adj[..., 1, 0], adj[..., 1, 1], adj[..., 1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
     adj[..., 2, 0], adj[..., 2, 1], adj[..., 2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
@@ -165,17 +165,42 @@ def _inv(A: np.ndarray) -> np.ndarray:
     return adj
 
 
+def _mm(A: np.ndarray, B: np.ndarray, transpose_a: bool = False) -> np.ndarray:
+    """A B (or A^T B) of stacks of small matrices (..., d, d), entry by entry: C_ik = sum_j A_ij B_jk, in A's memory
+    order.  On the component-major stacks of :func:`displacement_gradients` (each entry contiguous over the cells)
+    a product is 9 x 3 vector operations: 92 against 418 us for numpy's batched ``matmul`` on 3,208 tetrahedra
+    (docs/performance.md)."""
+    d = A.shape[-1]
+    At = np.swapaxes(A, -1, -2) if transpose_a else A
+    out = np.empty_like(A, shape=np.broadcast_shapes(A.shape, B.shape), dtype=float)
+    for i in range(d):
+        for k in range(d):
+            acc = At[..., i, 0] * B[..., 0, k]
+            for j in range(1, d):
+                acc += At[..., i, j] * B[..., j, k]
+            out[..., i, k] = acc
+    return out
+
+
+def _ddot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A : B = sum_IJ A_IJ B_IJ (...) of stacks of small matrices (..., d, d)."""
+    d = A.shape[-1]
+    acc = A[..., 0, 0] * B[..., 0, 0]
+    for k in range(1, d * d):
+        acc += A[..., k // d, k % d] * B[..., k // d, k % d]
+    return acc
+
+
 def _green(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(C, E): the right Cauchy-Green tensor F^T F and the Green-Lagrange strain (C - I)/2."""
-    C = np.matmul(np.ascontiguousarray(np.swapaxes(F, -1, -2)), F)  # (a copy first: numpy's faster product)
+    C = _mm(F, F, transpose_a=True)
     return C, 0.5 * (C - np.eye(F.shape[-1]))
 
 
 def _strain(F: np.ndarray, grad: np.ndarray | None) -> np.ndarray:
     """E = (H + H^T + H^T H) / 2 with H = ``grad`` (F - I when None)."""
     H = F - np.eye(F.shape[-1]) if grad is None else grad
-    Ht = np.ascontiguousarray(np.swapaxes(H, -1, -2))
-    return 0.5 * (H + Ht + np.matmul(Ht, H))
+    return 0.5 * (H + np.swapaxes(H, -1, -2) + _mm(H, H, transpose_a=True))
 
 
 def _log_det(F: np.ndarray, grad: np.ndarray | None) -> np.ndarray:
@@ -214,7 +239,7 @@ class SaintVenantKirchhoffLaw(HyperelasticLaw):
         E = 0.5 * (C - np.eye(C.shape[-1]))
         trE = np.trace(E, axis1=-2, axis2=-1)
         lam, mu = _lame(self.lam, trE.shape), _lame(self.mu, trE.shape)
-        return 0.5 * lam * trE**2 + mu * np.einsum("...IJ,...IJ->...", E, E)
+        return 0.5 * lam * trE**2 + mu * _ddot(E, E)
 
     def stress_C(self, C: np.ndarray) -> np.ndarray:
         return self.stress_E(0.5 * (C - np.eye(C.shape[-1])))
@@ -265,13 +290,13 @@ class NeoHookeanLaw(HyperelasticLaw):
         det(I + X) - 1 from the invariants of X (log1p): no difference of two large energies.  C0^-1 by cofactors
         (:func:`_inv`; numpy's batched solve of 3 x 3 systems cost 6x more: docs/performance.md)."""
         d = C0.shape[-1]
-        X = _inv(C0) @ (C1 - C0)
+        X = _mm(_inv(C0), C1 - C0)
         trX = np.trace(X, axis1=-2, axis2=-1)
         detX = determinants(X)
         if d == 2:
             rest = trX + detX
         else:
-            rest = trX + 0.5 * (trX**2 - np.einsum("...ij,...ji->...", X, X)) + detX
+            rest = trX + 0.5 * (trX**2 - _ddot(X, np.swapaxes(X, -1, -2))) + detX
         dlnJ = 0.5 * np.log1p(rest)
         lnJ0, lnJ1 = 0.5 * np.log(determinants(C0)), 0.5 * np.log(determinants(C1))
         lam, mu = _lame(self.lam, trX.shape), _lame(self.mu, trX.shape)
@@ -305,7 +330,7 @@ class NeoHookeanLaw(HyperelasticLaw):
         lam, mu = _lame(self.lam, F.shape), _lame(self.mu, F.shape)
         if grad is None:
             return mu * (F - H) + (lam * np.log(determinants(F))[..., None, None]) * H
-        return mu * (grad + np.swapaxes(np.matmul(Fi, grad), -1, -2)) + (lam * _log_det(F, grad)[..., None, None]) * H
+        return mu * (grad + np.swapaxes(_mm(Fi, grad), -1, -2)) + (lam * _log_det(F, grad)[..., None, None]) * H
 
     def tangent_terms(self, F: np.ndarray) -> TangentTerms:
         """A_iJjL = lam H_iJ H_jL + (mu - lam ln J) H_iL H_jJ + mu delta_ij delta_JL,
@@ -364,15 +389,15 @@ def displacement_gradients(mesh: Mesh, U: np.ndarray) -> tuple[np.ndarray, np.nd
         wdet, G = mesh.cached("one-point geometry", lambda: (wdet.sum(axis=1, keepdims=True), G[:, :1].copy()))
     d = mesh.dim
     e, q, nv, _ = G.shape
-    if q == 1:  # F_iJ = delta_iJ + (D U)_eiJ: one sparse product (measured: 0.37 against 1.0 ms on 5,740 tetrahedra)
+    if q == 1:  # F_iJ = delta_iJ + (D U)_iJe: one sparse product (measured: 0.37 against 1.0 ms on 5,740 tetrahedra)
         D = _gradient_operator(mesh, G)
-        return (D @ np.asarray(U, dtype=float)).reshape(e, 1, d, d), wdet, G
+        return _by_cell((D @ np.asarray(U, dtype=float)).reshape(d, d, e, 1)), wdet, G
     u = np.asarray(U, dtype=float).reshape(-1, d)[mesh.cells]  # (e, nv, d)
     Gr = _gradients_by_cell(mesh, G)
     # F_iJ = sum_a u_ai dN_a/dX_J at every point: one (d, nv) x (nv, q d) product per cell (measured: 1.5 against 2.9
     # ms with a product per point, 5,120 hexahedra)
-    grad = np.matmul(u.transpose(0, 2, 1), Gr).reshape(e, d, q, d).transpose(0, 2, 1, 3)
-    return grad, wdet, G
+    grad = np.matmul(u.transpose(0, 2, 1), Gr).reshape(e, d, q, d)
+    return _by_cell(np.ascontiguousarray(grad.transpose(1, 3, 0, 2))), wdet, G  # component-major, as on P1 cells
 
 
 def _gradients_by_cell(mesh: Mesh, G: np.ndarray) -> np.ndarray:
@@ -382,12 +407,30 @@ def _gradients_by_cell(mesh: Mesh, G: np.ndarray) -> np.ndarray:
 
 
 def _gradient_operator(mesh: Mesh, G: np.ndarray) -> sp.csr_matrix:
-    """D of a one-point (P1) mesh, kept with it: D (e d d, n_nodes d) with (D U)_(e,i,J) = sum_a u_ai dN_a/dX_J on
-    cell e [1/length]: the deformation gradient's F - I, and D^T (w P) the internal force; ``G`` (e, 1, nv, d) its
-    shape gradients.  36 nonzeros per tetrahedron (12 per triangle); D^T is applied as D.T (not stored: 0.23
-    against 0.17 ms on 5,740 tetrahedra, half the memory)."""
+    """D of a one-point (P1) mesh, kept with it: D (d d e, n_nodes d) with (D U)_(i,J,e) = sum_a u_ai dN_a/dX_J on
+    cell e [1/length], its rows component-major (each entry of grad u contiguous over the cells: :func:`_by_cell`):
+    the deformation gradient's F - I, and D^T (w P) the internal force; ``G`` (e, 1, nv, d) its shape gradients.
+    36 nonzeros per tetrahedron (12 per triangle); D^T is applied as D.T (not stored: 0.23 against 0.17 ms on
+    5,740 tetrahedra, half the memory)."""
 
-    return mesh.cached("gradient operator", lambda: gradient_operator(mesh.cells, G[:, 0], mesh.n_nodes))
+    def build() -> sp.csr_matrix:
+        e, _, _, d = G.shape
+        D = gradient_operator(mesh.cells, G[:, 0], mesh.n_nodes)  # rows (e, i, J)
+        return D[np.arange(e * d * d).reshape(e, d, d).transpose(1, 2, 0).ravel()]
+
+    return mesh.cached("gradient operator by entry", build)
+
+
+def _by_cell(values: np.ndarray) -> np.ndarray:
+    """The view (e, q, d, d) of component-major ``values`` (d, d, e, q): the layout of every array of F on P1 cells,
+    which the element-wise formulas (:func:`_mm`, :func:`_inv`, the laws) keep."""
+    return np.moveaxis(values, (0, 1), (-2, -1))
+
+
+def _by_entry(values: np.ndarray) -> np.ndarray:
+    """The flat component-major vector (d d e q,) of ``values`` (e, q, d, d): the right-hand side of D^T
+    (no copy when ``values`` is laid out as :func:`_by_cell` gives)."""
+    return np.moveaxis(values, (-2, -1), (0, 1)).ravel()
 
 
 def check_orientation(mesh: Mesh, F: np.ndarray, ids: np.ndarray | slice) -> None:
@@ -424,7 +467,7 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
         wP = wdet[..., None, None] * P
         e, q, nv, _ = G.shape
         if q == 1:  # one point (simplices): f = D^T (w P), the gradient operator's transpose
-            f += _gradient_operator(part, G).T @ wP.ravel()
+            f += _gradient_operator(part, G).T @ _by_entry(wP)
             continue
         # f_e,ai = sum_q,J dN_a/dX_J (w P)_iJ: one (nv, q d) x (q d, d) product per cell
         Gr = _gradients_by_cell(part, G)
@@ -444,6 +487,7 @@ def tangent_stiffness(
     for part, part_law, cut in _parts(mesh, law, cells):
         F, wdet, G = deformation_gradients(part, U)
         check_orientation(part, F, cut)
+        F = np.ascontiguousarray(F)  # cell-major: the blocks below are cells, their products numpy's batched ones
         e, q, nv, d = G.shape
         if _shared_geometry(part, wdet, G):  # translates of one cell: the shape gradients of the first serve all
             wdet, G = wdet[:1], G[:1]
@@ -555,9 +599,9 @@ def _gonzalez(law: HyperelasticLaw, C0: np.ndarray, C1: np.ndarray) -> tuple:
     zero = np.zeros(S.shape[:-2])
     if isinstance(law, SaintVenantKirchhoffLaw):
         return Cm, dC, S, zero, zero, np.ones_like(zero), np.ones(zero.shape, dtype=bool)
-    dd = np.einsum("...IJ,...IJ->...", dC, dC)
-    small = dd <= GONZALEZ_FLOOR * np.einsum("...IJ,...IJ->...", Cm, Cm)
-    gap = np.where(small, 0.0, law.energy_difference_C(C0, C1) - 0.5 * np.einsum("...IJ,...IJ->...", S, dC))
+    dd = _ddot(dC, dC)
+    small = dd <= GONZALEZ_FLOOR * _ddot(Cm, Cm)
+    gap = np.where(small, 0.0, law.energy_difference_C(C0, C1) - 0.5 * _ddot(S, dC))
     safe = np.where(small, 1.0, dd)
     return Cm, dC, S, 2.0 * gap / safe, gap, safe, small
 
@@ -600,8 +644,11 @@ def algorithmic_force(
         F1, wdet, G = deformation_gradients(part, U1)
         check_orientation(part, F1, cut)
         S = algorithmic_stress(part_law, C0, _green(F1)[0])
-        P = np.matmul(0.5 * (F0 + F1), S)
-        f += assemble_nodal(part, np.matmul(G, (wdet[..., None, None] * P).transpose(0, 1, 3, 2)).sum(1))
+        wP = wdet[..., None, None] * _mm(0.5 * (F0 + F1), S)
+        if G.shape[1] == 1:  # one point (simplices): f = D^T (w P)
+            f += _gradient_operator(part, G).T @ _by_entry(wP)
+        else:
+            f += assemble_nodal(part, np.matmul(G, wP.transpose(0, 1, 3, 2)).sum(1))
     return f
 
 
