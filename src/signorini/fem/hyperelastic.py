@@ -185,9 +185,10 @@ def _mm(A: np.ndarray, B: np.ndarray, transpose_a: bool = False) -> np.ndarray:
 def _ddot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """A : B = sum_IJ A_IJ B_IJ (...) of stacks of small matrices (..., d, d)."""
     d = A.shape[-1]
-    acc = A[..., 0, 0] * B[..., 0, 0]
-    for k in range(1, d * d):
-        acc += A[..., k // d, k % d] * B[..., k // d, k % d]
+    acc = np.zeros(np.broadcast_shapes(A.shape, B.shape)[:-2])
+    for i in range(d):
+        for j in range(d):
+            acc += A[..., i, j] * B[..., i, j]
     return acc
 
 
