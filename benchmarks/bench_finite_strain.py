@@ -1,6 +1,6 @@
 """Finite strain's costs (issue 41), as ratios measured in one run.
 
-    python -m benchmarks.bench_finite_strain [--cells 12] [--steps 20]
+    python -m benchmarks.bench_finite_strain [--cells 12] [--steps 20] [--bracket 200] [--assembly 32]
 
 A 3D Neo-Hookean block (cells x cells/2 x cells/2 hexahedra, 40 x 20 x 20 mm, rubber) thrown spinning
 at a plane, its whole skin in contact, energy-momentum at dt = 2e-5 s, the default backend, in one
@@ -17,7 +17,10 @@ process, alternated twice (the best of each):
    linear one (issue 41 asks at most x3), with the Newton iterations and factorizations per step, and the same
    at dt / 10 and dt / 100, where the mass dominates the step's operator, each with and without Anderson's mixing
    of the Newton iterates (solver option ``acceleration``; needs gmsh: skipped with a message otherwise);
-5. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
+5. a 2k-dof 3D gmsh part: examples/bracket_tumble.toml (2,853 dofs, tetrahedra, energy-momentum, its whole skin
+   in contact), the median step of its first ``--bracket`` (200) levels with Neo-Hookean against the same run with
+   the linear model (issue 51 asks at most x10), with its Newton iterations and tangent factorizations;
+6. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
    hexahedra (about 100k dofs) against the linear stiffness assembly, on the structured grid (whose
    cells are translates: the linear assembly computes one element matrix) and on the same grid with its
    points moved by up to 20% of a cell (every element its own); issue 41 asks at most x2.
@@ -133,8 +136,35 @@ def hertz(steps: int, divisor: int = 1) -> dict | None:
             "newton": info}  # fmt: skip
 
 
+def bracket(levels: int) -> dict:
+    """Item 5 of the module docstring: the case file as it is, its model replaced for the linear run."""
+    import dataclasses
+    from pathlib import Path
+
+    from signorini.dynamics.stepping.simulate import Stepper
+    from signorini.fem.material import with_model
+    from signorini.io.config import load_case
+
+    case = load_case(Path(__file__).resolve().parents[1] / "examples" / "bracket_tumble.toml")
+    best: dict[str, float] = {}
+    info: dict[str, dict] = {}
+    for _ in range(2):
+        for model in ("neo-hookean", "linear"):
+            q = dataclasses.replace(case.problem, material=with_model(case.problem.material, model))
+            options = {"mass": case.mass, "scheme_options": case.scheme_options, "solver_options": case.solver_options}
+            s = Stepper(q, case.scheme, (case.dt, levels * case.dt), options)
+            best[model] = min(best.get(model, np.inf), median_step(s))
+            H = s.finish()
+            info[model] = {"newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
+                           "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0)),
+                           "dofs": int(H.meta["dofs"])}  # fmt: skip
+    return {"case": f"examples/bracket_tumble.toml, {case.scheme}, {levels} levels",
+            "step_finite_s": best["neo-hookean"], "step_linear_s": best["linear"],
+            "finite_over_linear": best["neo-hookean"] / best["linear"], "newton": info}  # fmt: skip
+
+
 def assembly(cells: int) -> list[dict]:
-    """Item 5 of the module docstring."""
+    """Item 6 of the module docstring."""
     from signorini.fem.assembly import stiffness_matrix
     from signorini.fem.hyperelastic import NeoHookeanLaw, SaintVenantKirchhoffLaw, tangent_stiffness
     from signorini.fem.material import IsotropicElastic
@@ -161,13 +191,15 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=12)
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--bracket", type=int, default=200, help="levels of the gmsh bracket (0: none)")
     ap.add_argument("--assembly", type=int, default=32, help="cells per side of the assembly cube (0: none)")
     args = ap.parse_args(argv)
     r = run(args.cells, args.steps)
     h = hertz(args.steps)
     smaller = [hertz(args.steps, k) for k in (10, 100)] if h is not None else []
+    br = bracket(args.bracket) if args.bracket else None
     a = assembly(args.assembly) if args.assembly else []
-    print(json.dumps({**r, "hertz3d": h, "hertz3d_smaller_steps": smaller, "assembly": a}, indent=1))
+    print(json.dumps({**r, "hertz3d": h, "hertz3d_smaller_steps": smaller, "bracket": br, "assembly": a}, indent=1))
     print(f"{r['case']} ({r['dofs']} dofs, {r['backend']}): a step with tangent=modified is "
           f"x{r['modified_over_full']:.2f} of full's, x{r['finite_over_linear']:.1f} of the linear model's and "
           f"x{r['finite_over_bare_solve']:.0f} of one bare solve; internal force {1e3 * r['internal_force_s']:.1f} ms, "
@@ -183,6 +215,12 @@ def main(argv=None) -> int:
                   f"{x['newton']['neo-hookean']['tangent_factorizations']} tangent factorizations); "
                   f"without Anderson's mixing x{x['plain_over_linear']:.2f} "
                   f"({plain['newton_per_step']:.2f} iterations)")  # fmt: skip
+    if br is not None:
+        nh = br["newton"]["neo-hookean"]
+        print(f"{br['case']} ({nh['dofs']} dofs): a Neo-Hookean step is x{br['finite_over_linear']:.1f} of the linear "
+              f"one ({1e3 * br['step_finite_s']:.1f} against {1e3 * br['step_linear_s']:.2f} ms; "
+              f"{nh['newton_per_step']:.2f} Newton iterations per step, {nh['tangent_factorizations']} tangent "
+              "factorizations)")  # fmt: skip
     for x in a:
         print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
               f"linear stiffness assembly ({x['tangent_s']:.3f} against {x['linear_s']:.3f} s)")  # fmt: skip
