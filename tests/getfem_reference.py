@@ -55,6 +55,10 @@ optional in every case:
                 frictional rigid-obstacle brick as it is, whose law acts on B_T u, the
                 displacement since t = 0 (a stick means u_T = 0: a quasi-static law)
     solver      overrides of the spec's ``solver`` for this case
+    model       ``linear`` (default: the isotropic linearized elasticity brick), or a
+                finite-strain law of ``static`` ("saint-venant-kirchhoff", "neo-hookean"):
+                GetFEM's finite strain elasticity brick on [lam, mu] (the energy's ``elastic``
+                stays 1/2 U.S U of the linear brick)
 
 and ``solver`` may set ``max_res`` (Newton's residual target, default 1e-13), ``max_iter``
 (50), ``r`` (the augmentation parameter, 1), ``aug_version`` (1: non-symmetric
@@ -127,7 +131,9 @@ list), then one line per time level n = 0..N::
      "normal_displacement": [u_d(a_i)], "energy": E_n, "kinetic": ..., "elastic": ...,
      "load_potential": -U.F, "lambda_t": [[lambda_t,ik]], "tangential_force": [[..d]],
      "contact_force": [..d], "slip": [[..d]], "displacement": [[u(a_i)]],
-     "newton_iterations": k, "converged": true}
+     "newton_iterations": k, "converged": true, "seconds": s}
+
+(``seconds``: the wall time of the step's Newton and shift, GetFEM's work alone).
 
 lambda_i are GetFEM's nodal contact forces (<= 0 in compression, signorini's sign),
 u_d(a_i) the d-th displacement of contact node i (signorini's gap g_i - nu_i.u_i when the
@@ -152,6 +158,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 import getfem as gf
 import numpy as np
@@ -398,7 +405,14 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     md.add_initialized_data("lambda", [p["lam"]])
     md.add_initialized_data("mu", [p["mu"]])
     md.add_initialized_data("rho", [p["rho"]])
-    md.add_isotropic_linearized_elasticity_brick(mim, "u", "lambda", "mu")
+    model = case.get("model", "linear")
+    if model == "linear":
+        md.add_isotropic_linearized_elasticity_brick(mim, "u", "lambda", "mu")
+    elif model in GETFEM_LAWS:  # finite strain: GetFEM's brick on [lam, mu] (its Newton follows the brick's tangent)
+        md.add_initialized_data("params", [p["lam"], p["mu"]])
+        md.add_finite_strain_elasticity_brick(mim, GETFEM_LAWS[model], "u", "params")
+    else:
+        raise ValueError(f"unknown model {model!r}; allowed: linear, {', '.join(GETFEM_LAWS)}")
 
     mass = case["mass"]
     if mass == "standard":
@@ -541,13 +555,16 @@ def run_case(case: dict, solver: dict) -> tuple[dict, list[dict]]:
     rows[0]["max_res"] = float(solver["max_res"])
     U_prev = U0
     for k in range(1, steps + 1):
+        start = time.perf_counter()
         md.set_time(k * dt)
         its, conv, reached = newton(md, unknowns, solver)
         md.shift_variables_for_time_integration()  # Previous_* := the new level's u, Dot_u, Dot2_u
+        seconds = time.perf_counter() - start
         U = np.asarray(md.variable("u")).copy()
         V = np.asarray(md.variable("Previous_Dot_u"))
         rows.append(level(k, U, U_prev, V, its, conv))
         rows[-1]["max_res"] = reached
+        rows[-1]["seconds"] = seconds
         if law == "coulomb" and slip_law == "increment":
             md.set_variable("wt", U)  # the next step's slip is B_T (u - U^k)
         U_prev = U

@@ -153,8 +153,11 @@ class HyperelasticLaw:
 def _inv(A: np.ndarray) -> np.ndarray:
     """A^-1 (..., d, d) of 2 x 2 or 3 x 3 matrices: the adjugate over the determinant."""
     if A.shape[-1] == 2:
-        adj = np.stack([np.stack([A[..., 1, 1], -A[..., 0, 1]], -1), np.stack([-A[..., 1, 0], A[..., 0, 0]], -1)], -2)
-        return adj / determinants(A)[..., None, None]
+        det = determinants(A)
+        inv = np.empty_like(A, dtype=float)  # in A's memory order, as below
+        inv[..., 0, 0], inv[..., 0, 1] = A[..., 1, 1] / det, -A[..., 0, 1] / det
+        inv[..., 1, 0], inv[..., 1, 1] = -A[..., 1, 0] / det, A[..., 0, 0] / det
+        return inv
     (a, b, c), (d, e, f), (g, h, i) = (tuple(A[..., r, k] for k in range(3)) for r in range(3))
     adj = np.empty_like(A, dtype=float)  # the cofactors' transpose, row by row (in A's memory order)
     adj[..., 0, 0], adj[..., 0, 1], adj[..., 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
@@ -247,8 +250,11 @@ class SaintVenantKirchhoffLaw(HyperelasticLaw):
 
     def stress_E(self, E: np.ndarray) -> np.ndarray:
         trE = np.trace(E, axis1=-2, axis2=-1)
-        lam, mu = _lame(self.lam, E.shape), _lame(self.mu, E.shape)
-        return lam * trE[..., None, None] * np.eye(E.shape[-1]) + 2.0 * mu * E
+        S = (2.0 * _lame(self.mu, E.shape)) * E  # in E's memory order (a sum with lam tr(E) I would not keep it)
+        lam_trE = _lame(self.lam, trE.shape) * trE
+        for i in range(E.shape[-1]):
+            S[..., i, i] += lam_trE
+        return S
 
     def tangent_C(self, C: np.ndarray) -> np.ndarray:
         d = C.shape[-1]

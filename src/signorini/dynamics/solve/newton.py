@@ -384,6 +384,13 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
             feasible = energy is not None and agree(bool(np.all(slack >= -ctx.touch_tolerance)))
             fixed_d = None if fixed is None else np.zeros(D.size)
             d, lam_new, info, renewed = factor.direction(k, minus_r, slack, fixed_d, law_k, U, lam)
+            if factor.owned and not factor.carried and agree(bool(info.residual > MAX_CONTACT_RESIDUAL)):
+                # the contact problem of a plain tangent has no solution its solver finds (an indefinite Delassus
+                # operator: a cell's tangent not positive definite, bar3d with the standard mass in contact): its
+                # direction would leave the rows violated; the tangent corrected at U and the direction taken again
+                factor.correct(k, "gives a contact problem that cannot be solved", U, lam)
+                keep, full = True, True
+                continue
             fresh = refactor or renewed
             lam0 = np.zeros_like(lam_new) if lam is None else lam
             lt0 = None if info.lam_t is None else (np.zeros_like(info.lam_t) if lam_t is None else lam_t)
