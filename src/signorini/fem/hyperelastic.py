@@ -471,15 +471,19 @@ def internal_force(mesh: Mesh, law: HyperelasticLaw, U: np.ndarray, cells: np.nd
         F = grad + np.eye(d)
         check_orientation(part, F, cut)
         P = part_law.piola(F, grad)
-        wP = wdet[..., None, None] * P
-        e, q, nv, _ = G.shape
-        if q == 1:  # one point (simplices): f = D^T (w P), the gradient operator's transpose
-            f += _gradient_operator(part, G).T @ _by_entry(wP)
-            continue
-        # f_e,ai = sum_q,J dN_a/dX_J (w P)_iJ: one (nv, q d) x (q d, d) product per cell
-        Gr = _gradients_by_cell(part, G)
-        f += assemble_nodal(part, np.matmul(Gr, np.ascontiguousarray(wP.transpose(0, 1, 3, 2).reshape(e, q * d, d))))
+        f += _nodal_force(part, wdet[..., None, None] * P, G)
     return f
+
+
+def _nodal_force(mesh: Mesh, wP: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """f (n_nodes d,) with f_a,i = sum_q,J dN_a/dX_J (w P)_iJ over the cells of a one-type ``mesh`` [force]: ``wP``
+    (e, q, d, d) a first Piola stress times the points' weights, ``G`` (e, q, nv, d) the shape gradients."""
+    e, q, nv, d = G.shape
+    if q == 1:  # one point (simplices): f = D^T (w P), the gradient operator's transpose
+        return _gradient_operator(mesh, G).T @ _by_entry(wP)
+    # one (nv, q d) x (q d, d) product per cell
+    Gr = _gradients_by_cell(mesh, G)
+    return assemble_nodal(mesh, np.matmul(Gr, np.ascontiguousarray(wP.transpose(0, 1, 3, 2).reshape(e, q * d, d))))
 
 
 def tangent_stiffness(
@@ -651,11 +655,7 @@ def algorithmic_force(
         F1, wdet, G = deformation_gradients(part, U1)
         check_orientation(part, F1, cut)
         S = algorithmic_stress(part_law, C0, _green(F1)[0])
-        wP = wdet[..., None, None] * _mm(0.5 * (F0 + F1), S)
-        if G.shape[1] == 1:  # one point (simplices): f = D^T (w P)
-            f += _gradient_operator(part, G).T @ _by_entry(wP)
-        else:
-            f += assemble_nodal(part, np.matmul(G, wP.transpose(0, 1, 3, 2)).sum(1))
+        f += _nodal_force(part, wdet[..., None, None] * _mm(0.5 * (F0 + F1), S), G)
     return f
 
 

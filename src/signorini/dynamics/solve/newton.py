@@ -384,13 +384,6 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
             feasible = energy is not None and agree(bool(np.all(slack >= -ctx.touch_tolerance)))
             fixed_d = None if fixed is None else np.zeros(D.size)
             d, lam_new, info, renewed = factor.direction(k, minus_r, slack, fixed_d, law_k, U, lam)
-            if factor.owned and not factor.carried and agree(bool(info.residual > MAX_CONTACT_RESIDUAL)):
-                # the contact problem of a plain tangent has no solution its solver finds (an indefinite Delassus
-                # operator: a cell's tangent not positive definite, bar3d with the standard mass in contact): its
-                # direction would leave the rows violated; the tangent corrected at U and the direction taken again
-                factor.correct(k, "gives a contact problem that cannot be solved", U, lam)
-                keep, full = True, True
-                continue
             fresh = refactor or renewed
             lam0 = np.zeros_like(lam_new) if lam is None else lam
             lt0 = None if info.lam_t is None else (np.zeros_like(info.lam_t) if lam_t is None else lam_t)
@@ -680,7 +673,7 @@ class _Factor:
         lam: np.ndarray | None,
     ):
         """(d, lambda, info, renewed): the Newton direction d (n,), the whole multiplier and the solve's info, the
-        operator corrected (renewed at U) until it factorizes."""
+        operator corrected (renewed at U) until it factorizes and its contact problem is solved."""
         renewed = False
         while True:
             try:
@@ -692,6 +685,18 @@ class _Factor:
                 if not self.owned:
                     raise
                 self.correct(k, "cannot be factorized: it is not positive definite", U, lam)
+                renewed = True
+                continue
+            if (
+                (self.owned or self.carried)
+                and not self.corrected
+                and self.ctx.comm.bcast(bool(info.residual > MAX_CONTACT_RESIDUAL))
+            ):
+                # a plain tangent whose contact problem has no solution its solver finds (an indefinite Delassus
+                # operator: bar3d with the standard mass in contact): its direction would leave rows violated
+                if self.carried:
+                    raise _Abandoned(k - 1)
+                self.correct(k, "gives a contact problem that cannot be solved", U, lam)
                 renewed = True
                 continue
             exact = self.jacobian is not None and (self.exact_wanted or self.corrected)
