@@ -14,7 +14,7 @@ import pytest
 
 from signorini.contact.friction import SLIP, STICK, Friction, make_friction
 from signorini.contact.obstacles import PlaneObstacle
-from signorini.dynamics.model.mass import MASS_VARIANTS
+from signorini.dynamics.model.mass import linear_cell_variants
 from signorini.dynamics.model.problem import Problem, discretize, with_friction
 from signorini.dynamics.observe.observers import CentreOfMassRecorder
 from signorini.dynamics.schemes import SCHEMES, friction_schemes
@@ -199,7 +199,7 @@ def directional_masses(M, dim: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("scheme", ["be", "cn"])
-@pytest.mark.parametrize("mass", MASS_VARIANTS.names(aliases=False))
+@pytest.mark.parametrize("mass", linear_cell_variants())
 def test_incline2d_sliding_acceleration(scheme, mass):
     """tan a > mu: the centre of mass slides at g (sin a - mu (m_n / m_t) cos a) within 1% (fit
     after settling), m_n and m_t the masses of the run's M along the normal and the slope: equal
@@ -325,7 +325,7 @@ def mass_table():
     spec = importlib.util.spec_from_file_location("friction_masses", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return {(r["mass"], r["scheme"]): r for mass in MASS_VARIANTS.names(aliases=False)
+    return {(r["mass"], r["scheme"]): r for mass in linear_cell_variants()
             for r in [module.row(mass, "cn", (1, 2))]}  # fmt: skip
 
 
@@ -349,7 +349,7 @@ def test_cn_frictional_work_sign_depends_on_the_mass(mass_table):
 def test_tangential_force_oscillation_by_mass(mass_table):
     """seed-normal keeps the contact nodes' tangential inertia: with CN its tangential force
     oscillates like the normal force of the standard mass; removing all components does not."""
-    osc = {m: mass_table[m, "cn"]["osc. tangential"] for m in MASS_VARIANTS.names(aliases=False)}
+    osc = {m: mass_table[m, "cn"]["osc. tangential"] for m in linear_cell_variants()}
     for mass in REMOVING:
         assert osc[mass] <= 1.3
     assert osc["seed-normal"] >= 3 * osc["moment-preserving"]

@@ -56,7 +56,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from signorini.contact.obstacles import OBSTACLES
-from signorini.dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS
+from signorini.dynamics.model.mass import DEFAULT_MASS, MASS_VARIANTS, linear_cell_variants
 from signorini.dynamics.schemes import SCHEMES, EnergyMomentum, GeneralizedAlpha, MoreauJean
 from signorini.io.cli import main
 from signorini.io.config import SECTIONS
@@ -183,7 +183,7 @@ def mass_choices(entry, tilted: bool, cell_type: str) -> list[str]:
     on a tilted or curved contact with the schemes that balance massless rows along the axes)."""
     if not entry.obj.massless_dofs_allowed:
         return ["standard", "lumped"]
-    names = list(MASS_VARIANTS.names(aliases=False))
+    names = list(linear_cell_variants())
     if tilted and issubclass(entry.obj, (GeneralizedAlpha, MoreauJean, EnergyMomentum)):
         names.remove("seed-normal")
     if cell_type not in ("line", "quad", "hexahedron"):

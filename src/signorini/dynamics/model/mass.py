@@ -25,6 +25,10 @@ tensor``               structured grids (a different matrix in 2D/3D)           
 ``mass-free-surface``  cells touching Gamma_C integrate their mass with a nodal   all components
                        rule on their non-contact nodes (equal weights; Hager-      of contact nodes
                        Wohlmuth's mass-free surface elements); total mass kept
+``mixed-velocity``     W^T C^-1 W: the kinetic energy of the velocity projected   ker W (not dofs)
+                       on the P1/Q1 functions of the vertices that are not
+                       contact nodes (:mod:`.mixed_velocity`; Hauret's
+                       equivalent mass)
 =====================  =========================================================  ==============
 
 The moment-preserving matrix uses, per component, the scalar redistribution
@@ -71,12 +75,15 @@ from ...linalg.row_block import RowBlock
 from ...linalg.sparse import count_per_row
 from ...registry import Registry
 from .extrapolation import extrapolation_operator, nearest_free_nodes
+from .mixed_velocity import mixed_velocity_scalar_mass, vector_pairing
 
 #: the mass variant of a run that names none: it keeps the total mass, the centre of mass
 #: and the inertia of the body exactly, on any mesh (docs/design.md, "The default mass")
 DEFAULT_MASS = "moment-preserving"
 #: the variants written M_red = T^T M T with an affine extrapolation T (loads follow T)
 EXTRAPOLATED = ("moment-preserving",)
+#: the variants defined on quadratic cells only (refused by name on linear cells: :mod:`.mixed_velocity`)
+QUADRATIC_ONLY = ("mixed-velocity",)
 #: the variants that read a generated grid's node numbering (``Mesh.grid``): a renumbered grid cannot carry them
 GRID_MASSES = ("moment-preserving-tensor",)
 
@@ -144,6 +151,7 @@ class Redistribution:
     M : (d n, d n) vector mass matrix (node-major dofs).
     T : (n, n) scalar affine extrapolation of the contact nodes for the variants
         M = T^T M_consistent T (:data:`EXTRAPOLATED`), else None.
+    W : (d n_v, d n) the velocity space's pairing of ``mixed-velocity`` (M = W^T C^-1 W, ker M = ker W), else None.
 
     A body force follows the mass (:meth:`body_load`): a force per unit volume that is
     the same everywhere, f = rho g, is applied as ``M g`` (a load per unit mass: the
@@ -155,6 +163,7 @@ class Redistribution:
     name: str
     M: sp.csr_matrix
     T: sp.csr_matrix | None = None
+    W: sp.csr_matrix | None = None
 
     def body_load(self, F: np.ndarray, uniform: np.ndarray | None, rho: float) -> np.ndarray:
         """The load applied for the consistent body load ``F`` (d n,) [force].
@@ -181,7 +190,16 @@ def redistribute(
         M = (T.T @ scalar_mass_matrix(mesh, rho).tocsr() @ T).tocsr()
         M.eliminate_zeros()
         return Redistribution(name, vectorize(M, mesh.dim), T)
+    if name == "mixed-velocity":
+        return Redistribution(
+            name, mass_matrix(name, mesh, rho, contact_nodes), W=vector_pairing(mesh, rho, contact_nodes)
+        )
     return Redistribution(name, mass_matrix(name, mesh, rho, contact_nodes, normals))
+
+
+def linear_cell_variants() -> list[str]:
+    """The variants' names (no aliases) defined on linear cells: all but :data:`QUADRATIC_ONLY`."""
+    return [n for n in MASS_VARIANTS.names(aliases=False) if n not in QUADRATIC_ONLY]
 
 
 def massless_dofs(M: sp.spmatrix | RowBlock) -> np.ndarray:
@@ -509,4 +527,11 @@ MASS_VARIANTS.register(
     "mass-free-surface",
     _scalar_variant("mass-free-surface", mass_free_surface_scalar_mass),
     "cells touching Gamma_C lump their mass on their non-contact nodes (Hager-Wohlmuth)",
+)
+MASS_VARIANTS.register(
+    "mixed-velocity",
+    _scalar_variant("mixed-velocity", mixed_velocity_scalar_mass),
+    "the kinetic energy of the velocity projected on the P1/Q1 functions of the vertices off Gamma_C (Hauret's "
+    "equivalent mass W^T C^-1 W, C lumped); its kernel is not a set of dofs; loses the contact vertices' share of "
+    "the mass (docs/quadratic.md)",
 )

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ...errors import InputError
 from ...fem.assembly import assemble_scalar, assemble_vector, element_stiffness_matrices, scalar_mass_matrix, vectorize
 from ...fem.dofmap import block_of
 from ...fem.material import CellMaterial, Material
@@ -108,6 +109,11 @@ def mass_rows(
     """The :class:`~signorini.dynamics.model.mass.Redistribution` of variant ``name`` with M as
     this rank's rows (see the module docstring)."""
     name = MASS_VARIANTS.resolve(name)
+    if name == "mixed-velocity":
+        raise InputError(
+            "mass 'mixed-velocity' on several ranks is not done: its kernel (not a set of dofs) is projected with the "
+            "whole velocity space; use one process, or 'moment-preserving' (the default)"
+        )
     bounds = dof_bounds(mesh, comm.size)
     d, lo, hi = mesh.dim, int(bounds[comm.rank]), int(bounds[comm.rank + 1])
     own = np.arange(block_of(lo, d), block_of(hi, d))

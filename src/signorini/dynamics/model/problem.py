@@ -285,6 +285,8 @@ class Discretization:
     mass_effect: dict = field(default_factory=dict)
     #: the material of the cells: the problem's one, or per cell with regions (``materials``)
     material: Material | None = None
+    #: ``mixed-velocity``'s pairing W (d n_v, d n): ker M = ker W, not a set of dofs (None for the other masses)
+    velocity_pairing: sp.csr_matrix | None = None
 
     @property
     def B(self) -> sp.csr_matrix:
@@ -528,6 +530,7 @@ def discretize(problem: Problem, mass: str = DEFAULT_MASS, comm=None) -> Discret
     )
     disc = Discretization(problem, space, cons, contact, S, M, U0, V0, mass, {}, F, varying)
     disc.material = material
+    disc.velocity_pairing = red.W
     disc.mass_effect = mass_effect(M, mesh, material.rho)
     if red.T is not None:  # the largest |w|_1 of an extrapolated contact node (1 for a node's own value)
         rows = np.asarray(abs(red.T[contact.mass_nodes]).sum(axis=1)).ravel()

@@ -191,6 +191,11 @@ class Scheme:
     def _refuse_massless(self, ctx: Context, why: str, fix: str = "the 'standard' or 'lumped' mass") -> None:
         """InputError if the mass leaves free dofs massless (``why``: what goes wrong then)."""
         free_massless = np.setdiff1d(ctx.massless, ctx.fixed)
+        if ctx.velocity_space is not None:
+            raise InputError(
+                f"scheme {self.name}: mass 'mixed-velocity' has massless directions that are not dofs (the kernel of "
+                f"its velocity space's pairing), and {why} (docs/schemes.md); use {fix}"
+            )
         if ctx.rotated_kernel:
             raise InputError(
                 f"scheme {self.name}: mass {ctx.disc.mass_name!r} on a tilted or curved contact boundary leaves the "

@@ -32,6 +32,7 @@ from ...linalg.sparse import principal_combination, principal_rows
 from ...linalg.spmv import sparse_product
 from ...parallel import DISTRIBUTED_BACKENDS, run_comm
 from ..model.mass import massless_dofs
+from ..model.mixed_velocity import VelocitySpace
 from ..model.operator import Operator
 from ..model.problem import Discretization
 from ..rows.contact_rows import ContactRows
@@ -241,10 +242,14 @@ class Context:
                 )
             self.damping_matrix = self.damping.matrix(disc.problem.mesh, disc.material, disc.M, disc.S)
             self.iterative_ok = False
-        #: the mass has massless directions that are not coordinate axes (``seed-normal`` on a
+        #: the mass has massless directions that are not coordinate axes (``mixed-velocity``; ``seed-normal`` on a
         #: tilted or curved contact): schemes that balance massless rows apart refuse it
         n = disc.contact.normals
-        self.rotated_kernel = bool(
+        #: ``mixed-velocity``'s kernel ker W (:class:`~..model.mixed_velocity.VelocitySpace`), else None
+        self.velocity_space = None
+        if disc.velocity_pairing is not None:
+            self.velocity_space = VelocitySpace(disc.velocity_pairing, disc.free)
+        self.rotated_kernel = self.velocity_space is not None or bool(
             disc.mass_name == "seed-normal"
             and n.size
             and not np.all(np.isclose(np.abs(n).max(axis=1), 1.0, atol=1e-12))
@@ -375,7 +380,7 @@ class Context:
     def massless_update(self, V: np.ndarray, A: np.ndarray, U: np.ndarray, U_old: np.ndarray) -> None:
         """On the massless directions, in place: V = (U - U_old)/dt and A = 0.
 
-        Massless dofs (zero rows of M) and, for ``seed-normal`` on a tilted or curved
+        Massless dofs (zero rows of M), ``mixed-velocity``'s ker W and, for ``seed-normal`` on a tilted or curved
         contact, the contact nodes' normals nu_i (the rows of B, orthonormal): there the
         scheme's own V and A are not controlled by any inertia (CN's (-1)^n mode grows in
         them, and M A then carries their round-off)."""
@@ -383,7 +388,10 @@ class Context:
         if ml.size:
             V[ml] = (U[ml] - U_old[ml]) / self.dt
             A[ml] = 0.0
-        if self.rotated_kernel:
+        if self.velocity_space is not None:  # mixed-velocity: ker M = ker W
+            V -= self.velocity_space.kernel_part(V - (U - U_old) / self.dt)
+            A -= self.velocity_space.kernel_part(A)
+        elif self.rotated_kernel:
             B = self.rows.B
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)

@@ -150,7 +150,8 @@ def initial_state(ctx: Context) -> State:
         op = spla.LinearOperator(Mrr.shape, matvec=lambda x: Mrr @ x) if by_rows else Mrr
         if ctx.rotated_kernel:  # singular: the least-squares solution of least norm
             sol = spla.minres(op, r[idx], rtol=1e-14, maxiter=20000)[0]
-            ctx.initial_acceleration = "minres (massless normal directions)"
+            kernel = "mixed-velocity's kernel" if ctx.velocity_space is not None else "massless normal directions"
+            ctx.initial_acceleration = f"minres ({kernel})"
         else:
             sol, info = spla.cg(op, r[idx], rtol=1e-14, atol=0.0, M=pre, maxiter=5000)
             ctx.initial_acceleration = "cg"
