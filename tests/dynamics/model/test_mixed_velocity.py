@@ -10,7 +10,7 @@ from test_quadratic_masses import SKIN, _part
 from signorini.contact.obstacles import PlaneObstacle
 from signorini.dynamics.model.mass import mass_matrix
 from signorini.dynamics.model.mixed_velocity import (
-    MAX_VELOCITY_NODES,
+    MAX_NODES,
     VelocitySpace,
     vector_pairing,
     velocity_nodes,
@@ -66,12 +66,13 @@ def test_the_kernel_projection():
     assert np.abs(P.kernel_part(k) - k).max() <= 1e-13 * np.abs(x).max()
 
 
+@pytest.mark.parametrize("cell", ["tetra", "hexahedron"])
 @pytest.mark.parametrize("skin", [["zmin"], SKIN])
-def test_a_free_part_falls_at_g_with_the_mixed_velocity_mass(skin):
+def test_a_free_part_falls_at_g_with_the_mixed_velocity_mass(skin, cell):
     """Every node moves by -g T^2 / 2 (the load follows the mass, M g; CN's velocity on the kernel projected),
-    with one contact side or the whole skin (6 of 60 vertices left in the velocity space); the mass kept is
-    reported."""
-    mesh = _part("hexahedron")
+    on tetra10 and hexahedron27, with one contact side or the whole skin (6 of 60 vertices left in the velocity
+    space); the mass kept is reported."""
+    mesh = _part(cell)
     g, T = 9.81, 4e-4
     mat = IsotropicElastic.from_young(2e11, 0.3, RHO)
     prob = Problem(mesh, mat, skin, PlaneObstacle([0.0, 0.0, -1.0], [0.0, 0.0, 1.0]), body_force=[0.0, 0.0, -RHO * g])
@@ -93,6 +94,7 @@ def test_mixed_velocity_refusals_name_the_variant():
     quad = elevate(lin)
     with pytest.raises(InputError, match="mixed-velocity.*contact nodes"):
         mass_matrix("mixed-velocity", quad, RHO, np.array([], dtype=int))
-    big = elevate(rectangle(MAX_VELOCITY_NODES // 40, 45, 1.0, 1.0, "quad"))
-    with pytest.raises(InputError, match=f"more than {MAX_VELOCITY_NODES}"):
+    big = elevate(rectangle(20, 20, 1.0, 1.0, "quad"))  # 41 x 41 nodes
+    assert big.n_nodes > MAX_NODES
+    with pytest.raises(InputError, match=f"more than {MAX_NODES}"):
         mass_matrix("mixed-velocity", big, RHO, big.nodes_of("ymin"))

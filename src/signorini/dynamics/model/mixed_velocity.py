@@ -7,7 +7,7 @@ functions psi_a of the cells' vertices that are not contact nodes, the pairing a
     W_aj = rho int psi_a phi_j,        C_ab = rho int psi_a psi_b
 
 give the mass M = W^T C^-1 W (scalar; the same for every component).  M is dense (C^-1 is): the variant is meant for
-the comparisons of the literature on small meshes, and refuses more than :data:`MAX_VELOCITY_NODES` velocity nodes.
+the comparisons of the literature on small meshes, and refuses meshes of more than :data:`MAX_NODES` nodes.
 With C lumped M would be sparse, but the 1D exact bar's contact force converged at half the rate (docs/quadratic.md:
 measured, not taken).  Defined on quadratic cells only: on linear cells the velocity space has about as many
 functions as the displacement has free nodes, M is non-singular and the contact nodes keep their inertia (the 1D
@@ -32,8 +32,9 @@ from ...fem.assembly import geometry, part_value, per_cell, vectorize
 from ...fem.elements import linear_shapes, reference_element
 from ...fem.mesh import Mesh, over_blocks
 
-#: the largest velocity space of ``mixed-velocity`` (its mass is dense: (d n)^2 entries)
-MAX_VELOCITY_NODES = 2000
+#: the largest mesh of ``mixed-velocity`` (its mass is dense: d n^2 entries, and so is the step operator's factor;
+#: at 1,500 nodes in 3D a factor of about 4,500^2 entries)
+MAX_NODES = 1500
 
 
 def _pairings_one_type(mesh: Mesh, rho, n_nodes: int) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -66,7 +67,7 @@ def velocity_nodes(mesh: Mesh, contact_nodes: np.ndarray) -> np.ndarray:
 def velocity_pairings(mesh: Mesh, rho, contact_nodes: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """(W (n_v, n_nodes), C (n_v, n_v)): the velocity space's pairing with the displacements and its own mass
     (module docstring); ``rho`` a number or one per cell.  InputError on linear cells, without contact nodes, or
-    with more than :data:`MAX_VELOCITY_NODES` velocity nodes."""
+    on more than :data:`MAX_NODES` nodes."""
     if contact_nodes is None or len(contact_nodes) == 0:
         raise InputError("mass 'mixed-velocity' needs contact nodes (a non-empty contact boundary)")
     if mesh.order != 2:
@@ -75,12 +76,12 @@ def velocity_pairings(mesh: Mesh, rho, contact_nodes: np.ndarray) -> tuple[sp.cs
             "as many functions as the free nodes, the mass is not singular and the contact nodes keep their inertia; "
             "use '[mesh] order = 2' (or --set order=2), or 'moment-preserving' (the default)"
         )
-    keep = velocity_nodes(mesh, contact_nodes)
-    if keep.size > MAX_VELOCITY_NODES:
+    if mesh.n_nodes > MAX_NODES:
         raise InputError(
-            f"mass 'mixed-velocity' on {keep.size} velocity nodes (more than {MAX_VELOCITY_NODES}): its mass "
-            "W^T C^-1 W is dense; use a coarser mesh, or 'moment-preserving' (the default, sparse)"
+            f"mass 'mixed-velocity' on a mesh of {mesh.n_nodes} nodes (more than {MAX_NODES}): its mass W^T C^-1 W "
+            "is dense; use a coarser mesh, or 'moment-preserving' (the default, sparse)"
         )
+    keep = velocity_nodes(mesh, contact_nodes)
     n = mesh.n_nodes
     W, C = over_blocks(
         mesh,
