@@ -161,6 +161,23 @@ def test_compare_and_study_refuse_hertz(command, tmp_path, capsys):
 
 
 @needs_gmsh
+@pytest.mark.parametrize("R", [2.0, 0.05, 1e-3])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_cap_is_found_whatever_the_ball_size(dim, R):
+    """The cap is told from the rest by the middle of each boundary entity's box: OpenCASCADE pads the boxes by an
+    absolute tolerance, and the former test (the top within 1e-6 R of the cut) found no cap on a 5 cm ball."""
+    from signorini.fem.meshing import pole_refined_ball
+
+    theta = math.radians(30)
+    mesh = pole_refined_ball(dim, R, theta, 0.1 * R, 0.4 * R, 0.25 * R)
+    cap = mesh.points[mesh.nodes_of("cap")]
+    assert cap.shape[0] >= 5
+    assert cap[:, -1].max() <= R * (1 - math.cos(theta)) * (1 + 1e-9)
+    on_sphere = np.linalg.norm(cap - np.eye(dim)[-1] * R, axis=1)
+    assert np.allclose(on_sphere, R, rtol=1e-9, atol=0)
+
+
+@needs_gmsh
 @pytest.mark.parametrize("dim", [2, 3])
 def test_quadratic_pole_refined_mesh_is_curved_and_positive(dim):
     """``order`` 2: gmsh puts the mid-side nodes of the cap on the circle or sphere; every cell positive."""

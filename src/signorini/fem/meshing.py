@@ -145,13 +145,15 @@ def _disc_with_cap(occ, R: float, cap_angle: float, z_cut: float) -> None:
 
 
 def _classify_boundary(gmsh, dim: int, R: float, z_cut: float) -> tuple[list[int], list[int]]:
-    """Boundary entities of the body below / above the cut (the cut itself is interior)."""
+    """Boundary entities of the body below / above the cut (the cut itself is interior), by the middle of their
+    bounding boxes: OpenCASCADE pads a box by its own tolerance (about 1e-7, absolute), so that a cap of a ball of
+    a few centimetres reaches above the cut by more than a relative 1e-6 of R (a 5 cm ball had no cap)."""
     cap, rest = [], []
     body = gmsh.model.getEntities(dim)
     for d, tag in gmsh.model.getBoundary(body, combined=True, oriented=False):
         lo = gmsh.model.getBoundingBox(d, tag)
         zmin, zmax = (lo[2], lo[5]) if dim == 3 else (lo[1], lo[4])
-        (cap if zmax <= z_cut + 1e-6 * R else rest).append(tag)
+        (cap if 0.5 * (zmin + zmax) < z_cut else rest).append(tag)
     if not cap:
         raise MeshError("gmsh produced no cap boundary; increase the cap angle")
     return cap, rest
