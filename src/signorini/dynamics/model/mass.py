@@ -532,6 +532,6 @@ MASS_VARIANTS.register(
     "mixed-velocity",
     _scalar_variant("mixed-velocity", mixed_velocity_scalar_mass),
     "the kinetic energy of the velocity projected on the P1/Q1 functions of the vertices off Gamma_C (Hauret's "
-    "equivalent mass W^T C^-1 W, C lumped); its kernel is not a set of dofs; loses the contact vertices' share of "
-    "the mass (docs/quadratic.md)",
+    "equivalent mass W^T C^-1 W, C their consistent mass; dense: quadratic cells, meshes up to 1,500 nodes); its "
+    "kernel is not a set of dofs; loses the contact vertices' share of the mass (docs/quadratic.md)",
 )

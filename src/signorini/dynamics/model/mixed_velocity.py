@@ -8,10 +8,11 @@ functions psi_a of the cells' vertices that are not contact nodes, the pairing a
 
 give the mass M = W^T C^-1 W (scalar; the same for every component).  M is dense (C^-1 is): the variant is meant for
 the comparisons of the literature on small meshes, and refuses meshes of more than :data:`MAX_NODES` nodes.
-With C lumped M would be sparse, but the 1D exact bar's contact force converged at half the rate (docs/quadratic.md:
-measured, not taken).  Defined on quadratic cells only: on linear cells the velocity space has about as many
-functions as the displacement has free nodes, M is non-singular and the contact nodes keep their inertia (the 1D
-bar's energy grew 1e5-fold under Crank-Nicolson, as with the standard mass).
+With C lumped M would be sparse, but the 1D exact bar's contact force was twice as far from the exact one (rates
+0.31-0.34 against 0.40-0.42; docs/quadratic.md: measured, not taken).  Defined on quadratic cells only: on linear
+cells the velocity space has about as many functions as the displacement has free nodes, M is non-singular and the
+contact nodes keep their inertia (the 1D bar's energy grew 1e5-fold under Crank-Nicolson, as with the standard
+mass).
 
 M is symmetric positive semi-definite and its kernel is ker W: the displacement fields whose weighted means against
 every psi_a vanish.  That kernel is not a set of dofs (on a 10-cell P2 bar, 11 of 21 directions, none of them a dof):
@@ -110,13 +111,20 @@ class VelocitySpace:
         Wf = sp.csr_matrix(W)[:, free]
         self.W = Wf[np.flatnonzero(np.diff(Wf.indptr))]
         self.free = free
+        refusal = InputError(
+            "mass 'mixed-velocity': the velocity space restricted to the free dofs is rank deficient (the Dirichlet "
+            "boundary fixes the nodes of some velocity functions); use 'moment-preserving'"
+        )
         try:
             self._solve = spla.factorized(sp.csc_matrix(self.W @ self.W.T))
-        except RuntimeError as e:  # a velocity function that sees only Dirichlet dofs beside others
-            raise InputError(
-                "mass 'mixed-velocity': the velocity space restricted to the free dofs is rank deficient (the "
-                "Dirichlet boundary fixes the nodes of some velocity functions); use 'moment-preserving'"
-            ) from e
+        except RuntimeError as e:  # exactly singular
+            raise refusal from e
+        # nearly singular (SuperLU factorizes a rank-deficient W W^T in round-off): the projection must annihilate W
+        x = np.random.default_rng(0).standard_normal(free.size)
+        k = x - self.W.T @ self._solve(self.W @ x)
+        scale = float(abs(self.W).max()) * float(np.abs(x).max()) if self.W.nnz else 1.0
+        if not np.all(np.isfinite(k)) or np.abs(self.W @ k).max(initial=0.0) > 1e-8 * scale:
+            raise refusal
 
     def kernel_part(self, x: np.ndarray) -> np.ndarray:
         """The part of ``x`` (n,) in ker W_f: zero on the fixed dofs."""

@@ -389,12 +389,25 @@ class Context:
             V[ml] = (U[ml] - U_old[ml]) / self.dt
             A[ml] = 0.0
         if self.velocity_space is not None:  # mixed-velocity: ker M = ker W
-            V -= self.velocity_space.kernel_part(V - (U - U_old) / self.dt)
-            A -= self.velocity_space.kernel_part(A)
+            V -= self.kernel_part(V - (U - U_old) / self.dt)
+            A -= self.kernel_part(A)
         elif self.rotated_kernel:
             B = self.rows.B
             V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
             A -= B.T @ (B @ A)
+
+    def kernel_part(self, x: np.ndarray) -> np.ndarray:
+        """The part of ``x`` (n,) along the massless directions that are not dofs (:attr:`rotated_kernel`), zero
+        on the Dirichlet dofs: ``mixed-velocity``'s ker W_f, or ``seed-normal``'s normals B^T B x (B's rows
+        orthonormal); zero when the kernel is made of dofs."""
+        if self.velocity_space is not None:
+            return self.velocity_space.kernel_part(x)
+        if not self.rotated_kernel:
+            return np.zeros_like(x)
+        B = self.rows.B
+        out = B.T @ (B @ x)
+        out[self.fixed] = 0.0
+        return out
 
     def solve_linear(self, op: Operator, rhs: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = rhs`` on the free rows without contact."""

@@ -521,11 +521,14 @@ def _remedy(ctx: Context, rate: float) -> str:
     """What to change after a step that did not converge: the cause the residual's last rate points to."""
     free_massless = np.setdiff1d(ctx.massless, ctx.fixed).size
     n_free = ctx.free.size
+    if ctx.velocity_space is not None:  # mixed-velocity: the directions without inertia are ker W_f
+        free_massless = n_free - ctx.velocity_space.W.shape[0]
     if np.isfinite(rate) and rate > STALLED:
         why = "the residual stalled (not a slow convergence: more iterations will not help)"
         if free_massless and free_massless > n_free // 2:
             return (
-                f"{why}; the mass {ctx.disc.mass_name!r} leaves {free_massless} of {n_free} free dofs without "
+                f"{why}; the mass {ctx.disc.mass_name!r} leaves {free_massless} of {n_free} free "
+                f"{'directions' if ctx.velocity_space is not None else 'dofs'} without "
                 "inertia: use mass 'lumped' or 'standard', or refine the mesh under the contact skin"
             )
         return f"{why}; raise newton_tol to the residual's level, or reduce the step"

@@ -148,8 +148,10 @@ def initial_state(ctx: Context) -> State:
         d = Mrr.diagonal()
         pre = spla.LinearOperator(Mrr.shape, matvec=lambda x: x / d)
         op = spla.LinearOperator(Mrr.shape, matvec=lambda x: Mrr @ x) if by_rows else Mrr
-        if ctx.rotated_kernel:  # singular: the least-squares solution of least norm
-            sol = spla.minres(op, r[idx], rtol=1e-14, maxiter=20000)[0]
+        if ctx.rotated_kernel:  # singular: r's part along the kernel is the level's imbalance (R0 below), the rest
+            # is in range(M) (M symmetric), a consistent system whose least-norm solution MINRES finds; A0 kept off
+            # the kernel (MINRES on the whole r grew A0 there 1e13-fold: M A0 then carried its round-off)
+            sol = spla.minres(op, (r - ctx.kernel_part(r))[idx], rtol=1e-14, maxiter=20000)[0]
             kernel = "mixed-velocity's kernel" if ctx.velocity_space is not None else "massless normal directions"
             ctx.initial_acceleration = f"minres ({kernel})"
         else:
@@ -159,6 +161,8 @@ def initial_state(ctx: Context) -> State:
                 sol = spla.spsolve((Mrr.whole() if by_rows else Mrr).tocsc(), r[idx])
                 ctx.initial_acceleration = "spsolve (cg did not converge)"
         A[idx] = sol
+        if ctx.rotated_kernel:
+            A -= ctx.kernel_part(A)
     lam_t = np.zeros((disc.contact.size, ctx.rows.components - 1)) if ctx.rows.components > 1 else None
     state = State(0.0, U, V, A, lam0, lam_t=lam_t)
     R0 = np.zeros(n)
