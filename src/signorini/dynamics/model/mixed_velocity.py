@@ -69,6 +69,20 @@ def velocity_pairings(mesh: Mesh, rho, contact_nodes: np.ndarray) -> tuple[sp.cs
     """(W (n_v, n_nodes), C (n_v, n_v)): the velocity space's pairing with the displacements and its own mass
     (module docstring); ``rho`` a number or one per cell.  InputError on linear cells, without contact nodes, or
     on more than :data:`MAX_NODES` nodes."""
+    check_mesh(mesh, contact_nodes)
+    keep = velocity_nodes(mesh, contact_nodes)
+    n = mesh.n_nodes
+    W, C = over_blocks(
+        mesh,
+        lambda part, cut: _pairings_one_type(part, part_value(rho, cut), n),
+        lambda parts: tuple(sum((p[k] for p in parts[1:]), parts[0][k]) for k in range(2)),
+    )
+    return W.tocsr()[keep], C.tocsr()[keep][:, keep]
+
+
+def check_mesh(mesh: Mesh, contact_nodes: np.ndarray | None) -> None:
+    """InputError, naming the variant, on linear cells, without contact nodes, or on more than :data:`MAX_NODES`
+    nodes."""
     if contact_nodes is None or len(contact_nodes) == 0:
         raise InputError("mass 'mixed-velocity' needs contact nodes (a non-empty contact boundary)")
     if mesh.order != 2:
@@ -82,14 +96,6 @@ def velocity_pairings(mesh: Mesh, rho, contact_nodes: np.ndarray) -> tuple[sp.cs
             f"mass 'mixed-velocity' on a mesh of {mesh.n_nodes} nodes (more than {MAX_NODES}): its mass W^T C^-1 W "
             "is dense; use a coarser mesh, or 'moment-preserving' (the default, sparse)"
         )
-    keep = velocity_nodes(mesh, contact_nodes)
-    n = mesh.n_nodes
-    W, C = over_blocks(
-        mesh,
-        lambda part, cut: _pairings_one_type(part, part_value(rho, cut), n),
-        lambda parts: tuple(sum((p[k] for p in parts[1:]), parts[0][k]) for k in range(2)),
-    )
-    return W.tocsr()[keep], C.tocsr()[keep][:, keep]
 
 
 def mixed_velocity_scalar_mass(mesh: Mesh, rho, contact_nodes: np.ndarray) -> sp.csr_matrix:

@@ -39,6 +39,7 @@ from ...fem.mesh import Mesh
 from ...linalg.row_block import RowBlock, row_bounds
 from .extrapolation import extrapolation_operator
 from .mass import EXTRAPOLATED, MASS_VARIANTS, Redistribution, _needs_contact
+from .mixed_velocity import check_mesh
 
 #: cell layers around a rank's nodes that determine its rows of a locally built variant
 LAYERS = 2
@@ -109,7 +110,8 @@ def mass_rows(
     """The :class:`~signorini.dynamics.model.mass.Redistribution` of variant ``name`` with M as
     this rank's rows (see the module docstring)."""
     name = MASS_VARIANTS.resolve(name)
-    if name == "mixed-velocity":
+    if name == "mixed-velocity":  # the serial run's refusals first (a linear mesh is refused alike on any ranks)
+        check_mesh(mesh, contact_nodes)
         raise InputError(
             "mass 'mixed-velocity' on several ranks is not done: its kernel (not a set of dofs) is projected with the "
             "whole velocity space; use one process, or 'moment-preserving' (the default)"
