@@ -115,7 +115,7 @@ def pole_refined_ball(
         else:  # four arcs and the cap's chord, with a vertex at the pole
             _disc_with_cap(occ, R, cap_angle, z_cut)
         occ.synchronize()
-        cap, rest = _classify_boundary(gmsh, dim, R, z_cut)
+        cap, rest = _classify_boundary(gmsh, dim, z_cut)
         dist = "sqrt(x*x+y*y+z*z)" if dim == 3 else "sqrt(x*x+y*y)"
         field = gmsh.model.mesh.field
         f = field.add("MathEval")
@@ -144,10 +144,10 @@ def _disc_with_cap(occ, R: float, cap_angle: float, z_cut: float) -> None:
     occ.addPlaneSurface([occ.addCurveLoop(rest)])
 
 
-def _classify_boundary(gmsh, dim: int, R: float, z_cut: float) -> tuple[list[int], list[int]]:
+def _classify_boundary(gmsh, dim: int, z_cut: float) -> tuple[list[int], list[int]]:
     """Boundary entities of the body below / above the cut (the cut itself is interior), by the middle of their
     bounding boxes: OpenCASCADE pads a box by its own tolerance (about 1e-7, absolute), so that a cap of a ball of
-    a few centimetres reaches above the cut by more than a relative 1e-6 of R (a 5 cm ball had no cap)."""
+    a few centimetres reaches above the cut by more than a relative 1e-6 of its radius (a 5 cm ball had no cap)."""
     cap, rest = [], []
     body = gmsh.model.getEntities(dim)
     for d, tag in gmsh.model.getBoundary(body, combined=True, oriented=False):

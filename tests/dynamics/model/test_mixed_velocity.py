@@ -12,13 +12,13 @@ from signorini.dynamics.model.mass import mass_matrix
 from signorini.dynamics.model.mixed_velocity import (
     MAX_NODES,
     VelocitySpace,
-    vector_pairing,
     velocity_nodes,
     velocity_pairings,
 )
 from signorini.dynamics.model.problem import Problem
 from signorini.dynamics.stepping.simulate import simulate
 from signorini.errors import InputError
+from signorini.fem.assembly import vectorize
 from signorini.fem.material import IsotropicElastic
 from signorini.fem.mesh import box, elevate, rectangle
 
@@ -35,7 +35,7 @@ def test_mixed_velocity_mass_is_psd_with_the_kernel_of_its_pairing(cell):
     scale = np.abs(M).max()
     assert np.abs(M - M.T).max() <= 1e-14 * scale
     ev = np.linalg.eigvalsh(M)
-    W = vector_pairing(mesh, RHO, contact).toarray()
+    W = vectorize(velocity_pairings(mesh, RHO, contact)[0], 3).toarray()
     n_v = velocity_nodes(mesh, contact).size
     assert W.shape == (3 * n_v, 3 * mesh.n_nodes)
     assert ev.min() >= -1e-12 * scale
@@ -55,7 +55,7 @@ def test_the_kernel_projection():
     """kernel_part is a projector on ker W_f: idempotent, W_f of it zero, zero on the fixed dofs."""
     mesh = elevate(rectangle(4, 3, 1.0, 0.75, "triangle"))
     contact = mesh.nodes_of("ymin")
-    W = vector_pairing(mesh, 1.0, contact)
+    W = vectorize(velocity_pairings(mesh, 1.0, contact)[0], 2)
     fixed = np.arange(2 * mesh.n_nodes)[2 * mesh.nodes_of("ymax")]
     free = np.setdiff1d(np.arange(2 * mesh.n_nodes), fixed)
     P = VelocitySpace(W, free)

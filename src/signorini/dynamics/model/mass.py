@@ -75,7 +75,7 @@ from ...linalg.row_block import RowBlock
 from ...linalg.sparse import count_per_row
 from ...registry import Registry
 from .extrapolation import extrapolation_operator, nearest_free_nodes
-from .mixed_velocity import mixed_velocity_scalar_mass, vector_pairing
+from .mixed_velocity import mass_of, mixed_velocity_scalar_mass, velocity_pairings
 
 #: the mass variant of a run that names none: it keeps the total mass, the centre of mass
 #: and the inertia of the body exactly, on any mesh (docs/design.md, "The default mass")
@@ -190,10 +190,9 @@ def redistribute(
         M = (T.T @ scalar_mass_matrix(mesh, rho).tocsr() @ T).tocsr()
         M.eliminate_zeros()
         return Redistribution(name, vectorize(M, mesh.dim), T)
-    if name == "mixed-velocity":
-        return Redistribution(
-            name, mass_matrix(name, mesh, rho, contact_nodes), W=vector_pairing(mesh, rho, contact_nodes)
-        )
+    if name == "mixed-velocity":  # W and C assembled once: the mass and the kernel's pairing
+        W, C = velocity_pairings(mesh, rho, contact_nodes)
+        return Redistribution(name, vectorize(mass_of(W, C), mesh.dim), W=vectorize(W, mesh.dim))
     return Redistribution(name, mass_matrix(name, mesh, rho, contact_nodes, normals))
 
 

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ...errors import InputError
-from ...fem.assembly import geometry, part_value, per_cell, vectorize
+from ...fem.assembly import geometry, part_value, per_cell
 from ...fem.elements import linear_shapes, reference_element
 from ...fem.mesh import Mesh, over_blocks
 
@@ -100,7 +100,11 @@ def check_mesh(mesh: Mesh, contact_nodes: np.ndarray | None) -> None:
 
 def mixed_velocity_scalar_mass(mesh: Mesh, rho, contact_nodes: np.ndarray) -> sp.csr_matrix:
     """M = W^T C^-1 W (n_nodes, n_nodes), symmetric positive semi-definite, ker M = ker W (module docstring)."""
-    W, C = velocity_pairings(mesh, rho, contact_nodes)
+    return mass_of(*velocity_pairings(mesh, rho, contact_nodes))
+
+
+def mass_of(W: sp.csr_matrix, C: sp.csr_matrix) -> sp.csr_matrix:
+    """W^T C^-1 W (n_nodes, n_nodes) of the pairings of :func:`velocity_pairings` (C by its dense Cholesky factor)."""
     L = np.linalg.cholesky(C.toarray())
     G = sla.solve_triangular(L, W.toarray(), lower=True)  # L^-1 W: M = G^T G
     M = sp.csr_matrix(G.T @ G)
@@ -138,8 +142,3 @@ class VelocitySpace:
         xf = x[self.free]
         out[self.free] = xf - self.W.T @ self._solve(self.W @ xf)
         return out
-
-
-def vector_pairing(mesh: Mesh, rho, contact_nodes: np.ndarray) -> sp.csr_matrix:
-    """The pairing W of every component (node-major dofs on both sides)."""
-    return vectorize(velocity_pairings(mesh, rho, contact_nodes)[0], mesh.dim)

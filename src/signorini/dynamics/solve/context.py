@@ -388,13 +388,9 @@ class Context:
         if ml.size:
             V[ml] = (U[ml] - U_old[ml]) / self.dt
             A[ml] = 0.0
-        if self.velocity_space is not None:  # mixed-velocity: ker M = ker W
+        if self.rotated_kernel:  # the massless directions that are not dofs (:meth:`kernel_part`)
             V -= self.kernel_part(V - (U - U_old) / self.dt)
             A -= self.kernel_part(A)
-        elif self.rotated_kernel:
-            B = self.rows.B
-            V -= B.T @ (B @ V - (B @ (U - U_old)) / self.dt)
-            A -= B.T @ (B @ A)
 
     def kernel_part(self, x: np.ndarray) -> np.ndarray:
         """The part of ``x`` (n,) along the massless directions that are not dofs (:attr:`rotated_kernel`), zero
