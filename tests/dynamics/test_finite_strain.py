@@ -406,8 +406,10 @@ def _forge_tangent(arrays: dict, part: str, change) -> None:
         ("shape", lambda a: a + 1, "a CSR matrix of"),
         ("indices", lambda a: a.astype(float), "integer indices"),
         ("use", lambda a: -a, "its use"),
+        ("at", lambda a: a[:-1], "the displacement it was made at"),
+        ("at", lambda a: a * np.inf, "the displacement it was made at"),
     ],  # fmt: skip
-    ids=["index", "indptr", "nan", "shape", "dtype", "use"],
+    ids=["index", "indptr", "nan", "shape", "dtype", "use", "at-shape", "at-inf"],
 )
 def test_a_checkpoint_with_a_forged_kept_tangent_is_refused_by_name(tmp_path, part, change, words):
     """The kept Newton tangent's matrix is factorized again on resume: a forged one is an input error naming

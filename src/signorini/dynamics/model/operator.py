@@ -16,10 +16,12 @@ from ...linalg.sparse import linear_combination
 class Tangent:
     """A tangent stiffness K(U) (n, n) of one Newton iterate (finite strain, :mod:`~.elasticity`): an
     operator ``c_M M + c_S K(U)`` holds it in place of S.  Two tangents are the same only when they
-    are the same object (each iterate's is factorized on its own)."""
+    are the same object (each iterate's is factorized on its own).  ``at``: the displacement U (n,) it was
+    made at, when known (a kept tangent turned with its bodies, :mod:`~..solve.turning`)."""
 
-    def __init__(self, matrix: sp.spmatrix):
+    def __init__(self, matrix: sp.spmatrix, at: np.ndarray | None = None):
         self.matrix = matrix
+        self.at = at
 
     def __repr__(self) -> str:
         return f"Tangent(id={id(self):#x})"

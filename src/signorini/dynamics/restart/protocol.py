@@ -16,7 +16,7 @@ key                what                                                         
                    (:class:`StatePart`)
 ``solvers``        each factorized system's warm starts and Delassus columns; a        yes [3]
                    Newton tangent kept across levels with its matrix (factorized
-                   again on resume) and which one is kept
+                   again on resume), where it was made, and which one is kept
 ``pairing``        the contact rows: the pairs' pairing, the current configuration's   yes
                    normals and master points (the same ``saved``/``resume`` calls)
 ``observers/KEY``  each observer's series (``Observer.saved`` / ``resume``,             no [1]
@@ -112,6 +112,8 @@ class SolverStates:
                 G = sp.csr_matrix(sys.op.tangent.matrix)
                 out.update({f"{k}/tangent/{name}": getattr(G, name) for name in ("data", "indices", "indptr")})
                 out[f"{k}/tangent/shape"] = np.array(G.shape)
+                if sys.op.tangent.at is not None:  # where it was made: it turns with its bodies from there
+                    out[f"{k}/tangent/at"] = np.asarray(sys.op.tangent.at)
             out.update({f"{k}/{name}": a for name, a in arrays.items()})
             log = sys.solver.delassus.history(blocks) if blocks is not None else None
             if log is not None:  # the Delassus columns solved, to solve them again alike on resume
@@ -213,7 +215,10 @@ class SolverStates:
             G.check_format(full_check=True)
         except ValueError as exc:
             raise InputError(f"{bad}: {exc}") from None
-        return Tangent(G)
+        at = data.get(f"{k}/tangent/at")  # absent in a checkpoint written before it was recorded: not turned
+        if at is not None and (at.shape != (n,) or at.dtype != np.float64 or not np.all(np.isfinite(at))):
+            raise InputError(f"{bad} (the displacement it was made at: {n} finite floats)")
+        return Tangent(G, None if at is None else np.array(at))
 
     # -- a rollback ----------------------------------------------------------------------
     def mark(self) -> list[tuple[Any, dict[str, np.ndarray]]]:

@@ -137,6 +137,7 @@ class EnergyMomentum(Scheme):
             force_start=np.where(ml, f0, 2.0 * f0),
             potential=False,
             jacobian=jacobian,
+            configuration=lambda U: 0.5 * (U0 + U),
         )
         U, mu, info = solve_step(ctx, step)
         lam = np.where(w == 0.5, 2.0 * mu, mu) if mu.size else mu

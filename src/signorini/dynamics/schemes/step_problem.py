@@ -65,6 +65,8 @@ class StepProblem:
         (energy-momentum: K(U_mid) for the discrete gradient's Jacobian); Newton takes its directions from it
         where its tangent converges slowly (:meth:`~..solve.newton._Factor.exact`); None: ``tangent`` is exact.
         Unused by the linear solve (one solve, no iteration).
+    configuration : the displacement at which ``tangent(U)`` evaluates the body's tangent (energy-momentum: the
+        midpoint (U^n + U) / 2); None: U.  A kept tangent turns with its bodies between two of them.
     total : (n,) q + c_M U^n as the scheme computes it in its own form (Newmark's and theta's predictor p), for
         the linear solve; None: q + c_M U^n.  The same vector to round-off: the linear histories keep the
         rounding they had before the steps were stated this way (a run that reaches its obstacle exactly at a
@@ -84,6 +86,7 @@ class StepProblem:
     potential: bool = True
     total: np.ndarray | None = None
     jacobian: Callable[[np.ndarray], object] | None = None
+    configuration: Callable[[np.ndarray], np.ndarray] | None = None
 
 
 def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, StepInfo]:
@@ -104,7 +107,19 @@ def solve_step(ctx: Context, p: StepProblem) -> tuple[np.ndarray, np.ndarray, St
         energy = el.energy if p.potential else None
         bound = contact_bound(ctx, s.U, s.t, p.t)
         return newton_solve(
-            ctx, op, s.U, rest, force, tangent, bound, fixed, p.law, inertia, energy=energy, jacobian=p.jacobian
+            ctx,
+            op,
+            s.U,
+            rest,
+            force,
+            tangent,
+            bound,
+            fixed,
+            p.law,
+            inertia,
+            energy=energy,
+            jacobian=p.jacobian,
+            configuration=p.configuration,
         )
     rhs = ctx.Mop @ (p.q + weights.mass * s.U if p.total is None else p.total) + p.forces
     if p.damping is not None:

@@ -39,6 +39,7 @@ from ..rows.contact_rows import ContactRows
 from ..rows.current_rows import current_rows
 from .elasticity import elasticity
 from .factorizations import Factorizations
+from .turning import body_turning
 
 #: what a factorization raises for a singular or indefinite operator: SuperLU and MKL
 #: Pardiso RuntimeError, numpy LinAlgError, CHOLMOD (cvxopt) ArithmeticError
@@ -254,6 +255,8 @@ class Context:
             and n.size
             and not np.all(np.isclose(np.abs(n).max(axis=1), 1.0, atol=1e-12))
         )
+        #: each body's rigid turn, for a kept Newton tangent (:mod:`~.turning`); None where it does not apply
+        self.turning = body_turning(self) if self.elastic.finite and not self.rotated_kernel else None
         if self.massless.size == disc.M.shape[0]:
             raise InputError(
                 f"mass {disc.mass_name!r} leaves the body without any mass (every cell touches the contact "

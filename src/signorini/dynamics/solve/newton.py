@@ -37,9 +37,11 @@ steps of the same coefficients while it contracts as a kept tangent must; a step
 step that did not halve |r|, a solve that fails) starts again from its level with its own operator, its iterates
 dropped (counted in ``nonlinear_iterations``; contact pairs in the current configuration keep the flips at a
 master surface's rim that those iterates counted, as a step's later iterates do), and the kept tangent is dropped;
-on a ``petsc`` backend (operators by rows) none is kept.  A checkpoint records the kept tangent's matrix and a
-rejected step's rollback keeps the one before again (:mod:`~..restart.protocol`), so a step depends on its level
-and that matrix only: a resume is bit for bit.
+on a ``petsc`` backend (operators by rows) none is kept.  A kept tangent turns with its bodies (:mod:`~.turning`):
+made at U_k, it serves a level where a body has turned by R since as Q K_k Q^T, its factor solved between two
+rotations (re-aimed at the step's first iterate).  A checkpoint records the kept tangent's matrix and where it was
+made, and a rejected step's rollback keeps the one before again (:mod:`~..restart.protocol`), so a step depends on
+its level and that tangent only: a resume is bit for bit.
 While the operator is kept (the scheme's own or a kept tangent), ``acceleration=anderson`` (the default) mixes
 the iterates with the last ones (:mod:`~.anderson`: a Krylov method preconditioned by the factorized operator) as
 long as the rows held at their bound stay the same and no friction acts; a mixed iterate that does not lower |r|,
@@ -266,6 +268,7 @@ def newton_solve(
     *,
     energy: Callable[[np.ndarray], float] | None = None,
     jacobian: Callable[[np.ndarray], object] | None = None,
+    configuration: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, StepInfo]:
     """Solve the nonlinear step of the module docstring, whose right-hand side is c_M M U_base + ``rest``, from
     the level ``base`` = U_base (n,).
@@ -283,8 +286,10 @@ def newton_solve(
     ``GAP_TOLERANCE`` touch tolerances, or their round-off).  ``inertia``: the
     inertial part M q of ``rest``.  ``jacobian(U)``: the exact dg/dU (not symmetric) when ``tangent`` only
     approximates it (energy-momentum); the directions are then taken from it once the step needs a tangent of
-    its own (:meth:`_Factor.exact`).  Returns U (n,), lambda (nc,) and the last contact solve's info with
-    ``nonlinear_iterations`` (the Newton iterations) set."""
+    its own (:meth:`_Factor.exact`).  ``configuration(U)``: the displacement at which ``tangent(U)`` evaluates the
+    body's tangent (energy-momentum: the midpoint), None: U itself; a kept tangent is turned with its bodies
+    from there to the step's (:mod:`~.turning`).  Returns U (n,), lambda (nc,) and the last contact solve's info
+    with ``nonlinear_iterations`` (the Newton iterations) set."""
     modified = ctx.solver_options.get("tangent", "modified") == "modified"
     # a tangent kept across levels (serial: a checkpoint records it, :mod:`~..restart.protocol`) serves while it
     # contracts; a step it does not serve starts again with its own operator (its iterates dropped)
@@ -293,7 +298,8 @@ def newton_solve(
     if not carry and ctx.factors.kept:  # another tangent policy (a resume with tangent=full): no longer of use
         ctx.factors.drop_kept()
     kept = ctx.factors.kept_for(op) if carry else None
-    args = (ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian)
+    where = (lambda U: U) if configuration is None else configuration
+    args = (ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian, where)
     if kept is not None:
         ctx.elastic.kept_tangent_steps += 1
         try:
@@ -338,7 +344,7 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
     """The iterations of :func:`newton_solve`, started with the tangent ``kept`` from a level before (abandoned,
     :class:`_Abandoned`, where it needs renewing) or with the step's own operator; ``carry``: the step's last
     plain tangent is kept for the next levels.  ``args``: :func:`newton_solve`'s, in its order."""
-    ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian = args
+    ctx, op, base, rest, force, tangent, bound, fixed, law, inertia, energy, jacobian, where = args
     opts = ctx.solver_options
     tol, most = float(opts.get("newton_tol", 1e-10)), int(opts.get("newton_max", 25))
     modified = opts.get("tangent", "modified") == "modified"
@@ -357,9 +363,10 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
     # a step that starts near the reference configuration starts with the scheme's own linear operator (factorized
     # at set-up): no factorization while it contracts (a mass-dominated impact's steps)
     reference = modified and agree(bool(elastic.displacement_gradient(base) <= REFERENCE_GRADIENT))
-    factor = _Factor(ctx, op, tangent, bound, elastic, jacobian)
+    factor = _Factor(ctx, op, tangent, bound, elastic, jacobian, where)
     if kept is not None:  # its first step is held to KEPT_CONTRACTION of |r| at the level (no contact force)
         factor.current, factor.carried, reference = kept, True, False
+        factor.turn_to(where(base))
         norm = agree(residual_norm(ctx, op, X, rest, gU, U, np.zeros(ctx.rows.B.shape[0]), None, inertia, through)[0])
     converged = 0  # the iterations of a converged step
     accel = Anderson(ctx.free) if opts.get("acceleration", "anderson") == "anderson" else None
@@ -485,6 +492,10 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
                 factor.exact_wanted = True
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
+            if k == 1 and full and factor.turn is not None:  # turned to the level: now to the first iterate
+                factor.turn_to(where(U))
+                if accel is not None:
+                    accel.reset()
             gaps_ok = not bound.moves or agree(bool(bound.converged(U)))
             solved = not info.residual > MAX_CONTACT_RESIDUAL  # a contact solve short of complementarity: go on
             if full and norm <= allowed and gaps_ok and solved:
@@ -579,8 +590,18 @@ class _Factor:
     #: shifts tau of the corrected tangent's diagonal shift tau diag(S) (S the reference stiffness)
     SHIFTS = (1e-3, 1e-1, 1e1)
 
-    def __init__(self, ctx: Context, op: Operator, tangent: Callable, bound, elastic, jacobian: Callable | None = None):
+    def __init__(
+        self,
+        ctx: Context,
+        op: Operator,
+        tangent: Callable,
+        bound,
+        elastic,
+        jacobian: Callable | None = None,
+        at: Callable[[np.ndarray], np.ndarray] = lambda U: U,
+    ):
         self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
+        self.at = at
         self.jacobian = jacobian
         #: whether a fresh tangent contracted |r| by less than EXACT_RATE: the directions of the rest of the step
         #: are the exact Jacobian's (:meth:`exact`)
@@ -591,6 +612,8 @@ class _Factor:
         self.carried = False
         self.corrected = False  # whether ``current`` is the corrected tangent (projected per cell, maybe shifted)
         self.shift = 0
+        #: the rotation of each body since a kept tangent was made (:mod:`~.turning`), None: used as it is
+        self.turn: np.ndarray | None = None
         self._plain: tuple[np.ndarray, sp.csr_matrix | RowBlock] | None = None  # (U, the plain tangent at U)
 
     def renew(
@@ -600,7 +623,7 @@ class _Factor:
         (else the plain one: a correction holds for the operator it was made for, so that Newton converges
         quadratically again where the tangent is definite)."""
         self.release()
-        self.carried = False
+        self.carried, self.turn = False, None
         if not corrected:
             self.corrected, self.shift = False, 0
         if use_reference:
@@ -612,7 +635,8 @@ class _Factor:
         if self.shift:
             G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(self.ctx.S.diagonal()))
         op = self.op
-        self.current, self.owned = Operator(op.mass, op.stiffness, Tangent(G), op.viscous), True
+        made = Tangent(G, at=np.array(self.at(U)))  # where: it turns with its bodies from there when kept
+        self.current, self.owned = Operator(op.mass, op.stiffness, made, op.viscous), True
         self.elastic.factorizations += 1
 
     def assembled(
@@ -678,6 +702,11 @@ class _Factor:
         """(d, lambda, info, renewed): the Newton direction d (n,), the whole multiplier and the solve's info, the
         operator corrected (renewed at U) until it factorizes and its contact problem is solved."""
         renewed = False
+        if self.turn is not None:
+            turned = self.turned(minus_r, slack, fixed_d, law)
+            if turned is not None:
+                return (*turned, False)
+            self.turn, renewed = None, True  # a row reached: the kept tangent as it is, its contact solve
         while True:
             try:
                 d, lam_new, info = self.ctx.solve(self.current, minus_r, slack, fixed_d, law)
@@ -713,6 +742,31 @@ class _Factor:
                 if kkt is not None:
                     d, lam_new = kkt
             return d, lam_new, info, renewed
+
+    def turn_to(self, where: np.ndarray) -> None:
+        """Turn the kept tangent (:attr:`current`) with its bodies to the configuration ``where`` (n,): the
+        rotation of each body since it was made (:mod:`~.turning`); none when it does not apply."""
+        made, turning = self.current.tangent.at, self.ctx.turning
+        self.turn = None if made is None or turning is None else turning.rotations(made, where)
+
+    def turned(
+        self, minus_r: np.ndarray, slack: np.ndarray, fixed_d: np.ndarray | None, law: ContactLaw
+    ) -> tuple[np.ndarray, np.ndarray, StepInfo] | None:
+        """(d, lambda = 0, info) of the kept tangent turned with its bodies, d = Q K_k^-1 Q^T (-r) (:mod:`~.turning`),
+        when d reaches no contact row (B d <= slack: then lambda = 0 solves the contact problem of the turned
+        operator); None when a row is reached or the rows carry friction."""
+        ctx = self.ctx
+        if ctx.rows.components > 1:
+            return None
+        turning = ctx.turning
+        d = turning.turn(self.turn, ctx.solve_linear(self.current, turning.turn(self.turn, minus_r, True), fixed_d))
+        q = slack - ctx.rows.B @ d
+        if law.subset is not None:
+            q = q[law.subset]
+        if not ctx.comm.bcast(bool(np.all(q >= 0.0))):
+            return None
+        nc = ctx.rows.B.shape[0]
+        return d, np.zeros(nc), StepInfo(0, False, 0.0, np.zeros(nc, dtype=bool))
 
     def exact(
         self,

@@ -1,0 +1,108 @@
+"""A kept Newton tangent turned with its bodies: the rigid rotation of each body since the tangent was made.
+
+A Total Lagrangian internal force is objective: when a body's deformed configuration x = X + U turns rigidly,
+x -> R x + c, its nodal forces turn with it and its tangent stiffness becomes
+
+    K(R x + c) = Q K(x) Q^T,   Q = diag(R, ..., R) over the body's nodes,
+
+and an isotropic mass (M = M_s (x) I_d: no coupling of two components) is unchanged, Q M Q^T = M.  A tangent kept
+across levels (:mod:`~.newton`, ``tangent=modified``) that was made at U_k therefore serves the level U^n of a body
+that has turned by R since as Q (c_M M + c_S K_k) Q^T, solved with the kept factor between two rotations:
+
+    d = Q (c_M M + c_S K_k)^-1 Q^T b.
+
+R is each body's best rotation between the two configurations (the Kabsch problem: the nearest rotation to the
+mass-weighted covariance of the nodes' positions about their centres, by a d x d singular value decomposition):
+exact for a rigid turn, the deformation's rotation part otherwise.  A spinning part keeps its tangent through its
+flight instead of making one every few steps (measured in docs/finite_strain.md).
+
+Applies when every body turns freely (no Dirichlet dof), the mass is isotropic and no damping matrix enters the step
+(Rayleigh damping's stiffness part does not turn); else :class:`BodyTurning` is not made.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ...fem.mesh import bodies
+
+#: a turn below this angle [rad] is none (the kept tangent is used as it is)
+NEGLIGIBLE_ANGLE = 1e-9
+
+
+def isotropic(M: sp.spmatrix, dim: int) -> bool:
+    """Whether M (n, n), dofs node-major (node i, component a at dim i + a), couples no two components and has the
+    same block for each: M = M_s (x) I_dim."""
+    C = sp.coo_matrix(M)
+    cross = (C.row % dim) != (C.col % dim)
+    if np.any(C.data[cross] != 0.0):
+        return False
+    Mc = sp.csr_matrix(M)
+    first = Mc[0::dim, 0::dim]
+    scale = float(np.max(np.abs(first.data), initial=0.0))
+    return all(abs(Mc[a::dim, a::dim] - first).max() <= 1e-14 * scale for a in range(1, dim))
+
+
+class BodyTurning:
+    """The rigid rotation of each body between two displacements, and the products with Q and Q^T.
+
+    Parameters
+    ----------
+    points : (n_nodes, d) the reference positions [length].
+    label : (n_nodes,) each node's body.
+    weights : (n_nodes,) each node's weight in its body's fit (its row sum of M along x, floored at a small share of
+        the body's mean so that a node without mass still counts) [mass].
+    """
+
+    def __init__(self, points: np.ndarray, label: np.ndarray, weights: np.ndarray):
+        self.points = np.asarray(points, dtype=float)
+        self.n_nodes, self.dim = self.points.shape
+        self.label = np.asarray(label)
+        self.n_bodies = int(self.label.max(initial=0)) + 1
+        w = np.abs(np.asarray(weights, dtype=float))
+        mean = np.bincount(self.label, w, self.n_bodies) / np.maximum(np.bincount(self.label, None, self.n_bodies), 1)
+        self.weights = np.maximum(w, 1e-3 * mean[self.label])
+
+    def rotations(self, U_from: np.ndarray, U_to: np.ndarray) -> np.ndarray | None:
+        """Each body's rotation R (n_bodies, d, d) from the configuration X + U_from to X + U_to (U: (n_nodes d,),
+        node-major), or None when every body turned by less than :data:`NEGLIGIBLE_ANGLE`."""
+        d, b, w = self.dim, self.label, self.weights
+        p = self.points + np.reshape(U_from, (-1, d))
+        q = self.points + np.reshape(U_to, (-1, d))
+        total = np.bincount(b, w, self.n_bodies)
+        pc = np.stack([np.bincount(b, w * p[:, a], self.n_bodies) for a in range(d)], axis=1) / total[:, None]
+        qc = np.stack([np.bincount(b, w * q[:, a], self.n_bodies) for a in range(d)], axis=1) / total[:, None]
+        P, Q = p - pc[b], q - qc[b]
+        H = np.zeros((self.n_bodies, d, d))
+        np.add.at(H, b, w[:, None, None] * P[:, :, None] * Q[:, None, :])  # H = sum w (p - pc)(q - qc)^T
+        u, _, vt = np.linalg.svd(H)
+        sign = np.sign(np.linalg.det(np.einsum("kji,kjl->kil", vt, np.swapaxes(u, 1, 2))))
+        sign[sign == 0] = 1.0
+        D = np.tile(np.eye(d), (self.n_bodies, 1, 1))
+        D[:, -1, -1] = sign
+        R = np.einsum("kji,kjl,klm->kim", vt, D, np.swapaxes(u, 1, 2))  # V D U^T
+        # |R - I|_F = 2 sqrt(2) sin(angle / 2) in 2D and 3D: the angle, without arccos's loss near 1
+        if np.all(np.linalg.norm(R - np.eye(d), axis=(1, 2)) / np.sqrt(2.0) < NEGLIGIBLE_ANGLE):
+            return None
+        return R
+
+    def turn(self, R: np.ndarray, x: np.ndarray, transpose: bool = False) -> np.ndarray:
+        """Q x (or Q^T x) for a nodal vector x (n_nodes d,): each node's block by its body's R."""
+        Rn = R[self.label]
+        sub = "kji,kj->ki" if transpose else "kij,kj->ki"
+        return np.einsum(sub, Rn, np.reshape(x, (-1, self.dim))).ravel()
+
+
+def body_turning(ctx) -> BodyTurning | None:
+    """The turning of ``ctx``'s bodies, or None where it does not apply (module docstring): a Dirichlet dof, a mass
+    that couples components, a damping matrix or Rayleigh damping, a distributed backend."""
+    disc = ctx.disc
+    mesh = disc.problem.mesh
+    dim = mesh.points.shape[1]
+    if dim < 2 or ctx.has_fixed or ctx.damping is not None or ctx.damping_matrix is not None or ctx.comm.size > 1:
+        return None
+    if disc.M.shape[0] != mesh.n_nodes * dim or not isotropic(disc.M, dim):
+        return None
+    weights = np.asarray(sp.csr_matrix(disc.M)[0::dim, 0::dim].sum(axis=1)).ravel()
+    return BodyTurning(mesh.points, bodies(mesh), weights)
