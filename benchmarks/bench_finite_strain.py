@@ -1,6 +1,6 @@
 """Finite strain's costs (issue 41), as ratios measured in one run.
 
-    python -m benchmarks.bench_finite_strain [--cells 12] [--steps 20] [--bracket 200] [--assembly 32]
+    python -m benchmarks.bench_finite_strain [--cells 12] [--steps 20] [--bracket 200] [--assembly 32] [--turning 64]
 
 A 3D Neo-Hookean block (cells x cells/2 x cells/2 hexahedra, 40 x 20 x 20 mm, rubber) thrown spinning
 at a plane, its whole skin in contact, energy-momentum at dt = 2e-5 s, the default backend, in one
@@ -23,7 +23,12 @@ process, alternated twice (the best of each):
 6. the tangent assembly of a Neo-Hookean (and Saint Venant-Kirchhoff) cube of ``--assembly`` (32)^3
    hexahedra (about 100k dofs) against the linear stiffness assembly, on the structured grid (whose
    cells are translates: the linear assembly computes one element matrix) and on the same grid with its
-   points moved by up to 20% of a cell (every element its own); issue 41 asks at most x2.
+   points moved by up to 20% of a cell (every element its own); issue 41 asks at most x2;
+7. a spinning part's kept tangent turned with its bodies (:mod:`signorini.dynamics.solve.turning`): ``spin3d``
+   (Crank-Nicolson, the default mass, its first ``--turning`` (64) steps, a tenth of a turn each) and the bracket's
+   flight (its first 75 levels, before its corner touches the plane), each with the turn and without it (the run's
+   turning switched off), against the linear model's step: median steps, Newton iterations and tangent
+   factorizations.
 """
 
 from __future__ import annotations
@@ -163,6 +168,43 @@ def bracket(levels: int) -> dict:
             "finite_over_linear": best["neo-hookean"] / best["linear"], "newton": info}  # fmt: skip
 
 
+def turned(levels: int) -> list[dict]:
+    """Item 7 of the module docstring."""
+    import dataclasses
+    from pathlib import Path
+    from unittest import mock
+
+    import signorini.dynamics.solve.turning as turning
+    from signorini.dynamics.stepping.simulate import Stepper
+    from signorini.fem.material import with_model
+    from signorini.io.config import load_case
+    from signorini.studies.benchmarks import get_benchmark
+
+    spin = get_benchmark("spin3d")
+    dt = spin.run_times(1)[0]
+    case = load_case(Path(__file__).resolve().parents[1] / "examples" / "bracket_tumble.toml")
+    options = {"mass": case.mass, "scheme_options": case.scheme_options, "solver_options": case.solver_options}
+    runs = {  # name -> (problem, scheme, (dt, T), options)
+        f"spin3d, crank-nicolson, {levels} steps": (spin.problem(1), "crank-nicolson", (dt, levels * dt), {}),
+        f"examples/bracket_tumble.toml, {case.scheme}, its flight (75 levels)": (
+            case.problem, case.scheme, (case.dt, 75 * case.dt), options),
+    }  # fmt: skip
+    out = []
+    for name, (p, scheme, times, opts) in runs.items():
+        row: dict = {"case": name}
+        for label, model, made in (("turned", None, turning.body_turning), ("not turned", None, lambda ctx: None),
+                                   ("linear", "linear", turning.body_turning)):  # fmt: skip
+            q = p if model is None else dataclasses.replace(p, material=with_model(p.material, model))
+            with mock.patch("signorini.dynamics.solve.context.body_turning", made):
+                s = Stepper(q, scheme, times, opts)
+                step = median_step(s)
+                H = s.finish()
+            row[label] = {"step_s": step, "newton_per_step": float(np.nanmean(H.nonlinear_iterations[1:])),
+                          "tangent_factorizations": int(H.counters.get("tangent_factorizations", 0))}  # fmt: skip
+        out.append(row)
+    return out
+
+
 def assembly(cells: int) -> list[dict]:
     """Item 6 of the module docstring."""
     from signorini.fem.assembly import stiffness_matrix
@@ -193,13 +235,16 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--bracket", type=int, default=200, help="levels of the gmsh bracket (0: none)")
     ap.add_argument("--assembly", type=int, default=32, help="cells per side of the assembly cube (0: none)")
+    ap.add_argument("--turning", type=int, default=64, help="steps of spin3d for item 7 (0: none)")
     args = ap.parse_args(argv)
     r = run(args.cells, args.steps)
     h = hertz(args.steps)
     smaller = [hertz(args.steps, k) for k in (10, 100)] if h is not None else []
     br = bracket(args.bracket) if args.bracket else None
     a = assembly(args.assembly) if args.assembly else []
-    print(json.dumps({**r, "hertz3d": h, "hertz3d_smaller_steps": smaller, "bracket": br, "assembly": a}, indent=1))
+    t = turned(args.turning) if args.turning else []
+    print(json.dumps({**r, "hertz3d": h, "hertz3d_smaller_steps": smaller, "bracket": br, "assembly": a,
+                      "turned": t}, indent=1))  # fmt: skip
     print(f"{r['case']} ({r['dofs']} dofs, {r['backend']}): a step with tangent=modified is "
           f"x{r['modified_over_full']:.2f} of full's, x{r['finite_over_linear']:.1f} of the linear model's and "
           f"x{r['finite_over_bare_solve']:.0f} of one bare solve; internal force {1e3 * r['internal_force_s']:.1f} ms, "
@@ -221,6 +266,13 @@ def main(argv=None) -> int:
               f"one ({1e3 * br['step_finite_s']:.1f} against {1e3 * br['step_linear_s']:.2f} ms; "
               f"{nh['newton_per_step']:.2f} Newton iterations per step, {nh['tangent_factorizations']} tangent "
               "factorizations)")  # fmt: skip
+    for x in t:
+        yes, no, lin = x["turned"], x["not turned"], x["linear"]
+        print(f"{x['case']}: the kept tangent turned with the body, a step {1e3 * yes['step_s']:.2f} ms "
+              f"(x{yes['step_s'] / lin['step_s']:.1f} of the linear model's, {yes['newton_per_step']:.2f} iterations, "
+              f"{yes['tangent_factorizations']} tangents), not turned {1e3 * no['step_s']:.2f} ms "
+              f"(x{no['step_s'] / lin['step_s']:.1f}, {no['newton_per_step']:.2f}, {no['tangent_factorizations']}): "
+              f"x{yes['step_s'] / no['step_s']:.2f}")  # fmt: skip
     for x in a:
         print(f"tangent assembly, {x['law']}, {x['mesh']} ({x['dofs']} dofs): x{x['tangent_over_linear']:.2f} of the "
               f"linear stiffness assembly ({x['tangent_s']:.3f} against {x['linear_s']:.3f} s)")  # fmt: skip

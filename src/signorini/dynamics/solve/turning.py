@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ...fem.dofmap import component, component_of
 from ...fem.mesh import bodies
 
 #: a turn below this angle [rad] is none (the kept tangent is used as it is)
@@ -35,13 +36,13 @@ def isotropic(M: sp.spmatrix, dim: int) -> bool:
     """Whether M (n, n), dofs node-major (node i, component a at dim i + a), couples no two components and has the
     same block for each: M = M_s (x) I_dim."""
     C = sp.coo_matrix(M)
-    cross = (C.row % dim) != (C.col % dim)
+    cross = component_of(C.row, dim) != component_of(C.col, dim)
     if np.any(C.data[cross] != 0.0):
         return False
     Mc = sp.csr_matrix(M)
-    first = Mc[0::dim, 0::dim]
+    first = Mc[component(0, dim), component(0, dim)]
     scale = float(np.max(np.abs(first.data), initial=0.0))
-    return all(abs(Mc[a::dim, a::dim] - first).max() <= 1e-14 * scale for a in range(1, dim))
+    return all(abs(Mc[component(a, dim), component(a, dim)] - first).max() <= 1e-14 * scale for a in range(1, dim))
 
 
 class BodyTurning:
@@ -104,5 +105,6 @@ def body_turning(ctx) -> BodyTurning | None:
         return None
     if disc.M.shape[0] != mesh.n_nodes * dim or not isotropic(disc.M, dim):
         return None
-    weights = np.asarray(sp.csr_matrix(disc.M)[0::dim, 0::dim].sum(axis=1)).ravel()
+    along_x = component(0, dim)
+    weights = np.asarray(sp.csr_matrix(disc.M)[along_x, along_x].sum(axis=1)).ravel()
     return BodyTurning(mesh.points, bodies(mesh), weights)
