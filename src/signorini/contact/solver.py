@@ -763,13 +763,15 @@ def make_contact_solver(
     cg_friendly: bool = False,
     components: int = 1,
     modes: Callable[[], np.ndarray] | None = None,
+    refactorized: bool = False,
 ) -> ContactSolver:
     """The contact solver for ``options['backend']`` (``auto``: :func:`choose_backend`);
     ``nodes`` (n,) is the mesh node of each row of K (blocks of ``block-jacobi``, the row
     blocks of ``petsc-cg``); ``modes()`` gives the rigid-body motions of the rows (n, k)
     (``petsc-cg`` with ``gamg``: its near-null space);
     ``cg_friendly``: K is mass-dominated and the scheme can use the CG contact solve;
-    ``components``: rows of B per contact node (d with friction: B is the frame matrix H)."""
+    ``components``: rows of B per contact node (d with friction: B is the frame matrix H);
+    ``refactorized``: the run factorizes many operators of K's pattern (:func:`choose_backend`)."""
     opts = solver_options(options)
     backend = opts["backend"]
     traits = backend_traits(backend)
@@ -788,7 +790,7 @@ def make_contact_solver(
         nc = B.shape[0]
         # the Delassus matrix (nc x nc, dense, at most) must fit beside the factor
         fits = 8.0 * nc * nc < budget
-        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly) if fits else "cg"
+        backend = choose_backend(K.shape[0], dim, budget - 8.0 * nc * nc, cg_friendly, refactorized) if fits else "cg"
         if not backend_traits(backend).friction and components > 1:
             raise InputError(
                 f"friction needs the dense Delassus matrix of {nc} x {nc} entries ({8.0 * nc * nc / 2**30:.3g} GiB), "

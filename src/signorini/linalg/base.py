@@ -189,9 +189,10 @@ BACKENDS = Registry("linear solver backend")
 BACKENDS.register(
     "auto",
     None,
-    "in 3D from about 4k dofs pardiso, else cholmod (a core dependency where cvxopt has wheels); else superlu "
-    "below 30k dofs; else, in 3D, cg when the operator is mass-dominated (and the scheme allows it), else "
-    "superlu; cg when no factor fits memory_budget",
+    "in 3D from about 4k dofs pardiso, else cholmod (a core dependency where cvxopt has wheels); cholmod for "
+    "finite strain in 3D below that (its ordering kept between the tangents); else superlu below 30k dofs; "
+    "else, in 3D, cg when the operator is mass-dominated (and the scheme allows it), else superlu; cg when no "
+    "factor fits memory_budget",
     (),
     CG_PARAMETERS,
     BackendTraits(chooses=True),
@@ -461,7 +462,9 @@ def installed(backend: str) -> bool:
     return {"pardiso": has_pardiso, "cholmod": has_cholmod}[backend]()
 
 
-def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: bool = False) -> str:
+def choose_backend(
+    n: int, dim: int, budget: float | None = None, cg_friendly: bool = False, refactorized: bool = False
+) -> str:
     """Direct solver when its estimated factor fits in ``budget`` bytes, else ``cg``.
 
     By estimated cost: the size of the factor (:func:`estimate_factor_bytes`) is the cost
@@ -473,6 +476,10 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
     at 35.6k dofs 2.6 s against 40 s; docs/performance.md).  cvxopt (CHOLMOD) and pymetis
     (METIS) are core dependencies each where it has wheels (pyproject.toml), so the plain
     install has CHOLMOD on Linux x86-64/aarch64, Windows x86-64 and macOS up to Python 3.12.
+    ``refactorized``: the run factorizes many operators of one pattern (finite strain's Newton
+    tangents): in 3D, CHOLMOD at any size below Pardiso's, since its ordering is kept by pattern
+    (:func:`~.ordering.fill_reducing_order`) and a tangent then costs its numeric factorization only
+    (bar3d n = 4, 3,075 dofs: a Neo-Hookean step 0.82 of SuperLU's, docs/performance.md).
     Else SuperLU for small systems (< 30k dofs: it has no start-up, and 2D
     factors are alike), then a Cholesky backend.  Without one, a large 3D system goes to
     CG when ``cg_friendly`` (the operator is mass-dominated, see :data:`CG_FRIENDLY_RATIO`,
@@ -487,6 +494,8 @@ def choose_backend(n: int, dim: int, budget: float | None = None, cg_friendly: b
         # installed() last: it imports the library, which a small run must not load
         if size <= budget and size < superlu and installed(name):
             return name
+    if refactorized and dim == 3 and estimate_factor_bytes(n, dim, "cholmod") <= budget and installed("cholmod"):
+        return "cholmod"
     if n < SMALL and superlu <= budget:
         return "superlu"
     for name in CHOLESKY:

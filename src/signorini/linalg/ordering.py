@@ -22,9 +22,16 @@ above 526 MB with METIS), so
 :func:`fill_reducing_order` uses METIS (``pymetis``, extra ``metis``) on the node graph
 when it is installed (a core dependency on Linux x86-64 and macOS), this ordering
 otherwise (see ``docs/performance.md``).
+
+An ordering depends on the pattern alone, and a run factorizes many matrices of one pattern (each Newton tangent,
+each step of an adaptive control's ladder): :func:`fill_reducing_order` keeps the last :data:`CACHED_PATTERNS`
+orderings by pattern (its digest), so that a factorization after the first costs its numeric part only.
 """
 
 from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -243,16 +250,42 @@ ORDERING = "auto"
 ORDERINGS = ("metis", "nd", "nd-levels")
 
 
+#: the orderings kept by pattern (module docstring; a permutation is 8 bytes a row)
+CACHED_PATTERNS = 8
+_orderings: OrderedDict[tuple, np.ndarray] = OrderedDict()
+
+
+def _pattern_key(A: sp.spmatrix, method: str) -> tuple:
+    """(method, shape, digest of the CSC pattern) of A: equal for two matrices of one pattern (zeros stored or not
+    alike)."""
+    C = A if sp.isspmatrix_csc(A) and A.has_sorted_indices else sp.csc_matrix(A)
+    if not C.has_sorted_indices:
+        C = C.sorted_indices()
+    h = hashlib.blake2b(np.ascontiguousarray(C.indptr, dtype=np.int64).tobytes(), digest_size=16)
+    h.update(np.ascontiguousarray(C.indices, dtype=np.int64).tobytes())
+    return method, C.shape, h.digest()
+
+
 def fill_reducing_order(A: sp.spmatrix, method: str | None = None) -> tuple[np.ndarray, str]:
     """(permutation, name of the ordering): ``method`` (default :data:`ORDERING`) ``auto`` is
-    METIS nested dissection when pymetis is installed, else :func:`nested_dissection`."""
+    METIS nested dissection when pymetis is installed, else :func:`nested_dissection`; the same permutation again
+    for a matrix of a pattern ordered lately (module docstring)."""
     method = method or ORDERING
     if method == "auto":
         method = "metis" if has_metis() else "nd"
-    if method == "metis":
-        return metis_nested_dissection(A), "metis"
-    if method == "nd":
-        return nested_dissection(A), "nd"
-    if method == "nd-levels":
-        return nested_dissection(A, separators="levels"), "nd-levels"
-    raise ValueError(f"unknown ordering {method!r}; known: auto, {', '.join(ORDERINGS)}")
+    if method not in ORDERINGS:
+        raise ValueError(f"unknown ordering {method!r}; known: auto, {', '.join(ORDERINGS)}")
+    key = _pattern_key(A, method)
+    perm = _orderings.get(key)
+    if perm is None:
+        if method == "metis":
+            perm = metis_nested_dissection(A)
+        else:
+            perm = nested_dissection(A, separators="levels" if method == "nd-levels" else "bisection")
+        perm.setflags(write=False)
+        _orderings[key] = perm
+        while len(_orderings) > CACHED_PATTERNS:
+            _orderings.popitem(last=False)
+    else:
+        _orderings.move_to_end(key)
+    return perm, method

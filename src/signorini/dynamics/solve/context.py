@@ -130,6 +130,7 @@ class _System:
                 cg_friendly,
                 ctx.rows.components,
                 lambda: ctx.disc.space.rigid_body_modes(free),
+                refactorized=ctx.elastic.finite,
             )
         except FACTORIZATION_ERRORS as exc:  # a singular or indefinite operator; anything else is a bug
             raise InputError(
