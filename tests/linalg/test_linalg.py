@@ -210,9 +210,9 @@ def test_auto_is_told_whether_cg_suits_the_run(monkeypatch, scheme, dt_factor, f
     seen = []
     real = solver.choose_backend
 
-    def spy(n, dim, budget=None, cg_friendly=False):
+    def spy(n, dim, budget=None, cg_friendly=False, refactorized=False):
         seen.append(cg_friendly)
-        return real(n, dim, budget, cg_friendly)
+        return real(n, dim, budget, cg_friendly, refactorized)
 
     monkeypatch.setattr(solver, "choose_backend", spy)
     b = get_benchmark("bar3d")
