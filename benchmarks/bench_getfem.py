@@ -1,6 +1,7 @@
 """Our time per step against GetFEM 5.4's on the same finite-strain problem (issue 51's performance line).
 
     python -m benchmarks.bench_getfem [--n 2] [--model neo-hookean] [--steps 40] [--scheme crank-nicolson]
+                                      [--backend auto]
 
 The seed paper's 3D bar (``bar3d`` at level n: clamped on top, dropped on the plane) with a finite-strain law and
 the consistent mass, the first ``--steps`` levels of the benchmark's step (through the impact), solved by
@@ -38,7 +39,9 @@ def getfem_available() -> bool:
         return False
 
 
-def ours(n: int, model: str, steps: int, scheme: str, tangent: str) -> tuple[float, np.ndarray, float]:
+def ours(
+    n: int, model: str, steps: int, scheme: str, tangent: str, backend: str = "auto"
+) -> tuple[float, np.ndarray, float]:
     """(median step [s], the contact force sum_i lambda_i at each level, Newton iterations a step) with the solver
     option ``tangent``."""
     from signorini.dynamics.stepping.simulate import Stepper
@@ -49,7 +52,8 @@ def ours(n: int, model: str, steps: int, scheme: str, tangent: str) -> tuple[flo
     dt = b.run_times(n)[0]
     p = b.problem(n)
     p = dataclasses.replace(p, material=with_model(p.material, model))
-    s = Stepper(p, scheme, (dt, steps * dt), {"mass": "standard", "solver_options": {"tangent": tangent}})
+    options = {"mass": "standard", "solver_options": {"tangent": tangent, "backend": backend}}
+    s = Stepper(p, scheme, (dt, steps * dt), options)
     step = median_step(s)
     H = s.finish()
     return step, np.asarray(H.lambda_sum), float(np.nanmean(H.nonlinear_iterations[1:]))
@@ -78,6 +82,7 @@ def main(argv=None) -> int:
     ap.add_argument("--model", default="neo-hookean", choices=["neo-hookean", "saint-venant-kirchhoff", "linear"])
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--scheme", default="crank-nicolson", choices=list(SCHEMES))
+    ap.add_argument("--backend", default="auto", help="our linear solver backend (default auto)")
     args = ap.parse_args(argv)
     if not getfem_available():
         print(f"GetFEM: skipped ({SYSTEM_PYTHON} cannot import getfem: apt-get install python3-getfem)")
@@ -90,7 +95,7 @@ def main(argv=None) -> int:
               "getfem_newton_per_step": float(np.mean([r["newton_iterations"] for r in rows[1:]])),
               "getfem_converged": all(r["converged"] for r in rows[1:])}  # fmt: skip
     for tangent in ("modified", "full"):
-        step, lam, newton = ours(args.n, args.model, args.steps, args.scheme, tangent)
+        step, lam, newton = ours(args.n, args.model, args.steps, args.scheme, tangent, args.backend)
         diff = float(np.abs(lam - lam_g).max() / max(np.abs(lam_g).max(), np.abs(lam).max(), 1e-300))
         result[tangent] = {"step_s": step, "over_getfem": step / theirs, "newton_per_step": newton,
                            "contact_force_difference": diff}  # fmt: skip
