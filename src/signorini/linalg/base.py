@@ -478,7 +478,7 @@ def choose_backend(
     install has CHOLMOD on Linux x86-64/aarch64, Windows x86-64 and macOS up to Python 3.12.
     ``refactorized``: the run factorizes many operators of one pattern (finite strain's Newton
     tangents): in 3D, CHOLMOD at any size below Pardiso's, since its ordering is kept by pattern
-    (:func:`~.ordering.fill_reducing_order`) and a tangent then costs its numeric factorization only
+    (:func:`~.ordering.fill_reducing_order`) and a tangent then costs its analysis and numeric factorization
     (bar3d n = 4, 3,075 dofs: a Neo-Hookean step 0.82 of SuperLU's, docs/performance.md).
     Else SuperLU for small systems (< 30k dofs: it has no start-up, and 2D
     factors are alike), then a Cholesky backend.  Without one, a large 3D system goes to

@@ -25,7 +25,8 @@ otherwise (see ``docs/performance.md``).
 
 An ordering depends on the pattern alone, and a run factorizes many matrices of one pattern (each Newton tangent,
 each step of an adaptive control's ladder): :func:`fill_reducing_order` keeps the last :data:`CACHED_PATTERNS`
-orderings by pattern (its digest), so that a factorization after the first costs its numeric part only.
+orderings by pattern (its digest), so that a factorization after the first costs its analysis and numeric
+factorization, not the ordering.
 """
 
 from __future__ import annotations
@@ -256,8 +257,8 @@ _orderings: OrderedDict[tuple, np.ndarray] = OrderedDict()
 
 
 def _pattern_key(A: sp.spmatrix, method: str) -> tuple:
-    """(method, shape, digest of the CSC pattern) of A: equal for two matrices of one pattern (zeros stored or not
-    alike)."""
+    """(method, shape, digest of the CSC pattern) of A: equal for two matrices of one stored pattern (an explicitly
+    stored zero counts as an entry, as it does for the ordering)."""
     C = A if sp.isspmatrix_csc(A) and A.has_sorted_indices else sp.csc_matrix(A)
     if not C.has_sorted_indices:
         C = C.sorted_indices()

@@ -127,3 +127,49 @@ def test_a_clamped_or_damped_body_does_not_turn():
     assert Stepper(q, "crank-nicolson", (dt, 2 * dt)).run.ctx.turning is not None
     damped = dataclasses.replace(q, damping=Rayleigh(1e-3, 0.0))
     assert Stepper(damped, "crank-nicolson", (dt, 2 * dt)).run.ctx.turning is None
+
+
+def _context_stub(**changes):
+    """What :func:`~signorini.dynamics.solve.turning.body_turning` reads of a run's context: a free 3D block of
+    consistent mass, serial, frictionless, every cell finite strain; ``changes`` replace some of it."""
+    from types import SimpleNamespace
+
+    mesh = box(1, 1, 2)
+    ctx = SimpleNamespace(
+        disc=SimpleNamespace(problem=SimpleNamespace(mesh=mesh), M=mass_matrix(mesh, 1.0)),
+        has_fixed=False,
+        damping=None,
+        damping_matrix=None,
+        distributed=False,
+        comm=SimpleNamespace(size=1),
+        rows=SimpleNamespace(components=1),
+        elastic=SimpleNamespace(S_linear=None),
+    )
+    for name, value in changes.items():
+        owner, _, attr = name.rpartition("__")
+        setattr(getattr(ctx, owner) if owner else ctx, attr, value)
+    return ctx
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"distributed": True},  # petsc on one process holds M by rows (the review's crash)
+        {"rows__components": 3},  # friction
+        {"elastic__S_linear": sp.eye(36, format="csr")},  # cells of the linear model: S does not turn
+        {"disc__M": np.eye(36)},  # a dense mass (mixed-velocity)
+        {"has_fixed": True},
+    ],
+    ids=["distributed", "friction", "linear-cells", "dense-mass", "dirichlet"],
+)
+def test_the_turn_is_not_made_where_its_premise_fails(changes):
+    assert turning.body_turning(_context_stub()) is not None
+    assert turning.body_turning(_context_stub(**changes)) is None
+
+
+def test_a_configuration_beyond_floating_point_is_not_turned():
+    """A checkpoint's `at` of 1e300 (finite, accepted) overflows the covariance: no turn, no crash."""
+    t = turning.BodyTurning(np.eye(3), np.zeros(3, dtype=int), np.ones(3))
+    huge = 1e300 * np.arange(9.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        assert t.rotations(huge, huge[::-1]) is None

@@ -419,8 +419,9 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
                 # a new operator, friction, or the corrected tangent (whose directions may be the plain tangent's with
                 # the active set held, :meth:`_Factor.kkt`): the history starts here
                 own = info.lam_t is None and not factor.corrected
-                if fresh or not own:
+                if fresh or not own or factor.unturned:
                     accel.reset()
+                    factor.unturned = False
                 mixed = accel.mix(X, d, lam_new, agree) if own else None
                 if mixed is not None and agree(_admissible(ctx, law_k, mixed, slack, bound.moves)):
                     plain, (d, lam_new) = (d, lam_new), mixed
@@ -492,7 +493,7 @@ def _iterate(args: tuple, *, kept: Operator | None, carry: bool) -> tuple[np.nda
                 factor.exact_wanted = True
             X, U, lam, lam_t, gU = X_new, U_new, lam_new, info.lam_t, g_new
             recent = [*recent[1 - NONMONOTONE :], X]
-            if k == 1 and full and factor.turn is not None:  # turned to the level: now to the first iterate
+            if k == 1 and full and factor.turnable:  # turned to the level: now to the first iterate
                 factor.turn_to(where(U))
                 if accel is not None:
                     accel.reset()
@@ -614,6 +615,10 @@ class _Factor:
         self.shift = 0
         #: the rotation of each body since a kept tangent was made (:mod:`~.turning`), None: used as it is
         self.turn: np.ndarray | None = None
+        #: whether the kept tangent turns with its bodies in this step (re-aimed at its first iterate)
+        self.turnable = False
+        #: a turned direction fell back to the kept tangent as it is at this iterate (the mixing restarts)
+        self.unturned = False
         self._plain: tuple[np.ndarray, sp.csr_matrix | RowBlock] | None = None  # (U, the plain tangent at U)
 
     def renew(
@@ -623,7 +628,7 @@ class _Factor:
         (else the plain one: a correction holds for the operator it was made for, so that Newton converges
         quadratically again where the tangent is definite)."""
         self.release()
-        self.carried, self.turn = False, None
+        self.carried, self.turn, self.turnable = False, None, False
         if not corrected:
             self.corrected, self.shift = False, 0
         if use_reference:
@@ -706,7 +711,8 @@ class _Factor:
             turned = self.turned(minus_r, slack, fixed_d, law)
             if turned is not None:
                 return (*turned, False)
-            self.turn, renewed = None, True  # a row reached: the kept tangent as it is, its contact solve
+            # a row reached: the kept tangent as it is, with its contact solve (another operator: the mixing restarts)
+            self.turn, self.unturned = None, True
         while True:
             try:
                 d, lam_new, info = self.ctx.solve(self.current, minus_r, slack, fixed_d, law)
@@ -747,17 +753,16 @@ class _Factor:
         """Turn the kept tangent (:attr:`current`) with its bodies to the configuration ``where`` (n,): the
         rotation of each body since it was made (:mod:`~.turning`); none when it does not apply."""
         made, turning = self.current.tangent.at, self.ctx.turning
-        self.turn = None if made is None or turning is None else turning.rotations(made, where)
+        self.turnable = made is not None and turning is not None
+        self.turn = turning.rotations(made, where) if self.turnable else None
 
     def turned(
         self, minus_r: np.ndarray, slack: np.ndarray, fixed_d: np.ndarray | None, law: ContactLaw
     ) -> tuple[np.ndarray, np.ndarray, StepInfo] | None:
         """(d, lambda = 0, info) of the kept tangent turned with its bodies, d = Q K_k^-1 Q^T (-r) (:mod:`~.turning`),
         when d reaches no contact row (B d <= slack: then lambda = 0 solves the contact problem of the turned
-        operator); None when a row is reached or the rows carry friction."""
+        operator); None when a row is reached."""
         ctx = self.ctx
-        if ctx.rows.components > 1:
-            return None
         turning = ctx.turning
         d = turning.turn(self.turn, ctx.solve_linear(self.current, turning.turn(self.turn, minus_r, True), fixed_d))
         q = slack - ctx.rows.B @ d

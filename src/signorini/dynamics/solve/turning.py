@@ -16,8 +16,11 @@ mass-weighted covariance of the nodes' positions about their centres, by a d x d
 exact for a rigid turn, the deformation's rotation part otherwise.  A spinning part keeps its tangent through its
 flight instead of making one every few steps (measured in docs/finite_strain.md).
 
-Applies when every body turns freely (no Dirichlet dof), the mass is isotropic and no damping matrix enters the step
-(Rayleigh damping's stiffness part does not turn); else :class:`BodyTurning` is not made.
+Applies when the run has no Dirichlet dof, its mass is isotropic, no damping enters the step (not needed for alpha M,
+which turns; not done), no friction acts, no cell is of the linear model (its constant stiffness does not turn) and
+the backend is serial; else :class:`BodyTurning` is not made.  A kept tangent may hold the contact rows' own turning
+under their forces (the current configuration's rows, :mod:`~..rows.current_rows`): that part does not turn with the
+bodies, and a step where it matters reaches a row, where the kept tangent is used as it is.
 """
 
 from __future__ import annotations
@@ -76,8 +79,14 @@ class BodyTurning:
         qc = np.stack([np.bincount(b, w * q[:, a], self.n_bodies) for a in range(d)], axis=1) / total[:, None]
         P, Q = p - pc[b], q - qc[b]
         H = np.zeros((self.n_bodies, d, d))
-        np.add.at(H, b, w[:, None, None] * P[:, :, None] * Q[:, None, :])  # H = sum w (p - pc)(q - qc)^T
-        u, _, vt = np.linalg.svd(H)
+        with np.errstate(over="ignore", invalid="ignore"):  # beyond floating point: refused below
+            np.add.at(H, b, w[:, None, None] * P[:, :, None] * Q[:, None, :])  # H = sum w (p - pc)(q - qc)^T
+        if not np.all(np.isfinite(H)):  # a configuration beyond floating point: not turned
+            return None
+        try:
+            u, _, vt = np.linalg.svd(H)
+        except np.linalg.LinAlgError:
+            return None
         sign = np.sign(np.linalg.det(np.einsum("kji,kjl->kil", vt, np.swapaxes(u, 1, 2))))
         sign[sign == 0] = 1.0
         D = np.tile(np.eye(d), (self.n_bodies, 1, 1))
@@ -96,12 +105,17 @@ class BodyTurning:
 
 
 def body_turning(ctx) -> BodyTurning | None:
-    """The turning of ``ctx``'s bodies, or None where it does not apply (module docstring): a Dirichlet dof, a mass
-    that couples components, a damping matrix or Rayleigh damping, a distributed backend."""
+    """The turning of ``ctx``'s bodies, or None where it does not apply (module docstring): a Dirichlet dof in the
+    run, a mass whose components differ or couple, damping, friction, cells of the linear model (their constant
+    stiffness does not turn), a distributed backend (operators by rows, on any number of ranks)."""
     disc = ctx.disc
     mesh = disc.problem.mesh
     dim = mesh.points.shape[1]
-    if dim < 2 or ctx.has_fixed or ctx.damping is not None or ctx.damping_matrix is not None or ctx.comm.size > 1:
+    if dim < 2 or ctx.has_fixed or ctx.damping is not None or ctx.damping_matrix is not None:
+        return None
+    if ctx.distributed or ctx.comm.size > 1 or ctx.rows.components > 1:
+        return None
+    if getattr(ctx.elastic, "S_linear", None) is not None or not sp.issparse(disc.M):
         return None
     if disc.M.shape[0] != mesh.n_nodes * dim or not isotropic(disc.M, dim):
         return None
