@@ -599,10 +599,11 @@ class _Factor:
         bound,
         elastic,
         jacobian: Callable | None = None,
-        at: Callable[[np.ndarray], np.ndarray] = lambda U: U,
+        configuration: Callable[[np.ndarray], np.ndarray] = lambda U: U,
     ):
         self.ctx, self.op, self.tangent, self.bound, self.elastic = ctx, op, tangent, bound, elastic
-        self.at = at
+        #: the displacement at which ``tangent(U)`` evaluates the body's tangent (newton_solve's ``configuration``)
+        self.configuration = configuration
         self.jacobian = jacobian
         #: whether a fresh tangent contracted |r| by less than EXACT_RATE: the directions of the rest of the step
         #: are the exact Jacobian's (:meth:`exact`)
@@ -640,7 +641,7 @@ class _Factor:
         if self.shift:
             G = _plus(G, self.SHIFTS[self.shift - 1] * sp.diags(self.ctx.S.diagonal()))
         op = self.op
-        made = Tangent(G, at=np.array(self.at(U)))  # where: it turns with its bodies from there when kept
+        made = Tangent(G, at=np.array(self.configuration(U)))  # where: it turns with its bodies from there when kept
         self.current, self.owned = Operator(op.mass, op.stiffness, made, op.viscous), True
         self.elastic.factorizations += 1
 

@@ -11,8 +11,8 @@ that has turned by R since as Q (c_M M + c_S K_k) Q^T, solved with the kept fact
 
     d = Q (c_M M + c_S K_k)^-1 Q^T b.
 
-R is each body's best rotation between the two configurations (the Kabsch problem: the nearest rotation to the
-mass-weighted covariance of the nodes' positions about their centres, by a d x d singular value decomposition):
+R is each body's best rotation between the two configurations (the Kabsch problem, mass-weighted, about the
+centres; scipy's ``Rotation.align_vectors``):
 exact for a rigid turn, the deformation's rotation part otherwise.  A spinning part keeps its tangent through its
 flight instead of making one every few steps (measured in docs/finite_strain.md).
 
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial.transform import Rotation
 
 from ...fem.dofmap import component, component_of
 from ...fem.mesh import bodies
@@ -67,31 +68,33 @@ class BodyTurning:
         w = np.abs(np.asarray(weights, dtype=float))
         mean = np.bincount(self.label, w, self.n_bodies) / np.maximum(np.bincount(self.label, None, self.n_bodies), 1)
         self.weights = np.maximum(w, 1e-3 * mean[self.label])
+        #: the nodes of each body
+        self.members = [np.flatnonzero(self.label == k) for k in range(self.n_bodies)]
 
     def rotations(self, U_from: np.ndarray, U_to: np.ndarray) -> np.ndarray | None:
         """Each body's rotation R (n_bodies, d, d) from the configuration X + U_from to X + U_to (U: (n_nodes d,),
-        node-major), or None when every body turned by less than :data:`NEGLIGIBLE_ANGLE`."""
-        d, b, w = self.dim, self.label, self.weights
-        p = self.points + np.reshape(U_from, (-1, d))
-        q = self.points + np.reshape(U_to, (-1, d))
-        total = np.bincount(b, w, self.n_bodies)
-        pc = np.stack([np.bincount(b, w * p[:, a], self.n_bodies) for a in range(d)], axis=1) / total[:, None]
-        qc = np.stack([np.bincount(b, w * q[:, a], self.n_bodies) for a in range(d)], axis=1) / total[:, None]
-        P, Q = p - pc[b], q - qc[b]
-        H = np.zeros((self.n_bodies, d, d))
+        node-major), or None when every body turned by less than :data:`NEGLIGIBLE_ANGLE` (or a configuration is
+        beyond floating point).  Per body, scipy's weighted Kabsch fit (``Rotation.align_vectors``) of the nodes'
+        positions about their centres; a 2D body in the plane z = 0."""
+        d, w = self.dim, self.weights
+        p = np.zeros((self.n_nodes, 3))
+        q = np.zeros((self.n_nodes, 3))
+        p[:, :d] = self.points + np.reshape(U_from, (-1, d))
+        q[:, :d] = self.points + np.reshape(U_to, (-1, d))
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
+            return None
+        R = np.empty((self.n_bodies, d, d))
         with np.errstate(over="ignore", invalid="ignore"):  # beyond floating point: refused below
-            np.add.at(H, b, w[:, None, None] * P[:, :, None] * Q[:, None, :])  # H = sum w (p - pc)(q - qc)^T
-        if not np.all(np.isfinite(H)):  # a configuration beyond floating point: not turned
-            return None
-        try:
-            u, _, vt = np.linalg.svd(H)
-        except np.linalg.LinAlgError:
-            return None
-        sign = np.sign(np.linalg.det(np.einsum("kji,kjl->kil", vt, np.swapaxes(u, 1, 2))))
-        sign[sign == 0] = 1.0
-        D = np.tile(np.eye(d), (self.n_bodies, 1, 1))
-        D[:, -1, -1] = sign
-        R = np.einsum("kji,kjl,klm->kim", vt, D, np.swapaxes(u, 1, 2))  # V D U^T
+            for k, nodes in enumerate(self.members):  # a few bodies
+                wk = w[nodes]
+                P = p[nodes] - wk @ p[nodes] / wk.sum()
+                Q = q[nodes] - wk @ q[nodes] / wk.sum()
+                if not (np.all(np.isfinite(P)) and np.all(np.isfinite(Q))):
+                    return None
+                try:
+                    R[k] = Rotation.align_vectors(Q, P, weights=wk)[0].as_matrix()[:d, :d]
+                except (np.linalg.LinAlgError, ValueError):  # its covariance beyond floating point
+                    return None
         # |R - I|_F = 2 sqrt(2) sin(angle / 2) in 2D and 3D: the angle, without arccos's loss near 1
         if np.all(np.linalg.norm(R - np.eye(d), axis=(1, 2)) / np.sqrt(2.0) < NEGLIGIBLE_ANGLE):
             return None
@@ -115,7 +118,7 @@ def body_turning(ctx) -> BodyTurning | None:
         return None
     if ctx.distributed or ctx.comm.size > 1 or ctx.rows.components > 1:
         return None
-    if getattr(ctx.elastic, "S_linear", None) is not None or not sp.issparse(disc.M):
+    if ctx.elastic.S_linear is not None or not sp.issparse(disc.M):
         return None
     if disc.M.shape[0] != mesh.n_nodes * dim or not isotropic(disc.M, dim):
         return None
