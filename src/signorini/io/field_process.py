@@ -12,6 +12,7 @@ file again; the main process itself never runs HDF5 on the fields.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import errno
 import multiprocessing
@@ -114,10 +115,24 @@ class FieldProcess:
         try:
             with _quiet_stderr():  # the child's stderr is /dev/null (the parent reports, never the child)
                 self.process.start()
+            child.close()
+            self.closed = False
+            # before a signal held since the spawn can interrupt: registered after multiprocessing's
+            # own exit hook, so it runs first (that hook joins a daemon child after a SIGTERM, which
+            # this child ignores, and would wait for ever)
+            atexit.register(self._at_exit)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-        child.close()
-        self.closed = False
+
+    def _at_exit(self) -> None:
+        """A child still serving at the interpreter's exit (a signal while the writer started):
+        its pipe closed, it leaves on its own; one stuck in HDF5 is killed."""
+        if self.process.is_alive():
+            self._conn.close()
+            self.process.join(2)
+            if self.process.is_alive():
+                self.process.kill()
+                self.process.join(5)
 
     def _ask(self, msg: tuple) -> None:
         try:
@@ -160,6 +175,7 @@ class FieldProcess:
             if self.process.is_alive():  # pragma: no cover - a child stuck in HDF5
                 self.process.kill()
             self._conn.close()
+            atexit.unregister(self._at_exit)
 
     def abandon(self) -> None:
         """Stop the child without closing its file (after a failure elsewhere)."""
@@ -168,3 +184,4 @@ class FieldProcess:
             self.process.kill()
         self.process.join(5)
         self._conn.close()
+        atexit.unregister(self._at_exit)

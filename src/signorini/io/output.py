@@ -173,18 +173,20 @@ class FieldWriter(Observer):
         self._snapshot_bytes = 8 * 12 * mesh.n_nodes
         self._hold_reserve()
         self._snapshot_bytes += pts.nbytes + sum(b.cells.nbytes for b in mesh.blocks)
-        self._check_room()
         # HDF5 runs in a child process: a crash inside it (the disk filled by another program
         # during a write) costs the fields, not the run (:mod:`signorini.io.field_process`)
-        self._writer = FieldProcess(self.path)
         try:
+            self._check_room()
+            self._writer = FieldProcess(self.path)
             user = (lambda c: c) if mesh.node_ids is None else (lambda c: mesh.node_ids[c])  # the user's numbers
             self._writer.mesh(to_user_nodes(mesh, pts), [(b.cell_type, user(b.cells)) for b in mesh.blocks])
-        except OSError:
+            self._write(0, run.initial)
+        except BaseException:  # a failed write, or a signal: this observer was not started, so
+            if self._writer is not None:  # nobody else will end its child
+                self._writer.abandon()
             self._writer = None
             self._release_reserve()
             raise
-        self._write(0, run.initial)
 
     def _write(self, n: int, s: State) -> None:
         self._check_room()
