@@ -4,6 +4,12 @@ wheels, pyproject.toml; elsewhere the extra ``cholmod``).
 K = P^T L L^T P with P the nested-dissection order of :func:`~.ordering.fill_reducing_order`
 (METIS when pymetis is installed): cvxopt's CHOLMOD is built without METIS and its own
 AMD ordering fills 3D factors like SuperLU's MMD (``docs/performance.md``).
+
+A run factorizes many matrices of one pattern (each Newton tangent).  A factor released
+(:meth:`CholmodFactor.release`: no longer of use) leaves its analysis, CHOLMOD's symbolic
+factorization with the matrix that holds the pattern, to the next factorization of the same
+pattern (:data:`KEPT`), which then costs its numeric factorization alone: cvxopt cannot copy a
+factor, so an analysis is shared only once its factor is done with.
 """
 
 from __future__ import annotations
@@ -17,6 +23,20 @@ from .base import Factor
 
 #: from this many right-hand sides a solve goes through ``cholmod.spsolve`` (blocked)
 BLOCKED = 2
+
+#: analyses of released factors, by pattern: (pattern digest, (cvxopt matrix, factor, lower-triangle positions,
+#: resident bytes));
+#: one is enough for a run whose tangents replace each other (made while the one before is alive, then released)
+KEPT: list[tuple[tuple, tuple]] = []
+KEPT_MAX = 1
+
+
+def _take_kept(digest: tuple) -> tuple | None:
+    for i, (d, objects) in enumerate(KEPT):
+        if d == digest:
+            del KEPT[i]
+            return objects
+    return None
 
 
 def _resident_bytes() -> int:
@@ -40,13 +60,32 @@ class CholmodFactor(Factor):
         optional_import("cvxopt.cholmod", "backend 'cholmod'", "cholmod")
         self._cvxopt = cvxopt = optional_import("cvxopt", "backend 'cholmod'", "cholmod")
         K = sp.csc_matrix(K)
-        perm, self.ordering = _ordering.fill_reducing_order(K)
-        low = sp.tril(K, format="coo")
-        A = cvxopt.spmatrix(low.data, low.row.astype(int), low.col.astype(int), K.shape)
+        if not K.has_sorted_indices:
+            K = K.sorted_indices()
+        self._digest = _ordering.pattern_digest(K)
+        perm, self.ordering = _ordering.fill_reducing_order(K, digest=self._digest)
         before = _resident_bytes()
-        self._F = cvxopt.cholmod.symbolic(A, p=cvxopt.matrix(perm.astype(int)), uplo="L")
-        cvxopt.cholmod.numeric(A, self._F)
-        self._held = max(_resident_bytes() - before, 0)
+        kept = _take_kept(self._digest)
+        held = 0
+        if kept is not None:  # the same pattern analysed for a factor since released: the new values only
+            A, F, lower, held = kept
+            A.V = cvxopt.matrix(K.data[lower])
+        else:
+            cols = np.repeat(np.arange(K.shape[1]), np.diff(K.indptr))
+            lower = np.flatnonzero(K.indices >= cols)  # the lower triangle, in CSC (cvxopt's) order
+            A = cvxopt.spmatrix(K.data[lower], K.indices[lower].astype(int), cols[lower].astype(int), K.shape)
+            F = cvxopt.cholmod.symbolic(A, p=cvxopt.matrix(perm.astype(int)), uplo="L")
+        cvxopt.cholmod.numeric(A, F)  # a failure (not positive definite) drops the analysis with the factor
+        self._A, self._F, self._lower = A, F, lower
+        self._held = max(_resident_bytes() - before, held)  # a kept analysis: the memory its factor took
+
+    def release(self) -> None:
+        """No longer of use: its analysis goes to the next factorization of its pattern (:data:`KEPT`); this
+        factor solves no more."""
+        if self._F is not None:
+            KEPT.append((self._digest, (self._A, self._F, self._lower, self._held)))
+            del KEPT[:-KEPT_MAX]
+            self._A = self._F = None
 
     @property
     def nbytes(self) -> int:
@@ -55,6 +94,8 @@ class CholmodFactor(Factor):
         return int(self._held)
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
+        if self._F is None:
+            raise RuntimeError("a released CHOLMOD factor was asked to solve (its analysis serves another now)")
         b = np.asarray(b, dtype=float)
         if b.ndim == 2 and b.shape[1] >= BLOCKED:
             return self._solve_block(b)

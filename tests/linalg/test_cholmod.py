@@ -1,0 +1,92 @@
+"""CHOLMOD's analysis shared by the factorizations of one pattern (linalg/cholmod.py)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from signorini.linalg import factorize, has_cholmod
+from signorini.studies.benchmarks import get_benchmark
+
+pytestmark = pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
+
+
+@pytest.fixture(scope="module")
+def operators():
+    """Two SPD matrices of one pattern (bar3d n = 3, K = c M + S, two values of c), and a third of another."""
+    from signorini.dynamics.model.problem import discretize
+
+    b = get_benchmark("bar3d")
+    d = discretize(b.problem(3), "seed")
+    M, S = d.M.tocsr()[d.free][:, d.free], d.S.tocsr()[d.free][:, d.free]
+    K1, K2 = (sp.csc_matrix(c * M + S) for c in (1e3, 4e5))
+    assert (K1.indptr == K2.indptr).all() and (K1.indices == K2.indices).all()
+    other = sp.csc_matrix(S[:-3][:, :-3] + 1e3 * M[:-3][:, :-3])
+    return K1, K2, other
+
+
+@pytest.fixture(autouse=True)
+def empty_pool():
+    from signorini.linalg import cholmod
+
+    cholmod.KEPT.clear()
+    yield
+    cholmod.KEPT.clear()
+
+
+def test_a_released_factors_analysis_factorizes_the_next_bit_for_bit(operators, monkeypatch):
+    """The second factorization of a pattern runs CHOLMOD's numeric phase only, and solves exactly as a fresh
+    factorization of the same matrix (so a resumed run, which analyses again, stays bit for bit)."""
+    import cvxopt.cholmod
+
+    K1, K2, _ = operators
+    b = np.random.default_rng(3).random(K1.shape[0])
+    fresh = factorize(K2, "cholmod").solve(b)
+    first = factorize(K1, "cholmod")
+    first.release()
+    analyses = []
+    real = cvxopt.cholmod.symbolic
+    monkeypatch.setattr(cvxopt.cholmod, "symbolic", lambda *a, **k: analyses.append(1) or real(*a, **k))
+    second = factorize(K2, "cholmod")
+    assert analyses == []
+    assert np.array_equal(second.solve(b), fresh)
+    assert second.nbytes == first.nbytes  # the memory its factor holds, as measured when it was made
+    with pytest.raises(RuntimeError, match="released"):
+        first.solve(b)
+
+
+def test_an_analysis_serves_only_its_own_pattern_and_only_once_released(operators, monkeypatch):
+    import cvxopt.cholmod
+
+    from signorini.linalg import cholmod
+
+    K1, K2, other = operators
+    analyses = []
+    real = cvxopt.cholmod.symbolic
+    monkeypatch.setattr(cvxopt.cholmod, "symbolic", lambda *a, **k: analyses.append(1) or real(*a, **k))
+    a = factorize(K1, "cholmod")
+    b = factorize(K2, "cholmod")  # a is alive: its analysis is not shared
+    assert len(analyses) == 2
+    a.release()
+    c = factorize(other, "cholmod")  # another pattern: analysed anew, the kept one stays
+    assert len(analyses) == 3 and len(cholmod.KEPT) == 1
+    x = np.ones(other.shape[0])
+    assert np.abs(other @ c.solve(x) - x).max() <= 1e-10
+    b.release()
+    c.release()
+    assert len(cholmod.KEPT) == cholmod.KEPT_MAX  # the pool holds at most KEPT_MAX analyses (their memory)
+
+
+def test_a_failed_factorization_drops_the_analysis_and_the_next_one_is_right(operators):
+    """An indefinite matrix (a Newton tangent beyond stability) fails on a kept analysis as on a fresh one; the
+    analysis goes with it and the next matrix is factorized right."""
+    K1, K2, _ = operators
+    factorize(K1, "cholmod").release()
+    indefinite = sp.csc_matrix(K1 - 2 * float(K1.diagonal().max()) * sp.eye(K1.shape[0]))
+    with pytest.raises(ArithmeticError):
+        factorize(indefinite, "cholmod")
+    from signorini.linalg import cholmod
+
+    assert cholmod.KEPT == []
+    b = np.random.default_rng(4).random(K2.shape[0])
+    x = factorize(K2, "cholmod").solve(b)
+    assert np.abs(K2 @ x - b).max() <= 1e-12 * np.abs(b).max() * float(abs(K2).sum(axis=1).max())
