@@ -11,6 +11,11 @@ calls are made here (:meth:`PardisoFactor._call`) so that
   right-hand side on C) and its backward part (phase 333: from ``y`` with ``y_C``
   replaced by x_C, the interior x_I = K_II^-1 (b_I - K_IC x_C)).  Together they cost
   one solve (docs/design.md, "Schur condensation").
+
+A run factorizes many matrices of one pattern (each Newton tangent): a factor released
+(:meth:`PardisoFactor.release`: no longer of use) leaves its MKL handle, holding the analysis
+(the METIS ordering and the symbolic factorization, phase 11), to the next factorization of the
+same pattern (:data:`KEPT`), which runs the numeric phase (22) alone.
 """
 
 from __future__ import annotations
@@ -25,10 +30,24 @@ from ..errors import InputError
 from ..optional import optional_import
 from .base import Factor
 from .mkl import mkl_path_hint
+from .ordering import compressed_digest
 from .sparse import upper_triangle
 
-#: MKL phases: analysis + factorization, solve, forward part, backward part, release
-FACTORIZE, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 33, 331, 333, -1
+#: MKL phases: analysis + factorization, numeric factorization, solve, forward part, backward part, release
+FACTORIZE, NUMERIC, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 22, 33, 331, 333, -1
+
+#: released factors whose analysis serves the next factorization of their pattern: (key, factor); one is enough
+#: for a run whose tangents replace each other (made while the one before is alive, then released)
+KEPT: list[tuple[tuple, PardisoFactor]] = []
+KEPT_MAX = 1
+
+
+def _take_kept(key: tuple) -> PardisoFactor | None:
+    for i, (k, factor) in enumerate(KEPT):
+        if k == key:
+            del KEPT[i]
+            return factor
+    return None
 
 
 def _mkl_threads() -> int:
@@ -64,8 +83,20 @@ class PardisoFactor(Factor):
             raise MemoryError(f"K has {A.nnz} non-zeros in its upper triangle: more than MKL's 32-bit indices hold")
         self._A = A
         self._n = A.shape[0]
+        self.schur: np.ndarray | None = None
+        self.schur_dofs = None
+        self._key: tuple | None = None
+        if schur_dofs is None:  # a released factor of this pattern: its analysis, the numeric phase only
+            self._key = (bool(reproducible), A.shape, compressed_digest(A.indptr, A.indices))
+            kept = _take_kept(self._key)
+            if kept is not None:
+                self._solver, self._ia, self._ja, self._perm = kept._solver, kept._ia, kept._ja, kept._perm
+                kept._solver = None  # this factor releases MKL's memory now, not the one it came from
+                self._call(NUMERIC, np.zeros(self._n), np.zeros(1))
+                return
         self._ia = (A.indptr + 1).astype(np.int32)
         self._ja = (A.indices + 1).astype(np.int32)
+        self._solver = None
         with mkl_path_hint():  # a new solver object searches for mkl_rt again
             solver = pypardiso.PyPardisoSolver(mtype=2)
         if not all(hasattr(solver, a) for a in ("_mkl_pardiso", "pt", "iparm", "_pt_type")):
@@ -83,8 +114,6 @@ class PardisoFactor(Factor):
         if reproducible:
             iparm[33] = max(_mkl_threads(), 1)  # conditional numerical reproducibility with this many threads
         self._perm = np.zeros(self._n, dtype=np.int32)
-        self.schur: np.ndarray | None = None
-        self.schur_dofs = None
         buffer = np.zeros(1)
         if schur_dofs is not None:
             dofs = np.unique(np.asarray(schur_dofs, dtype=np.intp))  # MKL returns S in increasing dof order
@@ -99,9 +128,20 @@ class PardisoFactor(Factor):
         if schur_dofs is not None:
             self.schur = buffer
 
+    def release(self) -> None:
+        """No longer of use: its MKL handle (the analysis) goes to the next factorization of its pattern
+        (:data:`KEPT`); this factor solves no more."""
+        if self._key is not None and self._solver is not None and not any(f is self for _, f in KEPT):
+            KEPT.append((self._key, self))
+            del KEPT[:-KEPT_MAX]  # a factor dropped here releases its handle (``__del__``)
+
     def _call(self, phase: int, b: np.ndarray, x: np.ndarray) -> None:
         """One call of MKL's ``pardiso`` (b, x Fortran-ordered float64; x is written)."""
         s = self._solver
+        if s is None and phase == RELEASE:  # its handle went to another factor (or it was never made)
+            return
+        if s is None or any(f is self for _, f in KEPT):
+            raise RuntimeError("a released Pardiso factor was asked to solve (its analysis serves another now)")
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
         err = ctypes.c_int32(0)
         nrhs = 1 if b.ndim == 1 else b.shape[1]
@@ -134,7 +174,7 @@ class PardisoFactor(Factor):
     @property
     def nbytes(self) -> int:
         """Factor size from Pardiso's report (non-zeros of L, values + indices) [bytes]."""
-        return int(12 * max(int(self._solver.iparm[17]), 0))
+        return 0 if self._solver is None else int(12 * max(int(self._solver.iparm[17]), 0))
 
     def _run(self, phase: int, b: np.ndarray) -> np.ndarray:
         b = np.asfortranarray(np.asarray(b, dtype=float))
