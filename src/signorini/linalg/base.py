@@ -68,6 +68,42 @@ class Factor:
         raise NotImplementedError
 
 
+class KeptAnalyses:
+    """Released factors' analyses, by key (a pattern's digest and a mode), for the next factorization of that key.
+
+    A run's Newton tangents share one pattern and replace each other: the new one is made while the one before
+    lives, then that one is released (:meth:`Factor.release`).  So one kept analysis serves every tangent from the
+    third on, and :attr:`most` (1) bounds the memory held.  What is kept is the backend's own (a handle, a matrix),
+    never shared with a factor still in use.
+    """
+
+    def __init__(self, most: int = 1):
+        self.most = most
+        self.entries: list[tuple[tuple, Any]] = []
+
+    def take(self, key: tuple) -> Any | None:
+        """The analysis kept for ``key``, taken out (None: none)."""
+        for i, (k, kept) in enumerate(self.entries):
+            if k == key:
+                del self.entries[i]
+                return kept
+        return None
+
+    def keep(self, key: tuple, kept: Any) -> None:
+        """Keep ``kept`` for ``key``; the oldest beyond :attr:`most` are dropped (freed by the garbage collector)."""
+        self.entries.append((key, kept))
+        del self.entries[: -self.most]
+
+    def holds(self, kept: Any) -> bool:
+        return any(k is kept for _, k in self.entries)
+
+    def clear(self) -> None:
+        self.entries.clear()
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+
 #: optional modules installed but failing to import: name -> the reason ("OSError: ...")
 IMPORT_FAILURES: dict[str, str] = {}
 

@@ -19,24 +19,13 @@ import scipy.sparse as sp
 
 from ..optional import optional_import
 from . import ordering as _ordering
-from .base import Factor
+from .base import Factor, KeptAnalyses
 
 #: from this many right-hand sides a solve goes through ``cholmod.spsolve`` (blocked)
 BLOCKED = 2
 
-#: analyses of released factors, by pattern: (pattern digest, (cvxopt matrix, factor, lower-triangle positions,
-#: resident bytes));
-#: one is enough for a run whose tangents replace each other (made while the one before is alive, then released)
-KEPT: list[tuple[tuple, tuple]] = []
-KEPT_MAX = 1
-
-
-def _take_kept(digest: tuple) -> tuple | None:
-    for i, (d, objects) in enumerate(KEPT):
-        if d == digest:
-            del KEPT[i]
-            return objects
-    return None
+#: the analyses of released factors, by pattern: (cvxopt matrix, factor, lower-triangle positions, resident bytes)
+KEPT = KeptAnalyses()
 
 
 def _resident_bytes() -> int:
@@ -65,7 +54,7 @@ class CholmodFactor(Factor):
         self._digest = _ordering.pattern_digest(K)
         perm, self.ordering = _ordering.fill_reducing_order(K, digest=self._digest)
         before = _resident_bytes()
-        kept = _take_kept(self._digest)
+        kept = KEPT.take(self._digest)
         held = 0
         if kept is not None:  # the same pattern analysed for a factor since released: the new values only
             A, F, lower, held = kept
@@ -83,8 +72,7 @@ class CholmodFactor(Factor):
         """No longer of use: its analysis goes to the next factorization of its pattern (:data:`KEPT`); this
         factor solves no more."""
         if self._F is not None:
-            KEPT.append((self._digest, (self._A, self._F, self._lower, self._held)))
-            del KEPT[:-KEPT_MAX]
+            KEPT.keep(self._digest, (self._A, self._F, self._lower, self._held))
             self._A = self._F = None
 
     @property

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..optional import optional_import
-from .base import Factor
+from .base import Factor, KeptAnalyses
 from .mkl import mkl_path_hint
 from .ordering import compressed_digest
 from .sparse import upper_triangle
@@ -36,18 +36,8 @@ from .sparse import upper_triangle
 #: MKL phases: analysis + factorization, numeric factorization, solve, forward part, backward part, release
 FACTORIZE, NUMERIC, SOLVE, FORWARD, BACKWARD, RELEASE = 12, 22, 33, 331, 333, -1
 
-#: released factors whose analysis serves the next factorization of their pattern: (key, factor); one is enough
-#: for a run whose tangents replace each other (made while the one before is alive, then released)
-KEPT: list[tuple[tuple, PardisoFactor]] = []
-KEPT_MAX = 1
-
-
-def _take_kept(key: tuple) -> PardisoFactor | None:
-    for i, (k, factor) in enumerate(KEPT):
-        if k == key:
-            del KEPT[i]
-            return factor
-    return None
+#: released factors, whose MKL handles hold their analyses, by (mode, shape, pattern digest)
+KEPT = KeptAnalyses()
 
 
 def _mkl_threads() -> int:
@@ -88,7 +78,7 @@ class PardisoFactor(Factor):
         self._key: tuple | None = None
         if schur_dofs is None:  # a released factor of this pattern: its analysis, the numeric phase only
             self._key = (bool(reproducible), A.shape, compressed_digest(A.indptr, A.indices))
-            kept = _take_kept(self._key)
+            kept = KEPT.take(self._key)
             if kept is not None:
                 self._solver, self._ia, self._ja, self._perm = kept._solver, kept._ia, kept._ja, kept._perm
                 kept._solver = None  # this factor releases MKL's memory now, not the one it came from
@@ -131,16 +121,15 @@ class PardisoFactor(Factor):
     def release(self) -> None:
         """No longer of use: its MKL handle (the analysis) goes to the next factorization of its pattern
         (:data:`KEPT`); this factor solves no more."""
-        if self._key is not None and self._solver is not None and not any(f is self for _, f in KEPT):
-            KEPT.append((self._key, self))
-            del KEPT[:-KEPT_MAX]  # a factor dropped here releases its handle (``__del__``)
+        if self._key is not None and self._solver is not None and not KEPT.holds(self):
+            KEPT.keep(self._key, self)  # a factor dropped from it releases its handle (``__del__``)
 
     def _call(self, phase: int, b: np.ndarray, x: np.ndarray) -> None:
         """One call of MKL's ``pardiso`` (b, x Fortran-ordered float64; x is written)."""
         s = self._solver
         if s is None and phase == RELEASE:  # its handle went to another factor (or it was never made)
             return
-        if s is None or any(f is self for _, f in KEPT):
+        if s is None or KEPT.holds(self):
             raise RuntimeError("a released Pardiso factor was asked to solve (its analysis serves another now)")
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
         err = ctypes.c_int32(0)

@@ -1,13 +1,15 @@
-"""CHOLMOD's analysis shared by the factorizations of one pattern (linalg/cholmod.py)."""
+"""The analyses of released factors shared by the next factorization of their pattern (linalg/base.py's
+KeptAnalyses, used by linalg/cholmod.py and linalg/pardiso.py)."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from signorini.linalg import factorize, has_cholmod
+from signorini.linalg import factorize, has_cholmod, has_pardiso
 from signorini.studies.benchmarks import get_benchmark
 
-pytestmark = pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
+cholmod_only = pytest.mark.skipif(not has_cholmod(), reason="cvxopt not installed (extra 'cholmod')")
+pardiso_only = pytest.mark.skipif(not has_pardiso(), reason="pypardiso not installed (extra 'pardiso')")
 
 
 @pytest.fixture(scope="module")
@@ -25,15 +27,29 @@ def operators():
 
 
 @pytest.fixture(autouse=True)
-def empty_pool():
-    from signorini.linalg import cholmod
+def empty_pools():
+    from signorini.linalg import cholmod, pardiso
 
-    cholmod.KEPT.clear()
+    for module in (cholmod, pardiso):
+        module.KEPT.clear()
     yield
-    cholmod.KEPT.clear()
+    for module in (cholmod, pardiso):
+        module.KEPT.clear()
 
 
-def test_a_released_factors_analysis_factorizes_the_next_bit_for_bit(operators, monkeypatch):
+def test_kept_analyses_hold_at_most_their_bound():
+    from signorini.linalg.base import KeptAnalyses
+
+    kept = KeptAnalyses()
+    a, b = object(), object()
+    kept.keep(("p",), a)
+    kept.keep(("q",), b)
+    assert len(kept) == 1 and not kept.holds(a) and kept.holds(b)
+    assert kept.take(("p",)) is None and kept.take(("q",)) is b and len(kept) == 0
+
+
+@cholmod_only
+def test_a_released_cholmod_analysis_factorizes_the_next_bit_for_bit(operators, monkeypatch):
     """The second factorization of a pattern runs CHOLMOD's numeric phase only, and solves exactly as a fresh
     factorization of the same matrix (so a resumed run, which analyses again, stays bit for bit)."""
     import cvxopt.cholmod
@@ -54,6 +70,7 @@ def test_a_released_factors_analysis_factorizes_the_next_bit_for_bit(operators, 
         first.solve(b)
 
 
+@cholmod_only
 def test_an_analysis_serves_only_its_own_pattern_and_only_once_released(operators, monkeypatch):
     import cvxopt.cholmod
 
@@ -73,9 +90,10 @@ def test_an_analysis_serves_only_its_own_pattern_and_only_once_released(operator
     assert np.abs(other @ c.solve(x) - x).max() <= 1e-10
     b.release()
     c.release()
-    assert len(cholmod.KEPT) == cholmod.KEPT_MAX  # the pool holds at most KEPT_MAX analyses (their memory)
+    assert len(cholmod.KEPT) == cholmod.KEPT.most  # the pool holds at most KEPT.most analyses (their memory)
 
 
+@cholmod_only
 def test_a_failed_factorization_drops_the_analysis_and_the_next_one_is_right(operators):
     """An indefinite matrix (a Newton tangent beyond stability) fails on a kept analysis as on a fresh one; the
     analysis goes with it and the next matrix is factorized right."""
@@ -86,7 +104,47 @@ def test_a_failed_factorization_drops_the_analysis_and_the_next_one_is_right(ope
         factorize(indefinite, "cholmod")
     from signorini.linalg import cholmod
 
-    assert cholmod.KEPT == []
+    assert len(cholmod.KEPT) == 0
     b = np.random.default_rng(4).random(K2.shape[0])
     x = factorize(K2, "cholmod").solve(b)
     assert np.abs(K2 @ x - b).max() <= 1e-12 * np.abs(b).max() * float(abs(K2).sum(axis=1).max())
+
+
+@pardiso_only
+def test_a_released_pardiso_handle_factorizes_the_next(operators):
+    """The second factorization of a pattern is MKL's numeric phase alone; in the reproducible mode it solves bit
+    for bit as a fresh factorization of the same matrix (a resumed run analyses again)."""
+    from signorini.linalg import pardiso
+
+    K1, K2, _ = operators
+    b = np.random.default_rng(3).random(K1.shape[0])
+    fresh = factorize(K2, "pardiso", reproducible=True).solve(b)
+    first = factorize(K1, "pardiso", reproducible=True)
+    first.release()
+    phases = []
+    real = pardiso.PardisoFactor._call
+    pardiso.PardisoFactor._call = lambda self, phase, *a: phases.append(phase) or real(self, phase, *a)
+    try:
+        second = factorize(K2, "pardiso", reproducible=True)
+    finally:
+        pardiso.PardisoFactor._call = real
+    assert phases == [pardiso.NUMERIC]
+    assert np.array_equal(second.solve(b), fresh)
+    assert second.nbytes > 0
+    with pytest.raises(RuntimeError, match="released"):
+        first.solve(b)
+    assert len(pardiso.KEPT) == 0
+    second.release()
+    third = factorize(K1, "pardiso")  # another key (not the reproducible mode): analysed anew
+    assert len(pardiso.KEPT) == 1
+    assert np.abs(K1 @ third.solve(b) - b).max() <= 1e-9 * np.abs(b).max()
+
+
+@pardiso_only
+def test_a_schur_factor_is_never_shared(operators):
+    from signorini.linalg import pardiso
+
+    K1, _, _ = operators
+    f = factorize(K1, "pardiso", schur_dofs=np.arange(6))
+    f.release()
+    assert len(pardiso.KEPT) == 0
