@@ -58,3 +58,29 @@ def test_a_signal_while_the_writer_starts_ends_its_child(tmp_path, monkeypatch, 
         simulate(b.problem(2), "cn", b.h(2), 0.1, observers=[FieldWriter(tmp_path / "f.xdmf", 1)])
     assert [p for p in multiprocessing.active_children() if p.name == "signorini-fields"] == []
     assert not any(p.name.endswith(".reserve") for p in tmp_path.iterdir())
+
+
+def test_a_signal_held_since_the_spawn_ends_the_child(tmp_path, monkeypatch):
+    """A SIGTERM that arrives while the child is spawned is held, and raised (the run's handler: a
+    KeyboardInterrupt) when the constructor unblocks it: no handle is returned, so the constructor ends its child
+    itself (the exit hook alone would leave it serving a library caller that goes on)."""
+    import contextlib
+    import signal
+    import threading
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    @contextlib.contextmanager
+    def then_signalled():
+        yield
+        signal.pthread_kill(threading.main_thread().ident, signal.SIGTERM)  # blocked here: held
+
+    monkeypatch.setattr(field_process, "_quiet_stderr", then_signalled)
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            field_process.FieldProcess(tmp_path / "f.xdmf")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert [p for p in multiprocessing.active_children() if p.name == "signorini-fields"] == []

@@ -111,18 +111,23 @@ class FieldProcess:
         # the child starts with SIGINT/SIGTERM blocked (a Ctrl-C to the process group during its
         # interpreter start-up would print a KeyboardInterrupt traceback); here they stay
         # pending for the parent's handlers, never lost
+        self.closed = True  # until the child runs
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             with _quiet_stderr():  # the child's stderr is /dev/null (the parent reports, never the child)
                 self.process.start()
             child.close()
             self.closed = False
-            # before a signal held since the spawn can interrupt: registered after multiprocessing's
-            # own exit hook, so it runs first (that hook joins a daemon child after a SIGTERM, which
-            # this child ignores, and would wait for ever)
+            # registered after multiprocessing's own exit hook, so it runs first (that hook joins a
+            # daemon child after a SIGTERM, which this child ignores, and would wait for ever)
             atexit.register(self._at_exit)
         finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+            try:
+                signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a signal held since the spawn is raised here
+            except BaseException:
+                if not self.closed:  # nobody holds this handle yet: its child goes now
+                    self.abandon()
+                raise
 
     def _at_exit(self) -> None:
         """A child still serving at the interpreter's exit (a signal while the writer started):
@@ -142,15 +147,15 @@ class FieldProcess:
             self.process.join(5)
             code = self.process.exitcode
             how = f"signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit {code}"
-            self.closed = True
+            self._end()
             raise OSError(
                 errno.EIO,
                 f"the field writer process died ({how}) while writing the fields' HDF5 file "
                 "(a full disk or a crash inside HDF5)",
             ) from None
         if answer[0] == "error":
-            self.closed = True
             self.process.join(5)
+            self._end()
             if answer[3]:
                 detail = f"{answer[1]}: {answer[2]}"
                 raise OSError(errno.ENOSPC, f"No space left on device while streaming fields ({detail})")
@@ -174,14 +179,17 @@ class FieldProcess:
             self.process.join(10)
             if self.process.is_alive():  # pragma: no cover - a child stuck in HDF5
                 self.process.kill()
-            self._conn.close()
-            atexit.unregister(self._at_exit)
+            self._end()
 
     def abandon(self) -> None:
         """Stop the child without closing its file (after a failure elsewhere)."""
-        self.closed = True
         if self.process.is_alive():
             self.process.kill()
         self.process.join(5)
+        self._end()
+
+    def _end(self) -> None:
+        """Done with the child (it has left, or was killed): its pipe and exit hook go."""
+        self.closed = True
         self._conn.close()
         atexit.unregister(self._at_exit)

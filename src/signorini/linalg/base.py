@@ -68,31 +68,41 @@ class Factor:
         raise NotImplementedError
 
 
+#: a released factor holding more than this share of the machine's memory is not kept (its memory matters more
+#: than the analysis it would spare)
+KEPT_SHARE = 0.05
+
+
 class KeptAnalyses:
     """Released factors' analyses, by key (a pattern's digest and a mode), for the next factorization of that key.
 
-    A run's Newton tangents share one pattern and replace each other: the new one is made while the one before
-    lives, then that one is released (:meth:`Factor.release`).  So one kept analysis serves every tangent from the
-    third on, and :attr:`most` (1) bounds the memory held.  What is kept is the backend's own (a handle, a matrix),
-    never shared with a factor still in use.
+    A run's Newton tangents share one pattern and replace each other (Newton releases a tangent before it makes the
+    next; a tangent kept across levels is released after its successor is made), so one kept analysis serves
+    nearly every tangent, and :attr:`most` (1) bounds the memory held: one factor, below :data:`KEPT_SHARE` of the
+    machine's memory.  A factorization of another key drops what is kept before it runs.  What is kept is the
+    backend's own (a handle, a matrix), never shared with a factor still in use; :func:`clear_kept_analyses` frees
+    every pool (the end of a run).
     """
 
     def __init__(self, most: int = 1):
         self.most = most
         self.entries: list[tuple[tuple, Any]] = []
+        POOLS.append(self)
 
     def take(self, key: tuple) -> Any | None:
-        """The analysis kept for ``key``, taken out (None: none)."""
-        for i, (k, kept) in enumerate(self.entries):
-            if k == key:
-                del self.entries[i]
-                return kept
-        return None
+        """The analysis kept for ``key``, taken out (None: none); whatever else was kept is dropped."""
+        found = next((kept for k, kept in self.entries if k == key), None)
+        self.entries.clear()
+        return found
 
-    def keep(self, key: tuple, kept: Any) -> None:
-        """Keep ``kept`` for ``key``; the oldest beyond :attr:`most` are dropped (freed by the garbage collector)."""
+    def keep(self, key: tuple, kept: Any, nbytes: int) -> bool:
+        """Keep ``kept`` (whose factor holds ``nbytes``) for ``key``, unless it holds more than :data:`KEPT_SHARE`
+        of the machine's memory; the oldest beyond :attr:`most` are dropped (freed by the garbage collector)."""
+        if nbytes > KEPT_SHARE * total_memory():
+            return False
         self.entries.append((key, kept))
         del self.entries[: -self.most]
+        return True
 
     def holds(self, kept: Any) -> bool:
         return any(k is kept for _, k in self.entries)
@@ -102,6 +112,16 @@ class KeptAnalyses:
 
     def __len__(self) -> int:
         return len(self.entries)
+
+
+#: every :class:`KeptAnalyses` (one per backend)
+POOLS: list[KeptAnalyses] = []
+
+
+def clear_kept_analyses() -> None:
+    """Free the analyses every backend keeps (a run that ends: the next one need not hold them)."""
+    for pool in POOLS:
+        pool.clear()
 
 
 #: optional modules installed but failing to import: name -> the reason ("OSError: ...")

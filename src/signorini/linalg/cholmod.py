@@ -49,8 +49,9 @@ class CholmodFactor(Factor):
         optional_import("cvxopt.cholmod", "backend 'cholmod'", "cholmod")
         self._cvxopt = cvxopt = optional_import("cvxopt", "backend 'cholmod'", "cholmod")
         K = sp.csc_matrix(K)
-        if not K.has_sorted_indices:
-            K = K.sorted_indices()
+        if not K.has_canonical_format:  # sorted, without duplicates (which cvxopt would sum: another pattern)
+            K = K.copy()
+            K.sum_duplicates()
         self._digest = _ordering.pattern_digest(K)
         perm, self.ordering = _ordering.fill_reducing_order(K, digest=self._digest)
         before = _resident_bytes()
@@ -72,7 +73,7 @@ class CholmodFactor(Factor):
         """No longer of use: its analysis goes to the next factorization of its pattern (:data:`KEPT`); this
         factor solves no more."""
         if self._F is not None:
-            KEPT.keep(self._digest, (self._A, self._F, self._lower, self._held))
+            KEPT.keep(self._digest, (self._A, self._F, self._lower, self._held), self._held)
             self._A = self._F = None
 
     @property

@@ -77,7 +77,8 @@ class PardisoFactor(Factor):
         self.schur_dofs = None
         self._key: tuple | None = None
         if schur_dofs is None:  # a released factor of this pattern: its analysis, the numeric phase only
-            self._key = (bool(reproducible), A.shape, compressed_digest(A.indptr, A.indices))
+            threads = max(_mkl_threads(), 1) if reproducible else 0  # the reproducible mode's threads: its bits
+            self._key = (threads, A.shape, compressed_digest(A.indptr, A.indices))
             kept = KEPT.take(self._key)
             if kept is not None:
                 self._solver, self._ia, self._ja, self._perm = kept._solver, kept._ia, kept._ja, kept._perm
@@ -122,7 +123,7 @@ class PardisoFactor(Factor):
         """No longer of use: its MKL handle (the analysis) goes to the next factorization of its pattern
         (:data:`KEPT`); this factor solves no more."""
         if self._key is not None and self._solver is not None and not KEPT.holds(self):
-            KEPT.keep(self._key, self)  # a factor dropped from it releases its handle (``__del__``)
+            KEPT.keep(self._key, self, self.nbytes)  # a factor dropped from it releases its handle (``__del__``)
 
     def _call(self, phase: int, b: np.ndarray, x: np.ndarray) -> None:
         """One call of MKL's ``pardiso`` (b, x Fortran-ordered float64; x is written)."""

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConvergenceError, InputError
-from ...linalg import total_memory
+from ...linalg.base import clear_kept_analyses, total_memory
 from ...linalg.threads import blas_controller, blas_threads
 from ..model.problem import Discretization, Problem
 from ..observe.events import StopRun, events_list
@@ -401,6 +401,7 @@ class Stepper:
             self.close_observers()
         finally:
             self._history = self._assemble()
+            clear_kept_analyses()  # the analyses released factors left for this run's next tangents
         return self._history
 
     def _assemble(self) -> History:
